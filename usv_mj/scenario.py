@@ -1,0 +1,431 @@
+"""Scenarios: a preset plus overrides, as typed and validated parameters (SPEC §5 and §7).
+
+A scenario file is TOML::
+
+    preset = "paper"               # the base; every other key overrides it
+    duration = 300.0               # s
+    [initial]
+    eta = [2.0, -3.0, 0.0]
+    [controller]
+    k1 = 5.0
+
+Presets are TOML files shipped in ``usv_mj/presets/`` (``paper``, ``paper-printed``, ``harsh``); a
+preset may itself name a base preset. Every value is checked at construction and a bad one raises
+:class:`ScenarioError` with a message that names its key; unknown keys are errors too.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from controllers.pi_baseline import PIGains
+from controllers.ppc import PPCGains
+
+from .ship import PaperDisturbance, ShipParams
+
+PLANT_KINDS = ("mujoco", "analytic")
+CONTROLLER_KINDS = ("ppc", "pi")
+TRAJECTORY_KINDS = ("paper", "line", "circle", "waypoints")
+
+
+class ScenarioError(ValueError):
+    """A scenario value, key or file is wrong; the message names the key and the source."""
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """Initial pose eta = (x [m], y [m], psi [rad]) and body velocity nu = (u [m/s], v [m/s], r [rad/s])."""
+
+    eta: tuple[float, float, float] = (2.0, -3.0, 0.0)
+    nu: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class TrajectorySpec:
+    """The reference path (see :mod:`usv_mj.trajectories`).
+
+    Attributes
+    ----------
+    kind: "paper" | "line" | "circle" | "waypoints".
+    speed: reference surge speed u_d [m/s] (paper: 0.6).
+    start, heading_deg: line start [m] and direction [deg].
+    center, radius, start_angle_deg, clockwise: circle centre [m], radius [m], start angle [deg].
+    points, turn_radius: waypoints [m] and the radius of the arcs that join the legs [m].
+    """
+
+    kind: str = "paper"
+    speed: float = 0.6
+    start: tuple[float, float] = (0.0, 0.0)
+    heading_deg: float = 0.0
+    center: tuple[float, float] = (0.0, 20.0)
+    radius: float = 20.0
+    start_angle_deg: float = -90.0
+    clockwise: bool = False
+    points: tuple = ((0.0, 0.0), (40.0, 0.0))
+    turn_radius: float = 5.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in TRAJECTORY_KINDS:
+            raise ValueError(f"kind must be one of {TRAJECTORY_KINDS}, got {self.kind!r}")
+        if not (math.isfinite(self.speed) and self.speed > 0):
+            raise ValueError(f"speed must be > 0 m/s, got {self.speed!r}")
+        if not self.radius > 0:
+            raise ValueError(f"radius must be > 0 m, got {self.radius!r}")
+
+
+@dataclass(frozen=True)
+class QuantizerSpec:
+    """The hysteresis quantizers of both input channels (Eq. 3, SPEC §2).
+
+    Attributes
+    ----------
+    enabled: quantize the inputs (False: Q(tau) = tau).
+    delta_u, u_min_u: surge channel delta in (0, 1) and smallest level [N] (paper: 0.3, 0.003).
+    delta_r, u_min_r: yaw channel delta in (0, 1) and smallest level [N m] (paper: 0.15, 0.002).
+    """
+
+    enabled: bool = True
+    delta_u: float = 0.3
+    u_min_u: float = 0.003
+    delta_r: float = 0.15
+    u_min_r: float = 0.002
+
+    def __post_init__(self) -> None:
+        for name in ("delta_u", "delta_r"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 < value < 1.0):
+                raise ValueError(f"{name} must be in (0, 1), got {value!r}")
+        for name in ("u_min_u", "u_min_r"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be > 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class FunnelSpec:
+    """Prescribed-performance bounds (Eq. 9).
+
+    Attributes
+    ----------
+    rho_xy: (rho_0, rho_inf) of rho_1 = rho_2 [m] (paper: 18, 2).
+    rho_psi: (rho_0, rho_inf) of rho_3 [rad] (paper: 3, pi/6).
+    rate: kappa [1/s] (paper: 0.05).
+    """
+
+    rho_xy: tuple[float, float] = (18.0, 2.0)
+    rho_psi: tuple[float, float] = (3.0, math.pi / 6)
+    rate: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name in ("rho_xy", "rho_psi"):
+            r0, rinf = getattr(self, name)
+            if not (math.isfinite(rinf) and rinf > 0):
+                raise ValueError(f"{name}: rho_inf must be > 0, got {rinf!r}")
+            if not (math.isfinite(r0) and r0 > rinf):
+                raise ValueError(f"{name}: rho_inf must be < rho_0, got rho_0 = {r0!r}, rho_inf = {rinf!r}")
+        if not (math.isfinite(self.rate) and self.rate > 0):
+            raise ValueError(f"rate must be > 0 1/s, got {self.rate!r}")
+
+
+@dataclass(frozen=True)
+class PlantSpec:
+    """Which plant integrates the ship.
+
+    Attributes
+    ----------
+    kind: "mujoco" or "analytic".
+    substeps: integrator steps per control period (>= 1).
+    """
+
+    kind: str = "mujoco"
+    substeps: int = 1
+
+    def __post_init__(self) -> None:
+        if self.kind not in PLANT_KINDS:
+            raise ValueError(f"kind must be one of {PLANT_KINDS}, got {self.kind!r}")
+        if self.substeps < 1:
+            raise ValueError(f"substeps must be >= 1, got {self.substeps!r}")
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """Which controller drives the ship; the PPC gains (SPEC §3) sit beside ``kind``.
+
+    Attributes
+    ----------
+    kind: "ppc" (the paper's law) or "pi" (the baseline, gains in ``[baseline]``).
+    """
+
+    kind: str = "ppc"
+    gains: PPCGains = field(default_factory=PPCGains)
+
+    def __post_init__(self) -> None:
+        if self.kind not in CONTROLLER_KINDS:
+            raise ValueError(f"kind must be one of {CONTROLLER_KINDS}, got {self.kind!r}")
+
+
+@dataclass(frozen=True)
+class BaselineSpec:
+    """The PI baseline (SPEC §6) run beside the main controller for the figures.
+
+    Attributes
+    ----------
+    enabled: also run the PI baseline on the same plant and scenario.
+    gains: :class:`controllers.pi_baseline.PIGains` (flat keys in the TOML section).
+    """
+
+    enabled: bool = True
+    gains: PIGains = field(default_factory=PIGains)
+
+
+@dataclass(frozen=True)
+class LimitsSpec:
+    """When a run counts as diverged and stops (a recorded event, never a NaN).
+
+    Attributes
+    ----------
+    max_speed: |u|, |v| above this [m/s] is divergence.
+    max_yaw_rate: |r| above this [rad/s] is divergence.
+    max_distance: distance from the reference point above this [m] is divergence.
+    max_force: |tau_u| or |tau_r| above this [N, N m] is divergence of the controller.
+    """
+
+    max_speed: float = 50.0
+    max_yaw_rate: float = 50.0
+    max_distance: float = 1000.0
+    max_force: float = 1e9
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{f.name} must be > 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A complete, validated run description. Build it with :func:`load_scenario` or :func:`from_dict`."""
+
+    preset: str = "paper"
+    duration: float = 300.0
+    control_period: float = 0.001
+    initial: InitialState = field(default_factory=InitialState)
+    trajectory: TrajectorySpec = field(default_factory=TrajectorySpec)
+    disturbance: PaperDisturbance = field(default_factory=PaperDisturbance)
+    ship: ShipParams = field(default_factory=ShipParams)
+    quantizer: QuantizerSpec = field(default_factory=QuantizerSpec)
+    funnel: FunnelSpec = field(default_factory=FunnelSpec)
+    plant: PlantSpec = field(default_factory=PlantSpec)
+    controller: ControllerSpec = field(default_factory=ControllerSpec)
+    baseline: BaselineSpec = field(default_factory=BaselineSpec)
+    limits: LimitsSpec = field(default_factory=LimitsSpec)
+    source: str = field(default="", compare=False)
+    raw: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"duration must be > 0 s, got {self.duration!r}")
+        if not (math.isfinite(self.control_period) and 0 < self.control_period <= 1.0):
+            raise ValueError(f"control_period must be in (0, 1] s, got {self.control_period!r}")
+        if self.duration / self.control_period > 5e7:
+            raise ValueError("duration / control_period is over 5e7 steps: too long a run")
+
+    @property
+    def steps(self) -> int:
+        return int(round(self.duration / self.control_period))
+
+    def with_overrides(self, overrides: dict) -> "Scenario":
+        """A new scenario: this one's TOML table with ``overrides`` merged in and validated again."""
+        return from_dict(_merge(self.raw, overrides), source=self.source or "<overrides>")
+
+    def to_dict(self) -> dict:
+        """Every parameter as plain data (for metadata and summaries)."""
+        return _to_plain(self)
+
+
+# --- loading ------------------------------------------------------------------------------------
+
+
+def preset_names() -> list[str]:
+    return sorted(p.name[:-5] for p in resources.files("usv_mj.presets").iterdir() if p.name.endswith(".toml"))
+
+
+def _read_preset(name: str, chain: tuple = ()) -> dict:
+    if name in chain:
+        raise ScenarioError(f"preset {name!r} names itself as a base (cycle {' -> '.join(chain + (name,))})")
+    path = resources.files("usv_mj.presets") / f"{name}.toml"
+    if not path.is_file():
+        hint = difflib.get_close_matches(name, preset_names(), n=1)
+        raise ScenarioError(
+            f"unknown preset {name!r}; presets are {', '.join(preset_names())}"
+            + (f" (did you mean {hint[0]!r}?)" if hint else ""))
+    data = tomllib.loads(path.read_text())
+    base = data.pop("preset", None)
+    if base is not None:
+        data = _merge(_read_preset(base, chain + (name,)), data)
+    return data
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def load_scenario(path: str | Path | None = None, preset: str | None = None, overrides: dict | None = None) -> Scenario:
+    """Load a scenario file (or only a preset) and apply ``overrides`` (a nested dict).
+
+    Raises :class:`ScenarioError` with the file, the key and the bad value on any problem.
+    """
+    data: dict = {}
+    source = f"preset {preset or 'paper'}"
+    if path is not None:
+        path = Path(path)
+        source = str(path)
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            raise ScenarioError(f"{path}: cannot read the scenario file ({exc.strerror})") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    if preset is not None:
+        data["preset"] = preset
+    if overrides:
+        data = _merge(data, overrides)
+    return from_dict(data, source=source)
+
+
+def from_dict(data: dict, source: str = "<dict>") -> Scenario:
+    """Build a validated :class:`Scenario` from a TOML-like nested dict (``preset`` key = the base)."""
+    name = data.get("preset", "paper")
+    if not isinstance(name, str):
+        raise ScenarioError(f"{source}: preset must be a string, got {name!r}")
+    merged = _merge(_read_preset(name), {k: v for k, v in data.items() if k != "preset"})
+    merged["preset"] = name
+    return _build_scenario(merged, source)
+
+
+_SECTIONS = {
+    "initial": InitialState, "trajectory": TrajectorySpec, "disturbance": PaperDisturbance,
+    "ship": ShipParams, "quantizer": QuantizerSpec, "funnel": FunnelSpec, "plant": PlantSpec,
+    "limits": LimitsSpec,
+}
+
+
+def _build_scenario(data: dict, source: str) -> Scenario:
+    top = {}
+    known = {f.name for f in dataclasses.fields(Scenario)} - {"source", "raw"}
+    for key in data:
+        if key not in known:
+            _unknown(source, "", key, known)
+    for key in ("duration", "control_period"):
+        if key in data:
+            top[key] = _convert(source, key, data[key], 0.0)
+    top["preset"] = data["preset"]
+    for key, cls in _SECTIONS.items():
+        if key in data:
+            top[key] = _build(cls, data[key], source, key)
+    ctrl = dict(data.get("controller", {}))
+    if not isinstance(data.get("controller", {}), dict):
+        raise ScenarioError(f"{source}: [controller] must be a table")
+    kind = ctrl.pop("kind", "ppc")
+    gains = _build(PPCGains, ctrl, source, "controller", extra_known={"kind"})
+    top["controller"] = _construct(ControllerSpec, {"kind": kind, "gains": gains}, source, "controller")
+    base = dict(data.get("baseline", {}))
+    enabled = base.pop("enabled", True)
+    if not isinstance(enabled, bool):
+        raise ScenarioError(f"{source}: baseline.enabled must be true or false, got {enabled!r}")
+    pi_gains = _build(PIGains, base, source, "baseline", extra_known={"enabled"})
+    top["baseline"] = BaselineSpec(enabled=enabled, gains=pi_gains)
+    scenario = _construct(Scenario, top, source, "")
+    return dataclasses.replace(scenario, source=source, raw=data)
+
+
+def _unknown(source, section, key, known):
+    hint = difflib.get_close_matches(key, sorted(known), n=1)
+    where = f"{section}.{key}" if section else key
+    raise ScenarioError(
+        f"{source}: unknown key {where!r}" + (f" (did you mean {hint[0]!r}?)" if hint else "")
+        + f"; known keys{' of [' + section + ']' if section else ''}: {', '.join(sorted(known))}")
+
+
+def _convert(source: str, where: str, value: Any, default: Any) -> Any:
+    """Coerce a TOML value to the type of ``default``, with a message naming ``where``."""
+    def bad(what):
+        return ScenarioError(f"{source}: {where} must be {what}, got {value!r}")
+
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise bad("true or false")
+        return value
+    if isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise bad("an integer")
+        return value
+    if isinstance(default, float):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise bad("a number")
+        if not math.isfinite(value):
+            raise bad("a finite number")
+        return float(value)
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise bad("a string")
+        return value
+    if isinstance(default, tuple):
+        if not isinstance(value, (list, tuple)):
+            raise bad("a list")
+        if default and not isinstance(default[0], tuple):  # flat vector of fixed length
+            if len(value) != len(default):
+                raise bad(f"a list of {len(default)} numbers")
+            return tuple(_convert(source, f"{where}[{i}]", v, 0.0) for i, v in enumerate(value))
+        return tuple(tuple(_convert(source, f"{where}[{i}]", v, (0.0, 0.0))) for i, v in enumerate(value))
+    return value
+
+
+def _build(cls, table: Any, source: str, section: str, extra_known: set | None = None):
+    if not isinstance(table, dict):
+        raise ScenarioError(f"{source}: [{section}] must be a table, got {table!r}")
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    defaults = cls()
+    kwargs = {}
+    for key, value in table.items():
+        if extra_known and key in extra_known:
+            continue
+        if key not in fields:
+            _unknown(source, section, key, set(fields) | (extra_known or set()))
+        kwargs[key] = _convert(source, f"{section}.{key}", value, getattr(defaults, key))
+    return _construct(cls, kwargs, source, section)
+
+
+def _construct(cls, kwargs, source, section):
+    try:
+        return cls(**kwargs)
+    except ValueError as exc:
+        msg = str(exc)
+        prefix = f"{section}." if section else ""
+        if prefix and msg.startswith(prefix):
+            prefix = ""
+        raise ScenarioError(f"{source}: {prefix}{msg}") from None
+
+
+def _to_plain(obj):
+    if dataclasses.is_dataclass(obj):
+        return {f.name: _to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)
+                if f.name not in ("raw",)}
+    if isinstance(obj, (tuple, list)):
+        return [_to_plain(v) for v in obj]
+    return obj

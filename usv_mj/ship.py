@@ -1,0 +1,356 @@
+"""The paper's 3-DOF ship: mass, Coriolis, damping, uncertainty and disturbance, written once.
+
+Every formula of the hull lives here (SPEC §1, paper Eqs. 1-2, 6-7 and 28). The analytic plant, the
+MuJoCo passive-force callback and the PPC controller's nominal model all call these functions, so a
+change of the physics is a change in this one file.
+
+Conventions
+-----------
+- ``eta = (x, y, psi)``: position (m) and heading (rad) in the earth frame (x north, y east in the
+  paper; here simply the world x/y plane with psi counter-clockwise from +x).
+- ``nu = (u, v, r)``: surge (m/s), sway (m/s) and yaw rate (rad/s) in the body frame.
+- Forces are body-frame generalized forces ``(X [N], Y [N], N [N m])``.
+
+The kernels are ``numba.njit`` functions over a packed ``float64`` parameter vector (see
+:meth:`ShipParams.as_array` and the ``P_*`` indices), so that a native callback can call them with no
+Python in the loop. They are plain functions and work from Python too.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+# --- packed parameter layout --------------------------------------------------------------------
+P_M11, P_M22, P_M23, P_M33 = 0, 1, 2, 3
+P_D11 = 4  # 3 coefficients: c0 + c1 |u| + c2 u^2
+P_D22 = 7  # c0 + c1 |v| + c2 |r|
+P_D23 = 10
+P_D32 = 13
+P_D33 = 16
+P_UNCERTAINTY = 19  # scale of Delta (1 = the paper's Delta, 0 = none)
+N_SHIP_PARAMS = 20
+
+# disturbance: scale, amplitudes (3), cos frequencies (3), sin frequencies (3)
+D_SCALE, D_AMP, D_WCOS, D_WSIN = 0, 1, 4, 7
+N_DIST_PARAMS = 10
+
+
+@dataclass(frozen=True)
+class ShipParams:
+    """Total (rigid-body + added) mass and damping of the paper's ship (SPEC §1).
+
+    Attributes
+    ----------
+    m11, m22, m23, m33:
+        Entries of the total mass matrix M [kg, kg, kg m, kg m^2]. m23 = m32 is not printed in the
+        paper; it is read off c13 = -m22 v - m23 r (SPEC §1).
+    d11, d22, d23, d32, d33:
+        Damping coefficients ``(c0, c1, c2)``: d11 = c0 + c1|u| + c2 u^2 and
+        d_ij = c0 + c1|v| + c2|r| for the others [N s/m, N s^2/m^2, ...].
+    uncertainty_scale:
+        Multiplies the model uncertainty Delta(eta, nu) = [0.6, 0.2 u^2, sin v + 0.15 r^2] (1 = paper).
+    """
+
+    m11: float = 141.85
+    m22: float = 191.75
+    m23: float = 5.7
+    m33: float = 15.6
+    d11: tuple[float, float, float] = (45.6, 67.26, 10.0)
+    d22: tuple[float, float, float] = (29.54, 73.85, 15.0)
+    d23: tuple[float, float, float] = (-2.5, 2.0, 10.71)
+    d32: tuple[float, float, float] = (-2.4, -13.0, -0.2)
+    d33: tuple[float, float, float] = (5.59, -0.07, 10.71)
+    uncertainty_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("m11", "m22", "m33"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"ship.{name} must be a positive mass, got {value!r}")
+        if self.m22 * self.m33 - self.m23**2 <= 0:
+            raise ValueError(
+                f"ship: the mass matrix is not positive definite (m22 m33 - m23^2 = "
+                f"{self.m22 * self.m33 - self.m23**2:g} <= 0)"
+            )
+        for name in ("d11", "d22", "d23", "d32", "d33"):
+            value = tuple(getattr(self, name))
+            if len(value) != 3 or not all(math.isfinite(c) for c in value):
+                raise ValueError(f"ship.{name} must be three finite coefficients, got {value!r}")
+
+    @property
+    def eps(self) -> float:
+        """Do & Pan's offset of the controlled point, eps = m23/m22 [m]."""
+        return self.m23 / self.m22
+
+    def as_array(self) -> np.ndarray:
+        """Pack into the float64 vector that the kernels of this module take."""
+        p = np.zeros(N_SHIP_PARAMS)
+        p[P_M11], p[P_M22], p[P_M23], p[P_M33] = self.m11, self.m22, self.m23, self.m33
+        for start, name in ((P_D11, "d11"), (P_D22, "d22"), (P_D23, "d23"), (P_D32, "d32"), (P_D33, "d33")):
+            p[start : start + 3] = getattr(self, name)
+        p[P_UNCERTAINTY] = self.uncertainty_scale
+        return p
+
+    def mass_matrix(self) -> np.ndarray:
+        return mass_matrix(self.as_array())
+
+
+@dataclass(frozen=True)
+class RigidBodySplit:
+    """How the total mass of :class:`ShipParams` is split between rigid body and added mass.
+
+    MuJoCo carries the rigid body (mass, COM offset, yaw inertia); the passive-force callback carries
+    only the added mass M_A and the hydrodynamic forces. The default split (SPEC §1) puts everything
+    that can be rigid into the rigid body: m = m11 (X_udot = 0), x_g = m23/m (Y_rdot = 0),
+    I_z about the joint origin = m33 (N_rdot = 0), and the added mass a22 = m22 - m11 in sway.
+    A different split must give the same motion; ``added_mass_fraction_surge`` moves part of m11
+    into added mass to check that.
+
+    Attributes
+    ----------
+    added_mass_fraction_surge:
+        Fraction of m11 that is added mass (X_udot = -fraction m11); 0 by default.
+    """
+
+    added_mass_fraction_surge: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.added_mass_fraction_surge < 1.0:
+            raise ValueError(
+                f"split.added_mass_fraction_surge must be in [0, 1), got {self.added_mass_fraction_surge!r}"
+            )
+
+    def rigid_body(self, ship: ShipParams) -> tuple[float, float, float]:
+        """Rigid mass m [kg], COM offset x_g [m] ahead of the origin and I_z about the origin [kg m^2]."""
+        m = ship.m11 * (1.0 - self.added_mass_fraction_surge)
+        x_g = ship.m23 / m
+        iz_origin = ship.m33
+        return m, x_g, iz_origin
+
+    def added_mass(self, ship: ShipParams) -> np.ndarray:
+        """Added mass matrix M_A = M - M_RB (body frame, 3x3) [kg, kg m, kg m^2]."""
+        m, x_g, iz = self.rigid_body(ship)
+        m_rb = np.array([[m, 0.0, 0.0], [0.0, m, m * x_g], [0.0, m * x_g, iz]])
+        return mass_matrix(ship.as_array()) - m_rb
+
+
+@dataclass(frozen=True)
+class PaperDisturbance:
+    """The paper's environmental disturbance d(t) (SPEC §1), scaled by ``scale``.
+
+    d(t) = scale * [A_1 (cos w_c1 t + sin w_s1 t), A_2 (...), A_3 (...)] in body-frame [N, N, N m].
+
+    Attributes
+    ----------
+    scale:
+        s of SPEC §1 (dimensionless, >= 0): 1 is the paper as printed, 1e-4 the ``paper`` preset.
+    amplitudes:
+        A_i [N, N, N m]; printed 1e4, 1e2, 1e5.
+    cos_frequencies, sin_frequencies:
+        [rad/s]; printed (0.5, 0.4, 0.2) and (0.3, 0.2, 0.5).
+    """
+
+    scale: float = 1e-4
+    amplitudes: tuple[float, float, float] = (1e4, 1e2, 1e5)
+    cos_frequencies: tuple[float, float, float] = (0.5, 0.4, 0.2)
+    sin_frequencies: tuple[float, float, float] = (0.3, 0.2, 0.5)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.scale) and self.scale >= 0):
+            raise ValueError(f"disturbance.scale must be a finite number >= 0, got {self.scale!r}")
+
+    def as_array(self) -> np.ndarray:
+        dp = np.zeros(N_DIST_PARAMS)
+        dp[D_SCALE] = self.scale
+        dp[D_AMP : D_AMP + 3] = self.amplitudes
+        dp[D_WCOS : D_WCOS + 3] = self.cos_frequencies
+        dp[D_WSIN : D_WSIN + 3] = self.sin_frequencies
+        return dp
+
+    def force(self, t: float) -> np.ndarray:
+        """d(t) in the body frame [N, N, N m]."""
+        return disturbance_force(self.as_array(), t)
+
+
+# --- kernels -----------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def damping_coefficients(p, nu):
+    """d11, d22, d23, d32, d33 at the body velocity nu (SPEC §1 table)."""
+    au, av, ar = abs(nu[0]), abs(nu[1]), abs(nu[2])
+    d11 = p[P_D11] + p[P_D11 + 1] * au + p[P_D11 + 2] * nu[0] * nu[0]
+    d22 = p[P_D22] + p[P_D22 + 1] * av + p[P_D22 + 2] * ar
+    d23 = p[P_D23] + p[P_D23 + 1] * av + p[P_D23 + 2] * ar
+    d32 = p[P_D32] + p[P_D32 + 1] * av + p[P_D32 + 2] * ar
+    d33 = p[P_D33] + p[P_D33 + 1] * av + p[P_D33 + 2] * ar
+    return d11, d22, d23, d32, d33
+
+
+@njit(cache=True)
+def mass_matrix(p):
+    """Total mass matrix M (Eq. 2) [kg, kg m, kg m^2]."""
+    out = np.zeros((3, 3))
+    out[0, 0] = p[P_M11]
+    out[1, 1] = p[P_M22]
+    out[1, 2] = p[P_M23]
+    out[2, 1] = p[P_M23]
+    out[2, 2] = p[P_M33]
+    return out
+
+
+@njit(cache=True)
+def coriolis_matrix(p, nu):
+    """Total Coriolis-centripetal matrix C(nu) = C_RB + C_A (SPEC §1; c13 uses m22, not m11)."""
+    u, v, r = nu[0], nu[1], nu[2]
+    c13 = -p[P_M22] * v - p[P_M23] * r
+    c23 = p[P_M11] * u
+    out = np.zeros((3, 3))
+    out[0, 2] = c13
+    out[1, 2] = c23
+    out[2, 0] = -c13
+    out[2, 1] = -c23
+    return out
+
+
+@njit(cache=True)
+def damping_matrix(p, nu):
+    """Nonlinear damping matrix D(nu) (SPEC §1) [N s/m ...]."""
+    d11, d22, d23, d32, d33 = damping_coefficients(p, nu)
+    out = np.zeros((3, 3))
+    out[0, 0] = d11
+    out[1, 1] = d22
+    out[1, 2] = d23
+    out[2, 1] = d32
+    out[2, 2] = d33
+    return out
+
+
+@njit(cache=True)
+def uncertainty_force(p, eta, nu):
+    """Model uncertainty Delta(eta, nu) = s [0.6, 0.2 u^2, sin v + 0.15 r^2] (Sec. 4), body frame."""
+    s = p[P_UNCERTAINTY]
+    out = np.empty(3)
+    out[0] = s * 0.6
+    out[1] = s * 0.2 * nu[0] * nu[0]
+    out[2] = s * (math.sin(nu[1]) + 0.15 * nu[2] * nu[2])
+    return out
+
+
+@njit(cache=True)
+def disturbance_force(dp, t):
+    """The paper's disturbance d(t) (Sec. 4) times its scale, body frame [N, N, N m]."""
+    out = np.empty(3)
+    s = dp[D_SCALE]
+    for i in range(3):
+        out[i] = s * dp[D_AMP + i] * (math.cos(dp[D_WCOS + i] * t) + math.sin(dp[D_WSIN + i] * t))
+    return out
+
+
+@njit(cache=True)
+def coriolis_damping_force(p, nu):
+    """C(nu) nu + D(nu) nu in the body frame, written out (no matrix products) for speed."""
+    u, v, r = nu[0], nu[1], nu[2]
+    d11, d22, d23, d32, d33 = damping_coefficients(p, nu)
+    c13 = -p[P_M22] * v - p[P_M23] * r
+    c23 = p[P_M11] * u
+    out = np.empty(3)
+    out[0] = c13 * r + d11 * u
+    out[1] = c23 * r + d22 * v + d23 * r
+    out[2] = -c13 * u - c23 * v + d32 * v + d33 * r
+    return out
+
+
+@njit(cache=True)
+def hydrodynamic_force(p, dp, t, eta, nu):
+    """Everything on the hull but the thrust: d(t) + Delta - C(nu) nu - D(nu) nu (Eq. 2), body frame."""
+    cd = coriolis_damping_force(p, nu)
+    dist = disturbance_force(dp, t)
+    unc = uncertainty_force(p, eta, nu)
+    return dist + unc - cd
+
+
+@njit(cache=True)
+def solve_mass(p, f):
+    """M^-1 f for the block-diagonal M of Eq. 2 (closed form)."""
+    det = p[P_M22] * p[P_M33] - p[P_M23] * p[P_M23]
+    out = np.empty(3)
+    out[0] = f[0] / p[P_M11]
+    out[1] = (p[P_M33] * f[1] - p[P_M23] * f[2]) / det
+    out[2] = (p[P_M22] * f[2] - p[P_M23] * f[1]) / det
+    return out
+
+
+@njit(cache=True)
+def body_acceleration(p, dp, t, eta, nu, tau_u, tau_r):
+    """nu_dot = M^-1 ([tau_u, 0, tau_r] + d(t) + Delta - C nu - D nu) (Eq. 2)."""
+    f = hydrodynamic_force(p, dp, t, eta, nu)
+    f[0] += tau_u
+    f[2] += tau_r
+    return solve_mass(p, f)
+
+
+@njit(cache=True)
+def kinematics(eta, nu):
+    """eta_dot = J(psi) nu (Eq. 1)."""
+    c, s = math.cos(eta[2]), math.sin(eta[2])
+    out = np.empty(3)
+    out[0] = c * nu[0] - s * nu[1]
+    out[1] = s * nu[0] + c * nu[1]
+    out[2] = nu[2]
+    return out
+
+
+@njit(cache=True)
+def state_derivative(p, dp, t, x, tau_u, tau_r):
+    """d/dt of the 6-vector x = (eta, nu) under the thrust (tau_u, tau_r)."""
+    out = np.empty(6)
+    out[:3] = kinematics(x[:3], x[3:])
+    out[3:] = body_acceleration(p, dp, t, x[:3], x[3:], tau_u, tau_r)
+    return out
+
+
+@njit(cache=True)
+def nominal_terms(p, nu):
+    """phi_u, phi_v, phi_r of Eq. 28: the known part of the velocity dynamics (SPEC §1).
+
+    phi_u = (m22 v r + m23 r^2 - d11 u)/m11, phi_v = -(m11 u r + d22 v + d23 r)/m22,
+    phi_r = [(m11 m22 - m22^2) u v + (m11 - m22) m23 u r - m22 (d33 r + d32 v)
+             + m23 (d23 r + d22 v)] / (m22 m33 - m23^2).
+    """
+    u, v, r = nu[0], nu[1], nu[2]
+    m11, m22, m23, m33 = p[P_M11], p[P_M22], p[P_M23], p[P_M33]
+    d11, d22, d23, d32, d33 = damping_coefficients(p, nu)
+    delta_m = m22 * m33 - m23 * m23
+    phi_u = (m22 * v * r + m23 * r * r - d11 * u) / m11
+    phi_v = -(m11 * u * r + d22 * v + d23 * r) / m22
+    phi_r = (
+        (m11 * m22 - m22 * m22) * u * v
+        + (m11 - m22) * m23 * u * r
+        - m22 * (d33 * r + d32 * v)
+        + m23 * (d23 * r + d22 * v)
+    ) / delta_m
+    return phi_u, phi_v, phi_r
+
+
+@njit(cache=True)
+def transformed_position(p, x, y, psi):
+    """Do & Pan's point (x_bar, y_bar) = (x + eps cos psi, y + eps sin psi), eps = m23/m22 [m]."""
+    eps = p[P_M23] / p[P_M22]
+    return x + eps * math.cos(psi), y + eps * math.sin(psi)
+
+
+def kinetic_energy(ship: ShipParams, nu) -> float:
+    """T = 1/2 nu^T M nu [J]."""
+    nu = np.asarray(nu, dtype=float)
+    return 0.5 * float(nu @ ship.mass_matrix() @ nu)
+
+
+def wrap_angle(a):
+    """Wrap an angle (or array of angles) to [-pi, pi)."""
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+

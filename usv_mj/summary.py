@@ -1,0 +1,62 @@
+"""The numbers of a run that go into ``summary.json`` and the report (works on any RunRecord)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .record import RunRecord
+from .ship import wrap_angle
+
+CHECK_TIMES = (5.0, 10.0, 20.0)
+
+
+def _finite(v):
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def pose_errors(record: RunRecord) -> dict:
+    """x - x_d [m], y - y_d [m] and wrap(psi - psi_d) [rad] at every row (the paper's Table 1 errors)."""
+    return {"x": record["x"] - record["x_d"], "y": record["y"] - record["y_d"],
+            "psi": wrap_angle(record["psi"] - record["psi_d"])}
+
+
+def summarize(record: RunRecord) -> dict:
+    """A plain dict with the fields of ``summary.json`` (issue 2); None where a value does not exist."""
+    meta = record.metadata
+    t = record["t"]
+    err = pose_errors(record)
+    dt = meta.get("control_period_s", t[1] - t[0] if len(t) > 1 else 0.0)
+    errors_at = {}
+    for tc in CHECK_TIMES:
+        k = int(round(tc / dt)) if dt else -1
+        if 0 <= k < len(t):
+            errors_at[f"{tc:g}"] = {a: _finite(err[a][k]) for a in ("x", "y", "psi")}
+        else:
+            errors_at[f"{tc:g}"] = {a: None for a in ("x", "y", "psi")}
+    after = t > 20.0
+    max_after = {a: (_finite(np.max(np.abs(err[a][after]))) if after.any() else None) for a in ("x", "y", "psi")}
+    z = np.stack([record["z1"], record["z2"], record["z3"]])
+    viol = np.any(~(np.abs(z) < 1.0), axis=0)
+    first = _finite(t[np.argmax(viol)]) if viol.any() else None
+    return {
+        "preset": meta.get("preset"),
+        "plant": meta.get("plant"),
+        "controller": meta.get("controller"),
+        "status": record.status,
+        "stop_reason": record.stop_reason or None,
+        "duration_s": meta.get("duration_s"),
+        "simulated_s": _finite(t[-1]) if len(t) else 0.0,
+        "control_period_s": dt,
+        "errors_at": errors_at,
+        "max_abs_error_after_20s": max_after,
+        "funnel_violations": int(viol.sum()),
+        "first_violation_s": first,
+        "s2_clamps": int(np.sum(record["s2_clamped"] > 0.5)),
+        "quantizer_switches": meta.get("quantizer_switches", {"u": None, "r": None}),
+        "wall_time_s": meta.get("wall_time_s"),
+        "realtime_factor": meta.get("realtime_factor"),
+        "events": len(record.events),
+    }

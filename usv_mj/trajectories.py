@@ -1,0 +1,225 @@
+"""Reference trajectories for the tracking controllers (SPEC §4 and scenario ``[trajectory]``).
+
+Every reference is a unicycle-like path: position (x_d, y_d), heading psi_d along the path, yaw rate
+r_d = psi_d_dot and surge speed u_d (v_d = 0). ``reference.evaluate(t)`` returns the vector of
+:data:`controllers.base.REF_FIELDS` = (x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d) in m, rad, m/s,
+rad/s; the returned array is the reference's own buffer (copy it to keep it).
+
+A new trajectory is a new subclass of :class:`Reference` registered in :data:`TRAJECTORIES`.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+
+import numpy as np
+from numba import njit
+
+from controllers.base import REF_FIELDS
+
+
+class Reference:
+    """Base class: subclasses implement :meth:`pose` returning (x, y, psi, r, u)."""
+
+    kind = "base"
+
+    def __init__(self) -> None:
+        self._out = np.zeros(len(REF_FIELDS))
+
+    def pose(self, t: float) -> tuple[float, float, float, float, float]:
+        raise NotImplementedError
+
+    def evaluate(self, t: float) -> np.ndarray:
+        x, y, psi, r, u = self.pose(t)
+        out = self._out
+        out[0], out[1], out[2] = x, y, psi
+        out[3], out[4] = u * math.cos(psi), u * math.sin(psi)
+        out[5], out[6] = r, u
+        return out
+
+    def sample(self, times) -> np.ndarray:
+        """The reference at many times, shape (len(times), 7)."""
+        return np.array([self.evaluate(float(t)).copy() for t in np.asarray(times, dtype=float)])
+
+
+@njit(cache=True)
+def paper_heading(t, u_d, t_turn, t_phase, amplitude, period):
+    """psi_d and r_d of SPEC §4: r_d = -A sin(pi (t - t_phase)/P) for t >= t_turn, 0 before.
+
+    Closed form for t >= t_turn: psi_d = (A P/pi)[cos(pi (t - t_phase)/P) - cos(pi (t_turn - t_phase)/P)].
+    """
+    if t < t_turn:
+        return 0.0, 0.0
+    w = math.pi / period
+    r = -amplitude * math.sin(w * (t - t_phase))
+    psi = amplitude / w * (math.cos(w * (t - t_phase)) - math.cos(w * (t_turn - t_phase)))
+    return psi, r
+
+
+@njit(cache=True)
+def _hermite(tab_x, tab_y, tab_psi, h, u_d, t):
+    """Cubic Hermite interpolation of the tabulated position with exact end slopes u_d (cos, sin) psi."""
+    i = int(t / h)
+    if i >= tab_x.shape[0] - 1:
+        i = tab_x.shape[0] - 2
+    s = t / h - i
+    h00 = 2 * s**3 - 3 * s**2 + 1
+    h10 = s**3 - 2 * s**2 + s
+    h01 = -2 * s**3 + 3 * s**2
+    h11 = s**3 - s**2
+    c0, s0 = math.cos(tab_psi[i]), math.sin(tab_psi[i])
+    c1, s1 = math.cos(tab_psi[i + 1]), math.sin(tab_psi[i + 1])
+    x = h00 * tab_x[i] + h10 * h * u_d * c0 + h01 * tab_x[i + 1] + h11 * h * u_d * c1
+    y = h00 * tab_y[i] + h10 * h * u_d * s0 + h01 * tab_y[i + 1] + h11 * h * u_d * s1
+    return x, y
+
+
+class PaperReference(Reference):
+    """The paper's reference (SPEC §4): u_d = 0.6 m/s, straight until 110 s, then
+    r_d = -0.006 sin(pi (t - 100)/500) (the jump of r_d at 110 s is as printed).
+
+    x_d, y_d integrate u_d (cos psi_d, sin psi_d) from (0, 0): tabulated once with 8-point
+    Gauss-Legendre quadrature on a 0.05 s grid and read back by cubic Hermite interpolation (error
+    far below 1e-9 m). Checkpoints: t = 200 s: (119.804, -3.582, -0.1805).
+    """
+
+    kind = "paper"
+    GRID = 0.05
+
+    def __init__(self, duration: float = 300.0, speed: float = 0.6, t_turn: float = 110.0,
+                 t_phase: float = 100.0, amplitude: float = 0.006, period: float = 500.0):
+        super().__init__()
+        self.speed, self.t_turn, self.t_phase = speed, t_turn, t_phase
+        self.amplitude, self.period = amplitude, period
+        n = int(math.ceil((max(duration, 1.0) + 10.0) / self.GRID)) + 1
+        times = np.arange(n) * self.GRID
+        nodes, weights = np.polynomial.legendre.leggauss(8)
+        psi = np.array([self._heading(t)[0] for t in times])
+        dx = np.zeros(n)
+        dy = np.zeros(n)
+        for i in range(n - 1):
+            tq = times[i] + (nodes + 1) * 0.5 * self.GRID
+            pq = np.array([self._heading(t)[0] for t in tq])
+            dx[i + 1] = 0.5 * self.GRID * speed * np.dot(weights, np.cos(pq))
+            dy[i + 1] = 0.5 * self.GRID * speed * np.dot(weights, np.sin(pq))
+        self._x, self._y, self._psi = np.cumsum(dx), np.cumsum(dy), psi
+        self.t_max = times[-1]
+
+    def _heading(self, t):
+        return paper_heading(t, self.speed, self.t_turn, self.t_phase, self.amplitude, self.period)
+
+    def pose(self, t):
+        if t > self.t_max:
+            raise ValueError(f"reference asked at t = {t:.3f} s beyond its table ({self.t_max:.1f} s)")
+        psi, r = self._heading(t)
+        x, y = _hermite(self._x, self._y, self._psi, self.GRID, self.speed, t)
+        return x, y, psi, r, self.speed
+
+
+class LineReference(Reference):
+    """A straight line from ``start`` [m] at ``heading_deg`` [deg], run at ``speed`` [m/s]."""
+
+    kind = "line"
+
+    def __init__(self, start=(0.0, 0.0), heading_deg: float = 0.0, speed: float = 0.6):
+        super().__init__()
+        self.start = (float(start[0]), float(start[1]))
+        self.heading = math.radians(heading_deg)
+        self.speed = float(speed)
+
+    def pose(self, t):
+        d = self.speed * t
+        return (self.start[0] + d * math.cos(self.heading), self.start[1] + d * math.sin(self.heading),
+                self.heading, 0.0, self.speed)
+
+
+class CircleReference(Reference):
+    """A circle about ``center`` [m] of ``radius`` [m], counter-clockwise (``clockwise`` flips it),
+    starting at polar angle ``start_angle_deg`` (default -90: the bottom of the circle, heading +x)."""
+
+    kind = "circle"
+
+    def __init__(self, center=(0.0, 20.0), radius: float = 20.0, speed: float = 0.6,
+                 start_angle_deg: float = -90.0, clockwise: bool = False):
+        super().__init__()
+        if not radius > 0:
+            raise ValueError(f"trajectory.radius must be > 0, got {radius!r}")
+        self.center = (float(center[0]), float(center[1]))
+        self.radius, self.speed = float(radius), float(speed)
+        self.theta0 = math.radians(start_angle_deg)
+        self.direction = -1.0 if clockwise else 1.0
+
+    def pose(self, t):
+        w = self.direction * self.speed / self.radius
+        th = self.theta0 + w * t
+        x = self.center[0] + self.radius * math.cos(th)
+        y = self.center[1] + self.radius * math.sin(th)
+        return x, y, th + self.direction * math.pi / 2, w, self.speed
+
+
+class WaypointReference(Reference):
+    """Straight legs through ``points`` [m] joined by circular arcs of ``turn_radius`` [m], so that
+    psi_d is continuous and r_d = +-speed/turn_radius in the turns. After the last point the
+    reference goes on straight along the last leg."""
+
+    kind = "waypoints"
+
+    def __init__(self, points, speed: float = 0.6, turn_radius: float = 5.0):
+        super().__init__()
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
+            raise ValueError("trajectory.points must be a list of at least two [x, y] pairs")
+        if np.any(np.linalg.norm(np.diff(pts, axis=0), axis=1) <= 0):
+            raise ValueError("trajectory.points has two equal consecutive points")
+        if not turn_radius > 0:
+            raise ValueError(f"trajectory.turn_radius must be > 0, got {turn_radius!r}")
+        self.speed = float(speed)
+        headings = [math.atan2(*(pts[i + 1] - pts[i])[::-1]) for i in range(len(pts) - 1)]
+        # pieces: ("line", x0, y0, heading, length) or ("arc", cx, cy, theta0, sign, radius, length)
+        pieces = []
+        cursor = pts[0].copy()
+        for i in range(len(pts) - 1):
+            end = pts[i + 1].copy()
+            h = headings[i]
+            if i + 1 < len(headings):
+                turn = (headings[i + 1] - h + math.pi) % (2 * math.pi) - math.pi
+                d = turn_radius * math.tan(abs(turn) / 2)
+                leg_in = np.linalg.norm(pts[i + 1] - cursor)
+                leg_out = np.linalg.norm(pts[i + 2] - pts[i + 1]) / 2
+                if d > min(leg_in, leg_out):
+                    raise ValueError(
+                        f"trajectory.turn_radius {turn_radius} m is too large for the turn at point {i + 1}")
+                end = pts[i + 1] - d * np.array([math.cos(h), math.sin(h)])
+            length = float(np.linalg.norm(end - cursor))
+            pieces.append(("line", cursor[0], cursor[1], h, length))
+            if i + 1 < len(headings) and abs(turn) > 1e-12:
+                sign = 1.0 if turn > 0 else -1.0
+                cx = end[0] - sign * turn_radius * math.sin(h)
+                cy = end[1] + sign * turn_radius * math.cos(h)
+                theta0 = math.atan2(end[1] - cy, end[0] - cx)
+                pieces.append(("arc", cx, cy, theta0, sign, turn_radius, turn_radius * abs(turn)))
+                h2 = headings[i + 1]
+                cursor = pts[i + 1] + d * np.array([math.cos(h2), math.sin(h2)])
+            else:
+                cursor = end
+        self.pieces = pieces
+        self._starts = list(np.cumsum([0.0] + [pc[-1] for pc in pieces[:-1]]))
+
+    def pose(self, t):
+        s = self.speed * t
+        i = max(0, bisect.bisect_right(self._starts, s) - 1)
+        pc = self.pieces[i]
+        ds = s - self._starts[i]
+        if pc[0] == "line" or (i == len(self.pieces) - 1 and ds > pc[-1]):
+            if pc[0] == "arc":  # past the end of a final arc cannot happen: the path ends on a line
+                raise AssertionError("waypoint path ends on an arc")
+            _, x0, y0, h, _ = pc
+            return x0 + ds * math.cos(h), y0 + ds * math.sin(h), h, 0.0, self.speed
+        _, cx, cy, th0, sign, radius, _ = pc
+        th = th0 + sign * ds / radius
+        return (cx + radius * math.cos(th), cy + radius * math.sin(th), th + sign * math.pi / 2,
+                sign * self.speed / radius, self.speed)
+
+
+TRAJECTORIES = {cls.kind: cls for cls in (PaperReference, LineReference, CircleReference, WaypointReference)}
