@@ -6,12 +6,28 @@ Python API (see the README)::
     scenario = load_scenario(preset="paper", overrides={"duration": 60.0})
     record = simulate(scenario)
     print(summarize(record)["errors_at"])
+
+The names below are imported on first use, so that ``usv_mj.ship`` (the physics, which the
+controllers use) can be imported without the rest of the package.
 """
 
-from .record import RunRecord
-from .scenario import Scenario, ScenarioError, load_scenario
-from .simulation import simulate
-from .summary import summarize
+from importlib import import_module
 
 __version__ = "0.1.0"
-__all__ = ["RunRecord", "Scenario", "ScenarioError", "load_scenario", "simulate", "summarize", "__version__"]
+
+_API = {
+    "RunRecord": "usv_mj.record",
+    "Scenario": "usv_mj.scenario",
+    "ScenarioError": "usv_mj.scenario",
+    "load_scenario": "usv_mj.scenario",
+    "simulate": "usv_mj.simulation",
+    "summarize": "usv_mj.summary",
+    "run_job": "usv_mj.main_job",
+}
+__all__ = [*_API, "__version__"]
+
+
+def __getattr__(name):
+    if name in _API:
+        return getattr(import_module(_API[name]), name)
+    raise AttributeError(f"module 'usv_mj' has no attribute {name!r}")

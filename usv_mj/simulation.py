@@ -115,6 +115,7 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
     record = RunRecord(n + 1, metadata={
         "preset": scenario.preset, "plant": plant.name, "controller": controller.name,
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
+        "scenario": scenario.to_dict(),
     })
     sinks = list(sinks)
     for sink in sinks:
@@ -163,8 +164,9 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
                     and math.isfinite(x[2])):
                 t_next = k * dt
                 record.events.append(Event(t_next, "divergence",
-                    f"state left its limits at t = {t_next:.3f} s: (x, y, psi, u, v, r) = "
-                    f"({', '.join(f'{v:.4g}' for v in x)})", {"state": [float(v) for v in x]}))
+                    f"state left its limits at t = {t_next:.3f} s: {_which_limit(x, ex, ey, limits)}; "
+                    f"(x, y, psi, u, v, r) = ({', '.join(f'{v:.4g}' for v in x)})",
+                    {"state": [float(v) for v in x]}))
                 record.status = "diverged"
                 record.stop_reason = record.events[-1].message
                 break
@@ -184,6 +186,21 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
         raise
     _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r, own_plant, plant)
     return record
+
+
+def _which_limit(x, ex, ey, limits) -> str:
+    """Name the first state value that is not finite or over its limit (for the divergence event)."""
+    checks = (("surge speed u", x[3], limits.max_speed, "limits.max_speed", "m/s"),
+              ("sway speed v", x[4], limits.max_speed, "limits.max_speed", "m/s"),
+              ("yaw rate r", x[5], limits.max_yaw_rate, "limits.max_yaw_rate", "rad/s"),
+              ("distance to the reference |dx| + |dy|", abs(ex) + abs(ey), limits.max_distance,
+               "limits.max_distance", "m"))
+    for name, value, limit, key, unit in checks:
+        if not math.isfinite(value):
+            return f"{name} is not finite ({value})"
+        if abs(value) >= limit:
+            return f"|{name}| = {abs(value):.4g} {unit} reached {key} = {limit:g} {unit}"
+    return "heading psi is not finite"
 
 
 def _stop_diverged(record, t, message, values, data, k, x, ref, diag):

@@ -1,0 +1,239 @@
+"""``usv-mj``: the command line of usv_mj.
+
+    usv-mj run                         the paper scenario on the MuJoCo plant: video, figures, log, report
+    usv-mj run --preset harsh --plant analytic --duration 60 --no-video
+    usv-mj run --scenario my.toml --set controller.k1=5 --out runs/k1-5
+    usv-mj presets                     list the presets; `usv-mj presets paper` prints one
+    usv-mj compare                     the same scenario on both plants, with the differences
+    usv-mj inspect RUN.mcap            what a run log holds
+    usv-mj plot RUN.mcap               figures and report again, from the log alone
+    usv-mj render RUN.mcap             the video again, at another size, speed or camera
+    usv-mj sweep SWEEP.toml            many runs on a Dask cluster (local by default)
+    usv-mj capability --load ...       the environment capability polar of the controller
+
+Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
+recorded); 2 bad input (the message names the key and the file).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+from .scenario import ScenarioError, load_scenario, preset_names
+
+EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+class _Formatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
+    pass
+
+
+def _parse_set(items: list[str]) -> dict:
+    """``--set a.b=1`` items -> nested dict; values are TOML (numbers, strings, lists, true/false)."""
+    out: dict = {}
+    for item in items:
+        if "=" not in item:
+            raise ScenarioError(f"--set {item!r}: expected KEY=VALUE, e.g. controller.k1=5")
+        key, value = item.split("=", 1)
+        try:
+            parsed = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            parsed = value  # a bare word: take it as a string
+        node = out
+        parts = key.strip().split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = parsed
+    return out
+
+
+def add_scenario_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--preset", default=None, help=f"base preset ({', '.join(preset_names())}); default paper")
+    p.add_argument("--scenario", metavar="FILE", help="a scenario TOML file (a preset plus overrides, SPEC §7)")
+    p.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
+                   help="override one scenario value by dotted key, e.g. --set disturbance.scale=1e-3")
+    p.add_argument("--duration", type=float, help="simulated time [s] (default: the scenario's)")
+
+
+def scenario_from_args(args):
+    overrides = _parse_set(args.set)
+    if args.duration is not None:
+        overrides["duration"] = args.duration
+    if getattr(args, "plant", None):
+        overrides.setdefault("plant", {})["kind"] = args.plant
+    return load_scenario(args.scenario, preset=args.preset, overrides=overrides)
+
+
+# --- run ---------------------------------------------------------------------------------------
+
+
+def _add_run(sub):
+    p = sub.add_parser("run", formatter_class=_Formatter, help="run a scenario: video, figures, MCAP log, report",
+                       description="Run one scenario end to end. With no options: the paper scenario (SPEC §4-5) "
+                       "on the MuJoCo plant for 300 s, then the PI baseline, writing summary.json, report.md, "
+                       "figures/, run.mcap, video.mp4 and final.png into --out.")
+    add_scenario_arguments(p)
+    p.add_argument("--plant", choices=("mujoco", "analytic"), help="which plant integrates the ship")
+    p.add_argument("--out", metavar="DIR", help="output folder (default renders/<preset or scenario name>)")
+    p.add_argument("--no-video", action="store_true", help="skip the video")
+    p.add_argument("--no-baseline", action="store_true", help="skip the PI baseline run")
+    p.add_argument("--no-log", action="store_true", help="skip the MCAP log")
+    p.add_argument("--camera", default="top", choices=("top", "chase"), help="video camera")
+    p.add_argument("--size", default="1280x720", help="video size WIDTHxHEIGHT")
+    p.add_argument("--fps", type=int, default=30, help="video frames per second")
+    p.add_argument("--speedup", type=float, help="playback speed-up (default: the run fits in 30 s of video)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=_run_command)
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ScenarioError(f"--size must be WIDTHxHEIGHT, e.g. 1280x720, got {text!r}") from None
+    if not (16 <= w <= 7680 and 16 <= h <= 4320):
+        raise ScenarioError(f"--size {text!r} is out of range (16x16 to 7680x4320)")
+    return w, h
+
+
+def _run_command(args) -> int:
+    from .main_job import one_screen_summary, run_job
+
+    scenario = scenario_from_args(args)
+    width, height = _size(args.size)
+    if args.fps < 1 or args.fps > 240:
+        raise ScenarioError(f"--fps must be in 1..240, got {args.fps}")
+    if args.speedup is not None and not args.speedup > 0:
+        raise ScenarioError(f"--speedup must be > 0, got {args.speedup}")
+    name = Path(args.scenario).stem if args.scenario else scenario.preset
+    out = Path(args.out) if args.out else Path("renders") / name
+    t0 = time.perf_counter()
+    result = run_job(scenario, out, baseline=False if args.no_baseline else None, video=not args.no_video,
+                     log=not args.no_log, progress=not args.quiet,
+                     render_options={"width": width, "height": height, "fps": args.fps,
+                                     "speedup": args.speedup, "camera": args.camera})
+    print(one_screen_summary(result, time.perf_counter() - t0))
+    return EXIT_OK if result.summary["status"] == "completed" else EXIT_STOPPED
+
+
+# --- presets and plot --------------------------------------------------------------------------
+
+
+def _add_presets(sub):
+    p = sub.add_parser("presets", formatter_class=_Formatter, help="list the presets or print one",
+                       description="Presets are TOML data shipped with the package; a scenario file names one "
+                       "with `preset = \"...\"` and overrides any key.")
+    p.add_argument("name", nargs="?", help="print this preset's TOML")
+    p.set_defaults(func=_presets_command)
+
+
+def _presets_command(args) -> int:
+    from importlib import resources
+
+    if args.name is None:
+        for name in preset_names():
+            first = (resources.files("usv_mj.presets") / f"{name}.toml").read_text().splitlines()[0]
+            print(f"{name:15s} {first.lstrip('# ')}")
+        return EXIT_OK
+    load_scenario(preset=args.name)  # validates the name with a helpful message
+    print((resources.files("usv_mj.presets") / f"{args.name}.toml").read_text())
+    return EXIT_OK
+
+
+def _add_plot(sub):
+    p = sub.add_parser("plot", formatter_class=_Formatter, help="figures and report again from a run's MCAP log",
+                       description="Remake figures/ and report.md from RUN (an .mcap file or a run folder "
+                       "holding run.mcap) without simulating.")
+    p.add_argument("run", metavar="RUN")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: beside the log)")
+    p.set_defaults(func=_plot_command)
+
+
+def _plot_command(args) -> int:
+    from .figures import draw_figures
+    from .report import write_report
+    from .runlog import read_run
+    from .summary import summarize
+
+    path = Path(args.run)
+    if path.is_dir():
+        path = path / "run.mcap"
+    if not path.is_file():
+        raise ScenarioError(f"{path}: no such run log")
+    log = read_run(path)
+    out = Path(args.out) if args.out else path.parent
+    out.mkdir(parents=True, exist_ok=True)
+    draw_figures(log.record, out / "figures", log.baseline)
+    summary = summarize(log.record)
+    write_report(out / "report.md", summary, summarize(log.baseline) if log.baseline is not None else None,
+                 log.metadata.get("step_check"))
+    print(f"figures and report from {path} written to {out}/")
+    return EXIT_OK
+
+
+# --- commands that live in their own modules ---------------------------------------------------
+
+# name -> (module, add_arguments, run_command, one-line help)
+_EXTERNAL = {
+    "compare": ("usv_mj.compare", "add_arguments", "run_command",
+                "the same scenario on the analytic and the MuJoCo plant, with the differences"),
+    "inspect": ("usv_mj.runlog", "add_inspect_arguments", "inspect_command",
+                "topics, message counts, duration and metadata of a run log (.mcap)"),
+    "render": ("usv_mj.render", "add_arguments", "run_command",
+               "the video of a recorded run again (another size, speed or camera)"),
+    "sweep": ("usv_mj.sweep", "add_arguments", "run_command",
+              "Monte-Carlo sweep of many runs on a Dask cluster (local by default)"),
+    "capability": ("usv_mj.sweep", "add_capability_arguments", "capability_command",
+                   "environment capability polar: the largest load at which the funnel holds"),
+}
+
+
+def _add_external(sub, name, spec):
+    module_name, add_name, run_name, help_text = spec
+    try:
+        module = importlib.import_module(module_name)
+        add, run = getattr(module, add_name), getattr(module, run_name)
+    except (ImportError, AttributeError):
+        return
+    p = sub.add_parser(name, formatter_class=_Formatter, help=help_text, description=module.__doc__)
+    add(p)
+    p.set_defaults(func=run)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="usv-mj", formatter_class=_Formatter, description=__doc__)
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"usv-mj {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    _add_run(sub)
+    _add_presets(sub)
+    _add_plot(sub)
+    for name, spec in _EXTERNAL.items():
+        _add_external(sub, name, spec)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    try:
+        return int(args.func(args) or 0)
+    except ScenarioError as exc:
+        print(f"usv-mj {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"usv-mj {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,150 @@
+"""The paper's Figures 1-7, drawn from finished runs (a RunRecord, live or read back from MCAP).
+
+1. trajectory against the reference; 2-4. the funnel errors e1, e2 (Do & Pan coordinates, Eq. 14)
+and e3 (Eq. 15) with the bounds +-rho_i (Eq. 9) and the PI baseline; 5-6. tau_u against Q(tau_u)
+and tau_r against Q(tau_r); 7. the norms of the network weights.
+
+Drawing is deterministic (no timestamps in the PNGs), so figures made from the log equal those made
+from the live run.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from .record import RunRecord  # noqa: E402
+
+FIGURES = {
+    "fig1_trajectory.png": "Trajectory tracking",
+    "fig2_error_x.png": "Tracking error e1 (x) with the funnel",
+    "fig3_error_y.png": "Tracking error e2 (y) with the funnel",
+    "fig4_error_psi.png": "Heading error e3 with the funnel",
+    "fig5_tau_u.png": "Surge force tau_u and Q(tau_u)",
+    "fig6_tau_r.png": "Yaw moment tau_r and Q(tau_r)",
+    "fig7_weights.png": "Network weight norms",
+}
+_PNG_META = {"Software": None}
+MAX_POINTS = 20000
+
+
+def _stride(n: int) -> int:
+    return max(1, n // MAX_POINTS)
+
+
+def _save(fig, path: Path) -> None:
+    fig.savefig(path, dpi=110, metadata=_PNG_META)
+    plt.close(fig)
+
+
+def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None) -> list[Path]:
+    """Write the seven figures into ``out_dir`` and return their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    s = _stride(len(record))
+    t = record["t"][::s]
+    paths = []
+    label = f"PPC ({record.metadata.get('plant', '?')} plant)"
+
+    fig, ax = plt.subplots(figsize=(8, 5))
+    ax.plot(record["x_d"][::s], record["y_d"][::s], "k--", lw=1.2, label="reference")
+    ax.plot(record["x"][::s], record["y"][::s], "C0", lw=1.5, label=label)
+    if baseline is not None and len(baseline):
+        sb = _stride(len(baseline))
+        ax.plot(baseline["x"][::sb], baseline["y"][::sb], "C3", lw=1.0, alpha=0.8, label="PI baseline")
+    ax.plot(record["x"][0], record["y"][0], "o", color="C0", label="start")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best")
+    ax.set_title("Fig. 1: trajectory tracking")
+    paths.append(out / "fig1_trajectory.png")
+    _save(fig, paths[-1])
+
+    for axis, name, unit, fname in ((1, "x", "m", "fig2_error_x.png"), (2, "y", "m", "fig3_error_y.png"),
+                                     (3, "psi", "rad", "fig4_error_psi.png")):
+        fig, ax = plt.subplots(figsize=(8, 4))
+        rho = record[f"rho{axis}"][::s]
+        ax.fill_between(t, -rho, rho, color="0.85", label=f"funnel ±rho{axis}")
+        ax.plot(t, rho, color="0.4", lw=0.8)
+        ax.plot(t, -rho, color="0.4", lw=0.8)
+        ax.plot(t, record[f"e{axis}"][::s], "C0", lw=1.3, label=f"e{axis}, PPC")
+        if baseline is not None and len(baseline):
+            sb = _stride(len(baseline))
+            ax.plot(baseline["t"][::sb], baseline[f"e{axis}"][::sb], "C3", lw=1.0, alpha=0.85, label=f"e{axis}, PI")
+        ax.set_xlabel("t [s]")
+        what = {"x": "e1 = x̄ - x̄_d", "y": "e2 = ȳ - ȳ_d", "psi": "e3 = ψ - ψ_a"}[name]
+        ax.set_ylabel(f"{what} [{unit}]")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right")
+        ax.set_title(f"Fig. {axis + 1}: tracking error of {name} in the prescribed-performance funnel")
+        paths.append(out / fname)
+        _save(fig, paths[-1])
+
+    tf = record["t"]
+    for col, qcol, unit, fname, num in (("tau_u", "q_tau_u", "N", "fig5_tau_u.png", 5),
+                                        ("tau_r", "q_tau_r", "N m", "fig6_tau_r.png", 6)):
+        fig, (ax, axz) = plt.subplots(1, 2, figsize=(11, 4), gridspec_kw={"width_ratios": [2, 1]})
+        ax.plot(tf, record[col], "C0", lw=0.8, label=col)
+        ax.step(tf, record[qcol], "C1", lw=0.8, where="post", label=f"Q({col})")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(f"[{unit}]")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right")
+        zoom = tf <= min(tf[-1], 2.0)
+        axz.plot(tf[zoom], record[col][zoom], "C0", lw=1.0)
+        axz.step(tf[zoom], record[qcol][zoom], "C1", lw=1.0, where="post")
+        axz.set_xlabel("t [s] (first 2 s)")
+        axz.grid(alpha=0.3)
+        fig.suptitle(f"Fig. {num}: {FIGURES[fname]}")
+        fig.tight_layout()
+        paths.append(out / fname)
+        _save(fig, paths[-1])
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for col, lab in (("w_u_norm", "|W_u|"), ("w_v_norm", "|W_v|"), ("w_r_norm", "|W_r|")):
+        ax.plot(t, record[col][::s], lw=1.2, label=lab)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("weight norm")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best")
+    ax.set_title("Fig. 7: neural network weight norms")
+    paths.append(out / "fig7_weights.png")
+    _save(fig, paths[-1])
+    return paths
+
+
+def readme_figure(record: RunRecord, path, baseline: RunRecord | None = None) -> Path:
+    """One compact picture for the README: trajectory plus the position funnel."""
+    s = _stride(len(record))
+    t = record["t"][::s]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
+    a.plot(record["x_d"][::s], record["y_d"][::s], "k--", lw=1.2, label="reference")
+    a.plot(record["x"][::s], record["y"][::s], "C0", lw=1.5, label="PPC")
+    a.set_aspect("equal", adjustable="datalim")
+    a.set_xlabel("x [m]")
+    a.set_ylabel("y [m]")
+    a.legend()
+    a.grid(alpha=0.3)
+    rho = record["rho1"][::s]
+    b.fill_between(t, -rho, rho, color="0.85", label="funnel ±rho")
+    b.plot(t, record["e1"][::s], label="e1 (x)")
+    b.plot(t, record["e2"][::s], label="e2 (y)")
+    if baseline is not None and len(baseline):
+        sb = _stride(len(baseline))
+        b.plot(baseline["t"][::sb], baseline["e2"][::sb], "C3", alpha=0.7, lw=0.9, label="e2, PI")
+    b.set_xlabel("t [s]")
+    b.set_ylabel("[m]")
+    b.legend()
+    b.grid(alpha=0.3)
+    fig.tight_layout()
+    _save(fig, Path(path))
+    return Path(path)
+
+
+__all__ = ["FIGURES", "draw_figures", "readme_figure"]

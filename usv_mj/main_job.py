@@ -1,0 +1,180 @@
+"""The main job: one scenario end to end (simulation, baseline, log, summary, figures, report, video).
+
+``usv-mj run`` is a thin shell around :func:`run_job`, which a notebook can call too::
+
+    from usv_mj import load_scenario
+    from usv_mj.main_job import run_job
+    result = run_job(load_scenario(preset="paper"), "renders/paper", video=False)
+    result.summary["errors_at"]
+
+Outputs in ``out_dir``: ``summary.json``, ``report.md``, ``figures/*.png``, ``run.mcap`` (when the MCAP
+writer is installed), ``video.mp4`` and ``final.png`` (unless ``video=False``). Everything is written
+from the finished records, so ``usv-mj plot run.mcap`` and ``usv-mj render run.mcap`` remake them.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .figures import draw_figures
+from .record import RunRecord
+from .report import write_report
+from .scenario import Scenario
+from .simulation import simulate
+from .summary import CHECK_TIMES, pose_errors, summarize
+
+
+@dataclass
+class JobResult:
+    """What :func:`run_job` made: the records, their summaries and the files written."""
+
+    out_dir: Path
+    record: RunRecord
+    summary: dict
+    baseline: RunRecord | None = None
+    baseline_summary: dict | None = None
+    step_check: dict | None = None
+    files: dict = field(default_factory=dict)
+    render_stats: dict | None = None
+
+
+def progress_bar(total_s: float, desc: str, enabled: bool, dt: float):
+    """A tqdm bar counting simulated seconds; returns (callback(n_steps), close())."""
+    if not enabled:
+        return None, lambda: None
+    from tqdm import tqdm
+
+    bar = tqdm(total=round(total_s, 3), desc=desc, unit="s", unit_scale=False, dynamic_ncols=True,
+               bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} s sim [{elapsed}<{remaining}]")
+    def advance(n_rows: int) -> None:  # rows include t = 0, so the last block would overshoot by dt
+        bar.update(min(n_rows * dt, bar.total - bar.n))
+
+    return advance, bar.close
+
+
+def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | None = None) -> dict:
+    """SPEC §5: run the first 20 s again at half the control period; how far do the errors at
+    5 / 10 / 20 s move? (bound: 1 cm and 0.01 rad)."""
+    horizon = max(CHECK_TIMES)
+    dt = scenario.control_period
+    if record["t"][-1] < horizon:
+        return {}
+    half = scenario.with_overrides({"control_period": dt / 2, "duration": horizon,
+                                    "baseline": {"enabled": False}})
+    fine = simulate(half, plant_kind=plant_kind)
+    if fine.status != "completed":
+        return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": math.inf,
+                "max_heading_rad": math.inf, "ok": False}
+    e_c, e_f = pose_errors(record), pose_errors(fine)
+    dpos, dpsi = 0.0, 0.0
+    for tc in CHECK_TIMES:
+        kc, kf = int(round(tc / dt)), int(round(tc / (dt / 2)))
+        dpos = max(dpos, abs(e_c["x"][kc] - e_f["x"][kf]), abs(e_c["y"][kc] - e_f["y"][kf]))
+        dpsi = max(dpsi, abs(e_c["psi"][kc] - e_f["psi"][kf]))
+    return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": float(dpos),
+            "max_heading_rad": float(dpsi), "ok": bool(dpos < 0.01 and dpsi < 0.01)}
+
+
+def _write_json(path: Path, data: dict) -> None:
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+    tmp.replace(path)
+
+
+def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
+            video: bool = True, log: bool = True, progress: bool = True, step_check: bool = True,
+            render_options: dict | None = None) -> JobResult:
+    """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plant_kind = plant_kind or scenario.plant.kind
+    run_baseline = scenario.baseline.enabled if baseline is None else baseline
+    run_baseline = run_baseline and scenario.controller.kind != "pi"
+    dt = scenario.control_period
+    files: dict = {}
+    with ExitStack() as stack:
+        sink_main, sink_base = [], []
+        if log:
+            try:
+                from .runlog import RunLogWriter
+            except ImportError:
+                RunLogWriter = None
+            if RunLogWriter is not None:
+                writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario))
+                sink_main, sink_base = [writer.sink(run="main")], [writer.sink(run="baseline")]
+                files["mcap"] = out / "run.mcap"
+        cb, close = progress_bar(scenario.duration, f"{scenario.controller.kind.upper()} on {plant_kind}", progress, dt)
+        try:
+            record = simulate(scenario, plant_kind=plant_kind, sinks=sink_main, progress=cb)
+        finally:
+            close()
+        base_rec = None
+        if run_baseline and record.status != "interrupted":
+            cb, close = progress_bar(scenario.duration, "PI baseline", progress, dt)
+            try:
+                base_rec = simulate(scenario, plant_kind=plant_kind, controller_kind="pi", sinks=sink_base, progress=cb)
+            finally:
+                close()
+    summary = summarize(record)
+    base_summary = summarize(base_rec) if base_rec is not None else None
+    check = step_size_check(scenario, record, plant_kind) if step_check and record.status == "completed" else None
+    summary_out = dict(summary)
+    if base_summary:
+        summary_out["baseline"] = {k: base_summary[k] for k in (
+            "status", "errors_at", "max_abs_error_after_20s", "funnel_violations", "first_violation_s",
+            "quantizer_switches")}
+    if check:
+        summary_out["step_check"] = check
+    files["figures"] = draw_figures(record, out / "figures", base_rec)
+    files["report"] = write_report(out / "report.md", summary, base_summary, check)
+    render_stats = None
+    if video and len(record) > 1:
+        from .render import render_run
+
+        opts = dict(render_options or {})
+        render_stats = render_run(record, out / "video.mp4", progress=progress, **opts)
+        files["video"] = out / "video.mp4"
+        summary_out["render"] = {k: v for k, v in render_stats.items() if isinstance(v, (int, float, str))}
+    files["summary"] = out / "summary.json"
+    _write_json(files["summary"], summary_out)
+    return JobResult(out, record, summary_out, base_rec, base_summary, check, files, render_stats)
+
+
+def one_screen_summary(result: JobResult, wall_s: float) -> str:
+    """The lines ``usv-mj run`` prints at the end."""
+    s = result.summary
+    lines = [f"usv-mj run: preset {s['preset']}, {s['plant']} plant, {s['controller']} controller: {s['status']}"]
+    if s["status"] != "completed":
+        lines.append(f"  stopped: {s['stop_reason']}")
+    lines.append(f"  simulated {s['simulated_s']:.1f} s in {s['wall_time_s']:.2f} s "
+                 f"({s['realtime_factor']:.0f}x real time); whole job {wall_s:.1f} s")
+    lines.append("  errors x-x_d / y-y_d / psi-psi_d:")
+    for tc, e in s["errors_at"].items():
+        vals = " / ".join("—" if e[a] is None else f"{e[a]:+.3f}" for a in ("x", "y", "psi"))
+        lines.append(f"    t = {tc:>2} s: {vals}")
+    m = s["max_abs_error_after_20s"]
+    if m["x"] is not None:
+        lines.append(f"  max |error| after 20 s: {m['x']:.3f} m, {m['y']:.3f} m, {m['psi']:.3f} rad")
+    lines.append(f"  funnel violations: {s['funnel_violations']} steps"
+                 + (f" (first at {s['first_violation_s']:.2f} s)" if s["first_violation_s"] is not None else "")
+                 + f"; s2 clamps: {s['s2_clamps']}; quantizer switches: u {s['quantizer_switches']['u']}, "
+                   f"r {s['quantizer_switches']['r']}")
+    if "baseline" in s:
+        b = s["baseline"]
+        lines.append(f"  PI baseline: {b['status']}, funnel violations {b['funnel_violations']}"
+                     + (f" (first at {b['first_violation_s']:.2f} s)" if b["first_violation_s"] is not None else ""))
+    if "step_check" in s:
+        c = s["step_check"]
+        lines.append(f"  half-step check: errors moved {c['max_position_m']*100:.3f} cm, {c['max_heading_rad']:.1e} rad")
+    if "render" in s:
+        r = s["render"]
+        lines.append(f"  video: {r.get('frames')} frames at {r.get('render_fps', 0):.1f} frames/s rendered")
+    lines.append(f"  outputs in {result.out_dir}/: " + ", ".join(sorted(
+        p.name if isinstance(p, Path) else k for k, p in result.files.items())))
+    return "\n".join(lines)
+
+
