@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Install what usv_mj needs on a fresh Debian machine: the Mesa GL stack for headless rendering
+# (EGL, with OSMesa as the fallback; no GPU needed) and the Python package with its test extras.
+# Idempotent: a second run only checks.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+SYSTEM_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6)
+missing=()
+for pkg in "${SYSTEM_PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing system packages: ${missing[*]}"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+PYTHON=${PYTHON:-python3}
+if ! "$PYTHON" -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then
+  echo "setup: usv_mj needs Python 3.11 or newer ($PYTHON is $("$PYTHON" --version 2>&1))" >&2
+  exit 1
+fi
+echo "setup: installing usv_mj and its Python dependencies"
+"$PYTHON" -m pip install --disable-pip-version-check -q -e ".[test]" 2>&1 | grep -v "Running pip as the 'root' user" || true
+"$PYTHON" -c "import usv_mj, mujoco; print(f'setup: usv_mj {usv_mj.__version__} with mujoco {mujoco.__version__} ready')"
