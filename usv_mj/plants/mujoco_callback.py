@@ -1,0 +1,354 @@
+"""The hydrodynamic passive-force callback of the MuJoCo plant (SPEC §1), native and Python.
+
+MuJoCo carries the rigid body of :class:`usv_mj.ship.RigidBodySplit` (mass m, COM offset x_g, yaw
+inertia about the origin). This callback adds everything else of Eq. 2, so that the total is the
+paper's ship:
+
+    M_RB nu_dot + C_RB(nu) nu = tau + f_h,
+    f_h = -M_A nu_dot - C_A(nu) nu - D(nu) nu + Delta(eta, nu) + d(t)           (body frame)
+
+with C_A = C - C_RB (C of SPEC §1 from :mod:`usv_mj.ship`, C_RB of the rigid body with COM offset
+x_g: C_RB nu = [-m (v + x_g r) r, m u r, m x_g u r]).
+
+Added mass is exact (no lag). With q = (x, y, psi) the joint coordinates, qvel = J(psi) nu and
+qacc = J nu_dot + J_dot nu, so nu_dot = J^T qacc - r [-v, u, 0] (since J^T J_dot = r [[0, -1, 0],
+[1, 0, 0], [0, 0, 0]]). Hence
+
+    J (-M_A nu_dot) = -(J M_A J^T) qacc + J M_A r [-v, u, 0].
+
+The first term moves to the left side: the callback adds J M_A J^T to MuJoCo's joint-space mass
+matrix ``d.M`` and re-factors it (``mj_factorM``); the second joins the generalized passive force
+
+    qfrc_passive += J(psi) (f_h' + M_A r [-v, u, 0]),   f_h' = d(t) + Delta - C nu - D nu + C_RB nu,
+
+where ``d + Delta - C nu - D nu`` is :func:`usv_mj.ship.hydrodynamic_force` (never re-written here).
+MuJoCo calls the passive callback once per RK4 stage after building ``d.M`` for that stage's pose
+and with ``d.time`` at the stage time, so d(t) is evaluated exactly where the analytic plant
+evaluates it.
+
+Everything the callback needs is read from ``(m, d)``: the parameters live in ``d.userdata``
+behind a magic marker (layout ``U_*`` below), so two plants with different ships in one process do
+not disturb each other, and models without the marker (a viewer's scene, another library) are left
+alone. The native callback is a numba ``cfunc``; it reads mjData fields at byte offsets found once
+per process by comparing the addresses of numpy views (``d.qpos.ctypes.data`` ...) with the
+pointers stored in the mjData struct (:func:`struct_offsets`).
+
+Errors: a callback cannot raise through MuJoCo (a Python exception there aborts the process), so
+both callbacks record a status code in ``d.userdata[U_STATUS]`` (and the Python one keeps the
+exception) and the plant raises :class:`HydrodynamicCallbackError` after the step.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import os
+
+import mujoco
+import numpy as np
+from numba import carray, cfunc, njit, types
+from numba.extending import intrinsic
+
+from usv_mj.ship import N_DIST_PARAMS, N_SHIP_PARAMS, hydrodynamic_force
+
+MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "models")
+
+# --- d.userdata layout --------------------------------------------------------------------------
+MAGIC = 6.0221e23 + 1.0e9 * math.pi  # "this mjData belongs to a usv_mj plant"
+U_MAGIC = 0
+U_STATUS = 1        # 0 ok; STATUS_* below
+U_STATUS_TIME = 2   # d.time when the status was set [s]
+U_MASS = 3          # rigid mass m [kg]
+U_XG = 4            # COM offset x_g [m]
+U_MA = 5            # added mass M_A, 3x3 row-major (9)
+U_P = U_MA + 9      # ShipParams.as_array() (N_SHIP_PARAMS)
+U_DP = U_P + N_SHIP_PARAMS  # PaperDisturbance.as_array() (N_DIST_PARAMS)
+U_CALLS = U_DP + N_DIST_PARAMS  # number of callback evaluations (diagnostic)
+N_USERDATA = U_CALLS + 1
+
+STATUS_OK = 0.0
+STATUS_BAD_STATE = 1.0   # non-finite qpos/qvel at the callback
+STATUS_BAD_FORCE = 2.0   # the hydrodynamic force or added mass came out non-finite
+STATUS_EXCEPTION = 3.0   # the Python callback raised (the exception is kept by the plant)
+STATUS_MESSAGES = {
+    STATUS_BAD_STATE: "non-finite state (qpos or qvel) reached the hydrodynamic callback",
+    STATUS_BAD_FORCE: "the hydrodynamic force or added-mass matrix came out non-finite",
+    STATUS_EXCEPTION: "the Python hydrodynamic callback raised",
+}
+
+
+class HydrodynamicCallbackError(RuntimeError):
+    """The passive-force callback failed during a step (raised by the plant after ``mj_step``)."""
+
+
+# --- the physics, shared by the native and the Python callback ----------------------------------
+
+
+@njit(cache=True)
+def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
+    """Generalized hydrodynamic force and the mass-matrix increment at one RK4 stage.
+
+    Parameters
+    ----------
+    ud:
+        ``d.userdata`` with the layout ``U_*`` (parameters of ship, disturbance and split).
+    t:
+        Stage time [s]. ``qpos`` = (x, y, psi) [m, m, rad], ``qvel`` = (x_dot, y_dot, r) (world).
+    qfrc:
+        Output, 3: J(psi) (f_h' + M_A r [-v, u, 0]) [N, N, N m] (to add to ``qfrc_passive``).
+    mass_add:
+        Output, 6: J M_A J^T as the dense lower triangle (M00, M10, M11, M20, M21, M22).
+
+    Returns a status code (``STATUS_OK`` or ``STATUS_BAD_*``); on error the outputs are zero.
+    """
+    for i in range(3):
+        qfrc[i] = 0.0
+    for i in range(6):
+        mass_add[i] = 0.0
+    psi = qpos[2]
+    if not (math.isfinite(qpos[0]) and math.isfinite(qpos[1]) and math.isfinite(psi)
+            and math.isfinite(qvel[0]) and math.isfinite(qvel[1]) and math.isfinite(qvel[2])):
+        return STATUS_BAD_STATE
+    c, s = math.cos(psi), math.sin(psi)
+    eta = np.empty(3)
+    nu = np.empty(3)
+    eta[0], eta[1], eta[2] = qpos[0], qpos[1], psi
+    u = c * qvel[0] + s * qvel[1]
+    v = -s * qvel[0] + c * qvel[1]
+    r = qvel[2]
+    nu[0], nu[1], nu[2] = u, v, r
+    p = ud[U_P:U_P + N_SHIP_PARAMS]
+    dp = ud[U_DP:U_DP + N_DIST_PARAMS]
+    f = hydrodynamic_force(p, dp, t, eta, nu)  # d + Delta - C nu - D nu (SPEC §1)
+    m = ud[U_MASS]
+    mxg = m * ud[U_XG]
+    # + C_RB nu: MuJoCo's rigid body already produces it, so C_A nu = C nu - C_RB nu
+    f[0] += -m * v * r - mxg * r * r
+    f[1] += m * u * r
+    f[2] += mxg * u * r
+    # + M_A r [-v, u, 0]: the J_dot nu part of -M_A nu_dot
+    w0 = -r * v
+    w1 = r * u
+    for i in range(3):
+        f[i] += ud[U_MA + 3 * i] * w0 + ud[U_MA + 3 * i + 1] * w1
+    qfrc[0] = c * f[0] - s * f[1]
+    qfrc[1] = s * f[0] + c * f[1]
+    qfrc[2] = f[2]
+    # J M_A J^T, J = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    a = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            a[i, j] = ud[U_MA + 3 * i + j]
+    jm = np.empty((3, 3))  # J M_A
+    for j in range(3):
+        jm[0, j] = c * a[0, j] - s * a[1, j]
+        jm[1, j] = s * a[0, j] + c * a[1, j]
+        jm[2, j] = a[2, j]
+    # (J M_A) J^T: column j of J^T is row j of J
+    m00 = jm[0, 0] * c - jm[0, 1] * s
+    m10 = jm[1, 0] * c - jm[1, 1] * s
+    m11 = jm[1, 0] * s + jm[1, 1] * c
+    m20 = jm[2, 0] * c - jm[2, 1] * s
+    m21 = jm[2, 0] * s + jm[2, 1] * c
+    m22 = jm[2, 2]
+    ok = True
+    for val in (qfrc[0], qfrc[1], qfrc[2], m00, m10, m11, m20, m21, m22):
+        if not math.isfinite(val):
+            ok = False
+    if not ok:
+        for i in range(3):
+            qfrc[i] = 0.0
+        return STATUS_BAD_FORCE
+    mass_add[0], mass_add[1], mass_add[2] = m00, m10, m11
+    mass_add[3], mass_add[4], mass_add[5] = m20, m21, m22
+    return STATUS_OK
+
+
+# --- locating mjData / mjModel fields in native memory ------------------------------------------
+
+_PROBE_XML = """
+<mujoco><size nuserdata="{n}"/><worldbody><body><joint type="slide" axis="1 0 0"/>
+<joint type="slide" axis="0 1 0"/><joint type="hinge" axis="0 0 1"/>
+<inertial pos="0.1 0 0" mass="1" diaginertia="1 1 1"/></body>
+<body mocap="true"><geom size="0.1" contype="0" conaffinity="0"/></body></worldbody>
+<actuator><general joint="yaw" dyntype="filter" dynprm="0.1"/></actuator></mujoco>
+""".replace('joint="yaw"', 'joint="j3"').replace('type="hinge"', 'type="hinge" name="j3"')
+
+_DATA_ARRAYS = ("qpos", "qvel", "M", "qfrc_passive", "userdata")
+
+
+def _read(address: int, n: int, ctype) -> np.ndarray:
+    return np.ctypeslib.as_array((ctype * n).from_address(address)).copy()
+
+
+def _first_hit(address: int, value, ctype, start_word: int = 0, max_words: int = 1 << 20) -> int:
+    """Index of the first word equal to ``value`` from ``start_word`` on, reading forward in chunks."""
+    step = 64
+    for start in range(start_word, start_word + max_words, step):
+        chunk = _read(address + start * ctypes.sizeof(ctype), step, ctype)
+        idx = np.flatnonzero(chunk == value)
+        if idx.size:
+            return int(start + idx[0])
+    raise RuntimeError(f"struct field with value {value!r} not found")
+
+
+def _candidate_offsets(model: mujoco.MjModel) -> dict[str, set[int]]:
+    """All byte offsets in a fresh mjData of ``model`` that could hold each field of interest."""
+    d = mujoco.MjData(model)
+    out: dict[str, set[int]] = {}
+    times = set()
+    for value in (1.2345678901234567e-3, -9.87654321e5):
+        d.time = value
+        times.add(_first_hit(d._address, value, ctypes.c_double) * 8)
+    d.time = 0.0
+    if len(times) != 1:
+        raise RuntimeError(f"cannot locate mjData.time (offsets {sorted(times)})")
+    out["time"] = times
+    t_word = next(iter(times)) // 8
+    addresses = {name: getattr(d, name).ctypes.data for name in _DATA_ARRAYS}
+    first = {name: _first_hit(d._address, a, ctypes.c_int64, t_word + 1) for name, a in addresses.items()}
+    window = _read(d._address + (t_word + 1) * 8, max(first.values()) - t_word + 16, ctypes.c_int64)
+    for name, a in addresses.items():
+        out[name] = {int(t_word + 1 + i) * 8 for i in np.flatnonzero(window == a)}
+    return out
+
+
+_OFFSETS: dict[str, int] | None = None
+
+
+def struct_offsets() -> dict[str, int]:
+    """Byte offsets of ``time`` and the arrays of :data:`_DATA_ARRAYS` in mjData, ``nuserdata`` in mjModel.
+
+    Found once per process by comparing memory: ``time`` is where a sentinel double written through
+    the bindings appears (two sentinels must agree); a pointer field is a slot after ``time`` that
+    holds the address of the bindings' numpy view. Zero-sized arrays can share an address with their
+    neighbour (and the first array shares the buffer's address), so the candidates of two
+    structurally different models (the hull of models/usv.xml and a probe with activation and
+    mocap) are intersected and the last remaining slot is taken (arrays are laid out in struct
+    order and the fields used here are never empty).
+    ``nuserdata`` is the one mjModel word that equals 1009 in one probe and 1013 in the other.
+    :func:`check_offsets` re-checks the result on every plant's own mjData.
+    """
+    global _OFFSETS
+    if _OFFSETS is not None:
+        return _OFFSETS
+    hull = mujoco.MjModel.from_xml_path(os.path.join(MODELS_DIR, "usv.xml"))
+    m1 = mujoco.MjModel.from_xml_string(_PROBE_XML.format(n=1009))
+    m2 = mujoco.MjModel.from_xml_string(_PROBE_XML.format(n=1013))
+    c1, c2 = _candidate_offsets(hull), _candidate_offsets(m1)
+    off: dict[str, int] = {}
+    for name in c1:
+        both = c1[name] & c2[name]
+        if not both:
+            raise RuntimeError(f"cannot locate mjData.{name} (candidates {sorted(c1[name])} and {sorted(c2[name])})")
+        # arrays are laid out in struct order, so a slot before the field (the buffer start, a
+        # zero-sized array) may share its address, never one after it (our fields are non-empty)
+        off[name] = max(both)
+    w1 = _read(m1._address, 512, ctypes.c_int64)
+    w2 = _read(m2._address, 512, ctypes.c_int64)
+    idx = np.flatnonzero((w1 == 1009) & (w2 == 1013))
+    if idx.size != 1:
+        raise RuntimeError(f"cannot locate mjModel.nuserdata (candidates {idx.tolist()})")
+    off["nuserdata"] = int(idx[0]) * 8
+    _OFFSETS = off
+    return off
+
+
+def check_offsets(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Raise if the located offsets do not hold ``data``'s fields (a MuJoCo layout change, say)."""
+    off = struct_offsets()
+    words = {name: int(_read(data._address + off[name], 1, ctypes.c_int64)[0]) for name in _DATA_ARRAYS}
+    for name in _DATA_ARRAYS:
+        if words[name] != getattr(data, name).ctypes.data:
+            raise RuntimeError(f"mjData.{name} is not at byte offset {off[name]} in this MuJoCo build")
+    if float(_read(data._address + off["time"], 1, ctypes.c_double)[0]) != data.time:
+        raise RuntimeError(f"mjData.time is not at byte offset {off['time']} in this MuJoCo build")
+    if int(_read(model._address + off["nuserdata"], 1, ctypes.c_int64)[0]) != model.nuserdata:
+        raise RuntimeError(f"mjModel.nuserdata is not at byte offset {off['nuserdata']} in this MuJoCo build")
+
+
+# --- native callback ----------------------------------------------------------------------------
+
+
+@intrinsic
+def _f64_ptr(typingctx, address):
+    """Reinterpret an integer address as ``double*`` (numba intrinsic)."""
+    sig = types.CPointer(types.float64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+
+    return sig, codegen
+
+
+@intrinsic
+def _i64_ptr(typingctx, address):
+    """Reinterpret an integer address as ``int64*`` (numba intrinsic)."""
+    sig = types.CPointer(types.int64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
+
+    return sig, codegen
+
+
+def _libmujoco() -> ctypes.CDLL:
+    folder = os.path.dirname(mujoco.__file__)
+    names = sorted(f for f in os.listdir(folder) if f.startswith("libmujoco.so"))
+    if not names:
+        raise RuntimeError(f"libmujoco.so not found next to the mujoco package in {folder}")
+    # the same file the bindings loaded: dlopen returns the already-loaded library
+    return ctypes.CDLL(os.path.join(folder, names[-1]))
+
+
+_NATIVE = None
+
+
+def native_callback():
+    """The numba ``cfunc`` passive callback (built once per process; see the module docstring)."""
+    global _NATIVE
+    if _NATIVE is not None:
+        return _NATIVE
+    off = struct_offsets()
+    lib = _libmujoco()
+    factor_m = lib.mj_factorM
+    factor_m.argtypes = (ctypes.c_int64, ctypes.c_int64)  # (const mjModel*, mjData*) as addresses
+    factor_m.restype = None
+    o_time, o_qpos, o_qvel = off["time"] // 8, off["qpos"] // 8, off["qvel"] // 8
+    o_m, o_frc, o_ud = off["M"] // 8, off["qfrc_passive"] // 8, off["userdata"] // 8
+    o_nud = off["nuserdata"] // 8
+    n_ud, magic = N_USERDATA, MAGIC
+    u_status, u_status_time, u_calls = U_STATUS, U_STATUS_TIME, U_CALLS
+
+    @cfunc(types.void(types.int64, types.int64), error_model="numpy")
+    def hydrodynamic_passive(m_addr, d_addr):
+        mw = carray(_i64_ptr(m_addr), (o_nud + 1,))
+        if mw[o_nud] < n_ud:
+            return
+        dw = carray(_i64_ptr(d_addr), (o_ud + 1,))
+        ud = carray(_f64_ptr(dw[o_ud]), (n_ud,))
+        if ud[0] != magic:
+            return
+        dd = carray(_f64_ptr(d_addr), (o_time + 1,))
+        t = dd[o_time]
+        qpos = carray(_f64_ptr(dw[o_qpos]), (3,))
+        qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
+        frc = carray(_f64_ptr(dw[o_frc]), (3,))
+        mm = carray(_f64_ptr(dw[o_m]), (6,))
+        qf = np.empty(3)
+        ma = np.empty(6)
+        status = passive_terms(ud, t, qpos, qvel, qf, ma)
+        ud[u_calls] += 1.0
+        if status != 0.0:
+            if ud[u_status] == 0.0:
+                ud[u_status] = status
+                ud[u_status_time] = t
+            return
+        for i in range(3):
+            frc[i] += qf[i]
+        for i in range(6):
+            mm[i] += ma[i]
+        factor_m(m_addr, d_addr)
+
+    _NATIVE = hydrodynamic_passive
+    return _NATIVE

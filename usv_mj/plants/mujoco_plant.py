@@ -1,0 +1,364 @@
+"""The MuJoCo plant: the paper's ship on MuJoCo's rigid-body engine plus a hydrodynamic callback.
+
+MuJoCo integrates the hull of ``models/usv.xml`` (joints x, y, yaw; RK4) with the rigid-body part
+of :class:`usv_mj.ship.RigidBodySplit`; the passive-force callback of
+:mod:`usv_mj.plants.mujoco_callback` adds the added mass (exactly, through the mass matrix), the
+Coriolis of the added mass, damping, the uncertainty Delta and the disturbance d(t) (SPEC §1). The
+thrust enters through the two body-frame motors "surge" [N] and "yaw" [N m] and is held over each
+control period (zero-order hold), exactly as in :class:`usv_mj.plants.analytic.AnalyticPlant`.
+
+The passive callback is process-global in MuJoCo. This module installs it when the first plant is
+made and removes it (restoring what was there before) when the last one is closed. The native
+callback (numba ``cfunc``, the default) reads every parameter from the mjData it is called with,
+so any number of plants with different ships coexist; the Python callback (``callback="python"``,
+a reference and fallback) looks plants up by their mjData address and hands mjData it does not
+know to the native callback.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+import weakref
+
+import mujoco
+import numpy as np
+
+from usv_mj.ship import PaperDisturbance, RigidBodySplit, ShipParams
+
+from . import mujoco_callback as mcb
+from .base import PlantBase
+
+DEFAULT_MODEL = os.path.join(mcb.MODELS_DIR, "usv.xml")
+
+_BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                 mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+class _CallbackRegistry:
+    """Which plants are alive, and which callback MuJoCo's global ``mjcb_passive`` holds."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.live: dict[int, weakref.ref] = {}        # id(plant) -> plant
+        self.python: dict[int, weakref.ref] = {}      # mjData address -> python-mode plant
+        self.previous = None
+        self.installed = None                          # "native" | "python" | None
+
+    def _dispatch(self, m, d):
+        """The Python passive callback: never lets an exception reach MuJoCo (it would abort)."""
+        ref = self.python.get(d._address)
+        plant = ref() if ref is not None else None
+        if plant is None:
+            native = mcb.native_callback()
+            native.ctypes(m._address, d._address)
+            return
+        plant._python_passive(m, d)
+
+    def _update(self):
+        want = "python" if self.python else ("native" if self.live else None)
+        if want == self.installed:
+            return
+        if self.installed is None:
+            self.previous = mujoco.get_mjcb_passive()
+        if want is None:
+            mujoco.set_mjcb_passive(self.previous)
+            self.previous = None
+        elif want == "native":
+            mujoco.set_mjcb_passive(mcb.native_callback().ctypes)
+        else:
+            mujoco.set_mjcb_passive(self._dispatch)
+        self.installed = want
+
+    def add(self, plant) -> None:
+        with self.lock:
+            self.live[id(plant)] = weakref.ref(plant)
+            if plant.callback == "python":
+                self.python[plant.data._address] = weakref.ref(plant)
+            self._update()
+
+    def remove(self, plant_id: int, data_address: int) -> None:
+        with self.lock:
+            self.live.pop(plant_id, None)
+            self.python.pop(data_address, None)
+            self._update()
+
+
+REGISTRY = _CallbackRegistry()
+
+
+def _release(plant_id, data_address, userdata):
+    """Finalizer: unmark the mjData (the callback then ignores it) and unregister the plant."""
+    userdata[mcb.U_MAGIC] = 0.0
+    REGISTRY.remove(plant_id, data_address)
+
+
+def installed_callback() -> str | None:
+    """Which passive callback usv_mj has installed: "native", "python" or None (none of ours)."""
+    return REGISTRY.installed
+
+
+class MuJoCoPlant(PlantBase):
+    """The ship of SPEC §1 integrated by MuJoCo (RK4) with a hydrodynamic passive-force callback.
+
+    Parameters
+    ----------
+    ship, disturbance:
+        The physics (:mod:`usv_mj.ship`); the model's inertial is overwritten from ``ship`` and
+        ``split`` at load, so ``models/usv.xml`` holds only defaults.
+    control_period:
+        Hold time of the input [s].
+    substeps:
+        RK4 steps (``mj_step`` calls) per control period (>= 1); MuJoCo's timestep is
+        control_period/substeps.
+    split:
+        How the mass is shared between MuJoCo's rigid body and the callback's added mass; any valid
+        split gives the same motion (tested).
+    model_path:
+        MJCF file with a body "hull" on slide joints "x", "y" and hinge "yaw" and motors "surge" and
+        "yaw" (default ``models/usv.xml``; ``models/scene.xml`` works too). It is loaded through
+        ``MjSpec`` so that ``nuserdata`` can be enlarged when needed.
+    callback:
+        "native" (numba cfunc, default) or "python" (the same physics kernel called from a Python
+        callback: slower, useful as a reference).
+
+    Attributes
+    ----------
+    model, data:
+        The ``mujoco.MjModel`` / ``mujoco.MjData`` (for renderers and environments; ``data.qpos``
+        = (x, y, psi), ``data.qvel`` = (x_dot, y_dot, r) in the world frame).
+    """
+
+    name = "mujoco"
+
+    def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, control_period: float = 1e-3,
+                 substeps: int = 1, split: RigidBodySplit = RigidBodySplit(), model_path: str | None = None,
+                 callback: str = "native"):
+        if not (isinstance(control_period, (int, float)) and math.isfinite(control_period) and control_period > 0):
+            raise ValueError(f"MuJoCoPlant: control_period must be a finite number > 0 s, got {control_period!r}")
+        if int(substeps) != substeps or int(substeps) < 1:
+            raise ValueError(f"MuJoCoPlant: substeps must be an integer >= 1, got {substeps!r}")
+        if callback not in ("native", "python"):
+            raise ValueError(f"MuJoCoPlant: callback must be 'native' or 'python', got {callback!r}")
+        self.ship, self.disturbance, self.split = ship, disturbance, split
+        self.control_period = float(control_period)
+        self.substeps = int(substeps)
+        self.callback = callback
+        self.model_path = os.path.abspath(model_path or DEFAULT_MODEL)
+        self.model, self.data = self._load(self.model_path)
+        self._set_parameters()
+        mcb.check_offsets(self.model, self.data)
+        self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
+        self._userdata = self.data.userdata
+        self._python_error: BaseException | None = None
+        self._scratch = (np.zeros(3), np.zeros(6))
+        self._closed = False
+        self._t0, self._k = 0.0, 0
+        REGISTRY.add(self)
+        self._finalizer = weakref.finalize(self, _release, id(self), self.data._address, self._userdata)
+        self.reset((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+    # --- construction --------------------------------------------------------------------------
+
+    def _load(self, path: str):
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"MuJoCoPlant: model file not found: {path}")
+        spec = mujoco.MjSpec.from_file(path)
+        if spec.nuserdata < mcb.N_USERDATA:
+            spec.nuserdata = mcb.N_USERDATA
+        model = spec.compile()
+        where = f"in {path}"
+        names = {
+            "body hull": (mujoco.mjtObj.mjOBJ_BODY, "hull"),
+            "joint x": (mujoco.mjtObj.mjOBJ_JOINT, "x"),
+            "joint y": (mujoco.mjtObj.mjOBJ_JOINT, "y"),
+            "joint yaw": (mujoco.mjtObj.mjOBJ_JOINT, "yaw"),
+            "actuator surge": (mujoco.mjtObj.mjOBJ_ACTUATOR, "surge"),
+            "actuator yaw": (mujoco.mjtObj.mjOBJ_ACTUATOR, "yaw"),
+        }
+        ids = {}
+        for label, (kind, name) in names.items():
+            ids[label] = mujoco.mj_name2id(model, kind, name)
+            if ids[label] < 0:
+                raise ValueError(f"MuJoCoPlant: {label} not found {where}")
+        if model.nq != 3 or model.nv != 3 or model.nu != 2:
+            raise ValueError(f"MuJoCoPlant: the model {where} must have exactly the 3 joints x, y, yaw and the "
+                             f"2 motors surge, yaw (nq = {model.nq}, nv = {model.nv}, nu = {model.nu})")
+        if [model.jnt_qposadr[ids[f"joint {j}"]] for j in ("x", "y", "yaw")] != [0, 1, 2]:
+            raise ValueError(f"MuJoCoPlant: joints x, y, yaw {where} must be in this order")
+        if [ids["actuator surge"], ids["actuator yaw"]] != [0, 1]:
+            raise ValueError(f"MuJoCoPlant: actuators surge, yaw {where} must be in this order")
+        if model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4:
+            raise ValueError(f"MuJoCoPlant: the model {where} must use integrator='RK4'")
+        if list(model.M_rownnz) != [1, 2, 3]:
+            raise ValueError(f"MuJoCoPlant: the mass matrix {where} must be dense 3x3 (hull body not 'simple'); "
+                             f"M_rownnz = {list(model.M_rownnz)}")
+        self._hull = ids["body hull"]
+        data = mujoco.MjData(model)
+        return model, data
+
+    def _set_parameters(self) -> None:
+        """Write the rigid body (model) and the callback's parameters (d.userdata) from ship.py."""
+        m, x_g, iz_origin = self.split.rigid_body(self.ship)
+        i_cm = iz_origin - m * x_g * x_g
+        if not i_cm > 0:
+            raise ValueError(f"MuJoCoPlant: the split leaves no yaw inertia about the COM (I_cm = {i_cm:g} kg m^2)")
+        model = self.model
+        model.body_mass[self._hull] = m
+        model.body_ipos[self._hull] = (x_g, 0.0, 0.0)
+        model.body_iquat[self._hull] = (1.0, 0.0, 0.0, 0.0)
+        # roll/pitch inertias play no role in planar motion; plausible values meeting the triangle
+        # inequality (0.33 + 0.78 > 1)
+        model.body_inertia[self._hull] = (0.33 * i_cm, 0.78 * i_cm, i_cm)
+        model.opt.timestep = self.control_period / self.substeps
+        model.opt.gravity[:] = 0.0
+        mujoco.mj_setConst(model, self.data)
+        ud = self.data.userdata
+        ud[:] = 0.0
+        ud[mcb.U_MASS] = m
+        ud[mcb.U_XG] = x_g
+        ud[mcb.U_MA:mcb.U_MA + 9] = self.split.added_mass(self.ship).ravel()
+        ud[mcb.U_P:mcb.U_P + len(self.ship.as_array())] = self.ship.as_array()
+        ud[mcb.U_DP:mcb.U_DP + len(self.disturbance.as_array())] = self.disturbance.as_array()
+        ud[mcb.U_MAGIC] = mcb.MAGIC
+
+    # --- plant interface -----------------------------------------------------------------------
+
+    def reset(self, eta0, nu0, t0: float = 0.0) -> None:
+        """Pose eta0 = (x, y, psi) [m, m, rad], body velocity nu0 = (u, v, r), time t0 [s]."""
+        self._check_open()
+        eta0 = _vector3(eta0, "eta0")
+        nu0 = _vector3(nu0, "nu0")
+        if not math.isfinite(t0):
+            raise ValueError(f"MuJoCoPlant.reset: t0 must be finite, got {t0!r}")
+        mujoco.mj_resetData(self.model, self.data)
+        self._set_parameters()
+        c, s = math.cos(eta0[2]), math.sin(eta0[2])
+        self._qpos[:] = eta0
+        self._qvel[:] = (c * nu0[0] - s * nu0[1], s * nu0[0] + c * nu0[1], nu0[2])
+        self._ctrl[:] = 0.0
+        self._t0, self._k = float(t0), 0
+        self.data.time = self._t0
+        self._python_error = None
+        mujoco.mj_forward(self.model, self.data)  # consistent derived quantities for renderers
+        self._raise_if_failed()
+
+    def step(self, tau_u: float, tau_r: float) -> None:
+        """Advance one control period with surge force tau_u [N] and yaw moment tau_r [N m] held."""
+        ctrl = self._ctrl
+        ctrl[0] = tau_u
+        ctrl[1] = tau_r
+        d = self.data
+        # time from the step count (as the analytic plant): no drift from summing dt
+        d.time = self._t0 + self._k * self.control_period
+        if self.substeps == 1:
+            mujoco.mj_step(self.model, d)
+        else:
+            mujoco.mj_step(self.model, d, self.substeps)
+        self._k += 1
+        if self._userdata[mcb.U_STATUS] != 0.0 or self._python_error is not None:
+            self._raise_if_failed()
+        w = d.warning
+        for kind in _BAD_WARNINGS:
+            if w[kind].number:
+                self._raise_warning(kind)
+
+    @property
+    def time(self) -> float:
+        return self._t0 + self._k * self.control_period
+
+    @property
+    def state(self) -> np.ndarray:
+        """(x, y, psi, u, v, r): pose [m, m, rad, psi unwrapped] and body velocity [m/s, m/s, rad/s]."""
+        q, qd = self._qpos, self._qvel
+        psi = q[2]
+        c, s = math.cos(psi), math.sin(psi)
+        return np.array((q[0], q[1], psi, c * qd[0] + s * qd[1], -s * qd[0] + c * qd[1], qd[2]))
+
+    def body_acceleration(self, tau_u: float | None = None, tau_r: float | None = None) -> np.ndarray:
+        """MuJoCo's body-frame acceleration nu_dot [m/s^2, m/s^2, rad/s^2] at the current state.
+
+        Runs ``mj_forward`` (which calls the callback) with the given thrust (default: the held
+        one) and maps qacc back: nu_dot = J^T qacc - r [-v, u, 0].
+        """
+        self._check_open()
+        if tau_u is not None:
+            self._ctrl[0] = tau_u
+        if tau_r is not None:
+            self._ctrl[1] = tau_r
+        self.data.time = self.time
+        mujoco.mj_forward(self.model, self.data)
+        self._raise_if_failed()
+        x = self.state
+        c, s = math.cos(x[2]), math.sin(x[2])
+        qa = self.data.qacc
+        u, v, r = x[3], x[4], x[5]
+        return np.array((c * qa[0] + s * qa[1] + r * v, -s * qa[0] + c * qa[1] - r * u, qa[2]))
+
+    def close(self) -> None:
+        """Unmark the mjData and remove the global callback if this was the last plant."""
+        if not self._closed:
+            self._closed = True
+            self._finalizer()
+
+    # --- errors --------------------------------------------------------------------------------
+
+    def _python_passive(self, m, d) -> None:
+        """Python callback body: the shared kernel, with every exception kept for after the step."""
+        if self._python_error is not None:
+            return
+        try:
+            qf, ma = self._scratch
+            status = mcb.passive_terms(self._userdata, d.time, d.qpos, d.qvel, qf, ma)
+            if status != mcb.STATUS_OK:
+                if self._userdata[mcb.U_STATUS] == 0.0:
+                    self._userdata[mcb.U_STATUS] = status
+                    self._userdata[mcb.U_STATUS_TIME] = d.time
+                return
+            d.qfrc_passive[:] += qf
+            d.M[:6] += ma
+            mujoco.mj_factorM(m, d)
+            self._userdata[mcb.U_CALLS] += 1.0
+        except BaseException as exc:  # noqa: BLE001 - must not reach MuJoCo
+            self._python_error = exc
+            self._userdata[mcb.U_STATUS] = mcb.STATUS_EXCEPTION
+            self._userdata[mcb.U_STATUS_TIME] = d.time
+
+    def _raise_if_failed(self) -> None:
+        ud = self._userdata
+        status = float(ud[mcb.U_STATUS])
+        if status == 0.0 and self._python_error is None:
+            return
+        t = float(ud[mcb.U_STATUS_TIME])
+        exc = self._python_error
+        ud[mcb.U_STATUS] = 0.0
+        self._python_error = None
+        message = mcb.STATUS_MESSAGES.get(status, f"status {status}")
+        state = ", ".join(f"{v:.6g}" for v in self.state)
+        text = (f"MuJoCoPlant: hydrodynamic callback failed at t = {t:.6f} s: {message}"
+                + (f" ({type(exc).__name__}: {exc})" if exc is not None else "")
+                + f"; state after the step (x, y, psi, u, v, r) = ({state})")
+        raise mcb.HydrodynamicCallbackError(text) from exc
+
+    def _raise_warning(self, kind) -> None:
+        label = {mujoco.mjtWarning.mjWARN_BADQPOS: "qpos", mujoco.mjtWarning.mjWARN_BADQVEL: "qvel",
+                 mujoco.mjtWarning.mjWARN_BADQACC: "qacc"}[kind]
+        self.data.warning[kind].number = 0
+        raise mcb.HydrodynamicCallbackError(
+            f"MuJoCoPlant: MuJoCo found a NaN, Inf or huge value in {label} at t = {self.time:.6f} s "
+            f"and reset the simulation (inputs held: tau_u = {self._ctrl[0]!r} N, tau_r = {self._ctrl[1]!r} N m)")
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("MuJoCoPlant: the plant is closed")
+
+
+def _vector3(value, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"MuJoCoPlant.reset: {name} must be 3 numbers, got {value!r}") from exc
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"MuJoCoPlant.reset: {name} must be 3 finite numbers, got {value!r}")
+    return arr
