@@ -1,0 +1,99 @@
+"""The one physics function with the sea (SEA.md §1), over usv_mj.ship's kernels.
+
+    nu_r     = nu - nu_c
+    M nu_dot = M nu_c_dot + tau + tau_env + Delta(eta, nu) + d(t) - C(nu_r) nu_r - D(nu_r) nu_r
+    eta_dot  = J(psi) nu                                   (absolute nu)
+
+nu_r enters the whole C (rigid body and added mass) and all damping; Delta (the paper's model
+uncertainty, Sec. 4), d(t), kinematics and wind use absolute nu. With a calm environment every output
+is bit-identical to :func:`usv_mj.ship.state_derivative` (the same operations in the same order, plus
+exact zeros).
+
+Kernel arguments: ``p`` (ShipParams.as_array()), ``dp`` (PaperDisturbance.as_array()), then the four
+arrays of ``Environment.packed`` (``ep, waves, current_grid, wind_grid``; :mod:`usv_mj.sea.layout`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from usv_mj.ship import (P_M11, P_M22, P_M23, P_M33, coriolis_damping_force, disturbance_force,
+                         kinematics, solve_mass, uncertainty_force)
+
+from .environment import environment_loads
+from .layout import L_DRIFT, L_NU_C, L_NU_C_DOT, L_WAVE1, L_WIND
+
+
+@njit(cache=True)
+def sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
+    """Everything on the hull but the thrust, body frame [N, N, N m] (SEA.md §1):
+
+    f = M nu_c_dot + tau_env + Delta(eta, nu) + d(t) - C(nu_r) nu_r - D(nu_r) nu_r.
+
+    For the MuJoCo callback (SEA.md §6): f_callback = -M_A nu_dot + f + C_RB(nu) nu.
+    """
+    env = environment_loads(ep, waves, current_grid, wind_grid, t, eta, nu)
+    nu_r = np.empty(3)
+    for i in range(3):
+        nu_r[i] = nu[i] - env[L_NU_C + i]
+    dist = disturbance_force(dp, t)
+    unc = uncertainty_force(p, eta, nu)
+    cd = coriolis_damping_force(p, nu_r)
+    f = dist + unc - cd  # the order of usv_mj.ship.hydrodynamic_force
+    a0 = env[L_NU_C_DOT]
+    a1 = env[L_NU_C_DOT + 1]
+    a2 = env[L_NU_C_DOT + 2]
+    m_a = (p[P_M11] * a0, p[P_M22] * a1 + p[P_M23] * a2, p[P_M23] * a1 + p[P_M33] * a2)
+    for i in range(3):
+        f[i] = f[i] + (m_a[i] + (env[L_WIND + i] + env[L_WAVE1 + i] + env[L_DRIFT + i]))
+    return f
+
+
+@njit(cache=True)
+def sea_body_acceleration(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu, tau_u, tau_r):
+    """nu_dot = M^-1 (sea_force + [tau_u, 0, tau_r]) [m/s^2, m/s^2, rad/s^2]."""
+    f = sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu)
+    f[0] += tau_u
+    f[2] += tau_r
+    return solve_mass(p, f)
+
+
+@njit(cache=True)
+def sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r):
+    """d/dt of x = (x, y, psi, u, v, r) with the sea; calm: equal to usv_mj.ship.state_derivative."""
+    out = np.empty(6)
+    out[:3] = kinematics(x[:3], x[3:])
+    out[3:] = sea_body_acceleration(p, dp, ep, waves, current_grid, wind_grid, t, x[:3], x[3:], tau_u, tau_r)
+    return out
+
+
+@njit(cache=True)
+def sea_rk4_advance(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r, h, n):
+    """``n`` classic RK4 steps of size ``h`` from (t, x) under constant thrust, the sea evaluated at
+    the stage times (the pattern of usv_mj.plants.analytic.rk4_advance); returns the new x."""
+    for _ in range(n):
+        k1 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r)
+        k2 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t + 0.5 * h, x + 0.5 * h * k1,
+                                  tau_u, tau_r)
+        k3 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t + 0.5 * h, x + 0.5 * h * k2,
+                                  tau_u, tau_r)
+        k4 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t + h, x + h * k3, tau_u, tau_r)
+        x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        t = t + h
+    return x
+
+
+@njit(cache=True)
+def sea_rk4_trajectory(p, dp, ep, waves, current_grid, wind_grid, t0, x0, tau_u, tau_r, h, n, every):
+    """RK4 from (t0, x0) for n steps of h, returning the state every ``every`` steps (rows, incl. x0)."""
+    m = n // every + 1
+    out = np.empty((m, 6))
+    out[0] = x0
+    x = x0.copy()
+    t = t0
+    for i in range(1, m):
+        x = sea_rk4_advance(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r, h, every)
+        t = t0 + i * every * h
+        out[i] = x
+    return out

@@ -1,0 +1,281 @@
+"""Waves: JONSWAP spectrum, sampling, elevation, Froude-Krylov box load and drift (SEA.md §3).
+
+Sign conventions (SEA.md §0): a component travels toward its going-to direction beta_j in the earth
+frame, theta_j = w_j t - k_j (x cos beta_j + y sin beta_j) + eps_j, zeta = s(t) sum_j a_j cos theta_j.
+Loads are body-frame generalised forces (X [N], Y [N], N [N m]) about the body origin.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from .layout import (DRIFT_MEAN, DRIFT_NEWMAN, E_BEAM, E_BOX_X, E_DRAFT, E_DRIFT_MODE, E_LENGTH,
+                     N_WAVE_COLS, W_A, W_C, W_COSB, W_EPS, W_K, W_Q, W_SINB, W_W)
+
+FREQUENCY_RANGE = (0.5, 4.0)  # components cover w in [0.5, 4] w_p (SEA.md §3.2)
+
+
+def jonswap_spectrum(w, hs: float, tp: float, gamma: float) -> np.ndarray:
+    """JONSWAP wave spectrum S(w) [m^2 s/rad], DNV-RP-C205 form (MSS waveSpectrum type 7; SEA.md §3.1).
+
+    S(w) = (1 - 0.287 ln gamma) (5/16) Hs^2 wp^4 w^-5 exp(-1.25 (wp/w)^4)
+           gamma^exp(-(w - wp)^2 / (2 s^2 wp^2)),  s = 0.07 (w < wp) else 0.09, wp = 2 pi / tp.
+    Zero at w <= 0.
+    """
+    w = np.asarray(w, dtype=float)
+    wp = 2.0 * np.pi / tp
+    out = np.zeros_like(w)
+    pos = w > 0
+    wv = w[pos]
+    sigma = np.where(wv < wp, 0.07, 0.09)
+    peak = gamma ** np.exp(-((wv - wp) ** 2) / (2.0 * sigma**2 * wp**2))
+    out[pos] = ((1.0 - 0.287 * np.log(gamma)) * (5.0 / 16.0) * hs**2 * wp**4 * wv**-5
+                * np.exp(-1.25 * (wp / wv) ** 4) * peak)
+    return out
+
+
+def spreading_cdf(mu):
+    """CDF of the cos^2 spreading (2/pi) cos^2 mu on [-pi/2, pi/2]: F = 1/2 + (mu + sin mu cos mu)/pi."""
+    mu = np.asarray(mu, dtype=float)
+    return 0.5 + (mu + np.sin(mu) * np.cos(mu)) / np.pi
+
+
+def spreading_inverse_cdf(p):
+    """mu = F^-1(p) of :func:`spreading_cdf` for p in [0, 1] (Newton from a bracketing start, to 1e-14)."""
+    p = np.asarray(p, dtype=float)
+    mu = (p - 0.5) * np.pi * 0.5  # F is steeper than uniform near 0: start inside
+    for _ in range(60):
+        f = spreading_cdf(mu) - p
+        fp = (2.0 / np.pi) * np.cos(mu) ** 2
+        step = f / np.maximum(fp, 1e-300)
+        mu = np.clip(mu - step, -np.pi / 2, np.pi / 2)
+        if np.all(np.abs(f) < 1e-15):
+            break
+    return mu
+
+
+def thin_barrier_reflection(kt):
+    """R^2(kT): deep-water reflection coefficient of a thin vertical barrier of draft T (Ursell 1947).
+
+    R^2 = pi^2 I1(kT)^2 / (pi^2 I1(kT)^2 + K1(kT)^2), computed with the exponentially scaled Bessel
+    functions so that it neither under- nor overflows (SEA.md §3.5) [T].
+    """
+    from scipy.special import ive, kve
+
+    kt = np.asarray(kt, dtype=float)
+    if np.any(kt <= 0):
+        raise ValueError(f"thin_barrier_reflection: kT must be > 0, got min {kt.min()!r}")
+    # K1 / (pi I1) = kve e^{-k} / (pi ive e^{k})
+    with np.errstate(over="ignore", under="ignore"):
+        q = kve(1, kt) / (np.pi * ive(1, kt)) * np.exp(-2.0 * kt)
+        return 1.0 / (1.0 + q * q)
+
+
+@dataclass(frozen=True)
+class WaveComponents:
+    """The sampled sea: one entry per component (SEA.md §3.2).
+
+    a [m], w [rad/s], k [rad/m] (deep water k = w^2/g), beta [rad] (going-to, earth frame),
+    eps [rad] (phase). ``dw`` is the bin width [rad/s] (0 for hand-made components).
+    """
+
+    a: np.ndarray
+    w: np.ndarray
+    k: np.ndarray
+    beta: np.ndarray
+    eps: np.ndarray
+    dw: float = 0.0
+
+    def __post_init__(self) -> None:
+        n = len(self.a)
+        for name in ("a", "w", "k", "beta", "eps"):
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+                raise ValueError(f"WaveComponents.{name} must be {n} finite numbers, got shape {arr.shape}")
+            object.__setattr__(self, name, arr)
+        if np.any(self.a < 0) or np.any(self.k <= 0) or np.any(self.w <= 0):
+            raise ValueError("WaveComponents: need a >= 0, w > 0 and k > 0 for every component")
+
+    @property
+    def n(self) -> int:
+        return len(self.a)
+
+    @classmethod
+    def empty(cls) -> "WaveComponents":
+        z = np.zeros(0)
+        return cls(z, z, z, z, z)
+
+    @classmethod
+    def regular(cls, amplitude: float, omega: float, direction: float, phase: float = 0.0,
+                g: float = 9.81) -> "WaveComponents":
+        """One regular (Airy) deep-water wave: amplitude [m], omega [rad/s], going-to direction [rad]."""
+        return cls(np.array([amplitude]), np.array([omega]), np.array([omega**2 / g]),
+                   np.array([direction]), np.array([phase]))
+
+
+def sample_wave_components(hs: float, tp: float, gamma: float, direction: float, spreading: bool,
+                           n: int, rng: np.random.Generator, g: float = 9.81) -> WaveComponents:
+    """Draw the N components of SEA.md §3.2 from ``rng`` (all draws here, once).
+
+    Equal bins over [0.5, 4] w_p, w_j uniform in bin j, a_j = sqrt(2 S(w_j) dw) scaled so that
+    sum a_j^2 / 2 = Hs^2 / 16 exactly, eps_j uniform in [0, 2 pi), k_j = w_j^2 / g (deep water),
+    beta_j = direction + mu_j, mu_j = F^-1((p_j + U_j) / N) with p a random permutation (cos^2
+    spreading) or mu_j = 0 (long-crested). hs = 0 gives no components (calm).
+    The draws are made in a fixed order (w offsets, phases, permutation, offsets) whatever ``spreading``
+    and ``hs`` are, so that switching spreading changes directions only.
+    """
+    if hs <= 0 or n < 1:
+        return WaveComponents.empty()
+    wp = 2.0 * np.pi / tp
+    lo, hi = FREQUENCY_RANGE[0] * wp, FREQUENCY_RANGE[1] * wp
+    dw = (hi - lo) / n
+    u_w = rng.random(n)
+    eps = rng.random(n) * 2.0 * np.pi
+    perm = rng.permutation(n)
+    u_dir = rng.random(n)
+    w = lo + (np.arange(n) + u_w) * dw
+    s = jonswap_spectrum(w, hs, tp, gamma)
+    a = np.sqrt(2.0 * s * dw)
+    total = np.sum(a * a) / 2.0
+    target = hs * hs / 16.0
+    if total > 0:  # guard the 0/0 of the normalisation (SEA.md §0)
+        a = a * math.sqrt(target / total)
+    if spreading:
+        mu = spreading_inverse_cdf((perm + u_dir) / n)
+    else:
+        mu = np.zeros(n)
+    return WaveComponents(a=a, w=w, k=w * w / g, beta=direction + mu, eps=eps, dw=dw)
+
+
+def pack_waves(comp: WaveComponents, draft: float, rho_water: float, g: float,
+               diffraction_factor: float = 1.0) -> np.ndarray:
+    """The ``(N_WAVE_COLS, N)`` component array of :mod:`usv_mj.sea.layout` (c_j and q_j precomputed)."""
+    out = np.zeros((N_WAVE_COLS, comp.n))
+    if comp.n == 0:
+        return out
+    out[W_A] = comp.a
+    out[W_W] = comp.w
+    out[W_K] = comp.k
+    out[W_COSB] = np.cos(comp.beta)
+    out[W_SINB] = np.sin(comp.beta)
+    out[W_EPS] = comp.eps
+    out[W_C] = diffraction_factor * rho_water * g * comp.a * (1.0 - np.exp(-comp.k * draft))
+    out[W_Q] = 0.5 * rho_water * g * thin_barrier_reflection(comp.k * draft)
+    return np.ascontiguousarray(out)
+
+
+# --- kernels -----------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def ramp_factor(ramp_time, t):
+    """s(t) = 1 - exp(-t / tau_ramp) for t > 0 (0 before), 1 when tau_ramp = 0 (SEA.md §3.3)."""
+    if ramp_time <= 0.0:
+        return 1.0
+    if t <= 0.0:
+        return 0.0
+    return 1.0 - math.exp(-t / ramp_time)
+
+
+@njit(cache=True)
+def spherical_j01(u):
+    """j0(u) = sin u / u and j1(u) = (sin u - u cos u) / u^2, with their series for |u| < 0.1."""
+    if abs(u) < 0.1:
+        u2 = u * u
+        j0 = 1.0 - u2 / 6.0 * (1.0 - u2 / 20.0 * (1.0 - u2 / 42.0))
+        j1 = u / 3.0 * (1.0 - u2 / 10.0 * (1.0 - u2 / 28.0 * (1.0 - u2 / 54.0)))
+        return j0, j1
+    s, c = math.sin(u), math.cos(u)
+    return s / u, (s - u * c) / (u * u)
+
+
+@njit(cache=True)
+def wave_elevation_sum(waves, t, x, y):
+    """sum_j a_j cos(theta_j) at one point [m] (no ramp)."""
+    z = 0.0
+    for j in range(waves.shape[1]):
+        theta = (waves[W_W, j] * t - waves[W_K, j] * (x * waves[W_COSB, j] + y * waves[W_SINB, j])
+                 + waves[W_EPS, j])
+        z += waves[W_A, j] * math.cos(theta)
+    return z
+
+
+@njit(cache=True)
+def wave_loads(ep, waves, t, x, y, psi):
+    """First-order Froude-Krylov box load and second-order drift, body frame, **no ramp** (SEA.md §3.4-3.5).
+
+    Returns (X1, Y1, N1, Xd, Yd, Nd) [N, N, N m]. The phase of each component is taken at the box
+    centre (x, y) + R(psi) [x_b, 0]; beta_r = beta_j - psi; k_x = k cos beta_r, k_y = k sin beta_r;
+    P = j0(k_x L/2) j0(k_y B/2);
+      X_j = -c_j L B P cos(beta_r) sin(theta_j),  Y_j = -c_j L B P sin(beta_r) sin(theta_j),
+      N_j = c_j (L B / 2) [L sin(beta_r) j1(k_x L/2) j0(k_y B/2) - B cos(beta_r) j1(k_y B/2) j0(k_x L/2)]
+            cos(theta_j) + x_b Y_j.
+    Drift: Q_j = q_j [B cos b |cos b|, L sin b |sin b|, x_b L sin b |sin b|], b = beta_r;
+    "newman": Re[A_Q conj(A)], A = sum a_j e^{i theta_j}, A_Q = sum a_j Q_j e^{i theta_j};
+    "mean": sum a_j^2 Q_j; "off": 0.
+    """
+    L, B, xb = ep[E_LENGTH], ep[E_BEAM], ep[E_BOX_X]
+    mode = int(ep[E_DRIFT_MODE])
+    cpsi, spsi = math.cos(psi), math.sin(psi)
+    xc = x + cpsi * xb
+    yc = y + spsi * xb
+    hl, hb = 0.5 * L, 0.5 * B
+    lb = L * B
+    X1 = 0.0
+    Y1 = 0.0
+    N1 = 0.0
+    are = 0.0
+    aim = 0.0
+    qx_re = 0.0
+    qx_im = 0.0
+    qy_re = 0.0
+    qy_im = 0.0
+    mx = 0.0
+    my = 0.0
+    for j in range(waves.shape[1]):
+        a = waves[W_A, j]
+        k = waves[W_K, j]
+        cb = waves[W_COSB, j]
+        sb = waves[W_SINB, j]
+        theta = waves[W_W, j] * t - k * (xc * cb + yc * sb) + waves[W_EPS, j]
+        ct = math.cos(theta)
+        st = math.sin(theta)
+        cbr = cb * cpsi + sb * spsi  # cos(beta - psi)
+        sbr = sb * cpsi - cb * spsi  # sin(beta - psi)
+        j0x, j1x = spherical_j01(k * cbr * hl)
+        j0y, j1y = spherical_j01(k * sbr * hb)
+        c = waves[W_C, j]
+        f = -c * lb * j0x * j0y * st
+        X1 += f * cbr
+        Y1 += f * sbr
+        N1 += c * 0.5 * lb * (L * sbr * j1x * j0y - B * cbr * j1y * j0x) * ct
+        if mode != 0:
+            q = waves[W_Q, j]
+            qx = q * B * cbr * abs(cbr)
+            qy = q * L * sbr * abs(sbr)
+            if mode == DRIFT_NEWMAN:
+                ac, as_ = a * ct, a * st
+                are += ac
+                aim += as_
+                qx_re += qx * ac
+                qx_im += qx * as_
+                qy_re += qy * ac
+                qy_im += qy * as_
+            else:
+                mx += a * a * qx
+                my += a * a * qy
+    N1 += xb * Y1
+    if mode == DRIFT_NEWMAN:
+        Xd = qx_re * are + qx_im * aim
+        Yd = qy_re * are + qy_im * aim
+    elif mode == DRIFT_MEAN:
+        Xd = mx
+        Yd = my
+    else:
+        Xd = 0.0
+        Yd = 0.0
+    return X1, Y1, N1, Xd, Yd, xb * Yd
