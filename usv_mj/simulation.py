@@ -24,7 +24,7 @@ from controllers.pi_baseline import PIController
 from controllers.ppc import PPCController
 
 from .plants.analytic import AnalyticPlant
-from .record import COL, SL_CONTROL, SL_DIAG, SL_REF, SL_STATE, Event, RunRecord
+from .record import COL, SL_DIAG, SL_REF, SL_STATE, Event, RunRecord
 from .scenario import Scenario
 from .trajectories import CircleReference, LineReference, PaperReference, WaypointReference
 
@@ -126,6 +126,7 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
     quant_r.reset()
     data = record.data
     c_t = COL["t"]
+    c_tau_u, c_tau_r, c_q_u, c_q_r, c_k_u, c_k_r = (COL[c] for c in ("tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r"))
     flushed = 0
     wall0 = time.perf_counter()
     k = 0
@@ -148,7 +149,12 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
             row[SL_STATE] = x
             row[SL_REF] = ref
             row[SL_DIAG] = diag
-            row[SL_CONTROL] = (tau_u, tau_r, q_u, q_r, quant_u.k, quant_r.k)
+            row[c_tau_u] = tau_u  # scalar stores: cheaper than building an array per step
+            row[c_tau_r] = tau_r
+            row[c_q_u] = q_u
+            row[c_q_r] = q_r
+            row[c_k_u] = quant_u.k
+            row[c_k_r] = quant_r.k
             k += 1
             record.n_rows = k
             if k - flushed >= block:
