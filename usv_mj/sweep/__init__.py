@@ -1,0 +1,90 @@
+"""Monte-Carlo sweeps and capability plots on Dask (issue 10).
+
+Command line (wired into ``usv-mj`` by :mod:`usv_mj.cli`; also ``python -m usv_mj.sweep``)::
+
+    usv-mj sweep SWEEP.toml --out DIR [--scheduler ADDRESS] [--workers N] [--resume] [--keep-logs]
+    usv-mj capability --load disturbance [--base paper] [--duration S] --out DIR [--scheduler ...]
+
+Python API::
+
+    from usv_mj.sweep import load_sweep, run_sweep
+    plan = load_sweep("examples/sweeps/start_pose.toml")   # sampled and validated, nothing run yet
+    result = run_sweep(plan, "out/start_pose", workers=2)   # DIR/results.parquet + DIR/report.md
+
+The sweep file format is in :mod:`usv_mj.sweep.spec`; the row columns in :mod:`usv_mj.sweep.runner`;
+the capability search in :mod:`usv_mj.sweep.capability`.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from .spec import SweepError, SweepPlan, load_sweep, parse_path, plan_sweep
+
+__all__ = ["SweepError", "SweepPlan", "load_sweep", "plan_sweep", "parse_path", "run_sweep", "read_results",
+           "add_arguments", "run_command", "add_capability_arguments", "capability_command"]
+
+
+def run_sweep(*args, **kwargs):
+    """See :func:`usv_mj.sweep.runner.run_sweep` (imported lazily: Dask loads only when a sweep runs)."""
+    from .runner import run_sweep as _run
+
+    return _run(*args, **kwargs)
+
+
+def read_results(path):
+    """See :func:`usv_mj.sweep.runner.read_results`: (rows sorted by run id, plan fingerprint)."""
+    from .runner import read_results as _read
+
+    return _read(path)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``usv-mj sweep``."""
+    parser.add_argument("sweep", help="the sweep file (TOML: base, duration, samples, seed, [set], [vary])")
+    parser.add_argument("--out", required=True, help="directory for results.parquet, report.md, figures/")
+    parser.add_argument("--scheduler", default=None,
+                        help="address of a running Dask scheduler (tcp://host:8786); default: a local cluster")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="local cluster: worker processes (default: the number of cores)")
+    parser.add_argument("--resume", action="store_true", help="run only the runs missing from DIR/results.parquet")
+    parser.add_argument("--keep-logs", action="store_true", help="write an MCAP log of every run to DIR/logs/")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """``usv-mj sweep``: 0 when every run was recorded, 2 on a bad sweep file or option, 130 on Ctrl-C."""
+    import sys
+
+    try:
+        plan = load_sweep(args.sweep)
+        if args.workers is not None and args.workers < 1:
+            raise SweepError(f"--workers must be >= 1, got {args.workers}")
+        print(f"{args.sweep}: {len(plan.runs)} runs, all validated", flush=True)
+        result = run_sweep(plan, args.out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
+                           keep_logs=args.keep_logs, progress=not getattr(args, "no_progress", False))
+    except SweepError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"\ninterrupted: the runs finished so far are in {args.out}/results.parquet; "
+              f"run the same command with --resume to finish the sweep", file=sys.stderr)
+        return 130
+    kept = sum(bool(r.get("kept_funnel")) for r in result.rows)
+    print(f"{len(result.rows)} runs ({result.ran} run now): {kept} kept the funnel, {result.failed} diverged or "
+          f"failed; {args.out}/results.parquet, {args.out}/report.md")
+    return 0
+
+
+def add_capability_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``usv-mj capability``."""
+    from .capability import add_capability_arguments as _add
+
+    _add(parser)
+
+
+def capability_command(args: argparse.Namespace) -> int:
+    """``usv-mj capability``: 0 on success, 2 on bad input or a load that is not available yet."""
+    from .capability import capability_command as _cmd
+
+    return _cmd(args)

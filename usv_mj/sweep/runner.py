@@ -1,0 +1,437 @@
+"""Running a sweep on Dask: one task per run, results streamed to ``DIR/results.parquet`` (issue 10).
+
+- :func:`run_one` is the task: it simulates one scenario and returns its summary row; it never
+  raises for a run that fails (the row says ``failed`` and why).
+- :func:`open_client` gives a ``distributed.Client``: on an existing scheduler (``--scheduler
+  ADDRESS``, any Dask cluster, e.g. one made by ``dask-jobqueue`` on a batch system, see
+  :func:`jobqueue_cluster`), or on a ``LocalCluster`` with one single-threaded worker process per core.
+- :func:`run_sweep` submits the runs that are not in the results yet, records them as they finish
+  (a worker that dies mid-task is retried by Dask on another worker up to the scheduler's
+  ``allowed-failures``; after that the run is recorded as ``failed: worker died``), and rewrites
+  ``results.parquet`` atomically at most every ``flush_every`` seconds and at the end, so that an
+  interrupted sweep keeps what it had and ``--resume`` runs only the missing ids.
+
+Row columns: ``run_id``; ``vary.<path>`` for each varied path; ``status`` (ok | diverged | failed)
+and ``reason``; ``kept_funnel`` (status ok and no funnel violation, SPEC's funnel |z_i| < 1);
+``task_wall_time_s``; ``max_abs_error_after_transient.{x,y,psi}`` [m, m, rad] and
+``max_position_error_after_transient`` [m] (hypot of the x, y errors) after the sweep's
+``transient``; then every field of :func:`usv_mj.summary.summarize` flattened with dots
+(``errors_at.5.x``, ``quantizer_switches.u``, ...), with the summary's ``status`` renamed
+``record_status``. Rows are sorted by ``run_id``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import sys
+import time
+import uuid
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import numpy as np
+
+from .spec import RunSpec, SweepError, SweepPlan
+
+RESULTS_FILE = "results.parquet"
+FINGERPRINT_KEY = b"usv_mj.sweep.fingerprint"
+TIMING_COLUMNS = ("task_wall_time_s", "wall_time_s", "realtime_factor")
+"""Columns that measure time on the machine: they differ between two runs of the same sweep."""
+STRING_COLUMNS = ("status", "reason", "record_status", "stop_reason", "preset", "plant", "controller")
+
+
+# --- the task -------------------------------------------------------------------------------------
+
+
+def flatten(d: dict, prefix: str = "") -> dict:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}``."""
+    out = {}
+    for key, value in d.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def _finite_or_none(v) -> float | None:
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def transient_errors(record, transient: float) -> dict:
+    """Max |x - x_d|, |y - y_d| [m], |wrap(psi - psi_d)| [rad] and max hypot(x err, y err) [m] for t > transient.
+
+    None where the run did not reach the transient's end.
+    """
+    from ..summary import pose_errors
+
+    t = record["t"]
+    after = t > transient
+    if not after.any():
+        return {"max_abs_error_after_transient.x": None, "max_abs_error_after_transient.y": None,
+                "max_abs_error_after_transient.psi": None, "max_position_error_after_transient": None}
+    err = pose_errors(record)
+    out = {f"max_abs_error_after_transient.{a}": _finite_or_none(np.max(np.abs(err[a][after])))
+           for a in ("x", "y", "psi")}
+    out["max_position_error_after_transient"] = _finite_or_none(np.max(np.hypot(err["x"][after], err["y"][after])))
+    return out
+
+
+def failed_row(run_id: int, values: dict, reason: str, wall: float | None = None) -> dict:
+    """The row of a run that produced no record (raised, or its worker died)."""
+    row = {"run_id": int(run_id)}
+    row.update({f"vary.{p}": v for p, v in values.items()})
+    row.update({"status": "failed", "reason": reason, "kept_funnel": False, "task_wall_time_s": wall})
+    return row
+
+
+def run_one(run_id: int, scenario, values: dict, options: dict | None = None) -> dict:
+    """Simulate one run of a sweep and return its row (see the module docstring).
+
+    ``options``: ``transient`` [s]; ``log_path`` (write an MCAP log there through
+    ``usv_mj.runlog.RunLogWriter``); ``hooks`` (tests only, honoured only when the environment
+    variable ``USV_MJ_SWEEP_TEST_HOOKS`` is "1" in the worker: ``raise`` / ``exit_worker`` sets of
+    run ids).
+    """
+    from ..simulation import simulate
+    from ..summary import summarize
+
+    options = options or {}
+    wall0 = time.perf_counter()
+    hooks = options.get("hooks") or {}
+    try:
+        if hooks and os.environ.get("USV_MJ_SWEEP_TEST_HOOKS") == "1":
+            if run_id in hooks.get("exit_worker", ()):
+                os._exit(13)  # the worker process dies mid-task
+            if run_id in hooks.get("raise", ()):
+                raise RuntimeError(f"test hook: run {run_id} raises")
+        sinks = []
+        writer = None
+        if options.get("log_path"):
+            from ..runlog import RunLogWriter
+
+            writer = RunLogWriter(options["log_path"], scenario)
+            sinks.append(writer.sink(run="main"))
+        try:
+            record = simulate(scenario, sinks=sinks)
+        finally:
+            if writer is not None and hasattr(writer, "close"):
+                writer.close()
+        summary = summarize(record)
+    except Exception as exc:  # the sweep goes on: the row says why
+        return failed_row(run_id, values, f"{type(exc).__name__}: {exc}", time.perf_counter() - wall0)
+    status = {"completed": "ok", "diverged": "diverged"}.get(record.status, "failed")
+    row = {"run_id": int(run_id)}
+    row.update({f"vary.{p}": v for p, v in values.items()})
+    row["status"] = status
+    row["reason"] = record.stop_reason or None
+    row["kept_funnel"] = bool(status == "ok" and summary["funnel_violations"] == 0)
+    row.update(transient_errors(record, float(options.get("transient", 20.0))))
+    flat = flatten(summary)
+    flat["record_status"] = flat.pop("status")
+    row.update(flat)
+    row["task_wall_time_s"] = time.perf_counter() - wall0
+    return row
+
+
+# --- results on disk ------------------------------------------------------------------------------
+
+
+def _column_type(name: str, values: list):
+    import pyarrow as pa
+
+    present = [v for v in values if v is not None]
+    if name in STRING_COLUMNS:
+        return pa.string()
+    if not present:
+        return pa.float64()
+    if all(isinstance(v, bool) for v in present):
+        return pa.bool_()
+    if all(isinstance(v, int) and not isinstance(v, bool) for v in present):
+        return pa.int64()
+    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in present):
+        return pa.float64()
+    return pa.string()
+
+
+def _column_order(rows: list[dict], paths: list[str]) -> list[str]:
+    first = ["run_id"] + [f"vary.{p}" for p in paths] + ["status", "reason", "kept_funnel", "task_wall_time_s"]
+    seen = dict.fromkeys(first)
+    for row in rows:
+        for key in row:
+            seen.setdefault(key)
+    return list(seen)
+
+
+def rows_to_table(rows: list[dict], paths: list[str], fingerprint: str = ""):
+    """A pyarrow Table of ``rows`` sorted by run id; missing fields are nulls; types inferred per column."""
+    import pyarrow as pa
+
+    rows = sorted(rows, key=lambda r: r["run_id"])
+    names = _column_order(rows, paths)
+    arrays = []
+    fields = []
+    for name in names:
+        col = [r.get(name) for r in rows]
+        typ = _column_type(name, col)
+        if typ == pa.string():
+            col = [None if v is None else (v if isinstance(v, str) else json.dumps(v)) for v in col]
+        elif typ == pa.float64():
+            col = [None if v is None else float(v) for v in col]
+        arrays.append(pa.array(col, type=typ))
+        fields.append(pa.field(name, typ))
+    meta = {FINGERPRINT_KEY: fingerprint.encode()} if fingerprint else None
+    return pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=meta))
+
+
+def write_results(path: Path, rows: list[dict], paths: list[str], fingerprint: str) -> None:
+    """Write ``rows`` to ``path`` atomically (a temporary file, then ``os.replace``)."""
+    import pyarrow.parquet as pq
+
+    table = rows_to_table(rows, paths, fingerprint)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    pq.write_table(table, tmp)
+    os.replace(tmp, path)
+
+
+def read_results(path: str | Path) -> tuple[list[dict], str]:
+    """The rows (sorted by run id) and the plan fingerprint of a results file."""
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    meta = table.schema.metadata or {}
+    rows = sorted(table.to_pylist(), key=lambda r: r["run_id"])
+    return rows, meta.get(FINGERPRINT_KEY, b"").decode()
+
+
+# --- Dask -----------------------------------------------------------------------------------------
+
+
+def _dashboard(client) -> str:
+    try:
+        import bokeh  # noqa: F401  (distributed serves its dashboard only with bokeh)
+    except ImportError:
+        return "not served (pip install 'bokeh>=3.1' for the Dask dashboard)"
+    link = client.dashboard_link
+    return link or "not served"
+
+
+@contextlib.contextmanager
+def open_client(scheduler: str | None = None, workers: int | None = None,
+                echo: Callable[[str], None] | None = print) -> Iterator[Any]:
+    """A ``distributed.Client`` on ``scheduler`` (an address), or on a new local cluster.
+
+    Local default: ``LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1,
+    processes=True)`` (the runs are CPU-bound Python + numba: one process per core). The dashboard
+    address is printed through ``echo``.
+    """
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    echo = echo or (lambda s: None)
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise SweepError(f"--scheduler {scheduler!r}: cannot connect to a Dask scheduler there ({exc})") from None
+        n = len(client.scheduler_info().get("workers", {}))
+        echo(f"Dask scheduler {scheduler}: {n} workers; dashboard: {_dashboard(client)}")
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = int(workers or os.cpu_count() or 1)
+    if n < 1:
+        raise SweepError(f"--workers must be >= 1, got {n}")
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                           silence_logs=logging.ERROR)
+    client = Client(cluster)
+    echo(f"local Dask cluster: {n} worker processes x 1 thread; dashboard: {_dashboard(client)}")
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def jobqueue_cluster(kind: str = "slurm", jobs: int = 1, **kwargs):
+    """A ``dask-jobqueue`` cluster on an HPC batch system (``slurm``, ``pbs``, ``sge``, ``lsf``, ...),
+    scaled to ``jobs`` jobs; ``kwargs`` go to its constructor (cores, memory, queue, walltime...).
+
+    Use its scheduler address with ``usv-mj sweep --scheduler``::
+
+        cluster = jobqueue_cluster("slurm", jobs=10, cores=8, memory="16GB", processes=8)
+        print(cluster.scheduler_address)   # keep this process alive while the sweep runs
+    """
+    try:
+        import dask_jobqueue
+    except ImportError:
+        raise SweepError("dask-jobqueue is not installed: pip install dask-jobqueue") from None
+    classes = {"slurm": "SLURMCluster", "pbs": "PBSCluster", "sge": "SGECluster", "lsf": "LSFCluster",
+               "oar": "OARCluster", "htcondor": "HTCondorCluster", "moab": "MoabCluster"}
+    if kind not in classes:
+        raise SweepError(f"unknown batch system {kind!r}; known: {', '.join(classes)}")
+    cluster = getattr(dask_jobqueue, classes[kind])(**kwargs)
+    cluster.scale(jobs=jobs)
+    return cluster
+
+
+def runlog_available() -> bool:
+    """Whether ``usv_mj.runlog.RunLogWriter`` (the MCAP issue) is importable."""
+    try:
+        from ..runlog import RunLogWriter  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict], None],
+                key_prefix: str = "usv-run") -> None:
+    """Submit ``(run, options)`` pairs as one task each and call ``on_row(row)`` as each finishes.
+
+    A task whose worker died more often than the scheduler's ``allowed-failures`` (Dask's
+    ``KilledWorker``) or that could not be run at all gives a ``failed`` row with the reason. On an
+    exception (Ctrl-C) the futures not yet done are cancelled and the exception goes on.
+    """
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    token = uuid.uuid4().hex[:8]
+    futures = {}
+    for run, options in jobs:
+        fut = client.submit(run_one, run.run_id, run.scenario, run.values, options,
+                            key=f"{key_prefix}-{run.run_id}-{token}", pure=False, retries=0)
+        futures[fut] = run
+    try:
+        for fut in as_completed(list(futures)):
+            run = futures[fut]
+            try:
+                row = fut.result()
+            except KilledWorker as exc:
+                row = failed_row(run.run_id, run.values, f"worker died: the task was tried on a worker that "
+                                 f"died, too many times (Dask KilledWorker: {exc})")
+            except Exception as exc:  # a run that could not be run or sent back
+                row = failed_row(run.run_id, run.values, f"{type(exc).__name__}: {exc}")
+            on_row(row)
+            fut.release()
+    finally:
+        pending = [f for f in futures if not f.done()]
+        if pending:
+            client.cancel(pending)
+
+
+# --- the sweep ------------------------------------------------------------------------------------
+
+
+class SweepResult:
+    """What :func:`run_sweep` did: ``rows`` (all, sorted), ``ran`` (this call), ``failed``, ``out``."""
+
+    def __init__(self, rows, ran, out):
+        self.rows = rows
+        self.ran = ran
+        self.out = out
+
+    @property
+    def failed(self) -> int:
+        return sum(r["status"] != "ok" for r in self.rows)
+
+
+def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
+              resume: bool = False, keep_logs: bool = False, progress: bool = True, flush_every: float = 2.0,
+              client=None, echo: Callable[[str], None] | None = print, report: bool = True) -> SweepResult:
+    """Run the plan's missing runs on Dask, streaming rows into ``out/results.parquet``; then the report.
+
+    ``client``: an existing ``distributed.Client`` (else one is opened by :func:`open_client`).
+    Raises :class:`SweepError` when ``out`` already holds results and ``resume`` is False, or holds
+    results of another plan. KeyboardInterrupt propagates after the rows so far are written.
+    """
+    echo = echo or (lambda s: None)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    results = out / RESULTS_FILE
+    rows: dict[int, dict] = {}
+    if results.exists():
+        if not resume:
+            raise SweepError(f"{results} exists: pass --resume to run only the missing runs, or choose another --out")
+        try:
+            old, fingerprint = read_results(results)
+        except Exception as exc:
+            raise SweepError(f"{results}: cannot read the results to resume ({exc})") from None
+        if fingerprint != plan.fingerprint:
+            raise SweepError(f"{results} holds the results of another sweep (its file, seed or base differ): "
+                             f"choose another --out")
+        rows = {int(r["run_id"]): r for r in old}
+    (out / "sweep.json").write_text(json.dumps({
+        "source": plan.source, "fingerprint": plan.fingerprint, "runs": len(plan.runs), "seed": plan.seed,
+        "samples": plan.samples, "transient_s": plan.transient, "base_preset": plan.base.preset,
+        "axes": [{"path": a.path, "kind": a.kind, "args": list(a.args)} for a in plan.axes],
+    }, indent=1, default=repr))
+    todo = [r for r in plan.runs if r.run_id not in rows]
+    log_dir = None
+    if keep_logs:
+        if runlog_available():
+            log_dir = out / "logs"
+            log_dir.mkdir(exist_ok=True)
+        else:
+            echo("--keep-logs: usv_mj.runlog.RunLogWriter (the MCAP issue) is not in this checkout yet; "
+                 "running without per-run logs")
+    base_options = {"transient": plan.transient, "hooks": plan.test_hooks or None}
+    jobs = []
+    for run in todo:
+        opts = dict(base_options)
+        if log_dir is not None:
+            opts["log_path"] = str(log_dir / f"run-{run.run_id:06d}.mcap")
+        jobs.append((run, opts))
+    ran = 0
+    if todo:
+        echo(f"{len(plan.runs)} runs in the sweep, {len(rows)} already in {results}, {len(todo)} to run")
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(plan.runs), initial=len(rows), unit="run", dynamic_ncols=True,
+                       file=sys.stderr)
+        state = {"last_flush": time.monotonic(), "failed": sum(r["status"] != "ok" for r in rows.values()),
+                 "dirty": False}
+
+        def on_row(row):
+            nonlocal ran
+            rows[row["run_id"]] = row
+            ran += 1
+            state["dirty"] = True
+            if row["status"] != "ok":
+                state["failed"] += 1
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(diverged_or_failed=state["failed"], refresh=False)
+            if time.monotonic() - state["last_flush"] >= flush_every:
+                write_results(results, list(rows.values()), plan.paths, plan.fingerprint)
+                state["last_flush"] = time.monotonic()
+                state["dirty"] = False
+
+        try:
+            if client is not None:
+                gather_rows(client, jobs, on_row)
+            else:
+                with open_client(scheduler, workers, echo) as own:
+                    gather_rows(own, jobs, on_row)
+        finally:
+            if bar is not None:
+                bar.close()
+            if state["dirty"] or not results.exists():
+                write_results(results, list(rows.values()), plan.paths, plan.fingerprint)
+    elif not results.exists():
+        write_results(results, [], plan.paths, plan.fingerprint)
+    all_rows = sorted(rows.values(), key=lambda r: r["run_id"])
+    if report:
+        from .report import write_report
+
+        write_report(out, all_rows, plan)
+    return SweepResult(all_rows, ran, out)
