@@ -49,6 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="local cluster: worker processes (default: the number of cores)")
     parser.add_argument("--resume", action="store_true", help="run only the runs missing from DIR/results.parquet")
     parser.add_argument("--keep-logs", action="store_true", help="write an MCAP log of every run to DIR/logs/")
+    parser.add_argument("--max-runs", type=int, default=None,
+                        help="run at most N runs now, then stop (--resume continues): sweeps in chunks")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -60,9 +62,13 @@ def run_command(args: argparse.Namespace) -> int:
         plan = load_sweep(args.sweep)
         if args.workers is not None and args.workers < 1:
             raise SweepError(f"--workers must be >= 1, got {args.workers}")
+        max_runs = getattr(args, "max_runs", None)
+        if max_runs is not None and max_runs < 1:
+            raise SweepError(f"--max-runs must be >= 1, got {max_runs}")
         print(f"{args.sweep}: {len(plan.runs)} runs, all validated", flush=True)
         result = run_sweep(plan, args.out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
-                           keep_logs=args.keep_logs, progress=not getattr(args, "no_progress", False))
+                           keep_logs=args.keep_logs, progress=not getattr(args, "no_progress", False),
+                           max_runs=max_runs)
     except SweepError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -71,6 +77,10 @@ def run_command(args: argparse.Namespace) -> int:
               f"run the same command with --resume to finish the sweep", file=sys.stderr)
         return 130
     kept = sum(bool(r.get("kept_funnel")) for r in result.rows)
+    if not result.complete:
+        print(f"{len(result.rows)} of {len(plan.runs)} runs in {args.out}/results.parquet; run again with "
+              f"--resume for the rest")
+        return 0
     print(f"{len(result.rows)} runs ({result.ran} run now): {kept} kept the funnel, {result.failed} diverged or "
           f"failed; {args.out}/results.parquet, {args.out}/report.md")
     return 0

@@ -330,13 +330,19 @@ def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict
 # --- the sweep ------------------------------------------------------------------------------------
 
 
-class SweepResult:
-    """What :func:`run_sweep` did: ``rows`` (all, sorted), ``ran`` (this call), ``failed``, ``out``."""
+class _StopAfter(Exception):
+    """``max_runs`` new rows are in: stop the sweep here (the rest is left for ``--resume``)."""
 
-    def __init__(self, rows, ran, out):
+
+class SweepResult:
+    """What :func:`run_sweep` did: ``rows`` (all, sorted), ``ran`` (this call), ``failed``, ``out``,
+    ``complete`` (every run of the plan is in the table)."""
+
+    def __init__(self, rows, ran, out, complete=True):
         self.rows = rows
         self.ran = ran
         self.out = out
+        self.complete = complete
 
     @property
     def failed(self) -> int:
@@ -345,10 +351,12 @@ class SweepResult:
 
 def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
               resume: bool = False, keep_logs: bool = False, progress: bool = True, flush_every: float = 2.0,
-              client=None, echo: Callable[[str], None] | None = print, report: bool = True) -> SweepResult:
+              client=None, echo: Callable[[str], None] | None = print, report: bool = True,
+              max_runs: int | None = None) -> SweepResult:
     """Run the plan's missing runs on Dask, streaming rows into ``out/results.parquet``; then the report.
 
     ``client``: an existing ``distributed.Client`` (else one is opened by :func:`open_client`).
+    ``max_runs``: stop after this many new rows, as an interrupt would (the rest waits for ``resume``).
     Raises :class:`SweepError` when ``out`` already holds results and ``resume`` is False, or holds
     results of another plan. KeyboardInterrupt propagates after the rows so far are written.
     """
@@ -415,6 +423,8 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
                 write_results(results, list(rows.values()), plan.paths, plan.fingerprint)
                 state["last_flush"] = time.monotonic()
                 state["dirty"] = False
+            if max_runs is not None and ran >= max_runs:
+                raise _StopAfter()
 
         try:
             if client is not None:
@@ -422,6 +432,8 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
             else:
                 with open_client(scheduler, workers, echo) as own:
                     gather_rows(own, jobs, on_row)
+        except _StopAfter:
+            echo(f"stopped after {ran} runs (max_runs); --resume runs the rest")
         finally:
             if bar is not None:
                 bar.close()
@@ -430,8 +442,9 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     elif not results.exists():
         write_results(results, [], plan.paths, plan.fingerprint)
     all_rows = sorted(rows.values(), key=lambda r: r["run_id"])
-    if report:
+    complete = len(all_rows) == len(plan.runs)
+    if report and complete:
         from .report import write_report
 
         write_report(out, all_rows, plan)
-    return SweepResult(all_rows, ran, out)
+    return SweepResult(all_rows, ran, out, complete)
