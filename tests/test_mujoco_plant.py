@@ -188,7 +188,7 @@ def test_native_callback_error_surfaces():
         assert np.all(np.isfinite(plant.state))
         # MuJoCo's own NaN guard is reported too, not passed on silently
         plant.data.qvel[0] = np.inf
-        with pytest.raises(mcb.HydrodynamicCallbackError):
+        with pytest.raises(mcb.HydrodynamicCallbackError, match="qvel"):
             plant.step(50.0, 0.0)
 
 

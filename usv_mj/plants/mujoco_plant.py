@@ -32,8 +32,9 @@ from .base import PlantBase
 
 DEFAULT_MODEL = os.path.join(mcb.MODELS_DIR, "usv.xml")
 
-_BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
-                 mujoco.mjtWarning.mjWARN_BADQACC)
+_BAD_WARNINGS = ((mujoco.mjtWarning.mjWARN_BADQPOS, "qpos"), (mujoco.mjtWarning.mjWARN_BADQVEL, "qvel"),
+                 (mujoco.mjtWarning.mjWARN_BADQACC, "qacc"))
+_mj_step = mujoco.mj_step
 
 
 class _CallbackRegistry:
@@ -251,18 +252,19 @@ class MuJoCoPlant(PlantBase):
         ctrl[1] = tau_r
         d = self.data
         # time from the step count (as the analytic plant): no drift from summing dt
-        d.time = self._t0 + self._k * self.control_period
+        t = self._t0 + self._k * self.control_period
+        d.time = t
         if self.substeps == 1:
-            mujoco.mj_step(self.model, d)
+            _mj_step(self.model, d)
         else:
-            mujoco.mj_step(self.model, d, self.substeps)
+            _mj_step(self.model, d, self.substeps)
         self._k += 1
+        # MuJoCo's NaN guard resets mjData (time back to 0) with a warning; the callback records
+        # its own failures in userdata: both are checked with two cheap reads
         if self._userdata[mcb.U_STATUS] != 0.0 or self._python_error is not None:
             self._raise_if_failed()
-        w = d.warning
-        for kind in _BAD_WARNINGS:
-            if w[kind].number:
-                self._raise_warning(kind)
+        if not d.time > t:
+            self._raise_reset()
 
     @property
     def time(self) -> float:
@@ -341,13 +343,16 @@ class MuJoCoPlant(PlantBase):
                 + f"; state after the step (x, y, psi, u, v, r) = ({state})")
         raise mcb.HydrodynamicCallbackError(text) from exc
 
-    def _raise_warning(self, kind) -> None:
-        label = {mujoco.mjtWarning.mjWARN_BADQPOS: "qpos", mujoco.mjtWarning.mjWARN_BADQVEL: "qvel",
-                 mujoco.mjtWarning.mjWARN_BADQACC: "qacc"}[kind]
-        self.data.warning[kind].number = 0
+    def _raise_reset(self) -> None:
+        w = self.data.warning
+        found = [label for kind, label in _BAD_WARNINGS if w[kind].number]
+        for kind, _ in _BAD_WARNINGS:
+            w[kind].number = 0
+        t = self.time - self.control_period
         raise mcb.HydrodynamicCallbackError(
-            f"MuJoCoPlant: MuJoCo found a NaN, Inf or huge value in {label} at t = {self.time:.6f} s "
-            f"and reset the simulation (inputs held: tau_u = {self._ctrl[0]!r} N, tau_r = {self._ctrl[1]!r} N m)")
+            f"MuJoCoPlant: MuJoCo found a NaN, Inf or huge value in {' and '.join(found) or 'the state'} during the "
+            f"step from t = {t:.6f} s and reset the simulation (inputs held: tau_u = {self._ctrl[0]!r} N, "
+            f"tau_r = {self._ctrl[1]!r} N m)")
 
     def _check_open(self) -> None:
         if self._closed:
