@@ -1,0 +1,99 @@
+"""usv-mj compare (issue 3): structure of compare.json, the tolerances, and RK4's order."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+
+import numpy as np
+import pytest
+
+from usv_mj import compare
+from usv_mj.scenario import ScenarioError, load_scenario
+
+KEYS = ("max_position_m", "max_heading_rad", "max_velocity", "convergence")
+
+
+@pytest.fixture(scope="module")
+def short_compare(tmp_path_factory):
+    out = tmp_path_factory.mktemp("compare")
+    scenario = load_scenario(preset="paper", overrides={"duration": 8.0})
+    result = compare.compare_plants(scenario, str(out), progress=False)
+    return out, result
+
+
+def test_compare_json_structure_and_files(short_compare):
+    out, result = short_compare
+    with open(out / "compare.json") as fh:
+        written = json.load(fh)
+    assert written["open_loop"]["max_position_m"] == result["open_loop"]["max_position_m"]
+    for part in ("open_loop", "closed_loop"):
+        for key in KEYS:
+            assert key in written[part], (part, key)
+        rows = written[part]["convergence"]
+        assert len(rows) >= 3
+        assert all(set(row) >= {"dt", "max_position_m"} for row in rows)
+        assert [row["dt"] for row in rows] == sorted((row["dt"] for row in rows), reverse=True)
+    for name in ("open_loop.png", "closed_loop.png", "convergence.png"):
+        assert (out / name).stat().st_size > 10_000
+
+
+def test_compare_tolerances_and_funnels(short_compare):
+    _, result = short_compare
+    assert result["open_loop"]["max_position_m"] < 1e-6
+    assert result["open_loop"]["max_heading_rad"] < 1e-6
+    assert result["closed_loop"]["max_position_m"] < 1e-3
+    assert result["closed_loop"]["inside_funnels"] == {"analytic": True, "mujoco": True}
+    assert result["closed_loop"]["status"] == {"analytic": "completed", "mujoco": "completed"}
+    assert result["passed"] is True
+
+
+def test_convergence_at_rk4_order(short_compare):
+    _, result = short_compare
+    ol = result["open_loop"]
+    # the plants' difference shrinks at RK4's order: a factor ~16 per halving of dt
+    rows = ol["convergence"]
+    for coarse, fine in zip(rows, rows[1:]):
+        assert 8.0 < coarse["max_position_m"] / fine["max_position_m"] < 32.0
+    assert 3.5 < ol["convergence_order"]["plants_difference"] < 4.5
+    # with one-signed inputs (smooth damping along the solution) each plant converges to the
+    # fine-step reference at order 4 too
+    smooth = ol["convergence_one_signed_inputs"]
+    assert smooth["zero_crossings_of_reference"] == {"u": 0, "v": 0, "r": 0}
+    assert 3.5 < smooth["order"]["mujoco_vs_reference"] < 4.5
+    assert 3.5 < smooth["order"]["analytic_vs_reference"] < 4.5
+    cl = result["closed_loop"]
+    assert cl["convergence"][-1]["max_position_m"] < cl["convergence"][0]["max_position_m"] / 8
+    assert 3.0 < cl["convergence_order"]["plants_difference"] < 5.0
+
+
+def test_open_loop_inputs_are_the_same_signal_at_every_dt():
+    coarse = compare.open_loop_inputs(20.0, 0.04)
+    fine = compare.open_loop_inputs(20.0, 0.001)
+    assert coarse.shape == (500, 2) and fine.shape == (20000, 2)
+    np.testing.assert_array_equal(fine[::40], coarse)
+    np.testing.assert_array_equal(fine[39::40], coarse)  # constant within each coarse step
+    assert np.ptp(fine[:, 0]) > 100 and np.ptp(fine[:, 1]) > 5  # rich: large, two-signed swings
+    assert (fine[:, 0] < 0).any() and (fine[:, 1] < 0).any()
+    with pytest.raises(ValueError, match="0.003"):
+        compare.open_loop_inputs(1.0, 0.003)
+
+
+def test_estimated_order_closed_form():
+    dts = np.array([0.04, 0.02, 0.01])
+    assert compare.estimated_order(dts, 3.0 * dts**4) == pytest.approx(4.0, abs=1e-12)
+    assert compare.estimated_order(dts, [1.0, 0.0, 1.0]) is None
+
+
+def test_run_command_writes_and_rejects_bad_input(tmp_path, capsys):
+    parser = argparse.ArgumentParser()
+    compare.add_arguments(parser)
+    args = parser.parse_args(["--duration", "2", "--out", str(tmp_path / "c"), "-q"])
+    assert compare.run_command(args) == 0
+    assert os.path.isfile(tmp_path / "c" / "compare.json")
+    assert "closed loop" in capsys.readouterr().out
+    with pytest.raises(ScenarioError, match="duration"):
+        compare.run_command(parser.parse_args(["--duration", "-1"]))
+    with pytest.raises(ScenarioError):
+        compare.run_command(parser.parse_args(["--preset", "no-such-preset"]))

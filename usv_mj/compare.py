@@ -1,0 +1,451 @@
+"""``usv-mj compare``: the same scenario on the analytic and the MuJoCo plant (issue 3).
+
+Two experiments, each reported in ``compare.json`` with the maximum differences between the plants
+(position [m], heading [rad], body velocities [m/s, rad/s]) and a convergence study:
+
+- **open loop**: a rich switching input sequence (:func:`open_loop_inputs`: random surge force and
+  yaw moment levels held for random spans, on a 0.2 s switching grid, plus a square wave in yaw),
+  identical on both plants, for the scenario's duration at its control period, from the
+  scenario's initial state, with the scenario's ship and disturbance. The issue asks for a
+  position difference under 1e-6 m over 300 s at 1 ms.
+- **closed loop**: ``simulate`` of the scenario (the ``paper`` preset by default) on each plant.
+  The issue asks for a position difference under 1e-3 m over 300 s, and both runs inside the
+  funnels (|z_i| < 1 throughout).
+
+Convergence. Both plants integrate the same ODE with classic RK4 (the analytic one in
+(eta, nu), MuJoCo in (q, q_dot) with the exact added mass), so each is O(dt^4) away from the exact
+solution and their difference is O(dt^4) as well. The open-loop study runs both plants at
+dt = 40, 20, 10, 5 ms over min(duration, 20) s (the inputs switch on a 0.2 s grid, so every dt sees
+exactly the same input signal) and compares each with a fine-step reference (the analytic plant at
+dt = 5/8 ms, whose own error is 8^4 = 4096 times smaller than the finest study step); its
+``max_position_m`` is the difference between the plants, and ``mujoco_vs_reference_m`` /
+``analytic_vs_reference_m`` are each plant's error. The estimated order is the least-squares slope
+of log(error) against log(dt) (4 expected). The closed-loop study runs the loop at 4, 2 and 1 ms
+over min(duration, 30) s; there the controller's own discretization (explicit Euler adaptation,
+quantizer) changes with dt, so no common reference exists and only the plants' difference at each
+dt is reported (it shrinks at RK4's order as long as both runs see the same quantizer switching).
+
+Outputs in ``out_dir``: ``compare.json``, ``open_loop.png``, ``closed_loop.png``,
+``convergence.png``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+from .plants.analytic import AnalyticPlant
+from .scenario import Scenario, load_scenario
+
+SWITCH_GRID_S = 0.2            # inputs change only at multiples of this time [s]
+OPEN_LOOP_TOLERANCE_M = 1e-6   # issue 3: 300 s open loop at 1 ms
+CLOSED_LOOP_TOLERANCE_M = 1e-3  # issue 3: 300 s closed loop, paper preset
+OPEN_CONVERGENCE_DTS = (0.04, 0.02, 0.01, 0.005)
+OPEN_REFERENCE_DIVISOR = 8
+OPEN_CONVERGENCE_HORIZON_S = 20.0
+CLOSED_CONVERGENCE_DTS = (0.004, 0.002, 0.001)
+CLOSED_CONVERGENCE_HORIZON_S = 30.0
+
+
+# --- inputs --------------------------------------------------------------------------------------
+
+
+def _grid_steps(dt: float) -> int:
+    g = SWITCH_GRID_S / dt
+    if not (dt > 0 and abs(g - round(g)) < 1e-9 * g and round(g) >= 1):
+        raise ValueError(f"compare: the control period {dt!r} s must divide the {SWITCH_GRID_S} s switching grid")
+    return int(round(g))
+
+
+def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: bool = False) -> np.ndarray:
+    """The open-loop input sequence [(tau_u [N], tau_r [N m]) per control step], shape (n, 2).
+
+    Piecewise constant on a 0.2 s grid: surge levels uniform in [-60, 220] N (one span in six is
+    zero thrust), yaw levels uniform in [-8, 8] N m, each held for 1 to 15 grid cells, plus a
+    +-3 N m yaw square wave of period 2.4 s. The same ``seed`` gives the same signal at every dt
+    that divides 0.2 s (sample k holds over [k dt, (k + 1) dt)).
+
+    ``one_signed``: surge in [100, 220] N and yaw in [5, 10] N m instead (no zero thrust, no
+    square wave), so that u, v and r keep their signs after the start (checked: the result
+    reports the zero crossings of the reference solution) and the |u|, |v|, |r| terms
+    of the damping (SPEC §1) stay smooth along the solution.
+    """
+    g = _grid_steps(dt)
+    n = int(round(duration / dt))
+    cells = -(-n // g)
+    rng = np.random.default_rng(seed)
+    levels = np.empty((cells, 2))
+    c = 0
+    while c < cells:
+        span = int(rng.integers(1, 16))
+        if one_signed:
+            levels[c:c + span] = (rng.uniform(100.0, 220.0), rng.uniform(5.0, 10.0))
+        else:
+            surge = 0.0 if rng.random() < 1 / 6 else rng.uniform(-60.0, 220.0)
+            levels[c:c + span] = (surge, rng.uniform(-8.0, 8.0))
+        c += span
+    if not one_signed:
+        levels[:, 1] += 3.0 * np.where((np.arange(cells) // 6) % 2 == 0, 1.0, -1.0)
+    return np.repeat(levels, g, axis=0)[:n]
+
+
+def run_open_loop(plant, inputs: np.ndarray, eta0, nu0) -> np.ndarray:
+    """States after each step: row 0 is the initial state, row k+1 after input k; shape (n+1, 6)."""
+    plant.reset(eta0, nu0, 0.0)
+    out = np.empty((len(inputs) + 1, 6))
+    out[0] = plant.state
+    for k in range(len(inputs)):
+        plant.step(inputs[k, 0], inputs[k, 1])
+        out[k + 1] = plant.state
+    return out
+
+
+# --- metrics -------------------------------------------------------------------------------------
+
+
+def state_differences(a: np.ndarray, b: np.ndarray) -> dict:
+    """Maximum differences between two state histories (x, y, psi, u, v, r) of equal length."""
+    pos = np.hypot(a[:, 0] - b[:, 0], a[:, 1] - b[:, 1])
+    dv = np.abs(a[:, 3:6] - b[:, 3:6])
+    return {
+        "max_position_m": float(np.max(pos)),
+        "max_heading_rad": float(np.max(np.abs(a[:, 2] - b[:, 2]))),
+        "max_velocity": float(np.max(dv)),
+        "max_velocity_components": {"u_m_s": float(np.max(dv[:, 0])), "v_m_s": float(np.max(dv[:, 1])),
+                                    "r_rad_s": float(np.max(dv[:, 2]))},
+    }
+
+
+def estimated_order(dts, errors) -> float | None:
+    """Least-squares slope of log(error) against log(dt); None if an error is 0 or not finite."""
+    dts, errors = np.asarray(dts, float), np.asarray(errors, float)
+    if len(dts) < 2 or not np.all(np.isfinite(errors)) or np.any(errors <= 0):
+        return None
+    return float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
+
+
+def _say(progress: bool, text: str) -> None:
+    if progress:
+        print(f"compare: {text}", file=sys.stderr, flush=True)
+
+
+# --- the two experiments -------------------------------------------------------------------------
+
+
+def _mujoco_plant(scenario: Scenario, dt: float):
+    from .plants.mujoco_plant import MuJoCoPlant
+
+    return MuJoCoPlant(scenario.ship, scenario.disturbance, dt, scenario.plant.substeps)
+
+
+def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, dict]:
+    """Open-loop comparison and its convergence study; returns (result, histories for plots)."""
+    dt = scenario.control_period
+    eta0, nu0 = scenario.initial.eta, scenario.initial.nu
+    inputs = open_loop_inputs(scenario.duration, dt)
+    _say(progress, f"open loop, {scenario.duration:g} s at dt = {dt * 1e3:g} ms on both plants")
+    wall = {}
+    t0 = time.perf_counter()
+    xa = run_open_loop(AnalyticPlant(scenario.ship, scenario.disturbance, dt, scenario.plant.substeps), inputs,
+                       eta0, nu0)
+    wall["analytic"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    with _mujoco_plant(scenario, dt) as plant:
+        xm = run_open_loop(plant, inputs, eta0, nu0)
+    wall["mujoco"] = time.perf_counter() - t0
+    result = {"duration_s": scenario.duration, "control_period_s": dt, **state_differences(xm, xa),
+              "inputs": "open_loop_inputs(seed=2024): surge -60..220 N, yaw -8..8 N m (+-3 N m square wave), "
+                        "held 0.2-3 s on a 0.2 s grid", "wall_time_s": wall}
+    horizon = min(scenario.duration, OPEN_CONVERGENCE_HORIZON_S)
+    _say(progress, f"open-loop convergence over {horizon:g} s at dt = "
+         f"{', '.join(f'{d * 1e3:g}' for d in OPEN_CONVERGENCE_DTS)} ms (reference: dt = "
+         f"{min(OPEN_CONVERGENCE_DTS) / OPEN_REFERENCE_DIVISOR * 1e3:g} ms), rich and one-signed inputs")
+    rich = _open_convergence(scenario, horizon, one_signed=False)
+    result["convergence"] = rich.pop("rows")
+    result["convergence_horizon_s"] = horizon
+    result.update({f"convergence_{k}": v for k, v in rich.items()})
+    smooth = _open_convergence(scenario, horizon, one_signed=True)
+    result["convergence_one_signed_inputs"] = smooth
+    result["convergence_note"] = (
+        "The plants' difference shrinks as dt^4 with either input. Against the fine-step reference each "
+        "plant converges at order 4 only while u, v, r keep their signs (one-signed inputs): the paper's "
+        "damping has |u| u, |v| r, |r| v terms (SPEC §1), whose second derivatives jump at a zero crossing, "
+        "which lowers RK4's order for both plants alike with the rich inputs.")
+    return result, {"t": np.arange(len(xa)) * dt, "analytic": xa, "mujoco": xm, "inputs": inputs}
+
+
+def _zero_crossings(x: np.ndarray) -> dict:
+    """How often u, v, r change sign after the first sample (a sign change from exactly 0 excluded)."""
+    out = {}
+    for i, name in ((3, "u"), (4, "v"), (5, "r")):
+        s = np.sign(x[1:, i])
+        s = s[s != 0]
+        out[name] = int(np.sum(s[1:] != s[:-1]))
+    return out
+
+
+def _open_convergence(scenario: Scenario, horizon: float, one_signed: bool) -> dict:
+    """Both plants at each dt of OPEN_CONVERGENCE_DTS against a fine-step analytic reference."""
+    eta0, nu0 = scenario.initial.eta, scenario.initial.nu
+    dt_ref = min(OPEN_CONVERGENCE_DTS) / OPEN_REFERENCE_DIVISOR
+    ref = run_open_loop(AnalyticPlant(scenario.ship, scenario.disturbance, dt_ref),
+                        open_loop_inputs(horizon, dt_ref, one_signed=one_signed), eta0, nu0)
+    coarse = max(OPEN_CONVERGENCE_DTS)
+    r = ref[::int(round(coarse / dt_ref))]
+    rows = []
+    for h in OPEN_CONVERGENCE_DTS:
+        u = open_loop_inputs(horizon, h, one_signed=one_signed)
+        a = run_open_loop(AnalyticPlant(scenario.ship, scenario.disturbance, h), u, eta0, nu0)
+        with _mujoco_plant(scenario, h) as plant:
+            m = run_open_loop(plant, u, eta0, nu0)
+        stride = int(round(coarse / h))  # compare on the coarsest grid, which every run visits
+        a, m = a[::stride], m[::stride]
+        rows.append({"dt": h, "max_position_m": state_differences(m, a)["max_position_m"],
+                     "mujoco_vs_reference_m": state_differences(m, r)["max_position_m"],
+                     "analytic_vs_reference_m": state_differences(a, r)["max_position_m"]})
+    dts = [row["dt"] for row in rows]
+    return {
+        "rows": rows,
+        "reference": f"analytic plant at dt = {dt_ref:g} s",
+        "order": {
+            "plants_difference": estimated_order(dts, [row["max_position_m"] for row in rows]),
+            "mujoco_vs_reference": estimated_order(dts, [row["mujoco_vs_reference_m"] for row in rows]),
+            "analytic_vs_reference": estimated_order(dts, [row["analytic_vs_reference_m"] for row in rows]),
+            "expected": 4,
+        },
+        "zero_crossings_of_reference": _zero_crossings(ref),
+    }
+
+
+def _closed_loop_pair(scenario: Scenario):
+    from .simulation import simulate
+
+    return {kind: simulate(scenario, plant_kind=kind) for kind in ("analytic", "mujoco")}
+
+
+def _record_states(record) -> np.ndarray:
+    return np.stack([record[c] for c in ("x", "y", "psi", "u", "v", "r")], axis=1)
+
+
+def _funnel_check(record) -> tuple[bool, float]:
+    z = np.stack([record["z1"], record["z2"], record["z3"]])
+    worst = float(np.max(np.abs(z))) if z.size else float("nan")
+    return bool(record.status == "completed" and np.all(np.abs(z) < 1.0)), worst
+
+
+def compare_closed_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, dict]:
+    """Closed-loop comparison (``simulate`` on both plants) and its convergence study."""
+    _say(progress, f"closed loop, {scenario.duration:g} s of preset {scenario.preset!r} on both plants")
+    runs = _closed_loop_pair(scenario)
+    xa, xm = _record_states(runs["analytic"]), _record_states(runs["mujoco"])
+    n = min(len(xa), len(xm))
+    result = {"duration_s": scenario.duration, "control_period_s": scenario.control_period,
+              "preset": scenario.preset, **state_differences(xm[:n], xa[:n])}
+    result["status"] = {k: r.status for k, r in runs.items()}
+    inside, worst = {}, {}
+    for k, r in runs.items():
+        inside[k], worst[k] = _funnel_check(r)
+    result["inside_funnels"] = inside
+    result["max_abs_z"] = worst
+    result["wall_time_s"] = {k: r.metadata.get("wall_time_s") for k, r in runs.items()}
+    result["realtime_factor"] = {k: r.metadata.get("realtime_factor") for k, r in runs.items()}
+    horizon = min(scenario.duration, CLOSED_CONVERGENCE_HORIZON_S)
+    _say(progress, f"closed-loop convergence over {horizon:g} s at dt = "
+         f"{', '.join(f'{d * 1e3:g}' for d in CLOSED_CONVERGENCE_DTS)} ms")
+    rows = []
+    coarse = max(CLOSED_CONVERGENCE_DTS)
+    for h in CLOSED_CONVERGENCE_DTS:
+        pair = _closed_loop_pair(scenario.with_overrides({"control_period": h, "duration": horizon}))
+        a, m = _record_states(pair["analytic"]), _record_states(pair["mujoco"])
+        k = min(len(a), len(m))
+        stride = int(round(coarse / h))
+        q = {kind: int(pair[kind]["q_tau_u"].size and np.sum(np.diff(pair[kind]["k_u"]) != 0)) for kind in pair}
+        rows.append({"dt": h, "max_position_m": state_differences(m[:k:stride], a[:k:stride])["max_position_m"],
+                     "quantizer_switches_u": q})
+    result["convergence"] = rows
+    result["convergence_horizon_s"] = horizon
+    result["convergence_order"] = {
+        "plants_difference": estimated_order([r["dt"] for r in rows], [r["max_position_m"] for r in rows]),
+        "expected": 4,
+    }
+    t = runs["analytic"]["t"][:n]
+    ref = np.stack([runs["analytic"]["x_d"][:n], runs["analytic"]["y_d"][:n]], axis=1)
+    return result, {"t": t, "analytic": xa[:n], "mujoco": xm[:n], "reference": ref, "records": runs}
+
+
+# --- plots ---------------------------------------------------------------------------------------
+
+
+def _plot_pair(path: str, title: str, hist: dict, reference=None) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t, a, m = hist["t"], hist["analytic"], hist["mujoco"]
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.8))
+    ax = axes[0]
+    if reference is not None:
+        ax.plot(reference[:, 0], reference[:, 1], color="0.6", lw=1, ls=":", label="reference")
+    ax.plot(a[:, 0], a[:, 1], lw=2.5, color="tab:blue", label="analytic (RK4)")
+    ax.plot(m[:, 0], m[:, 1], lw=1.2, color="tab:orange", ls="--", label="MuJoCo")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend()
+    ax.set_title("path (overlaid)")
+    tiny = 1e-18
+    ax = axes[1]
+    ax.semilogy(t, np.hypot(m[:, 0] - a[:, 0], m[:, 1] - a[:, 1]) + tiny, label="|position| [m]")
+    ax.semilogy(t, np.abs(m[:, 2] - a[:, 2]) + tiny, label="|heading| [rad]")
+    ax.set_xlabel("t [s]")
+    ax.set_title("MuJoCo - analytic")
+    ax.legend()
+    ax = axes[2]
+    for i, (name, unit) in enumerate((("u", "m/s"), ("v", "m/s"), ("r", "rad/s"))):
+        ax.plot(t, a[:, 3 + i], lw=2.2, label=f"{name} analytic [{unit}]")
+        ax.plot(t, m[:, 3 + i], lw=1.0, ls="--", color="k")
+    ax.set_xlabel("t [s]")
+    ax.set_title("body velocities (dashed: MuJoCo)")
+    ax.legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _plot_convergence(path: str, open_loop: dict, closed_loop: dict) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
+    for ax, res, title in ((axes[0], open_loop, "open loop"), (axes[1], closed_loop, "closed loop")):
+        rows = res["convergence"]
+        dts = np.array([r["dt"] for r in rows])
+        series = [("max_position_m", "MuJoCo - analytic", "o-")]
+        if "mujoco_vs_reference_m" in rows[0]:
+            series += [("mujoco_vs_reference_m", "MuJoCo - reference", "s--"),
+                       ("analytic_vs_reference_m", "analytic - reference", "^:")]
+        for key, label, style in series:
+            err = np.array([max(r[key], 1e-18) for r in rows])
+            ax.loglog(dts, err, style, label=label)
+        smooth = res.get("convergence_one_signed_inputs")
+        if smooth:
+            err = np.array([max(r["mujoco_vs_reference_m"], 1e-18) for r in smooth["rows"]])
+            ax.loglog(dts, err, "d-.", label="MuJoCo - reference, one-signed inputs")
+        anchor = max(rows[0]["max_position_m"], 1e-18)
+        ax.loglog(dts, anchor * (dts / dts[0]) ** 4, color="0.5", lw=1, label="slope 4")
+        order = res["convergence_order"]["plants_difference"]
+        ax.set_title(f"{title}: max position difference vs dt (order {order:.2f})" if order is not None
+                     else f"{title}: max position difference vs dt")
+        ax.set_xlabel("dt [s]")
+        ax.set_ylabel("max position difference [m]")
+        ax.legend(fontsize=8)
+        ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# --- entry points --------------------------------------------------------------------------------
+
+
+def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> dict:
+    """Run the open- and closed-loop comparisons of ``scenario``; write compare.json and the plots.
+
+    Returns the dict written to ``out_dir/compare.json``: ``open_loop`` and ``closed_loop``, each
+    with ``max_position_m``, ``max_heading_rad``, ``max_velocity`` and ``convergence`` (a list of
+    {``dt``, ``max_position_m``, ...}), plus ``checks`` (the issue's tolerances) and ``passed``.
+    """
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"compare_plants: scenario must be a usv_mj.scenario.Scenario, got {type(scenario).__name__}")
+    os.makedirs(out_dir, exist_ok=True)
+    wall0 = time.perf_counter()
+    open_loop, open_hist = compare_open_loop(scenario, progress)
+    closed_loop, closed_hist = compare_closed_loop(scenario, progress)
+    checks = {
+        "open_loop_position_below_1e-6_m": open_loop["max_position_m"] < OPEN_LOOP_TOLERANCE_M,
+        "closed_loop_position_below_1e-3_m": closed_loop["max_position_m"] < CLOSED_LOOP_TOLERANCE_M,
+        "closed_loop_both_inside_funnels": all(closed_loop["inside_funnels"].values()),
+    }
+    result = {
+        "scenario": {"preset": scenario.preset, "source": scenario.source, "duration_s": scenario.duration,
+                     "control_period_s": scenario.control_period},
+        "open_loop": open_loop,
+        "closed_loop": closed_loop,
+        "checks": checks,
+        "passed": all(checks.values()),
+        "tolerance_note": "issue 3 asks for 1e-6 m (open loop) and 1e-3 m (closed loop) over 300 s at 1 ms",
+        "wall_time_s": time.perf_counter() - wall0,
+    }
+    _say(progress, "plots")
+    _plot_pair(os.path.join(out_dir, "open_loop.png"),
+               f"open loop, {scenario.duration:g} s, dt = {scenario.control_period * 1e3:g} ms: max position "
+               f"difference {open_loop['max_position_m']:.2e} m", open_hist)
+    _plot_pair(os.path.join(out_dir, "closed_loop.png"),
+               f"closed loop ({scenario.preset}), {scenario.duration:g} s: max position difference "
+               f"{closed_loop['max_position_m']:.2e} m", closed_hist, closed_hist["reference"])
+    _plot_convergence(os.path.join(out_dir, "convergence.png"), open_loop, closed_loop)
+    with open(os.path.join(out_dir, "compare.json"), "w") as fh:
+        json.dump(result, fh, indent=2, allow_nan=False, default=_json_default)
+    return result
+
+
+def _json_default(obj):
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    raise TypeError(f"not JSON serializable: {type(obj).__name__}")
+
+
+def add_arguments(parser) -> None:
+    """Arguments of ``usv-mj compare``."""
+    parser.add_argument("--preset", default=None, help="base preset (default paper)")
+    parser.add_argument("--scenario", metavar="FILE", help="a scenario TOML file (a preset plus overrides, SPEC §7)")
+    parser.add_argument("--out", metavar="DIR", default=None, help="output folder (default renders/compare-<name>)")
+    parser.add_argument("--duration", type=float, default=None, help="simulated time [s] (default: the scenario's)")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+
+
+def run_command(args) -> int:
+    """``usv-mj compare``: 0 when every check of ``compare.json`` passes, 1 otherwise.
+
+    Bad scenario input raises :class:`usv_mj.scenario.ScenarioError` (the CLI prints it, exit 2).
+    """
+    from .scenario import ScenarioError
+
+    overrides = {}
+    if args.duration is not None:
+        if not (math.isfinite(args.duration) and args.duration > 0):
+            raise ScenarioError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
+        overrides["duration"] = float(args.duration)
+    scenario = load_scenario(args.scenario, preset=args.preset, overrides=overrides)
+    name = os.path.splitext(os.path.basename(args.scenario))[0] if args.scenario else (args.preset or "paper")
+    out = args.out or os.path.join("renders", f"compare-{name}")
+    result = compare_plants(scenario, out, progress=not args.quiet)
+    ol, cl = result["open_loop"], result["closed_loop"]
+    print(f"open loop   ({ol['duration_s']:g} s): max position {ol['max_position_m']:.3e} m, heading "
+          f"{ol['max_heading_rad']:.3e} rad, velocity {ol['max_velocity']:.3e}; order "
+          f"{_fmt(ol['convergence_order']['plants_difference'])} (plants), "
+          f"{_fmt(ol['convergence_order']['mujoco_vs_reference'])} (MuJoCo vs reference), "
+          f"{_fmt(ol['convergence_one_signed_inputs']['order']['mujoco_vs_reference'])} (MuJoCo vs reference, "
+          f"one-signed inputs)")
+    print(f"closed loop ({cl['duration_s']:g} s): max position {cl['max_position_m']:.3e} m, heading "
+          f"{cl['max_heading_rad']:.3e} rad, velocity {cl['max_velocity']:.3e}; inside funnels "
+          f"{cl['inside_funnels']}; order {_fmt(cl['convergence_order']['plants_difference'])}")
+    for check, ok in result["checks"].items():
+        print(f"  {'ok  ' if ok else 'FAIL'} {check}")
+    print(f"written to {out}/compare.json (+ open_loop.png, closed_loop.png, convergence.png)")
+    return 0 if result["passed"] else 1
+
+
+def _fmt(x) -> str:
+    return "n/a" if x is None else f"{x:.2f}"
