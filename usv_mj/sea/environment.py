@@ -27,7 +27,7 @@ from .current import CURRENT_GRID_STEP, OrnsteinUhlenbeckGrid, current_at
 from .settings import HullGeometry, SeaSettings
 from .waves import (WaveComponents, jonswap_spectrum, pack_waves, ramp_factor,
                     sample_wave_components, wave_loads)
-from .wind import BLENDERMANN_SPEED_BOAT, WIND_GRID_STEP, wind_load, wind_speed_at
+from .wind import BLENDERMANN_SPEED_BOAT, WIND_GRID_STEP, wind_load, wind_speed_at, wind_speed_record
 
 DEFAULT_RAMP_TIME = 2.0  # s, tau_ramp of SEA.md §3.3 (as VRX)
 _DRIFT_CODES = {"off": lay.DRIFT_OFF, "mean": lay.DRIFT_MEAN, "newman": lay.DRIFT_NEWMAN}
@@ -311,7 +311,8 @@ class Environment:
         """V_w at many times [m/s] (vectorised over ``ts``)."""
         ts = np.asarray(ts, dtype=float)
         self._check_time(ts)
-        return np.array([wind_speed_at(self._ep, self._wind_grid, float(t)) for t in ts.ravel()]).reshape(ts.shape)
+        flat = np.ascontiguousarray(ts.ravel())
+        return wind_speed_record(self._ep, self._wind_grid, flat).reshape(ts.shape)
 
     def loads(self, t: float, eta, nu) -> EnvLoads:
         """Environment at (t, eta, nu) (SEA.md §1), body frame; see :class:`EnvLoads`."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from .current import grid_interpolate
@@ -80,3 +81,12 @@ def wind_load(ep, wind_grid2d, t, psi, u, v):
     x1, y1, n1 = aero_force(ep, u - u_w, v - v_w)
     x0, y0, n0 = aero_force(ep, u, v)
     return x1 - x0, y1 - y0, n1 - n0
+
+
+@njit(cache=True)
+def wind_speed_record(ep, wind_grid2d, ts):
+    """V_w at each of the times ``ts`` [m/s] (for records and figures)."""
+    out = np.empty(ts.shape[0])
+    for i in range(ts.shape[0]):
+        out[i] = wind_speed_at(ep, wind_grid2d, ts[i])
+    return out
