@@ -1,0 +1,450 @@
+"""Run logs (issue 5): round trip, the mcap library's own validation, cut files, interrupted runs.
+
+The references here are independent of the code under test: the in-memory RunRecord (values compared
+bit for bit), the mcap library's readers (SeekingReader / NonSeekingReader / StreamReader with CRC
+checks, its summary statistics and chunk indexes), closed forms (quaternion of a yaw), and the
+JSON schemas checked with the jsonschema package.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap.records import Chunk, Message
+from mcap.stream_reader import StreamReader, breakup_chunk
+
+from usv_mj.record import COL, COLUMNS, Event, RunRecord
+from usv_mj.runlog import (RunLogReadError, RunLogWriter, add_inspect_arguments, inspect_command, load_topic,
+                           read_run)
+from usv_mj.runlog.topics import ROW_TOPICS
+from usv_mj.scenario import load_scenario
+from usv_mj.simulation import make_controller, simulate
+from usv_mj.summary import summarize
+
+ROOT = Path(__file__).resolve().parents[1]
+DURATION = 8.0
+
+
+def _norm(obj):
+    """JSON-normal form (tuples -> lists) for comparing metadata dicts, via the standard library."""
+    return json.loads(json.dumps(obj, default=str))
+
+
+def assert_same_rows(a: RunRecord, b: RunRecord, n: int | None = None):
+    n = len(b) if n is None else n
+    assert len(a) == n
+    for c in COLUMNS:
+        x, y = a[c], b[c][:n]
+        assert np.array_equal(x.view(np.uint64)[~np.isnan(x)], y.view(np.uint64)[~np.isnan(y)]), c
+        assert np.array_equal(np.isnan(x), np.isnan(y)), c
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return load_scenario(preset="paper", overrides={"duration": DURATION})
+
+
+@pytest.fixture(scope="module")
+def logged(tmp_path_factory, scenario):
+    """A file with the main run and the PI baseline, written by the background writer."""
+    path = tmp_path_factory.mktemp("runlog") / "run.mcap"
+    with RunLogWriter(path, scenario, attachments={"notes/readme.txt": "hello", "blob.bin": b"\x00\x01"},
+                      rows_per_chunk=700) as writer:
+        main = simulate(scenario, sinks=[writer.sink("main")], block=1500)
+        base = simulate(scenario, controller_kind="pi", sinks=[writer.sink("baseline")], block=1500)
+    return path, main, base
+
+
+# --- round trip ---------------------------------------------------------------------------------
+
+
+def test_round_trip_is_bit_exact_for_both_runs(logged):
+    path, main, base = logged
+    log = read_run(path)
+    assert log.complete and not log.truncated
+    assert_same_rows(log.record, main)
+    assert_same_rows(log.baseline, base)
+    for got, want in ((log.record, main), (log.baseline, base)):
+        assert got.status == want.status == "completed"
+        assert got.stop_reason == want.stop_reason
+        assert [(e.t, e.kind, e.message, _norm(e.values)) for e in got.events] == \
+               [(e.t, e.kind, e.message, _norm(e.values)) for e in want.events]
+        assert got.metadata == _norm(want.metadata)
+    assert log.summaries["main"] == _norm(summarize(main))
+    assert log.summaries["baseline"] == _norm(summarize(base))
+
+
+def _odd_floats(n: int, seed: int = 1) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    bits = rng.integers(0, 2**64 - 1, size=n, dtype=np.uint64, endpoint=True)
+    vals = bits.view(np.float64).copy()
+    specials = np.array([np.nan, np.inf, -np.inf, 0.0, -0.0, 5e-324, -5e-324, 2.2250738585072014e-308,
+                         1.7976931348623157e308, -1.7976931348623157e308, 0.1, 1e-7, 1e22, 123456789012345678.0])
+    vals[: len(specials)] = specials
+    return vals
+
+
+def _handmade_record(n: int, seed: int = 1) -> RunRecord:
+    """A record whose every cell is an arbitrary float64 bit pattern (NaN, +-inf, -0, subnormals...)."""
+    rec = RunRecord(n, metadata={"preset": "handmade", "control_period_s": 0.001, "plant": "none"})
+    rec.data[:] = _odd_floats(n * len(COLUMNS), seed).reshape(n, len(COLUMNS))
+    rec.data[:, COL["t"]] = np.arange(n) * 0.001
+    return rec
+
+
+@pytest.mark.parametrize("background", [False, True])
+def test_every_float_bit_pattern_round_trips(tmp_path, scenario, background):
+    rec = _handmade_record(2500)
+    path = tmp_path / "odd.mcap"
+    with RunLogWriter(path, scenario, background=background, rows_per_chunk=300) as writer:
+        sink = writer.sink("main")
+        sink.start(rec)
+        for lo in range(0, 2500, 1000):
+            rec.n_rows = min(2500, lo + 1000)
+            rec.events.append(Event(lo * 0.001, "probe", f"block {lo}", {"x": float(rec.data[lo, 1]) if
+                                                                         np.isfinite(rec.data[lo, 1]) else 1.5,
+                                                                         "list": [1, 2.5, -0.0]}))
+            sink.rows(rec, lo, rec.n_rows)
+        rec.status, rec.stop_reason = "completed", ""
+        sink.finish(rec)
+    got = read_run(path).record
+    assert_same_rows(got, rec)
+    assert np.isinf(rec.data).any() and np.isnan(rec.data).any()   # the test did exercise the specials
+    assert [(e.t, e.kind, e.message, e.values) for e in got.events] == \
+           [(e.t, e.kind, e.message, _norm(e.values)) for e in rec.events]
+
+
+def test_infinities_are_written_as_json_numbers_that_parse_to_infinity(tmp_path, scenario):
+    rec = _handmade_record(3)
+    rec.data[:, COL["x"]] = [np.inf, -np.inf, np.nan]
+    path = tmp_path / "inf.mcap"
+    with RunLogWriter(path, scenario, background=False) as writer:
+        sink = writer.sink("main")
+        sink.start(rec)
+        rec.n_rows = 3
+        sink.rows(rec, 0, 3)
+        sink.finish(rec)
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        texts = [m.data for _, c, m in reader.iter_messages(topics=["/usv/state"])]
+    assert [json.loads(t)["x"] for t in texts][:2] == [math.inf, -math.inf]   # standard library's json
+    assert json.loads(texts[2])["x"] is None
+    assert b'"x":1e999' in texts[0] and b'"x":-1e999' in texts[1]
+
+
+# --- the mcap library's own checks ------------------------------------------------------------------
+
+
+def test_file_passes_the_mcap_library_validation(logged):
+    path, main, base = logged
+    with open(path, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics is not None
+        assert len(summary.chunk_indexes) == summary.statistics.chunk_count > 2
+        topics = {c.topic: cid for cid, c in summary.channels.items()}
+        counts = summary.statistics.channel_message_counts
+        for name, _, _ in ROW_TOPICS:
+            assert counts[topics[f"/usv/{name}"]] == len(main)
+            assert counts[topics[f"/baseline/usv/{name}"]] == len(base)
+        n = 0
+        last_state_time = -1
+        for schema, channel, message in reader.iter_messages(log_time_order=True):
+            n += 1
+            if channel.topic == "/usv/state":
+                assert message.log_time >= last_state_time
+                last_state_time = message.log_time
+        assert n == summary.statistics.message_count
+        assert last_state_time == round(main["t"][-1] * 1e9)
+        assert {s.name for s in summary.schemas.values()} >= {"foxglove.FrameTransform", "foxglove.SceneUpdate"}
+        assert all(s.encoding == "jsonschema" for s in summary.schemas.values())
+        assert all(c.message_encoding == "json" for c in summary.channels.values())
+    # the sequential reader, with every chunk CRC and the data-section CRC checked
+    with open(path, "rb") as f:
+        records = list(StreamReader(f, validate_crcs=True).records)
+    assert sum(isinstance(r, Message) for r in records) == n
+    # and the non-seeking reader on a pipe-like stream
+    with open(path, "rb") as f:
+        stream = io.BufferedReader(_NonSeekable(f.read()))
+    assert sum(1 for _ in make_reader(stream, validate_crcs=True).iter_messages()) == n
+
+
+def test_messages_follow_their_json_schemas(logged):
+    jsonschema = pytest.importorskip("jsonschema")
+    path, _, _ = logged
+    seen = {}
+    with open(path, "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages():
+            if channel.topic not in seen:
+                seen[channel.topic] = (json.loads(schema.data), json.loads(message.data))
+    assert len(seen) == 2 * 12
+    for topic, (schema, msg) in seen.items():
+        jsonschema.validate(msg, schema)
+
+
+class _NonSeekable(io.RawIOBase):
+    def __init__(self, data: bytes):
+        self._b = io.BytesIO(data)
+
+    def readable(self):
+        return True
+
+    def seekable(self):
+        return False
+
+    def readinto(self, b):
+        chunk = self._b.read(len(b))
+        b[: len(chunk)] = chunk
+        return len(chunk)
+
+
+# --- a file cut short ---------------------------------------------------------------------------------
+
+
+def _complete_chunk_rows(data: bytes, cut: int) -> int:
+    """/usv/state messages in the chunks that end before ``cut`` (counted with the mcap library)."""
+    reader = make_reader(io.BytesIO(data))
+    summary = reader.get_summary()
+    state = next(cid for cid, c in summary.channels.items() if c.topic == "/usv/state")
+    rows = 0
+    for ci in summary.chunk_indexes:
+        if ci.chunk_start_offset + ci.chunk_length <= cut:
+            raw = data[ci.chunk_start_offset: ci.chunk_start_offset + ci.chunk_length]
+            chunk = next(iter(StreamReader(io.BytesIO(raw), skip_magic=True, emit_chunks=True).records))
+            assert isinstance(chunk, Chunk)
+            rows += sum(isinstance(r, Message) and r.channel_id == state for r in breakup_chunk(chunk, True))
+    return rows
+
+
+def test_cut_file_is_read_up_to_its_last_complete_chunk(logged, tmp_path):
+    path, main, _ = logged
+    data = path.read_bytes()
+    summary = make_reader(io.BytesIO(data)).get_summary()
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    main_chunks = [c for c in chunks if c.message_start_time <= round(main["t"][-1] * 1e9)]
+    c2 = main_chunks[2]
+    cuts = [c2.chunk_start_offset + c2.chunk_length // 2,            # in the middle of a chunk
+            c2.chunk_start_offset + c2.chunk_length,                 # right after a chunk, before its indexes
+            c2.chunk_start_offset + c2.chunk_length + 5,             # inside its message indexes
+            c2.chunk_start_offset + 3,                               # inside a chunk's record header
+            chunks[-1].chunk_start_offset + chunks[-1].chunk_length // 3,
+            len(data) - 40]                                          # inside the summary / footer
+    for cut in cuts:
+        cut_path = tmp_path / f"cut_{cut}.mcap"
+        cut_path.write_bytes(data[:cut])
+        log = read_run(cut_path)
+        assert log.truncated or not log.complete
+        expected_at_least = _complete_chunk_rows(data, cut)
+        n = len(log.record)
+        assert expected_at_least <= n <= len(main)
+        assert n > 0
+        assert_same_rows(log.record, main, n)
+        if n < len(main):
+            assert log.record.status == "truncated" and "ends at" in log.record.stop_reason
+        # the same through a non-seekable stream
+        log2 = read_run(io.BufferedReader(_NonSeekable(data[:cut])))
+        assert len(log2.record) == n
+
+
+def test_file_read_while_still_being_written(tmp_path, scenario):
+    """Events stream as they happen: after each rows() call the file on disk already holds them."""
+    rec = _handmade_record(3000, seed=3)
+    path = tmp_path / "live.mcap"
+    with RunLogWriter(path, scenario, background=False, rows_per_chunk=10_000) as writer:
+        sink = writer.sink("main")
+        sink.start(rec)
+        for k, lo in enumerate(range(0, 3000, 1000)):
+            rec.n_rows = lo + 1000
+            rec.events.append(Event(lo * 0.001 + 0.5, "funnel_violation", f"number {k}", {"axis": 1}))
+            sink.rows(rec, lo, lo + 1000)
+            partial = read_run(path)
+            assert partial.truncated and not partial.complete        # no summary yet
+            assert len(partial.record) == lo + 1000
+            assert [e.message for e in partial.record.events] == [f"number {i}" for i in range(k + 1)]
+            assert partial.record.status == "truncated"
+        sink.finish(rec)
+
+
+# --- interrupted runs ---------------------------------------------------------------------------------
+
+
+class _Stops:
+    """A controller that raises ``exc`` at its n-th call (else it is the scenario's PPC controller)."""
+
+    def __init__(self, scenario, n, exc):
+        self.inner = make_controller(scenario)
+        self.name = self.inner.name
+        self.n, self.exc, self.calls = n, exc, 0
+
+    def reset(self):
+        self.inner.reset()
+        self.calls = 0
+
+    def __call__(self, t, x, ref):
+        self.calls += 1
+        if self.calls > self.n:
+            raise self.exc
+        return self.inner(t, x, ref)
+
+
+class _Keep:
+    def start(self, record):
+        self.record = record
+
+    def rows(self, record, lo, hi):
+        pass
+
+    def finish(self, record):
+        self.record = record
+
+
+def test_exception_in_the_loop_leaves_a_readable_file(tmp_path, scenario):
+    path = tmp_path / "failed.mcap"
+    keep = _Keep()
+    with pytest.raises(ZeroDivisionError):
+        with RunLogWriter(path, scenario) as writer:
+            simulate(scenario, controller=_Stops(scenario, 2345, ZeroDivisionError("boom in the law")),
+                     sinks=[writer.sink("main"), keep], block=1000)
+    log = read_run(path)
+    assert log.complete
+    assert len(log.record) == 2345
+    assert_same_rows(log.record, keep.record)
+    assert log.record.status == "failed"
+    (ev,) = log.record.events_of("failed")
+    assert "boom in the law" in ev.message and ev.t == pytest.approx(2345 * scenario.control_period)
+
+
+def test_ctrl_c_leaves_a_readable_file(tmp_path, scenario):
+    path = tmp_path / "interrupted.mcap"
+    with RunLogWriter(path, scenario) as writer:
+        rec = simulate(scenario, controller=_Stops(scenario, 1234, KeyboardInterrupt()), sinks=[writer.sink("main")])
+    assert rec.status == "interrupted"
+    log = read_run(path)
+    assert_same_rows(log.record, rec)
+    assert len(log.record) == 1234
+    assert log.record.status == "interrupted" and "Ctrl-C" in log.record.stop_reason
+    assert [e.kind for e in log.record.events_of("interrupted")] == ["interrupted"]
+    assert log.summaries["main"]["status"] == "interrupted"
+
+
+def test_divergence_is_logged_with_its_reason(tmp_path):
+    sc = load_scenario(preset="paper", overrides={"duration": 5.0, "limits": {"max_speed": 0.05}})
+    path = tmp_path / "diverged.mcap"
+    with RunLogWriter(path, sc) as writer:
+        rec = simulate(sc, sinks=[writer.sink("main")])
+    assert rec.status == "diverged"
+    log = read_run(path)
+    assert_same_rows(log.record, rec)
+    assert log.record.status == "diverged" and log.record.stop_reason == rec.stop_reason
+    (ev,) = log.record.events_of("divergence")
+    assert ev.values == _norm(rec.events_of("divergence")[0].values)
+    end = load_topic(path, "/usv/events")
+    assert list(end["kind"][-1:]) == ["run_end"] and end["status"][-1] == "diverged"
+
+
+# --- metadata, attachments, topics -------------------------------------------------------------------
+
+
+def test_metadata_and_attachments(tmp_path):
+    toml = tmp_path / "my_scenario.toml"
+    toml.write_text('preset = "paper"\nduration = 2.0\n')
+    sc = load_scenario(toml)
+    path = tmp_path / "meta.mcap"
+    with RunLogWriter(path, sc, attachments={"extra.txt": "text"}) as writer:
+        simulate(sc, sinks=[writer.sink("main")])
+    log = read_run(path)
+    meta = log.metadata
+    assert meta["preset"] == "paper"
+    assert meta["scenario"] == _norm(sc.to_dict())
+    assert {"mujoco", "numpy", "numba", "mcap", "python"} <= set(meta["versions"])
+    head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+    assert meta["git_commit"] == (head or "unknown")
+    assert log.attachments["extra.txt"] == b"text"
+    assert log.attachments["scenario/my_scenario.toml"] == toml.read_bytes()
+    models = sorted((ROOT / "models").glob("*.xml"))
+    for m in models:
+        assert log.attachments[f"models/{m.name}"] == m.read_bytes()
+    assert meta["runs"]["main"]["end"]["status"] == "completed"
+
+
+def test_foxglove_topics_match_the_state(logged):
+    path, main, _ = logged
+    tf = load_topic(path, "/usv/tf/hull")
+    k = np.arange(0, len(main), 20)                       # every 20 ms at dt = 1 ms
+    assert np.array_equal(tf["translation.x"], main["x"][k])
+    assert np.array_equal(tf["translation.y"], main["y"][k])
+    psi = main["psi"][k]
+    assert np.allclose(tf["rotation.z"], np.sin(psi / 2), rtol=0, atol=1e-15)
+    assert np.allclose(tf["rotation.w"], np.cos(psi / 2), rtol=0, atol=1e-15)
+    assert set(tf["child_frame_id"]) == {"usv"} and set(tf["parent_frame_id"]) == {"world"}
+    assert np.array_equal(tf["timestamp.sec"] * 1e9 + tf["timestamp.nsec"], tf["log_time"].astype(float))
+    funnel = load_topic(path, "/usv/scene/funnel")
+    first = funnel["entities"][len(k) // 2][0]
+    i = k[len(k) // 2]
+    xs = sorted({p["x"] for p in first["lines"][0]["points"]})
+    ys = sorted({p["y"] for p in first["lines"][0]["points"]})
+    assert xs == [main["x_d"][i] - main["rho1"][i], main["x_d"][i] + main["rho1"][i]]
+    assert ys == [main["y_d"][i] - main["rho2"][i], main["y_d"][i] + main["rho2"][i]]
+    state = load_topic(path, "/baseline/usv/state")
+    assert set(state) == {"log_time", "t", "x", "y", "psi", "u", "v", "r"}
+    assert np.array_equal(state["log_time"], np.round(state["t"] * 1e9).astype(np.int64))
+
+
+def test_topics_and_counts(logged):
+    path, main, base = logged
+    log = read_run(path)
+    topics = log.topics()
+    for name, _, _ in ROW_TOPICS:
+        assert topics[f"/usv/{name}"] == len(main)
+        assert topics[f"/baseline/usv/{name}"] == len(base)
+    assert topics["/usv/tf/hull"] == len(range(0, len(main), 20))
+    with pytest.raises(RunLogReadError, match="no topic"):
+        load_topic(path, "/nope")
+
+
+# --- inspect ----------------------------------------------------------------------------------------
+
+
+def _inspect(path, capsys, *extra):
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    add_inspect_arguments(parser)
+    code = inspect_command(parser.parse_args([str(path), *extra]))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_inspect_command(logged, tmp_path, capsys):
+    path, main, _ = logged
+    code, out, _ = _inspect(path, capsys)
+    assert code == 0
+    assert "complete" in out and f"/usv/state" in out and str(len(main)) in out
+    assert "run main" in out and "status completed" in out and "run baseline" in out
+    code, out, _ = _inspect(path, capsys, "--json")
+    assert code == 0 and json.loads(out)["topics"]["/usv/state"]["count"] == len(main)
+    code, _, err = _inspect(tmp_path / "missing.mcap", capsys)
+    assert code == 2 and "no such file" in err
+    bad = tmp_path / "bad.mcap"
+    bad.write_text("not an mcap file")
+    code, _, err = _inspect(bad, capsys)
+    assert code == 2 and "not an MCAP file" in err
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    code, out, _ = _inspect(cut, capsys)
+    assert code == 0 and "CUT SHORT" in out
+
+
+def test_read_errors_are_friendly(tmp_path):
+    with pytest.raises(RunLogReadError, match="no such file"):
+        read_run(tmp_path / "nothing.mcap")
+    (tmp_path / "x.mcap").write_bytes(b"hello world, not mcap")
+    with pytest.raises(RunLogReadError, match="not an MCAP file"):
+        read_run(tmp_path / "x.mcap")

@@ -1,0 +1,547 @@
+"""Reading a run log back: whole runs as :class:`~usv_mj.record.RunRecord`, or one topic as arrays.
+
+The file is read front to back (``mcap.stream_reader.StreamReader``, which also works on a
+non-seekable stream), chunk by chunk; every chunk's CRC is checked. A file that ends early (a killed
+process: no summary, maybe half a chunk) is read up to its last complete chunk, and
+:attr:`RunLog.truncated` says so. Numbers come back bit-exactly (see :mod:`usv_mj.runlog.topics`
+for the NaN / infinity convention).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import orjson
+import zstandard
+from mcap.data_stream import ReadDataStream
+from mcap.records import Attachment, Channel, Chunk, Footer, Header, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from numba import njit
+
+from ..record import COLUMNS, Event, RunRecord
+from .topics import ROW_TOPICS, prefix_for
+
+MAGIC = b"\x89MCAP0\r\n"
+_ROW_SCHEMAS = {title for _, title, _ in ROW_TOPICS}
+
+
+class RunLogReadError(ValueError):
+    """The file is missing, is not an MCAP file, or holds no run; the message names the file."""
+
+
+@njit(cache=True)
+def _walk_records(buf):
+    """Positions of the records in an uncompressed chunk: (opcode, start, end, channel, log_time) per record."""
+    n = buf.shape[0]
+    cap = 1024
+    op = np.empty(cap, np.int64)
+    start = np.empty(cap, np.int64)
+    end = np.empty(cap, np.int64)
+    chan = np.empty(cap, np.int64)
+    lt = np.empty(cap, np.int64)
+    p = 0
+    k = 0
+    while p + 9 <= n:
+        length = 0
+        for b in range(8):
+            length |= np.int64(buf[p + 1 + b]) << (8 * b)
+        if k == cap:
+            cap *= 2
+            op = np.concatenate((op, np.empty(cap - k, np.int64)))
+            start = np.concatenate((start, np.empty(cap - k, np.int64)))
+            end = np.concatenate((end, np.empty(cap - k, np.int64)))
+            chan = np.concatenate((chan, np.empty(cap - k, np.int64)))
+            lt = np.concatenate((lt, np.empty(cap - k, np.int64)))
+        op[k] = buf[p]
+        start[k] = p + 9
+        end[k] = min(p + 9 + length, n)
+        if buf[p] == 5 and length >= 22:
+            chan[k] = np.int64(buf[p + 9]) | (np.int64(buf[p + 10]) << 8)
+            t = 0
+            for b in range(8):
+                t |= np.int64(buf[p + 15 + b]) << (8 * b)
+            lt[k] = t
+            start[k] = p + 31
+        else:
+            chan[k] = -1
+            lt[k] = 0
+        k += 1
+        p += 9 + length
+    return op[:k], start[:k], end[:k], chan[:k], lt[:k]
+
+
+@njit(cache=True)
+def _gather(buf, starts, ends, out):
+    """Concatenate buf[starts[i]:ends[i]] with ',' between into out; return the length."""
+    p = 0
+    for i in range(starts.shape[0]):
+        if i:
+            out[p] = 44
+            p += 1
+        for b in range(starts[i], ends[i]):
+            out[p] = buf[b]
+            p += 1
+    return p
+
+
+@njit(cache=True)
+def _gather_values(buf, starts, ends, out):
+    """Flat JSON objects {"k":v,...} (numbers / null only) -> "[v,...],[v,...]" in out; return length.
+
+    Returns -1 if a message is not such a flat object (a string value or a nested object), so that
+    the caller falls back to the general decoder.
+    """
+    p = 0
+    for i in range(starts.shape[0]):
+        if i:
+            out[p] = 44
+            p += 1
+        out[p] = 91
+        p += 1
+        q = starts[i]
+        e = ends[i]
+        if q >= e or buf[q] != 123:                  # '{'
+            return -1
+        q += 1
+        first = True
+        while q < e and buf[q] != 125:               # '}'
+            if buf[q] == 44:
+                q += 1
+            if buf[q] != 34:                         # key must start with '"'
+                return -1
+            q += 1
+            while q < e and buf[q] != 34:
+                if buf[q] == 92:                     # backslash: not our simple keys
+                    return -1
+                q += 1
+            q += 2                                   # closing quote and ':'
+            if q >= e or buf[q] == 34 or buf[q] == 123 or buf[q] == 91:
+                return -1
+            if not first:
+                out[p] = 44
+                p += 1
+            first = False
+            while q < e and buf[q] != 44 and buf[q] != 125:
+                out[p] = buf[q]
+                p += 1
+                q += 1
+        out[p] = 93
+        p += 1
+    return p
+
+
+@dataclass
+class _Scan:
+    schemas: dict = field(default_factory=dict)       # id -> Schema
+    channels: dict = field(default_factory=dict)      # id -> Channel
+    metadata: list = field(default_factory=list)      # (name, dict)
+    attachments: dict = field(default_factory=dict)   # name -> bytes
+    media_types: dict = field(default_factory=dict)
+    pieces: dict = field(default_factory=dict)        # channel id -> list of (log_times, keys or None, data)
+    counts: dict = field(default_factory=dict)        # channel id -> messages
+    header: Header | None = None
+    complete: bool = False                            # the footer was reached
+    truncated: bool = False
+    problem: str = ""
+    chunks: int = 0
+    end_time: int = 0
+    start_time: int | None = None
+    size: int = 0
+    flat: object = None                               # predicate: channel holds flat numeric objects
+
+
+def _open(source):
+    if isinstance(source, (str, Path)):
+        path = Path(source)
+        if not path.exists():
+            raise RunLogReadError(f"{path}: no such file")
+        if path.is_dir():
+            raise RunLogReadError(f"{path}: is a folder, not an .mcap run log")
+        f = open(path, "rb")
+        head = f.read(8)
+        if head != MAGIC:
+            f.close()
+            raise RunLogReadError(f"{path}: not an MCAP file (it starts with {head!r}, not the MCAP magic)")
+        f.seek(0)
+        return f, str(path), path.stat().st_size
+    head = source.read(8)
+    if head != MAGIC:
+        raise RunLogReadError(f"{source!r}: not an MCAP stream (starts with {head!r})")
+    return _Prepend(head, source), repr(source), 0
+
+
+class _Prepend(io.RawIOBase):
+    """A non-seekable stream with its first bytes already read put back in front."""
+
+    def __init__(self, head: bytes, rest):
+        self._head, self._rest = head, rest
+
+    def readable(self):
+        return True
+
+    def read(self, n=-1):
+        if self._head:
+            if n is None or n < 0:
+                out, self._head = self._head + self._rest.read(), b""
+                return out
+            out, self._head = self._head[:n], self._head[n:]
+            if len(out) < n:
+                out += self._rest.read(n - len(out))
+            return out
+        return self._rest.read(n)
+
+    def readinto(self, b):
+        data = self.read(len(b))
+        b[:len(data)] = data
+        return len(data)
+
+
+def _scan(source, want=None, decode=True, flat=None) -> _Scan:
+    """Read records front to back. ``want(channel id)``: keep the data of that channel (default all);
+    ``flat(channel id)``: that channel holds flat numeric objects (decoded to arrays directly)."""
+    stream, name, size = _open(source)
+    scan = _Scan(size=size, flat=flat)
+    dctx = zstandard.ZstdDecompressor()
+    try:
+        reader = StreamReader(stream, emit_chunks=True, record_size_limit=None)
+        it = reader.records
+        while True:
+            try:
+                rec = next(it)
+            except StopIteration:
+                break
+            except Exception as exc:  # noqa: BLE001 - any failure here is a cut or damaged end
+                scan.truncated = True
+                scan.problem = f"the file ends or is damaged after {scan.chunks} complete chunks ({type(exc).__name__}" \
+                               f"{': ' + str(exc) if str(exc) else ''})"
+                break
+            if isinstance(rec, Chunk):
+                try:
+                    if rec.compression == "zstd":
+                        data = dctx.decompress(rec.data, max_output_size=rec.uncompressed_size)
+                    elif rec.compression == "":
+                        data = rec.data
+                    elif rec.compression == "lz4":
+                        import lz4.frame
+
+                        data = lz4.frame.decompress(rec.data)
+                    else:
+                        raise ValueError(f"unknown compression {rec.compression!r}")
+                    if len(data) != rec.uncompressed_size:
+                        raise ValueError("chunk shorter than its declared size")
+                    if rec.uncompressed_crc and zlib.crc32(data) != rec.uncompressed_crc:
+                        raise ValueError("chunk CRC mismatch")
+                except Exception as exc:  # noqa: BLE001
+                    scan.truncated = True
+                    scan.problem = f"chunk {scan.chunks + 1} is incomplete or damaged ({exc}); read up to the " \
+                                   f"{scan.chunks} complete chunks before it"
+                    break
+                _take_chunk(scan, data, want, decode)
+                scan.chunks += 1
+            elif isinstance(rec, Schema):
+                scan.schemas[rec.id] = rec
+            elif isinstance(rec, Channel):
+                scan.channels[rec.id] = rec
+            elif isinstance(rec, Metadata):
+                scan.metadata.append((rec.name, dict(rec.metadata)))
+            elif isinstance(rec, Attachment):
+                scan.attachments[rec.name] = rec.data
+                scan.media_types[rec.name] = rec.media_type
+            elif isinstance(rec, Header):
+                scan.header = rec
+            elif isinstance(rec, Footer):
+                scan.complete = True
+    finally:
+        stream.close()
+    if not scan.complete and not scan.truncated:
+        scan.truncated = True
+        scan.problem = scan.problem or "the file ends before its summary and footer"
+    if scan.header is None:
+        raise RunLogReadError(f"{name}: not a readable MCAP file ({scan.problem or 'no header'})")
+    return scan
+
+
+def _take_chunk(scan: _Scan, data: bytes, want, decode: bool):
+    buf = np.frombuffer(data, np.uint8)
+    op, start, end, chan, lt = _walk_records(buf)
+    for i in np.flatnonzero(op != 5):          # schemas / channels inside chunks (other writers do that)
+        body = ReadDataStream(io.BytesIO(data[start[i]:end[i]]))
+        if op[i] == 0x03:
+            s = Schema.read(body)
+            scan.schemas[s.id] = s
+        elif op[i] == 0x04:
+            c = Channel.read(body)
+            scan.channels[c.id] = c
+    msg = op == 5
+    if not msg.any():
+        return
+    chan, lt, start, end = chan[msg], lt[msg], start[msg], end[msg]
+    scan.start_time = int(lt.min()) if scan.start_time is None else min(scan.start_time, int(lt.min()))
+    scan.end_time = max(scan.end_time, int(lt.max()))
+    for ch in np.unique(chan):
+        sel = np.flatnonzero(chan == ch)
+        ch = int(ch)
+        scan.counts[ch] = scan.counts.get(ch, 0) + len(sel)
+        if not decode or (want is not None and not want(ch)):
+            continue
+        s, e = start[sel], end[sel]
+        if scan.flat is not None and scan.flat(scan, ch):
+            # a row topic: keys of the first message, then values only, one orjson call per chunk
+            out = np.empty(int((e - s).sum()) + 2 * len(sel) + 2, np.uint8)
+            out[0] = 91
+            n = _gather_values(buf, s, e, out[1:])
+            if n >= 0:
+                out[n + 1] = 93
+                keys = tuple(_decode_array(data[s[0]:e[0]]).keys())
+                if tuple(_decode_array(data[s[-1]:e[-1]]).keys()) == keys:
+                    values = np.array(_decode_array(out[:n + 2].tobytes()), dtype=np.float64)
+                    if values.ndim == 2 and values.shape[1] == len(keys):
+                        scan.pieces.setdefault(ch, []).append((lt[sel], keys, values))
+                        continue
+        out = np.empty(int((e - s).sum()) + len(sel) + 2, np.uint8)
+        out[0] = 91  # '['
+        n = _gather(buf, s, e, out[1:])
+        out[n + 1] = 93  # ']'
+        scan.pieces.setdefault(ch, []).append((lt[sel], None, out[:n + 2].tobytes()))
+
+
+def _decode_array(text: bytes):
+    try:
+        return orjson.loads(text)
+    except orjson.JSONDecodeError:
+        return json.loads(text)         # 1e999 / -1e999 (+-inf), which orjson refuses
+
+
+def _messages(scan: _Scan, ch: int) -> tuple[np.ndarray, list]:
+    """All messages of a channel as dicts (row-topic chunks decoded to arrays are turned back)."""
+    times, msgs = [], []
+    for lt, keys, data in scan.pieces.get(ch, []):
+        times.append(lt)
+        if keys is None:
+            msgs += _decode_array(data)
+        else:
+            msgs += [dict(zip(keys, row)) for row in data.tolist()]
+    return (np.concatenate(times) if times else np.zeros(0, np.int64)), msgs
+
+
+def _columns(scan: _Scan, ch: int) -> tuple[np.ndarray, dict]:
+    """A channel of flat numeric messages as (log_time, {field: float64 array})."""
+    pieces = scan.pieces.get(ch, [])
+    if pieces and all(keys is not None for _, keys, _ in pieces) and len({keys for _, keys, _ in pieces}) == 1:
+        keys = pieces[0][1]
+        values = np.concatenate([v for _, _, v in pieces]) if len(pieces) > 1 else pieces[0][2]
+        return np.concatenate([lt for lt, _, _ in pieces]), {k: values[:, i].copy() for i, k in enumerate(keys)}
+    log_time, msgs = _messages(scan, ch)
+    names = list(dict.fromkeys(k for m in msgs for k in m))
+    return log_time, {k: _float_column(msgs, k) for k in names}
+
+
+def _is_row_channel(scan: _Scan, ch: int) -> bool:
+    c = scan.channels.get(ch)
+    schema = scan.schemas.get(c.schema_id) if c is not None else None
+    return schema is not None and schema.name in _ROW_SCHEMAS
+
+
+def _float_column(msgs: list, name: str) -> np.ndarray:
+    return np.array([m.get(name) for m in msgs], dtype=np.float64)
+
+
+def _flatten(msg: dict, prefix: str = "", out=None) -> dict:
+    out = {} if out is None else out
+    for k, v in msg.items():
+        if isinstance(v, dict):
+            _flatten(v, f"{prefix}{k}.", out)
+        else:
+            out[prefix + k] = v
+    return out
+
+
+def _arrays(msgs: list, log_time: np.ndarray) -> dict:
+    flat = [_flatten(m) for m in msgs]
+    names = []
+    for m in flat:
+        for k in m:
+            if k not in names:
+                names.append(k)
+    out = {"log_time": log_time.astype(np.int64)}
+    for k in names:
+        vals = [m.get(k) for m in flat]
+        if all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)) for v in vals):
+            out[k] = np.array(vals, dtype=np.float64)
+        else:
+            arr = np.empty(len(vals), dtype=object)
+            arr[:] = vals
+            out[k] = arr
+    return out
+
+
+@dataclass
+class RunLog:
+    """A run log read back. ``record`` is the main run, ``baseline`` the PI baseline (or None)."""
+
+    path: str
+    runs: dict                  # run name -> RunRecord
+    metadata: dict              # file metadata (JSON values decoded) + "runs": {name: {"start":..., "end":...}}
+    attachments: dict           # name -> bytes
+    topic_counts: dict          # topic -> message count
+    truncated: bool
+    complete: bool              # the file has its summary and footer
+    problem: str
+    summaries: dict             # run name -> summary dict written at the run's end ({} if none)
+
+    @property
+    def record(self) -> RunRecord:
+        if "main" in self.runs:
+            return self.runs["main"]
+        if not self.runs:
+            raise RunLogReadError(f"{self.path}: holds no run")
+        return next(iter(self.runs.values()))
+
+    @property
+    def baseline(self) -> RunRecord | None:
+        return self.runs.get("baseline")
+
+    def topics(self) -> dict:
+        """Topic name -> number of messages read."""
+        return dict(self.topic_counts)
+
+
+def _maybe_json(value: str):
+    try:
+        return json.loads(value)
+    except (ValueError, TypeError):
+        return value
+
+
+def _run_names(scan: _Scan) -> list:
+    names = [m["run"] for name, m in scan.metadata if name.startswith("run_start/") and "run" in m]
+    if not names:  # no start records (cut very early or another writer): guess from the topics
+        for c in scan.channels.values():
+            if c.topic.endswith("/state"):
+                p = c.topic[: -len("/state")]
+                names.append("main" if p == "/usv" else p.strip("/").split("/")[0])
+    return list(dict.fromkeys(names))
+
+
+def read_run(path) -> RunLog:
+    """Read every run of a run log (a path, or a binary stream that need not be seekable).
+
+    Each run becomes a :class:`RunRecord` (``RunRecord.from_arrays``) with its events (ordered by
+    time, as ``simulate`` leaves them), ``status``, ``stop_reason`` and the record's metadata as
+    written at the end of the run. A run whose end record is missing (the file was cut) gets
+    ``status = "truncated"`` and a ``stop_reason`` saying where the log ends.
+    """
+    scan = _scan(path, flat=_is_row_channel)
+    file_meta, runs_meta = {}, {}
+    for name, m in scan.metadata:
+        if name == "usv_mj":
+            file_meta = {k: _maybe_json(v) if k in ("scenario", "versions", "git_dirty") else v for k, v in m.items()}
+        elif "/" in name:
+            kind, run = name.split("/", 1)
+            runs_meta.setdefault(run, {})[kind.replace("run_", "")] = {
+                k: _maybe_json(v) if k in ("metadata", "summary", "columns") else v for k, v in m.items()}
+    by_topic = {c.topic: cid for cid, c in scan.channels.items()}
+    runs, summaries = {}, {}
+    for run in _run_names(scan):
+        try:
+            p = prefix_for(run)
+        except ValueError:
+            continue
+        if f"{p}/state" not in by_topic:
+            continue
+        columns, n = {}, None
+        t_ref = None
+        for name, _, fields in ROW_TOPICS:
+            cid = by_topic.get(f"{p}/{name}")
+            if cid is None:
+                continue
+            _, cols = _columns(scan, cid)
+            m = len(cols.get("t", ()))
+            n = m if n is None else min(n, m)
+            for f in fields:
+                if f not in cols:
+                    continue
+                if f == "t":
+                    if t_ref is None:
+                        t_ref = cols["t"]
+                    continue
+                columns[f] = cols[f]
+        n = n or 0
+        columns = {k: v[:n] for k, v in columns.items()}
+        columns["t"] = (t_ref if t_ref is not None else np.zeros(0))[:n]
+        for c in COLUMNS:  # a column the file does not have (older log): NaN, as the record starts
+            columns.setdefault(c, np.full(n, np.nan))
+        events = []
+        cid = by_topic.get(f"{p}/events")
+        if cid is not None:
+            _, msgs = _messages(scan, cid)
+            msgs = sorted((m for m in msgs if not m.get("synthetic")), key=lambda m: (m["t"], m["seq"]))
+            events = [Event(m["t"], m["kind"], m["message"], m.get("values") or {}) for m in msgs]
+        meta = runs_meta.get(run, {})
+        end = meta.get("end")
+        if end is not None:
+            status, stop_reason = end.get("status", "unknown"), end.get("stop_reason", "")
+            record_meta = end.get("metadata") or {}
+            summaries[run] = end.get("summary") or {}
+        else:
+            status = "truncated"
+            t_last = float(columns["t"][-1]) if n else 0.0
+            stop_reason = f"the log ends at t = {t_last:.3f} s without the run's end record ({scan.problem or 'no end record'})"
+            record_meta = (meta.get("start") or {}).get("metadata") or {}
+            summaries[run] = {}
+        rec = RunRecord.from_arrays(columns, events=events, metadata=record_meta, status=status, stop_reason=stop_reason)
+        runs[run] = rec
+    file_meta["runs"] = runs_meta
+    counts = {scan.channels[cid].topic: c for cid, c in scan.counts.items() if cid in scan.channels}
+    for cid, c in scan.channels.items():
+        counts.setdefault(c.topic, 0)
+    if not runs:
+        raise RunLogReadError(f"{path}: no usv_mj run in this MCAP file ({scan.problem or 'no /usv/state topic'})")
+    return RunLog(path=str(path), runs=runs, metadata=file_meta, attachments=dict(scan.attachments),
+                  topic_counts=counts, truncated=scan.truncated, complete=scan.complete, problem=scan.problem,
+                  summaries=summaries)
+
+
+def load_topic(path, topic: str) -> dict:
+    """Arrays by field of one topic: ``{"log_time": int64 ns, field: float64 or object array}``.
+
+    Nested objects are flattened with dots ("translation.x"); numbers become float64 (null -> NaN),
+    anything else an object array. Reads a cut file up to its last complete chunk.
+    """
+    holder = {}
+
+    def want(ch):
+        return ch == holder.get("cid")
+
+    stream_meta = _scan(path, decode=False)
+    for cid, c in stream_meta.channels.items():
+        if c.topic == topic:
+            holder["cid"] = cid
+    if "cid" not in holder:
+        known = ", ".join(sorted(c.topic for c in stream_meta.channels.values()))
+        raise RunLogReadError(f"{path}: no topic {topic!r}; topics are {known}")
+    scan = _scan(path, want=want, flat=_is_row_channel)
+    if _is_row_channel(scan, holder["cid"]):
+        log_time, cols = _columns(scan, holder["cid"])
+        return {"log_time": log_time.astype(np.int64), **cols}
+    log_time, msgs = _messages(scan, holder["cid"])
+    return _arrays(msgs, log_time)
+
+
+def scan_summary(path) -> dict:
+    """What ``usv-mj inspect`` prints: topics with counts and schemas, time range, metadata, attachments."""
+    scan = _scan(path, decode=False)
+    topics = {}
+    for cid, c in sorted(scan.channels.items()):
+        schema = scan.schemas.get(c.schema_id)
+        topics[c.topic] = {"count": scan.counts.get(cid, 0), "schema": schema.name if schema else "",
+                           "encoding": c.message_encoding}
+    return {"topics": topics, "metadata": scan.metadata, "attachments": {k: len(v) for k, v in scan.attachments.items()},
+            "start_ns": scan.start_time or 0, "end_ns": scan.end_time, "complete": scan.complete,
+            "truncated": scan.truncated, "problem": scan.problem, "chunks": scan.chunks, "size": scan.size,
+            "library": scan.header.library if scan.header else ""}

@@ -1,0 +1,227 @@
+"""The topics of a run log (``run.mcap``), their JSON schemas and the number conventions.
+
+One MCAP file holds one or two runs. Each run has a topic prefix: the main controller's run
+``"main"`` uses ``/usv``, the PI baseline ``"baseline"`` uses ``/baseline/usv``, any other run name
+``NAME`` uses ``/NAME/usv``. Under a prefix ``P``:
+
+Per control step (one message per row of the :class:`~usv_mj.record.RunRecord`, ``log_time`` =
+``publish_time`` = round(t * 1e9) ns, ``sequence`` = row index k; schema encoding ``jsonschema``,
+message encoding ``json``):
+
+=====================  ==========================================================================
+``P/state``            t, x, y, psi, u, v, r (psi unwrapped)
+``P/reference``        t, x_d, y_d, psi_d, u_d, r_d
+``P/errors``           t, e1, e2, e3 (Eq. 14), rho1, rho2, rho3 (Eq. 9), z1, z2, z3, e1s, e2s, e3s
+                       (the transformed errors e_i* of Eq. 10), psi_a (Eq. 15)
+``P/control``          t, tau_u, tau_r (the law's output), q_tau_u, q_tau_r (what the plant got),
+                       k_u, k_r (the quantizers' signed level indices)
+``P/adaptation``       t, w_u_norm, w_v_norm, w_r_norm (|W_u|, |W_v|, |W_r|), s2 = tanh(gamma_2)
+``P/internal``         t and every other record column (x_d_dot, y_d_dot, u_e, v_e, r_e, alpha_u,
+                       alpha_v, alpha_r, s2_clamped, and any column added to the record later)
+=====================  ==========================================================================
+
+so that the whole record is rebuilt bit-exactly from these six topics.
+
+As they happen: ``P/events``: t, seq (the event's index in ``record.events`` as appended), kind
+("funnel_violation", "funnel_recovered", "s2_clamp", "divergence", "interrupted", "failed", ...),
+message, values (an object); at the run's end one more message with kind "run_end",
+"synthetic": true, the status and the stop reason (not part of ``record.events``).
+
+For Foxglove's 3D panel, every ``FRAME_PERIOD`` = 20 ms of simulated time (every
+round(0.02 / dt)-th row, reduced rate to keep the file small):
+
+- ``P/tf/hull``: ``foxglove.FrameTransform`` world -> ``F`` (x, y, 0; yaw psi about z);
+- ``P/tf/reference``: ``foxglove.FrameTransform`` world -> ``F_reference`` (x_d, y_d, 0; yaw psi_d);
+- ``P/scene/funnel``: ``foxglove.SceneUpdate``, entity "funnel": the box |x - x_d| < rho1,
+  |y - y_d| < rho2 around the reference point (a LINE_LOOP in "world"; the controller bounds the
+  offset point x + eps cos psi of Eq. 14, eps = m23/m22 is a few mm, not drawn);
+
+and at t = 0 and every 10 s: ``P/scene/path`` (entity "reference_path", the reference path sampled
+every 0.5 s over the whole run, LINE_STRIP in "world") and ``P/scene/hull`` (entity "hull", a box
+of the CyberShip II's size locked to frame ``F``). Frame names: ``F`` = "usv" for the main run,
+"baseline/usv" for the baseline, "NAME/usv" otherwise. The "world" frame is the simulation's earth
+frame with z = x cross y; a yaw psi turns x towards y as in the kinematics of :mod:`usv_mj.ship`.
+
+Numbers: every float64 is written as the shortest decimal that reads back to the same double
+(orjson's float formatting, ``repr``-equivalent), so values round-trip bit-exactly. JSON has no NaN or
+infinity: NaN is written ``null`` (read back as NaN; NaN payload bits are not kept), +inf as
+``1e999`` and -inf as ``-1e999`` (valid JSON numbers that IEEE parsers, JavaScript's JSON.parse and
+Python's json, read as +-Infinity).
+"""
+
+from __future__ import annotations
+
+import json
+
+from ..record import COLUMNS
+
+SCHEMA_VERSION = "usv_mj.runlog/1"
+FRAME_PERIOD = 0.02      # s of simulated time between FrameTransform / funnel SceneUpdate messages
+SLOW_PERIOD = 10.0       # s between the path and hull SceneUpdate messages
+PATH_SAMPLE = 0.5        # s between the points of the drawn reference path
+HULL_SIZE = (1.255, 0.29, 0.25)   # m: CyberShip II length, beam, a display height (display only)
+
+_ROW_TOPICS_FIXED = (
+    ("state", "usv_mj.State", ("t", "x", "y", "psi", "u", "v", "r")),
+    ("reference", "usv_mj.Reference", ("t", "x_d", "y_d", "psi_d", "u_d", "r_d")),
+    ("errors", "usv_mj.Errors", ("t", "e1", "e2", "e3", "rho1", "rho2", "rho3", "z1", "z2", "z3",
+                                 "e1s", "e2s", "e3s", "psi_a")),
+    ("control", "usv_mj.Control", ("t", "tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r")),
+    ("adaptation", "usv_mj.Adaptation", ("t", "w_u_norm", "w_v_norm", "w_r_norm", "s2")),
+)
+_covered = {f for _, _, fields in _ROW_TOPICS_FIXED for f in fields}
+# Every record column not on a named topic goes to "internal", so nothing of the record is lost.
+ROW_TOPICS = _ROW_TOPICS_FIXED + (
+    ("internal", "usv_mj.Internal", ("t",) + tuple(c for c in COLUMNS if c not in _covered)),)
+assert {f for _, _, fields in ROW_TOPICS for f in fields} == set(COLUMNS)
+
+FIELD_DOC = {
+    "t": "time [s]", "x": "north position x [m]", "y": "east position y [m]",
+    "psi": "heading psi [rad], unwrapped", "u": "surge speed [m/s]", "v": "sway speed [m/s]",
+    "r": "yaw rate [rad/s]", "x_d": "reference x_d [m]", "y_d": "reference y_d [m]",
+    "psi_d": "reference heading psi_d [rad]", "u_d": "reference surge speed u_d [m/s]",
+    "r_d": "reference yaw rate r_d [rad/s]", "x_d_dot": "dx_d/dt [m/s]", "y_d_dot": "dy_d/dt [m/s]",
+    "e1": "e1 = x_bar - x_bar_d [m] (Eq. 14)", "e2": "e2 = y_bar - y_bar_d [m] (Eq. 14)",
+    "e3": "e3 = wrap(psi - psi_a) [rad]", "rho1": "funnel bound rho1 [m] (Eq. 9)",
+    "rho2": "funnel bound rho2 [m] (Eq. 9)", "rho3": "funnel bound rho3 [rad] (Eq. 9)",
+    "z1": "z1 = e1 / rho1", "z2": "z2 = e2 / rho2", "z3": "z3 = e3 / rho3",
+    "e1s": "transformed error e1* (Eq. 10)", "e2s": "transformed error e2* (Eq. 10)",
+    "e3s": "transformed error e3* (Eq. 10)", "psi_a": "psi_a [rad] (Eq. 15)",
+    "u_e": "surge velocity error u_e [m/s] (Eq. 19)", "v_e": "sway velocity error v_e [m/s] (Eq. 19)",
+    "r_e": "yaw-rate error r_e [rad/s] (Eq. 19)", "alpha_u": "virtual control alpha_u (Eq. 17)",
+    "alpha_v": "virtual control alpha_v (Eq. 17)", "alpha_r": "virtual control alpha_r (Eq. 17)",
+    "w_u_norm": "|W_u| (Eq. 29)", "w_v_norm": "|W_v|", "w_r_norm": "|W_r| (Eq. 37)",
+    "s2": "s2 = tanh(gamma_2)", "s2_clamped": "1 when s2 hit its clamp this step, else 0",
+    "tau_u": "surge force from the law [N]", "tau_r": "yaw moment from the law [N m]",
+    "q_tau_u": "quantized surge force applied [N]", "q_tau_r": "quantized yaw moment applied [N m]",
+    "k_u": "surge quantizer level index (signed)", "k_r": "yaw quantizer level index (signed)",
+}
+
+_NUMBER = {"type": ["number", "null"],
+           "$comment": "float64, shortest round-trip decimal; null = NaN, 1e999 = +inf, -1e999 = -inf"}
+
+
+def prefix_for(run: str) -> str:
+    """Topic prefix of a run: "/usv" for "main", "/baseline/usv" for "baseline", "/NAME/usv" else."""
+    if not run or "/" in run or run.strip() != run:
+        raise ValueError(f"run name must be a non-empty word without '/' or spaces, got {run!r}")
+    return "/usv" if run == "main" else f"/{run}/usv"
+
+
+def frame_for(run: str) -> str:
+    """Name of the hull frame of a run ("usv", "baseline/usv", ...)."""
+    return "usv" if run == "main" else f"{run}/usv"
+
+
+def row_topic_schema(title: str, fields: tuple) -> bytes:
+    schema = {
+        "title": title, "type": "object",
+        "description": "one control step of a usv_mj run (see usv_mj.runlog.topics)",
+        "properties": {f: {**_NUMBER, "description": FIELD_DOC.get(f, f)} for f in fields},
+        "required": list(fields),
+    }
+    return json.dumps(schema, indent=1).encode()
+
+
+EVENT_SCHEMA = json.dumps({
+    "title": "usv_mj.Event", "type": "object",
+    "description": "something that happened in the run: funnel violation, s2 clamp, divergence, stop",
+    "properties": {
+        "t": {"type": "number", "description": "time [s]"},
+        "seq": {"type": "integer", "description": "index of the event in record.events as appended"},
+        "kind": {"type": "string"}, "message": {"type": "string"},
+        "values": {"type": "object", "description": "the numbers behind the message"},
+        "synthetic": {"type": "boolean", "description": "true for the run_end marker (not a record event)"},
+        "status": {"type": "string"}, "stop_reason": {"type": "string"},
+    },
+    "required": ["t", "seq", "kind", "message", "values"],
+}, indent=1).encode()
+
+# --- Foxglove well-known schemas (foxglove-sdk schemas/jsonschema), the parts these logs use -----------
+
+_TIME = {"type": "object", "title": "time", "properties": {
+    "sec": {"type": "integer", "minimum": 0}, "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}}
+_DURATION = {"type": "object", "title": "duration", "properties": {
+    "sec": {"type": "integer"}, "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}}
+
+
+def _obj(title, names):
+    return {"title": title, "type": "object", "properties": {n: {"type": "number"} for n in names},
+            "required": list(names)}
+
+
+_VEC3 = _obj("foxglove.Vector3", ("x", "y", "z"))
+_QUAT = _obj("foxglove.Quaternion", ("x", "y", "z", "w"))
+_COLOR = _obj("foxglove.Color", ("r", "g", "b", "a"))
+_POSE = {"title": "foxglove.Pose", "type": "object", "properties": {"position": _VEC3, "orientation": _QUAT},
+         "required": ["position", "orientation"]}
+
+FRAME_TRANSFORM_SCHEMA = json.dumps({
+    "title": "foxglove.FrameTransform",
+    "description": "A transform between two reference frames in 3D space",
+    "type": "object",
+    "properties": {
+        "timestamp": _TIME,
+        "parent_frame_id": {"type": "string"},
+        "child_frame_id": {"type": "string"},
+        "translation": _VEC3,
+        "rotation": _QUAT,
+    },
+    "required": ["timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"],
+}, indent=1).encode()
+
+_LINE = {
+    "title": "foxglove.LinePrimitive", "type": "object",
+    "properties": {
+        "type": {"title": "foxglove.LineType", "oneOf": [
+            {"title": "LINE_STRIP", "const": 0}, {"title": "LINE_LOOP", "const": 1}, {"title": "LINE_LIST", "const": 2}]},
+        "pose": _POSE, "thickness": {"type": "number"}, "scale_invariant": {"type": "boolean"},
+        "points": {"type": "array", "items": _obj("foxglove.Point3", ("x", "y", "z"))},
+        "color": _COLOR, "colors": {"type": "array", "items": _COLOR},
+        "indices": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+    },
+    "required": ["type", "pose", "thickness", "scale_invariant", "points", "color", "colors", "indices"],
+}
+_CUBE = {"title": "foxglove.CubePrimitive", "type": "object",
+         "properties": {"pose": _POSE, "size": _VEC3, "color": _COLOR}, "required": ["pose", "size", "color"]}
+_ENTITY_ARRAYS = ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models")
+
+SCENE_UPDATE_SCHEMA = json.dumps({
+    "title": "foxglove.SceneUpdate",
+    "description": "An update to the entities displayed in a 3D scene",
+    "type": "object",
+    "properties": {
+        "deletions": {"type": "array", "items": {
+            "title": "foxglove.SceneEntityDeletion", "type": "object",
+            "properties": {"timestamp": _TIME, "type": {"type": "integer"}, "id": {"type": "string"}},
+            "required": ["timestamp", "type", "id"]}},
+        "entities": {"type": "array", "items": {
+            "title": "foxglove.SceneEntity", "type": "object",
+            "properties": {
+                "timestamp": _TIME, "frame_id": {"type": "string"}, "id": {"type": "string"},
+                "lifetime": _DURATION, "frame_locked": {"type": "boolean"},
+                "metadata": {"type": "array", "items": {"title": "foxglove.KeyValuePair", "type": "object",
+                                                        "properties": {"key": {"type": "string"},
+                                                                       "value": {"type": "string"}}}},
+                **{name: {"type": "array", "items": {"type": "object"}} for name in _ENTITY_ARRAYS},
+                "lines": {"type": "array", "items": _LINE},
+                "cubes": {"type": "array", "items": _CUBE},
+            },
+            "required": ["timestamp", "frame_id", "id", "lifetime", "frame_locked", "metadata", *_ENTITY_ARRAYS],
+        }},
+    },
+    "required": ["deletions", "entities"],
+}, indent=1).encode()
+
+
+def topic_table(run: str) -> list[dict]:
+    """Every topic of one run: name, schema name, kind ("rows", "events", "foxglove"), fields."""
+    p = prefix_for(run)
+    table = [{"topic": f"{p}/{name}", "schema": title, "kind": "rows", "fields": fields}
+             for name, title, fields in ROW_TOPICS]
+    table.append({"topic": f"{p}/events", "schema": "usv_mj.Event", "kind": "events", "fields": ()})
+    for name, schema in (("tf/hull", "foxglove.FrameTransform"), ("tf/reference", "foxglove.FrameTransform"),
+                         ("scene/funnel", "foxglove.SceneUpdate"), ("scene/path", "foxglove.SceneUpdate"),
+                         ("scene/hull", "foxglove.SceneUpdate")):
+        table.append({"topic": f"{p}/{name}", "schema": schema, "kind": "foxglove", "fields": ()})
+    return table

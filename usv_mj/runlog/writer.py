@@ -1,0 +1,516 @@
+"""Writing a run log: :class:`RunLogWriter` owns one ``.mcap`` file; ``writer.sink(run)`` logs one run.
+
+Usage (what the main job does)::
+
+    with RunLogWriter(out / "run.mcap", scenario) as writer:
+        record = simulate(scenario, sinks=[writer.sink("main")])
+        base = simulate(scenario, controller_kind="pi", sinks=[writer.sink("baseline")])
+
+The simulation loop hands the sink a block of rows every ``block`` steps (``rows(record, lo, hi)``).
+The sink copies the block (and the events added since the last call) and passes it on; by default
+to a background process (``multiprocessing`` spawn context, fed through a bounded queue) that
+formats the JSON, lays out the MCAP chunks, compresses them (zstd) and writes them, so the second
+core does the logging while the loop runs. Memory stays bounded: at most ``queue_blocks`` blocks
+wait in the queue, and the file is written chunk by chunk (``rows_per_chunk`` rows per chunk).
+
+What is in the file (topics: :mod:`usv_mj.runlog.topics`):
+
+- metadata ``usv_mj`` (at open): schema version, preset, every parameter (``scenario.to_dict()``),
+  package versions (python, numpy, numba, mujoco, mcap, orjson, zstandard, usv_mj), the project's
+  git commit ("unknown" outside a checkout) and whether the tree had uncommitted changes;
+- attachments: ``models/<name>.xml`` for every model XML of the project, ``scenario/<file>`` when
+  ``scenario.source`` is a file, and any ``attachments`` passed in;
+- metadata ``run_start/<run>`` (at ``start``): topic prefix, the record's metadata, the columns;
+- metadata ``run_end/<run>`` (at ``finish``): status, stop reason, rows, the record's final
+  metadata and ``usv_mj.summary.summarize(record)`` (all JSON text).
+
+An interrupted run (Ctrl-C, an exception, a divergence) still gets every row up to the stop, its
+events (the loop records why it stopped) and a ``run_end`` record, because ``simulate`` always calls
+``finish``; ``finish`` never raises (a failure of the writer is kept and raised by :meth:`close`,
+so it cannot hide the run's own exception). The worker ignores SIGINT, so Ctrl-C in the terminal
+does not kill the file with the run. A killed process leaves a file without summary that
+:func:`usv_mj.runlog.read_run` still reads up to its last complete chunk.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import mimetypes
+import multiprocessing
+import os
+import platform
+import queue
+import signal
+import subprocess
+import time
+import traceback
+import warnings
+from datetime import datetime, timezone
+from importlib import metadata as importlib_metadata
+from pathlib import Path
+
+import numpy as np
+import orjson
+
+from ..record import COL, COLUMNS, RunRecord
+from .mcap_file import ChunkBuffer, McapFileWriter, RowLayout
+from .topics import (EVENT_SCHEMA, FRAME_PERIOD, FRAME_TRANSFORM_SCHEMA, HULL_SIZE, PATH_SAMPLE, ROW_TOPICS,
+                     SCENE_UPDATE_SCHEMA, SCHEMA_VERSION, SLOW_PERIOD, frame_for, prefix_for, row_topic_schema)
+
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+
+
+class RunLogError(RuntimeError):
+    """The run log could not be written or read; the message says which file and why."""
+
+
+def _json(obj) -> str:
+    return orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS, default=str).decode()
+
+
+def package_versions() -> dict:
+    """Versions of the packages a run depends on ("not installed" when absent)."""
+    out = {"python": platform.python_version()}
+    for name in ("usv_mj", "numpy", "numba", "mujoco", "dm-control", "mcap", "orjson", "zstandard"):
+        try:
+            out[name] = importlib_metadata.version(name)
+        except importlib_metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def git_commit(root: Path = PROJECT_ROOT) -> tuple[str, bool | None]:
+    """(commit hash, tree has uncommitted changes) of the project checkout, ("unknown", None) outside one."""
+    try:
+        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
+                                timeout=10).stdout.strip()
+        if not commit:
+            return "unknown", None
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=10).stdout.strip() != ""
+        return commit, dirty
+    except (OSError, subprocess.SubprocessError):
+        return "unknown", None
+
+
+def model_files(root: Path = PROJECT_ROOT) -> list[Path]:
+    """The project's MuJoCo model XML files (``models/*.xml``, ``usv_mj/models/*.xml``, ``usv_mj/plants/*.xml``)."""
+    found = []
+    for folder in (root / "models", root / "usv_mj" / "models", root / "usv_mj" / "plants"):
+        if folder.is_dir():
+            found += sorted(folder.glob("*.xml"))
+    return found
+
+
+# --- the file side (runs in the worker process, or in-process with background=False) -----------
+
+
+class RunLogFile:
+    """Turns the sink's commands into MCAP records. One instance per file."""
+
+    def __init__(self, path: str, file_metadata: dict, attachments: list, rows_per_chunk: int,
+                 compression_level: int):
+        self.mcap = McapFileWriter(path, profile="", library=f"usv_mj.runlog ({SCHEMA_VERSION})",
+                                   compression_level=compression_level)
+        self.rows_per_chunk = max(1, int(rows_per_chunk))
+        self.mcap.add_metadata("usv_mj", file_metadata)
+        for name, media_type, data in attachments:
+            self.mcap.add_attachment(name, media_type, data, log_time=0, create_time=time.time_ns())
+        self.schema_ids: dict[str, int] = {}
+        self.runs: dict[str, dict] = {}
+
+    def _schema(self, name: str, data: bytes) -> int:
+        if name not in self.schema_ids:
+            self.schema_ids[name] = self.mcap.register_schema(name, "jsonschema", data)
+        return self.schema_ids[name]
+
+    def handle(self, cmd: tuple):
+        getattr(self, "cmd_" + cmd[0])(*cmd[1:])
+
+    def cmd_start(self, run: str, info: dict):
+        if run in self.runs:
+            raise RunLogError(f"run {run!r} is logged twice in one file")
+        p = prefix_for(run)
+        chans = {}
+        row_topics = []
+        for name, title, fields in ROW_TOPICS:
+            cid = self.mcap.register_channel(f"{p}/{name}", "json", self._schema(title, row_topic_schema(title, fields)),
+                                             {"run": run})
+            row_topics.append((cid, fields))
+        chans["events"] = self.mcap.register_channel(f"{p}/events", "json", self._schema("usv_mj.Event", EVENT_SCHEMA),
+                                                     {"run": run})
+        for key, topic, schema, data in (("tf_hull", "tf/hull", "foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA),
+                                         ("tf_ref", "tf/reference", "foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA),
+                                         ("funnel", "scene/funnel", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA),
+                                         ("path", "scene/path", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA),
+                                         ("hull", "scene/hull", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)):
+            chans[key] = self.mcap.register_channel(f"{p}/{topic}", "json", self._schema(schema, data), {"run": run})
+        dt = float(info["control_period_s"])
+        self.runs[run] = {
+            "layout": RowLayout(COLUMNS, row_topics), "chans": chans, "dt": dt,
+            "decim": max(1, int(round(FRAME_PERIOD / dt))), "slow": max(1, int(round(SLOW_PERIOD / dt))),
+            "frame": frame_for(run), "path": info.get("path", []), "rows": 0, "last_ns": 0, "ended": False,
+        }
+        self.mcap.add_metadata(f"run_start/{run}", {
+            "run": run, "prefix": p, "schema_version": SCHEMA_VERSION, "columns": _json(list(COLUMNS)),
+            "control_period_s": repr(dt), "metadata": _json(info.get("metadata", {})),
+        })
+
+    def cmd_rows(self, run: str, lo: int, block: np.ndarray, events: list):
+        st = self.runs[run]
+        n = block.shape[0]
+        step = self.rows_per_chunk
+        for a in range(0, n, step):
+            sub = block[a:a + step]
+            buf = ChunkBuffer()
+            t = sub[:, COL["t"]]
+            log_time = np.rint(np.nan_to_num(t, nan=0.0, posinf=0.0, neginf=0.0) * 1e9).clip(0).astype(np.int64)
+            records, offsets = st["layout"].encode(sub, log_time, lo + a)
+            buf.add_rows(records, offsets, log_time, st["layout"].channel_ids)
+            self._foxglove(st, buf, sub, lo + a, log_time)
+            if a + step >= n:
+                self._events(st, buf, events)
+            self.mcap.write_chunk(buf)
+            st["last_ns"] = int(log_time[-1])
+        st["rows"] = lo + n
+
+    def cmd_finish(self, run: str, end: dict, events: list):
+        st = self.runs[run]
+        buf = ChunkBuffer()
+        self._events(st, buf, events)
+        t_end = max([st["last_ns"]] + [_ns(e["t"]) for e in events])
+        buf.add_message(st["chans"]["events"], t_end, orjson.dumps({
+            "t": t_end / 1e9, "seq": -1, "kind": "run_end", "synthetic": True, "status": end["status"],
+            "stop_reason": end["stop_reason"],
+            "message": f"run {run} ended: {end['status']}" + (f" ({end['stop_reason']})" if end["stop_reason"] else ""),
+            "values": {"rows": end["rows"]}}))
+        self.mcap.write_chunk(buf)
+        self.mcap.add_metadata(f"run_end/{run}", {
+            "run": run, "status": end["status"], "stop_reason": end["stop_reason"], "rows": str(end["rows"]),
+            "metadata": end["metadata"], "summary": end["summary"],
+        })
+        st["ended"] = True
+
+    def cmd_close(self):
+        self.mcap.finish()
+
+    def _events(self, st, buf, events):
+        ch = st["chans"]["events"]
+        for e in sorted(events, key=lambda e: (e["t"], e["seq"])):
+            buf.add_message(ch, _ns(e["t"]), orjson.dumps(e, option=orjson.OPT_SERIALIZE_NUMPY
+                                                          | orjson.OPT_NON_STR_KEYS, default=str), e["seq"])
+
+    def _foxglove(self, st, buf, sub, k0, log_time):
+        decim, slow, ch = st["decim"], st["slow"], st["chans"]
+        k = np.arange(k0, k0 + sub.shape[0])
+        c = COL
+        for i in np.flatnonzero(k % decim == 0):
+            row = sub[i]
+            ns = int(log_time[i])
+            stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+            x, y, psi = row[c["x"]], row[c["y"]], row[c["psi"]]
+            if math.isfinite(x) and math.isfinite(y) and math.isfinite(psi):
+                buf.add_message(ch["tf_hull"], ns, _frame(stamp, st["frame"], x, y, psi), int(k[i]))
+            xd, yd, psid = row[c["x_d"]], row[c["y_d"]], row[c["psi_d"]]
+            if math.isfinite(xd) and math.isfinite(yd) and math.isfinite(psid):
+                buf.add_message(ch["tf_ref"], ns, _frame(stamp, st["frame"] + "_reference", xd, yd, psid), int(k[i]))
+                r1, r2 = row[c["rho1"]], row[c["rho2"]]
+                if math.isfinite(r1) and math.isfinite(r2):
+                    pts = [(xd - r1, yd - r2), (xd + r1, yd - r2), (xd + r1, yd + r2), (xd - r1, yd + r2)]
+                    buf.add_message(ch["funnel"], ns, _scene(stamp, "world", "funnel", lines=[
+                        _line(1, pts, (1.0, 0.55, 0.0, 1.0), 0.05)]), int(k[i]))
+            if k[i] % slow == 0:
+                if st["path"]:
+                    buf.add_message(ch["path"], ns, _scene(stamp, "world", "reference_path", lines=[
+                        _line(0, st["path"], (0.2, 0.6, 1.0, 1.0), 0.05)]), int(k[i]))
+                half = HULL_SIZE[2] / 2
+                buf.add_message(ch["hull"], ns, _scene(stamp, st["frame"], "hull", frame_locked=True, cubes=[{
+                    "pose": {"position": {"x": 0.0, "y": 0.0, "z": half},
+                             "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                    "size": {"x": HULL_SIZE[0], "y": HULL_SIZE[1], "z": HULL_SIZE[2]},
+                    "color": {"r": 0.9, "g": 0.9, "b": 0.95, "a": 1.0}}]), int(k[i]))
+
+
+def _ns(t) -> int:
+    t = float(t)
+    return int(round(t * 1e9)) if math.isfinite(t) and t > 0 else 0
+
+
+def _frame(stamp, child, x, y, psi) -> bytes:
+    return orjson.dumps({"timestamp": stamp, "parent_frame_id": "world", "child_frame_id": child,
+                         "translation": {"x": float(x), "y": float(y), "z": 0.0},
+                         "rotation": {"x": 0.0, "y": 0.0, "z": math.sin(psi / 2), "w": math.cos(psi / 2)}})
+
+
+def _line(kind, pts, rgba, thickness):
+    return {"type": kind, "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
+                                   "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+            "thickness": thickness, "scale_invariant": False,
+            "points": [{"x": float(px), "y": float(py), "z": 0.0} for px, py in pts],
+            "color": dict(zip("rgba", rgba)), "colors": [], "indices": []}
+
+
+def _scene(stamp, frame_id, entity_id, frame_locked=False, lines=(), cubes=()) -> bytes:
+    entity = {"timestamp": stamp, "frame_id": frame_id, "id": entity_id, "lifetime": {"sec": 0, "nsec": 0},
+              "frame_locked": frame_locked, "metadata": [], "arrows": [], "cubes": list(cubes), "spheres": [],
+              "cylinders": [], "lines": list(lines), "triangles": [], "texts": [], "models": []}
+    return orjson.dumps({"deletions": [], "entities": [entity]})
+
+
+def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_level, commands, reply, parent_pid):
+    """The background writer: consume commands until "close" (or until the parent process is gone)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C stops the run, not the file
+    error = None
+    log = None
+    try:
+        log = RunLogFile(path, file_metadata, attachments, rows_per_chunk, compression_level)
+    except BaseException:
+        error = traceback.format_exc()
+    while True:
+        try:
+            cmd = commands.get(timeout=1.0)
+        except queue.Empty:
+            if os.getppid() != parent_pid:          # parent gone without "close": finish what we have
+                cmd = ("close",)
+            else:
+                continue
+        if error is None:
+            try:
+                log.handle(cmd)
+            except BaseException:
+                error = traceback.format_exc()
+        if cmd[0] == "close":
+            if log is not None and not log.mcap.finished:
+                try:
+                    log.mcap.finish()       # leave a valid file with everything written before the error
+                except BaseException:
+                    log.mcap.abandon()
+            stats = {"cpu_s": time.process_time(), "chunks": log.mcap.stats.chunk_count if log else 0,
+                     "messages": log.mcap.stats.message_count if log else 0}
+            try:
+                reply.send(("error", error, stats) if error else ("ok", None, stats))
+            except (OSError, EOFError):
+                pass
+            return
+
+
+# --- the simulation side ------------------------------------------------------------------------
+
+
+class RunLogWriter:
+    """One ``.mcap`` run log. A context manager; :meth:`sink` gives the RunSink of one run.
+
+    ``path``: the file to write (its folder must exist); ``scenario``: the
+    :class:`~usv_mj.scenario.Scenario` being run (metadata, reference path, scenario file);
+    ``attachments``: extra files to carry, name -> bytes or text. ``background=False`` writes in the
+    calling process (same file, slower loop). ``rows_per_chunk`` bounds a chunk (~1.8 kB per row
+    before compression); ``queue_blocks`` bounds the blocks waiting for the background writer.
+    """
+
+    def __init__(self, path, scenario, attachments: dict | None = None, *, background: bool = True,
+                 rows_per_chunk: int = 1000, compression_level: int = 1, queue_blocks: int = 8):
+        self.path = Path(path)
+        if not self.path.parent.is_dir():
+            raise RunLogError(f"cannot write run log {self.path}: folder {self.path.parent} does not exist")
+        self.scenario = scenario
+        self._errors: list[str] = []
+        self._sinks: list[RunLogSink] = []
+        self._closed = False
+        self.stats: dict = {}     # after close: the writer's CPU time (background), chunks, messages
+        commit, dirty = git_commit()
+        to_dict = scenario.to_dict() if hasattr(scenario, "to_dict") else {}
+        file_metadata = {
+            "schema_version": SCHEMA_VERSION, "preset": str(getattr(scenario, "preset", "")),
+            "source": str(getattr(scenario, "source", "")), "scenario": _json(to_dict),
+            "versions": _json(package_versions()), "git_commit": commit, "git_dirty": _json(dirty),
+            "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "topics": "see usv_mj.runlog.topics: /usv/... (run main), /baseline/usv/... (run baseline)",
+        }
+        att = []
+        for f in model_files():
+            att.append((f"models/{f.name}", "application/xml", f.read_bytes()))
+        source = str(getattr(scenario, "source", "") or "")
+        if source and Path(source).is_file():
+            att.append((f"scenario/{Path(source).name}", "application/toml", Path(source).read_bytes()))
+        for name, data in (attachments or {}).items():
+            if isinstance(data, str):
+                data = data.encode()
+            if not isinstance(data, (bytes, bytearray)):
+                raise TypeError(f"attachment {name!r} must be bytes or str, got {type(data).__name__}")
+            att.append((str(name), mimetypes.guess_type(str(name))[0] or "application/octet-stream", bytes(data)))
+        args = (str(self.path), file_metadata, att, rows_per_chunk, compression_level)
+        self._background = background
+        if background:
+            ctx = multiprocessing.get_context("spawn")
+            self._queue = ctx.Queue(maxsize=max(1, queue_blocks))
+            self._reply, child_reply = ctx.Pipe(duplex=False)
+            self._proc = ctx.Process(target=_worker_main, args=(*args, self._queue, child_reply, os.getpid()),
+                                     name="usv_mj-runlog", daemon=False)
+            self._proc.start()
+            child_reply.close()
+        else:
+            self._file = RunLogFile(*args)
+
+    # commands
+    def _send(self, cmd: tuple):
+        if self._closed:
+            raise RunLogError(f"run log {self.path} is closed")
+        if not self._background:
+            self._file.handle(cmd)
+            return
+        while True:
+            try:
+                self._queue.put(cmd, timeout=0.5)
+                return
+            except queue.Full:
+                if not self._proc.is_alive():
+                    raise RunLogError(f"the background writer of {self.path} stopped (exit code "
+                                      f"{self._proc.exitcode})") from None
+
+    def sink(self, run: str = "main") -> "RunLogSink":
+        """The RunSink (start/rows/finish) that logs one simulated run under the run's topic prefix."""
+        prefix_for(run)  # validates the name
+        if any(s.run == run for s in self._sinks):
+            raise RunLogError(f"run {run!r} already has a sink in {self.path}")
+        s = RunLogSink(self, run)
+        self._sinks.append(s)
+        return s
+
+    def reference_path(self) -> list:
+        """The scenario's reference path (x_d, y_d) every PATH_SAMPLE s, for the 3D view."""
+        try:
+            from ..simulation import make_reference
+
+            ref = make_reference(self.scenario)
+            times = np.arange(0.0, float(self.scenario.duration) + 1e-9, PATH_SAMPLE)
+            pts = [(float(p[0]), float(p[1])) for p in (ref.evaluate(float(t)) for t in times)]
+            return [p for p in pts if math.isfinite(p[0]) and math.isfinite(p[1])]
+        except Exception:   # the path is decoration; never fail a run for it
+            return []
+
+    def close(self):
+        """Finish every run still open, write the summary and footer; raise if writing failed."""
+        if self._closed:
+            return
+        for s in self._sinks:
+            if s.started and not s.finished:
+                s._end(None, "the sink was not finished (the run did not call finish())")
+        self._closed = True
+        error = None
+        if self._background:
+            try:
+                self._queue.put(("close",), timeout=5.0)
+            except queue.Full:
+                pass
+            status = None
+            while status is None:
+                if self._reply.poll(0.5):
+                    try:
+                        status = self._reply.recv()
+                    except EOFError:
+                        status = ("error", "the background writer exited without a reply", {})
+                elif not self._proc.is_alive():
+                    status = ("error", f"the background writer exited with code {self._proc.exitcode}", {})
+            self._proc.join(timeout=30)
+            self._queue.close()
+            self._queue.join_thread()
+            self.stats = dict(status[2])
+            if status[0] == "error":
+                error = status[1]
+        else:
+            try:
+                self._file.mcap.finish()
+                self.stats = {"chunks": self._file.mcap.stats.chunk_count, "messages": self._file.mcap.stats.message_count}
+            except Exception:
+                error = traceback.format_exc()
+        problems = self._errors + ([error] if error else [])
+        if problems:
+            raise RunLogError(f"writing run log {self.path} failed:\n" + "\n".join(problems))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        try:
+            self.close()
+        except RunLogError:
+            if exc_type is None:
+                raise
+            warnings.warn(f"run log {self.path}: writer failed too", RuntimeWarning, stacklevel=2)
+        return False
+
+
+class RunLogSink:
+    """The :class:`~usv_mj.simulation.RunSink` of one run in a :class:`RunLogWriter`."""
+
+    def __init__(self, writer: RunLogWriter, run: str):
+        self.writer = writer
+        self.run = run
+        self.started = False
+        self.finished = False
+        self._written: set[int] = set()
+        self._seq = 0
+        self._record: RunRecord | None = None
+        self._rows = 0
+
+    def _new_events(self, record) -> list:
+        out = []
+        for e in record.events:
+            if id(e) not in self._written:
+                self._written.add(id(e))
+                out.append({"t": float(e.t), "seq": self._seq, "kind": str(e.kind), "message": str(e.message),
+                            "values": dict(e.values)})
+                self._seq += 1
+        return out
+
+    def start(self, record: RunRecord) -> None:
+        if self.started:
+            raise RunLogError(f"run {self.run!r} was started twice")
+        self.started = True
+        self._record = record
+        dt = record.metadata.get("control_period_s", getattr(self.writer.scenario, "control_period", 0.001))
+        self.writer._send(("start", self.run, {"control_period_s": float(dt), "metadata": record.metadata,
+                                               "path": self.writer.reference_path()}))
+
+    def rows(self, record: RunRecord, lo: int, hi: int) -> None:
+        if hi <= lo:
+            return
+        if lo != self._rows:
+            raise RunLogError(f"run {self.run!r}: rows {lo}..{hi} do not follow row {self._rows}")
+        block = np.array(record.data[lo:hi], dtype=np.float64, copy=True)
+        self.writer._send(("rows", self.run, lo, block, self._new_events(record)))
+        self._rows = hi
+
+    def finish(self, record: RunRecord) -> None:
+        """Write the rows not yet sent, the remaining events and the end record. Never raises."""
+        try:
+            if record.n_rows > self._rows:
+                self.rows(record, self._rows, record.n_rows)
+            self._end(record, None)
+        except BaseException as exc:  # noqa: BLE001 - a finish must not hide the run's own exception
+            self.writer._errors.append(f"run {self.run!r}: finish failed: {type(exc).__name__}: {exc}")
+            self.finished = True
+
+    def _end(self, record, note):
+        self.finished = True
+        record = record if record is not None else self._record
+        status = record.status if record is not None else "unknown"
+        stop_reason = record.stop_reason if record is not None else ""
+        if note:
+            stop_reason = f"{stop_reason}; {note}" if stop_reason else note
+            if status in ("running", "unknown"):
+                status = "interrupted"
+        summary = {}
+        if record is not None and record.n_rows > 0:
+            try:
+                from ..summary import summarize
+
+                with np.errstate(all="ignore"):
+                    summary = summarize(record)
+            except Exception as exc:  # noqa: BLE001
+                summary = {"error": f"summarize failed: {type(exc).__name__}: {exc}"}
+        events = self._new_events(record) if record is not None else []
+        self.writer._send(("finish", self.run, {
+            "status": status, "stop_reason": stop_reason, "rows": self._rows,
+            "metadata": _json(record.metadata if record is not None else {}), "summary": _json(summary)}, events))
