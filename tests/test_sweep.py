@@ -274,12 +274,19 @@ def test_hooks_are_refused_without_the_test_environment(tmp_path, monkeypatch):
         plan_sweep({"base": "paper", "test_hooks": {"raise": [0]}})
 
 
-def test_interrupt_and_resume_give_the_uninterrupted_table(tmp_path):
+@pytest.fixture(scope="module")
+def client():
+    """One two-worker local cluster shared by the tests that do not test the cluster handling itself."""
     from distributed import Client, LocalCluster
 
-    plan = load_sweep(_write(tmp_path, SMALL))
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as client:
+            Client(cluster) as c:
+        yield c
+
+
+def test_interrupt_and_resume_give_the_uninterrupted_table(tmp_path, client):
+    plan = load_sweep(_write(tmp_path, SMALL))
+    if True:
         whole = run_sweep(plan, tmp_path / "whole", client=client, progress=False, echo=None)
         part = run_sweep(plan, tmp_path / "part", client=client, progress=False, echo=None, max_runs=2)
         assert not part.complete
@@ -299,17 +306,30 @@ def test_interrupt_and_resume_give_the_uninterrupted_table(tmp_path):
     assert whole.ran == 6
 
 
+def test_keep_logs_writes_one_mcap_per_run_with_the_same_run(tmp_path, client):
+    runlog = pytest.importorskip("usv_mj.runlog")
+    text = SMALL.replace("samples = 3", "samples = 1")
+    plan = load_sweep(_write(tmp_path, text))
+    run_sweep(plan, tmp_path / "out", client=client, keep_logs=True, progress=False, echo=None)
+    rows, _ = read_results(tmp_path / "out" / "results.parquet")
+    for row in rows:
+        log = runlog.read_run(tmp_path / "out" / "logs" / f"run-{row['run_id']:06d}.mcap")
+        assert log.record["x"][0] == row["vary.initial.eta[0]"]
+        assert log.record["t"][-1] == row["simulated_s"] == 5.0
+        assert log.record.n_rows == 5001
+
+
 @pytest.mark.slow
-def test_ctrl_c_keeps_the_finished_runs_and_resume_completes(tmp_path):
-    """The real thing: SIGINT to `python -m usv_mj.sweep`, exit 130, then --resume."""
-    text = SMALL.replace("duration = 5.0", "duration = 10.0").replace("samples = 3", "samples = 8")
+def test_ctrl_c_keeps_the_finished_runs_and_resume_completes(tmp_path, client):
+    """The real thing: SIGINT to `python -m usv_mj.sweep`, exit 130 with the rows so far, then resume."""
+    text = SMALL.replace("duration = 5.0", "duration = 10.0").replace("samples = 3", "samples = 6")
     path = _write(tmp_path, text)
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "usv_mj.sweep", str(path), "--out", str(out), "--workers", "1", "--no-progress"]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120
     while not (out / "results.parquet").exists() and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.2)
+        time.sleep(0.1)
     proc.send_signal(signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=120)
     rows, _ = read_results(out / "results.parquet")
@@ -317,23 +337,22 @@ def test_ctrl_c_keeps_the_finished_runs_and_resume_completes(tmp_path):
         pytest.skip("the sweep finished before the interrupt arrived")
     assert proc.returncode == 130, stderr
     assert "--resume" in stderr
-    assert 1 <= len(rows) < 16
-    done = subprocess.run(cmd + ["--resume"], cwd=ROOT, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    resumed, _ = read_results(out / "results.parquet")
-    assert [r["run_id"] for r in resumed] == list(range(16))
-    assert _comparable(resumed[: len(rows)]) == _comparable(rows)
-    # and the rows equal one uninterrupted sweep's
-    whole = subprocess.run(cmd[:5] + [str(tmp_path / "whole")] + cmd[6:], cwd=ROOT, capture_output=True,
-                           text=True, timeout=300)
-    assert whole.returncode == 0, whole.stderr
+    assert 1 <= len(rows) < 12
+    plan = load_sweep(path)
+    resumed = run_sweep(plan, out, client=client, resume=True, progress=False, echo=None)
+    assert resumed.ran == 12 - len(rows)
+    after, _ = read_results(out / "results.parquet")
+    assert [r["run_id"] for r in after] == list(range(12))
+    assert _comparable(after[: len(rows)]) == _comparable(rows)
+    whole = run_sweep(plan, tmp_path / "whole", client=client, progress=False, echo=None)
+    assert whole.ran == 12
     ref, _ = read_results(tmp_path / "whole" / "results.parquet")
-    assert _comparable(ref) == _comparable(resumed)
+    assert _comparable(ref) == _comparable(after)
 
 
-def test_capability_disturbance_bracket_checked_by_direct_runs(tmp_path):
+def test_capability_disturbance_bracket_checked_by_direct_runs(tmp_path, client):
     results = run_capability("disturbance", duration=10.0, plant="analytic", load_min=1e-4, load_max=1.0,
-                             tol=0.25, out=tmp_path / "cap", workers=2, progress=False, echo=None)
+                             tol=0.25, out=tmp_path / "cap", client=client, progress=False, echo=None)
     (r,) = results
     assert r.direction_deg is None and r.holds is not None and r.fails is not None
     assert r.holds < r.fails and r.fails - r.holds <= 0.25 * r.fails

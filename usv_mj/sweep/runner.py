@@ -115,13 +115,18 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
         if options.get("log_path"):
             from ..runlog import RunLogWriter
 
-            writer = RunLogWriter(options["log_path"], scenario)
+            # in this process: a Dask worker is a daemonic process and may not start the writer's child
+            writer = RunLogWriter(options["log_path"], scenario, background=False)
             sinks.append(writer.sink(run="main"))
         try:
             record = simulate(scenario, sinks=sinks)
-        finally:
-            if writer is not None and hasattr(writer, "close"):
-                writer.close()
+        except BaseException:
+            if writer is not None:
+                with contextlib.suppress(Exception):
+                    writer.close()
+            raise
+        if writer is not None:
+            writer.close()
         summary = summarize(record)
     except Exception as exc:  # the sweep goes on: the row says why
         return failed_row(run_id, values, f"{type(exc).__name__}: {exc}", time.perf_counter() - wall0)
