@@ -123,6 +123,10 @@ class MuJoCoPlant(PlantBase):
     callback:
         "native" (numba cfunc, default) or "python" (the same physics kernel called from a Python
         callback: slower, useful as a reference).
+    native_step:
+        With the native callback, advance through :func:`mujoco_callback.native_stepper` (mj_step
+        called from compiled code, state computed there) instead of the Python bindings; the
+        result is identical, only faster.
 
     Attributes
     ----------
@@ -135,7 +139,7 @@ class MuJoCoPlant(PlantBase):
 
     def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, control_period: float = 1e-3,
                  substeps: int = 1, split: RigidBodySplit = RigidBodySplit(), model_path: str | None = None,
-                 callback: str = "native"):
+                 callback: str = "native", native_step: bool = True):
         if not (isinstance(control_period, (int, float)) and math.isfinite(control_period) and control_period > 0):
             raise ValueError(f"MuJoCoPlant: control_period must be a finite number > 0 s, got {control_period!r}")
         if int(substeps) != substeps or int(substeps) < 1:
@@ -156,6 +160,10 @@ class MuJoCoPlant(PlantBase):
         self._scratch = (np.zeros(3), np.zeros(6))
         self._closed = False
         self._t0, self._k = 0.0, 0
+        self._x = None
+        self._m_addr, self._d_addr = self.model._address, self.data._address
+        # native stepping (no Python between mj_step and the state) with the native callback
+        self._stepper = mcb.native_stepper() if (callback == "native" and native_step) else None
         REGISTRY.add(self)
         self._finalizer = weakref.finalize(self, _release, id(self), self.data._address, self._userdata)
         self.reset((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
@@ -240,6 +248,7 @@ class MuJoCoPlant(PlantBase):
         self._qvel[:] = (c * nu0[0] - s * nu0[1], s * nu0[0] + c * nu0[1], nu0[2])
         self._ctrl[:] = 0.0
         self._t0, self._k = float(t0), 0
+        self._x = None
         self.data.time = self._t0
         self._python_error = None
         mujoco.mj_forward(self.model, self.data)  # consistent derived quantities for renderers
@@ -247,23 +256,35 @@ class MuJoCoPlant(PlantBase):
 
     def step(self, tau_u: float, tau_r: float) -> None:
         """Advance one control period with surge force tau_u [N] and yaw moment tau_r [N m] held."""
+        # time from the step count (as the analytic plant): no drift from summing dt
+        t = self._t0 + self._k * self.control_period
+        if self._stepper is not None:
+            self._x, failed = self._stepper(self._m_addr, self._d_addr, t, float(tau_u), float(tau_r), self.substeps)
+            self._k += 1
+            if failed:
+                self._raise_after_step(t)
+            return
         ctrl = self._ctrl
         ctrl[0] = tau_u
         ctrl[1] = tau_r
         d = self.data
-        # time from the step count (as the analytic plant): no drift from summing dt
-        t = self._t0 + self._k * self.control_period
         d.time = t
         if self.substeps == 1:
             _mj_step(self.model, d)
         else:
             _mj_step(self.model, d, self.substeps)
         self._k += 1
+        self._x = None
         # MuJoCo's NaN guard resets mjData (time back to 0) with a warning; the callback records
         # its own failures in userdata: both are checked with two cheap reads
+        if self._userdata[mcb.U_STATUS] != 0.0 or self._python_error is not None or not d.time > t:
+            self._raise_after_step(t)
+
+    def _raise_after_step(self, t: float) -> None:
+        self._x = None
         if self._userdata[mcb.U_STATUS] != 0.0 or self._python_error is not None:
             self._raise_if_failed()
-        if not d.time > t:
+        if not self.data.time > t:
             self._raise_reset()
 
     @property
@@ -272,7 +293,13 @@ class MuJoCoPlant(PlantBase):
 
     @property
     def state(self) -> np.ndarray:
-        """(x, y, psi, u, v, r): pose [m, m, rad, psi unwrapped] and body velocity [m/s, m/s, rad/s]."""
+        """(x, y, psi, u, v, r): pose [m, m, rad, psi unwrapped] and body velocity [m/s, m/s, rad/s].
+
+        The state after the last :meth:`step` or :meth:`reset` (writes to ``data`` made in between
+        are not seen until the next step).
+        """
+        if self._x is not None:
+            return self._x
         q, qd = self._qpos, self._qvel
         psi = q[2]
         c, s = math.cos(psi), math.sin(psi)
