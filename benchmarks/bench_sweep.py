@@ -1,0 +1,88 @@
+"""Sweep throughput: runs per minute on Dask with 1 and 2 workers, beside a plain loop in one process.
+
+    python benchmarks/bench_sweep.py [--runs 24] [--duration 10] [--workers 1 2]
+
+Each run is the paper scenario on the analytic plant (``--duration`` s of simulated time) with a
+sampled start pose, the same runs in every mode. The plain loop calls the sweep's own task function
+(:func:`usv_mj.sweep.runner.run_one`) in this process, one run after the other. The Dask figures
+are measured from the first submission to the last result written to ``results.parquet``, on a
+LocalCluster whose workers have each done one warm-up run (numba's cache loaded); the cluster's
+start-up is printed apart. The engine's overhead per run is (Dask time with 1 worker - loop time) / runs.
+
+The machine has 2 cores and is shared: note the load average printed with the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+
+def _warm(duration: float) -> float:
+    """One short run in this process (numba's cache is loaded or compiled)."""
+    from usv_mj import load_scenario, simulate
+
+    t0 = time.perf_counter()
+    simulate(load_scenario(preset="paper", overrides={"duration": duration, "plant": {"kind": "analytic"}}))
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=24)
+    parser.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run")
+    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    args = parser.parse_args()
+
+    from distributed import Client, LocalCluster
+
+    from usv_mj.sweep import plan_sweep
+    from usv_mj.sweep.runner import run_one, run_sweep
+
+    plan = plan_sweep({"base": "paper", "duration": args.duration, "plant": "analytic", "samples": args.runs,
+                       "seed": 1, "vary": {"initial.eta[0]": {"uniform": [-5.0, 5.0]},
+                                           "initial.eta[2]": {"uniform": [-1.0, 1.0]}}},
+                      source="bench_sweep")
+    print(f"{args.runs} runs of {args.duration:g} s (paper, analytic plant); cores: {os.cpu_count()}; "
+          f"load average before: {os.getloadavg()[0]:.2f}")
+    first = _warm(args.duration)
+    print(f"warm-up run in this process: {first:.2f} s")
+
+    t0 = time.perf_counter()
+    for run in plan.runs:
+        run_one(run.run_id, run.scenario, run.values, {"transient": plan.transient})
+    loop = time.perf_counter() - t0
+    print(f"plain loop, 1 process : {loop:7.2f} s = {60 * args.runs / loop:7.1f} runs/min "
+          f"({loop / args.runs * 1000:.0f} ms per run)")
+
+    out_root = Path(tempfile.mkdtemp(prefix="bench_sweep_"))
+    try:
+        for n in args.workers:
+            t0 = time.perf_counter()
+            with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+                    Client(cluster) as client:
+                client.wait_for_workers(n)
+                start = time.perf_counter() - t0
+                t1 = time.perf_counter()
+                client.run(_warm, args.duration)
+                warm = time.perf_counter() - t1
+                t2 = time.perf_counter()
+                run_sweep(plan, out_root / f"w{n}", client=client, progress=False, echo=None, report=False)
+                wall = time.perf_counter() - t2
+            print(f"Dask, {n} worker(s)    : {wall:7.2f} s = {60 * args.runs / wall:7.1f} runs/min "
+                  f"(speed-up over the loop {loop / wall:.2f}x; cluster start {start:.1f} s, worker warm-up "
+                  f"{warm:.1f} s)")
+            if n == 1:
+                print(f"  engine overhead with 1 worker: {(wall - loop) / args.runs * 1000:+.0f} ms per run "
+                      f"({(wall - loop) / loop:+.1%} of the loop)")
+    finally:
+        shutil.rmtree(out_root, ignore_errors=True)
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
