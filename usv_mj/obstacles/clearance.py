@@ -1,0 +1,299 @@
+"""Clearance between the hull and every obstacle, and the contacts, once per control step (issue 8).
+
+Two monitors with one interface, ``update(t, plant_or_state) -> clearance`` (a float64 array, one
+signed distance [m] per obstacle, negative = penetration) plus the attributes ``normal_force`` [N]
+(sum of the normal forces of the hull's contacts with each obstacle at this step, 0 without
+contact) and ``in_contact`` (bool per obstacle):
+
+- :class:`MuJoCoClearance`: MuJoCo's own distance query, ``mujoco.mj_geomDistance``, between each of
+  the hull's collision geoms and each obstacle geom of a :class:`~usv_mj.obstacles.compose.HarbourPlant`
+  (the minimum over the hull geoms), after ``mj_kinematics`` so that the poses are those of the
+  current state; contacts from ``d.contact`` with ``mujoco.mj_contactForce``.
+- :class:`GeometricClearance`: the same quantity from the geometry (shapely) for plants without
+  contact physics (the analytic plant): the hull's collision footprint
+  (:func:`~usv_mj.obstacles.compose.hull_footprint`) at the plant's pose against each obstacle's
+  section. Separated: the exact polygon distance (circles exactly: distance to the centre minus
+  the radius). Overlapping: minus an estimate of the penetration depth (the deepest vertex of one
+  shape inside the other, circles exactly), so the sign is right and the magnitude is indicative.
+  The analytic plant passes through obstacles; :attr:`GeometricClearance.note` says so.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import shapely
+from numba import njit
+from shapely import affinity
+
+from .compose import hull_footprint
+
+ANALYTIC_NOTE = ("the analytic plant has no contact physics: clearance is computed from the geometry, "
+                 "a collision is recorded when it reaches zero, and the hull passes through obstacles")
+
+
+class MuJoCoClearance:
+    """Signed distances hull <-> obstacles and contact forces on a ``HarbourPlant`` (module docstring).
+
+    ``distmax`` [m]: distances beyond it are reported as ``distmax`` (MuJoCo's cut-off of
+    ``mj_geomDistance``); default 1e4 m, i.e. exact everywhere in a harbour.
+    """
+
+    note = ""
+
+    def __init__(self, plant, distmax: float = 1e4):
+        self.plant = plant
+        self.model, self.data = plant.model, plant.data
+        self.hull_geoms = [int(g) for g in plant.hull_geoms]
+        self.obstacle_geoms = [int(g) for g in plant.obstacle_geoms]
+        n = len(self.obstacle_geoms)
+        self.distmax = float(distmax)
+        self.clearance = np.full(n, np.inf)
+        self.normal_force = np.zeros(n)
+        self.in_contact = np.zeros(n, dtype=bool)
+        self.witness = np.zeros((n, 6))  # fromto of the nearest points (hull side, obstacle side) [m]
+        self._fromto = np.zeros(6)
+        self._force = np.zeros(6)
+        # geom id -> obstacle index (-1: not an obstacle); geom id -> is a hull collision geom
+        self._obstacle_of = np.full(self.model.ngeom, -1, dtype=np.int64)
+        self._obstacle_of[self.obstacle_geoms] = np.arange(n)
+        self._is_hull = np.zeros(self.model.ngeom, dtype=bool)
+        self._is_hull[self.hull_geoms] = True
+
+    def update(self, t: float = 0.0, plant_or_state=None) -> np.ndarray:
+        """Clearance [m] per obstacle at the plant's current state (``t`` and the argument are
+        accepted for interface symmetry; the plant's mjData is read)."""
+        m, d = self.model, self.data
+        mujoco.mj_kinematics(m, d)
+        fromto = self._fromto
+        clearance = self.clearance
+        for i, og in enumerate(self.obstacle_geoms):
+            best = math.inf
+            for hg in self.hull_geoms:
+                dist = mujoco.mj_geomDistance(m, d, hg, og, self.distmax, fromto)
+                if dist < best:
+                    best = dist
+                    self.witness[i] = fromto
+            clearance[i] = best
+        self.normal_force[:] = 0.0
+        self.in_contact[:] = False
+        ncon = d.ncon
+        if ncon:
+            geoms = d.contact.geom[:ncon]
+            for c in range(ncon):
+                g1, g2 = geoms[c]
+                if self._is_hull[g1]:
+                    i = self._obstacle_of[g2]
+                elif self._is_hull[g2]:
+                    i = self._obstacle_of[g1]
+                else:
+                    continue
+                if i < 0:
+                    continue
+                mujoco.mj_contactForce(m, d, c, self._force)
+                self.normal_force[i] += abs(self._force[0])
+                self.in_contact[i] = True
+        return clearance
+
+# --- numba kernels: signed distances between convex polygons (the hull footprint is convex) -----
+
+
+@njit(cache=True)
+def _point_segment_distance(px, py, ax, ay, bx, by):
+    dx, dy = bx - ax, by - ay
+    den = dx * dx + dy * dy
+    w = ((px - ax) * dx + (py - ay) * dy) / den if den > 0.0 else 0.0
+    if w < 0.0:
+        w = 0.0
+    elif w > 1.0:
+        w = 1.0
+    qx, qy = ax + w * dx - px, ay + w * dy - py
+    return math.sqrt(qx * qx + qy * qy)
+
+
+@njit(cache=True)
+def point_polygon_signed_distance(poly, px, py):
+    """Signed distance [m] from (px, py) to the convex counter-clockwise polygon ``poly`` (n, 2),
+    negative inside."""
+    n = poly.shape[0]
+    best = math.inf
+    inside = True
+    for i in range(n):
+        j = (i + 1) % n
+        ax, ay, bx, by = poly[i, 0], poly[i, 1], poly[j, 0], poly[j, 1]
+        if (bx - ax) * (py - ay) - (by - ay) * (px - ax) < 0.0:
+            inside = False
+        d = _point_segment_distance(px, py, ax, ay, bx, by)
+        if d < best:
+            best = d
+    return -best if inside else best
+
+
+@njit(cache=True)
+def _axis_overlap(a, b, nx, ny):
+    amin, amax, bmin, bmax = math.inf, -math.inf, math.inf, -math.inf
+    for i in range(a.shape[0]):
+        p = a[i, 0] * nx + a[i, 1] * ny
+        amin, amax = min(amin, p), max(amax, p)
+    for i in range(b.shape[0]):
+        p = b[i, 0] * nx + b[i, 1] * ny
+        bmin, bmax = min(bmin, p), max(bmax, p)
+    return min(amax - bmin, bmax - amin)
+
+
+@njit(cache=True)
+def convex_signed_distance(a, b):
+    """Signed distance [m] between two convex counter-clockwise polygons (n, 2) and (m, 2):
+    separated, the exact distance (min over vertex-edge pairs); overlapping, minus the
+    penetration depth (the smallest overlap over the edge normals: separating-axis theorem)."""
+    min_overlap = math.inf
+    for poly in (a, b):
+        n = poly.shape[0]
+        for i in range(n):
+            j = (i + 1) % n
+            ex, ey = poly[j, 0] - poly[i, 0], poly[j, 1] - poly[i, 1]
+            norm = math.sqrt(ex * ex + ey * ey)
+            if norm == 0.0:
+                continue
+            ov = _axis_overlap(a, b, -ey / norm, ex / norm)
+            if ov < min_overlap:
+                min_overlap = ov
+    if min_overlap <= 0.0:
+        best = math.inf
+        for p, q in ((a, b), (b, a)):
+            m = q.shape[0]
+            for i in range(p.shape[0]):
+                for j in range(m):
+                    k = (j + 1) % m
+                    d = _point_segment_distance(p[i, 0], p[i, 1], q[j, 0], q[j, 1], q[k, 0], q[k, 1])
+                    if d < best:
+                        best = d
+        return best
+    return -min_overlap
+
+
+@njit(cache=True)
+def footprint_clearances(body, x, y, psi, centers, radii, boxes, out_circles, out_boxes):
+    """Clearance of the hull footprint ``body`` (convex, CCW, body frame) at pose (x, y, psi) to
+    circles (centres (k, 2), radii (k,)) and boxes (corners (m, 4, 2), CCW) [m]."""
+    c, s = math.cos(psi), math.sin(psi)
+    n = body.shape[0]
+    hull = np.empty((n, 2))
+    for i in range(n):
+        hull[i, 0] = x + c * body[i, 0] - s * body[i, 1]
+        hull[i, 1] = y + s * body[i, 0] + c * body[i, 1]
+    for i in range(centers.shape[0]):
+        out_circles[i] = point_polygon_signed_distance(hull, centers[i, 0], centers[i, 1]) - radii[i]
+    for i in range(boxes.shape[0]):
+        out_boxes[i] = convex_signed_distance(hull, boxes[i])
+
+
+
+def _penetration(a, b) -> float:
+    """Indicative penetration depth [m] of two overlapping polygons: the deepest vertex of one
+    inside the other, measured to the other's boundary."""
+    depth = 0.0
+    for inner, outer in ((a, b), (b, a)):
+        pts = shapely.points(np.asarray(inner.exterior.coords))
+        inside = shapely.contains(outer, pts)
+        if inside.any():
+            depth = max(depth, float(np.max(shapely.distance(outer.exterior, pts[inside]))))
+    return depth
+
+
+class GeometricClearance:
+    """Clearance from the geometry for plants without contact physics (module docstring).
+
+    ``obstacles``: the :class:`~usv_mj.obstacles.spec.ObstacleSpec` tuple; moving obstacles are
+    placed at ``center + velocity t``.
+    """
+
+    note = ANALYTIC_NOTE
+
+    def __init__(self, obstacles, resolution: int = 16, method: str = "numba"):
+        if method not in ("numba", "shapely"):
+            raise ValueError(f"GeometricClearance: method must be 'numba' or 'shapely', got {method!r}")
+        self.method = method
+        self.obstacles = tuple(obstacles)
+        n = len(self.obstacles)
+        self.footprint = shapely.orient_polygons(hull_footprint(resolution))  # counter-clockwise exterior
+        self._vertices = np.asarray(self.footprint.exterior.coords)  # body frame, closed ring
+        self._body = np.ascontiguousarray(self._vertices[:-1])
+        if not np.isclose(shapely.convex_hull(self.footprint).area, self.footprint.area, rtol=1e-9):
+            raise ValueError("GeometricClearance: the hull footprint must be convex for the numba kernels")
+        self.clearance = np.full(n, np.inf)
+        self.normal_force = np.zeros(n)        # never any: no contact physics
+        self.in_contact = np.zeros(n, dtype=bool)
+        self._circles = np.array([i for i, o in enumerate(self.obstacles) if o.kind == "circle"], dtype=np.int64)
+        self._boxes = np.array([i for i, o in enumerate(self.obstacles) if o.kind == "box"], dtype=np.int64)
+        self._radius = np.array([self.obstacles[i].radius for i in self._circles])
+        self._center0 = np.array([o.center for o in self.obstacles], dtype=float).reshape(n, 2)
+        self._velocity = np.array([o.velocity for o in self.obstacles], dtype=float).reshape(n, 2)
+        self._box_shapes0 = np.array([self.obstacles[i].shape(0.0) for i in self._boxes], dtype=object)
+        self._any_moving_box = any(self.obstacles[i].moving for i in self._boxes)
+        self._corners0 = np.zeros((len(self._boxes), 4, 2))
+        for j, i in enumerate(self._boxes):
+            o = self.obstacles[i]
+            c, s = math.cos(o.yaw), math.sin(o.yaw)
+            hl, hw = 0.5 * o.size[0], 0.5 * o.size[1]
+            for k, (px, py) in enumerate(((-hl, -hw), (hl, -hw), (hl, hw), (-hl, hw))):  # CCW
+                self._corners0[j, k] = (o.center[0] + c * px - s * py, o.center[1] + s * px + c * py)
+        self._out_c = np.zeros(len(self._circles))
+        self._out_b = np.zeros(len(self._boxes))
+
+    def hull_at(self, x: float, y: float, psi: float):
+        """The hull footprint at pose (x [m], y [m], psi [rad]) as a shapely polygon."""
+        c, s = math.cos(psi), math.sin(psi)
+        v = self._vertices
+        return shapely.polygons(np.c_[x + c * v[:, 0] - s * v[:, 1], y + s * v[:, 0] + c * v[:, 1]])
+
+    def update(self, t: float, plant_or_state) -> np.ndarray:
+        """Clearance [m] per obstacle at time t for the plant (its ``state``) or a state 6-vector."""
+        state = getattr(plant_or_state, "state", plant_or_state)
+        if self.method == "shapely":
+            return self.update_shapely(t, state)
+        centers = self._center0[self._circles] + self._velocity[self._circles] * t
+        boxes = self._corners0
+        if self._any_moving_box:
+            boxes = boxes + (self._velocity[self._boxes] * t)[:, None, :]
+        footprint_clearances(self._body, float(state[0]), float(state[1]), float(state[2]), centers, self._radius,
+                             boxes, self._out_c, self._out_b)
+        out = self.clearance
+        out[self._circles] = self._out_c
+        out[self._boxes] = self._out_b
+        self.in_contact[:] = out <= 0.0
+        return out
+
+    def update_shapely(self, t: float, state) -> np.ndarray:
+        """The same with shapely (the reference for the numba kernels; slower)."""
+        hull = self.hull_at(float(state[0]), float(state[1]), float(state[2]))
+        out = self.clearance
+        if len(self._circles):
+            centers = self._center0[self._circles] + self._velocity[self._circles] * t
+            pts = shapely.points(centers)
+            d = shapely.distance(hull, pts)
+            out[self._circles] = d - self._radius
+            inside = d <= 0.0
+            if inside.any():
+                out[self._circles[inside]] = -(self._radius[inside] + shapely.distance(hull.exterior, pts[inside]))
+        if len(self._boxes):
+            boxes = self._box_shapes0
+            if self._any_moving_box:
+                shift = self._velocity[self._boxes] * t
+                boxes = np.array([affinity.translate(b, dx, dy) for b, (dx, dy) in zip(boxes, shift)], dtype=object)
+            d = shapely.distance(hull, boxes)
+            out[self._boxes] = d
+            for j in np.flatnonzero(d <= 0.0):
+                out[self._boxes[j]] = -_penetration(hull, boxes[j])
+        self.in_contact[:] = out <= 0.0
+        return out
+
+
+def make_clearance_monitor(plant, obstacles):
+    """The monitor that fits ``plant``: :class:`MuJoCoClearance` when it has ``obstacle_geoms``
+    (a :class:`~usv_mj.obstacles.compose.HarbourPlant`), :class:`GeometricClearance` otherwise."""
+    if hasattr(plant, "obstacle_geoms"):
+        return MuJoCoClearance(plant)
+    return GeometricClearance(obstacles)

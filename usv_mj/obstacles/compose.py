@@ -1,0 +1,248 @@
+"""The harbour model, composed with ``dm_control.mjcf``: scene + hull + obstacles (issue 8).
+
+:func:`compose_scene` parses ``models/scene.xml`` (which includes ``models/usv.xml``) with
+``dm_control.mjcf`` and adds, in Python and never by pasting XML text,
+
+- collision geoms on the body "hull" that follow its shape (:data:`HULL_COLLISION_GEOMS`): the box
+  of the midship/stern section and the ellipsoid of the bow of ``usv.xml``'s visual hull, slightly
+  taller; they have no mass (the plant sets the inertia from :mod:`usv_mj.ship`);
+- one geom per obstacle: a vertical cylinder ("circle") or box ("box") from z = -1 m to
+  z = +1 m (the hull is at the waterline z = 0); static obstacles are geoms of the world body,
+  moving ones are mocap bodies (``mocap_pos`` is set by :meth:`HarbourPlant.move_obstacles`);
+- optionally, visual-only translucent discs/rounded rectangles showing each obstacle's inflated
+  safety boundary (see :mod:`usv_mj.obstacles.planner`);
+- ``<option><flag contact="enable" constraint="enable"/>``: ``usv.xml`` disables both (open water
+  needs neither); here the hull must be stopped by a contact force.
+
+Collision filtering: hull geoms have contype = 1, conaffinity = 2; obstacles contype = 2,
+conaffinity = 1, so the hull collides with obstacles and obstacles never with each other (a
+crossing boat passes through a buoy); the visual geoms of usv.xml and the water have 0/0.
+
+Contact parameters (:class:`ContactParams`, on both sides of every hull/obstacle pair): friction,
+``solref`` (time constant [s], damping ratio) and ``solimp`` (MuJoCo's impedance curve). The
+defaults are a firm, well-damped fendered pier: a few centimetres of penetration under the full
+thrust of the PPC law, no bounce that looks like rubber.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from dm_control import mjcf
+
+from usv_mj.plants.mujoco_callback import MODELS_DIR
+from usv_mj.plants.mujoco_plant import MuJoCoPlant
+from usv_mj.ship import PaperDisturbance, RigidBodySplit, ShipParams
+
+from .spec import ObstacleSpec
+
+SCENE_PATH = os.path.join(MODELS_DIR, "scene.xml")
+
+# (name, type, size (MuJoCo half-sizes), pos) in the hull's body frame; follows usv.xml's visual
+# geoms "hull_mid" (box 0.70 x 0.38 at x = -0.28) and "hull_bow" (ellipsoid 0.58 x 0.38 at x = 0.42)
+HULL_COLLISION_GEOMS = (
+    ("hull_collision_mid", "box", (0.70, 0.38, 0.15), (-0.28, 0.0, 0.03)),
+    ("hull_collision_bow", "ellipsoid", (0.58, 0.38, 0.15), (0.42, 0.0, 0.03)),
+)
+
+OBSTACLE_HALF_HEIGHT = 1.0  # m: obstacles span z in [-1, 1]
+HULL_CONTYPE, HULL_CONAFFINITY = 1, 2
+OBSTACLE_CONTYPE, OBSTACLE_CONAFFINITY = 2, 1
+
+
+def hull_radius() -> float:
+    """Radius [m] of the smallest disc about the body origin that holds the hull's collision geoms
+    in the water plane (the box's far corners: sqrt(0.98^2 + 0.38^2) = 1.0511 m; the ellipsoid
+    reaches x = 1.0 m)."""
+    r = 0.0
+    for _, kind, size, pos in HULL_COLLISION_GEOMS:
+        if kind == "box":
+            for sx in (-1, 1):
+                for sy in (-1, 1):
+                    r = max(r, math.hypot(pos[0] + sx * size[0], pos[1] + sy * size[1]))
+        else:  # ellipsoid: max over the boundary (x0 + a cos t, y0 + b sin t), sampled finely
+            t = np.linspace(0.0, 2.0 * math.pi, 3601)
+            r = max(r, float(np.max(np.hypot(pos[0] + size[0] * np.cos(t), pos[1] + size[1] * np.sin(t)))))
+    return r
+
+
+HULL_RADIUS = hull_radius()
+
+
+def hull_footprint(resolution: int = 32):
+    """The hull's collision geoms as one shapely polygon in the body frame (water-plane section).
+
+    The ellipsoid is a polygon inscribed with ``4*resolution`` vertices (so distances computed
+    with it can be larger than MuJoCo's by at most a(1 - cos(pi/(4 resolution))): 0.7 mm at 16)."""
+    import shapely
+
+    parts = []
+    for _, kind, size, pos in HULL_COLLISION_GEOMS:
+        if kind == "box":
+            parts.append(shapely.box(pos[0] - size[0], pos[1] - size[1], pos[0] + size[0], pos[1] + size[1]))
+        else:
+            t = np.linspace(0.0, 2.0 * math.pi, 4 * resolution, endpoint=False)
+            parts.append(shapely.Polygon(np.c_[pos[0] + size[0] * np.cos(t), pos[1] + size[1] * np.sin(t)]))
+    return shapely.union_all(parts)
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    """Hull/obstacle contact: ``friction`` (sliding, torsional, rolling), ``solref`` = (time
+    constant [s], damping ratio), ``solimp`` = (d0, d_width, width [m], midpoint, power), ``condim``.
+
+    ``solref[0]`` must be at least twice the MuJoCo time step (MuJoCo's own rule for stability)."""
+
+    friction: tuple[float, float, float] = (0.4, 0.005, 0.0001)
+    solref: tuple[float, float] = (0.02, 1.0)
+    solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.01, 0.5, 2.0)
+    condim: int = 3
+
+    def __post_init__(self) -> None:
+        if not all(math.isfinite(f) and f >= 0 for f in self.friction) or len(self.friction) != 3:
+            raise ValueError(f"ContactParams.friction must be 3 finite numbers >= 0, got {self.friction!r}")
+        if len(self.solref) != 2 or not all(math.isfinite(v) and v > 0 for v in self.solref):
+            raise ValueError(f"ContactParams.solref must be 2 finite numbers > 0, got {self.solref!r}")
+        if len(self.solimp) != 5 or not (0 < self.solimp[0] < 1 and 0 < self.solimp[1] < 1 and self.solimp[2] > 0):
+            raise ValueError(f"ContactParams.solimp must be (d0, d_width in (0, 1), width > 0, midpoint, power), "
+                             f"got {self.solimp!r}")
+        if self.condim not in (1, 3, 4, 6):
+            raise ValueError(f"ContactParams.condim must be 1, 3, 4 or 6, got {self.condim!r}")
+
+
+OBSTACLE_COLORS = {"circle": (0.90, 0.35, 0.10, 1.0), "box": (0.45, 0.33, 0.22, 1.0),
+                   "moving": (0.75, 0.75, 0.78, 1.0)}
+SAFETY_COLOR = (1.0, 0.85, 0.1, 0.18)
+
+
+def obstacle_geom_name(obstacle: ObstacleSpec) -> str:
+    return f"obstacle_{obstacle.name}" if not obstacle.name.startswith("obstacle_") else obstacle.name
+
+
+def compose_scene(obstacles=(), contact: ContactParams = ContactParams(), safety_radii=None,
+                  scene_path: str = SCENE_PATH) -> mjcf.RootElement:
+    """The composed MJCF model (see the module docstring).
+
+    ``safety_radii``: optional inflation [m] per obstacle (e.g. :meth:`Plan.inflation`): adds a
+    visual-only translucent boundary at that distance around each static obstacle.
+    """
+    root = mjcf.from_path(scene_path)
+    root.model = "usv harbour"
+    root.option.flag.contact = "enable"
+    root.option.flag.constraint = "enable"
+    hull = root.find("body", "hull")
+    if hull is None:
+        raise ValueError(f"compose_scene: no body 'hull' in {scene_path}")
+    common = dict(friction=list(contact.friction), solref=list(contact.solref), solimp=list(contact.solimp),
+                  condim=contact.condim)
+    for name, kind, size, pos in HULL_COLLISION_GEOMS:
+        hull.add("geom", name=name, type=kind, size=list(size), pos=list(pos), contype=HULL_CONTYPE,
+                 conaffinity=HULL_CONAFFINITY, group=3, mass=0, density=0, rgba=[1, 0.2, 0.2, 0.35], **common)
+    # a wider view of the harbour for the fixed camera
+    for i, obstacle in enumerate(obstacles):
+        name = obstacle_geom_name(obstacle)
+        if obstacle.kind == "circle":
+            shape = dict(type="cylinder", size=[obstacle.radius, OBSTACLE_HALF_HEIGHT])
+        else:
+            shape = dict(type="box", size=[0.5 * obstacle.size[0], 0.5 * obstacle.size[1], OBSTACLE_HALF_HEIGHT])
+        color = OBSTACLE_COLORS["moving" if obstacle.moving else obstacle.kind]
+        quat = [math.cos(obstacle.yaw / 2), 0.0, 0.0, math.sin(obstacle.yaw / 2)]
+        geom = dict(name=name, contype=OBSTACLE_CONTYPE, conaffinity=OBSTACLE_CONAFFINITY, rgba=list(color),
+                    group=0, **shape, **common)
+        if obstacle.moving:
+            body = root.worldbody.add("body", name=f"{name}_body", mocap=True,
+                                      pos=[obstacle.center[0], obstacle.center[1], 0.0], quat=quat)
+            body.add("geom", **geom)
+        else:
+            root.worldbody.add("geom", pos=[obstacle.center[0], obstacle.center[1], 0.0], quat=quat, **geom)
+            if safety_radii is not None and safety_radii[i] > 0:
+                _add_safety_boundary(root.worldbody, obstacle, float(safety_radii[i]), name)
+    return root
+
+
+def _add_safety_boundary(parent, obstacle: ObstacleSpec, inflation: float, name: str) -> None:
+    """Visual-only flat geoms at z = 0.01 m: the obstacle grown by ``inflation`` (Minkowski sum with
+    a disc: a disc, or a rounded rectangle made of two boxes and four corner discs)."""
+    vis = dict(contype=0, conaffinity=0, group=2, rgba=list(SAFETY_COLOR), mass=0)
+    cx, cy = obstacle.center
+    h = 0.005
+    if obstacle.kind == "circle":
+        parent.add("geom", name=f"{name}_safety", type="cylinder", size=[obstacle.radius + inflation, h],
+                   pos=[cx, cy, 0.01], **vis)
+        return
+    c, s = math.cos(obstacle.yaw), math.sin(obstacle.yaw)
+    quat = [math.cos(obstacle.yaw / 2), 0.0, 0.0, math.sin(obstacle.yaw / 2)]
+    hl, hw = 0.5 * obstacle.size[0], 0.5 * obstacle.size[1]
+    parent.add("geom", name=f"{name}_safety_x", type="box", size=[hl + inflation, hw, h], pos=[cx, cy, 0.01],
+               quat=quat, **vis)
+    parent.add("geom", name=f"{name}_safety_y", type="box", size=[hl, hw + inflation, h], pos=[cx, cy, 0.01],
+               quat=quat, **vis)
+    for k, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
+        px, py = sx * hl, sy * hw
+        parent.add("geom", name=f"{name}_safety_c{k}", type="cylinder", size=[inflation, h],
+                   pos=[cx + c * px - s * py, cy + s * px + c * py, 0.01], **vis)
+
+
+def export_scene(root: mjcf.RootElement, directory: str | None = None) -> str:
+    """Write the composed model (and any assets) to ``directory`` (a new temporary one by default);
+    return the XML file's path."""
+    directory = directory or tempfile.mkdtemp(prefix="usv_mj_harbour_")
+    mjcf.export_with_assets(root, directory, "harbour.xml")
+    return os.path.join(directory, "harbour.xml")
+
+
+class HarbourPlant(MuJoCoPlant):
+    """:class:`usv_mj.plants.mujoco_plant.MuJoCoPlant` on the composed harbour model.
+
+    It only adds the composition (written to a temporary MJCF file that the plant loads, so the
+    plant's checks and callback installation are reused unchanged), the geom/mocap indices and
+    :meth:`move_obstacles`. Name ``"mujoco"``: it is the MuJoCo plant.
+
+    Attributes
+    ----------
+    obstacles: the :class:`ObstacleSpec` tuple, in model order.
+    hull_geoms: geom ids of the hull's collision geoms.
+    obstacle_geoms: geom id of each obstacle.
+    obstacle_mocap: mocap index of each obstacle (-1: static).
+    model_xml_path: the composed file (kept while the plant lives).
+    """
+
+    def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, obstacles=(), control_period: float = 1e-3,
+                 substeps: int = 1, contact: ContactParams = ContactParams(), safety_radii=None,
+                 split: RigidBodySplit = RigidBodySplit(), callback: str = "native"):
+        self.obstacles = tuple(obstacles)
+        self.contact = contact
+        if contact.solref[0] < 2.0 * control_period / substeps:
+            raise ValueError(f"HarbourPlant: contact.solref[0] = {contact.solref[0]} s is under twice the MuJoCo "
+                             f"time step ({control_period / substeps} s)")
+        self._tmp = tempfile.TemporaryDirectory(prefix="usv_mj_harbour_")
+        self.model_xml_path = export_scene(compose_scene(self.obstacles, contact, safety_radii), self._tmp.name)
+        super().__init__(ship, disturbance, control_period, substeps, split, self.model_xml_path, callback)
+        m = self.model
+        gid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)  # noqa: E731
+        self.hull_geoms = np.array([gid(n) for n, *_ in HULL_COLLISION_GEOMS], dtype=np.int64)
+        self.obstacle_geoms = np.array([gid(obstacle_geom_name(o)) for o in self.obstacles], dtype=np.int64)
+        self.obstacle_mocap = np.full(len(self.obstacles), -1, dtype=np.int64)
+        for i, o in enumerate(self.obstacles):
+            if o.moving:
+                body = m.geom_bodyid[self.obstacle_geoms[i]]
+                self.obstacle_mocap[i] = m.body_mocapid[body]
+        self._moving = np.flatnonzero(self.obstacle_mocap >= 0)
+        self._velocity = np.array([o.velocity for o in self.obstacles], dtype=float).reshape(-1, 2)
+        self._center0 = np.array([o.center for o in self.obstacles], dtype=float).reshape(-1, 2)
+
+    def move_obstacles(self, t: float) -> None:
+        """Put every moving obstacle at center + velocity t (held during the next step)."""
+        for i in self._moving:
+            j = self.obstacle_mocap[i]
+            self.data.mocap_pos[j, 0] = self._center0[i, 0] + self._velocity[i, 0] * t
+            self.data.mocap_pos[j, 1] = self._center0[i, 1] + self._velocity[i, 1] * t
+
+    def close(self) -> None:
+        super().close()
+        self._tmp.cleanup()

@@ -1,0 +1,530 @@
+"""Guidance that keeps clear: a visibility-graph path around inflated obstacles, smoothed into a
+unicycle reference with bounded r_d and r_d_dot, and re-timed around moving obstacles (issue 8).
+
+The safety property (why the inflation is what it is)
+-----------------------------------------------------
+The PPC law keeps the tracking errors of the controlled point inside the funnel: |e1| < rho(t) and
+|e2| < rho(t) (Eqs. 8-10), where e = p_bar - p_bar_d, p_bar = p + eps h(psi), p_bar_d = p_d + eps
+h(psi_d), h(a) = (cos a, sin a) and eps = m23/m22 (SPEC §3, Do & Pan's offset). Each axis is
+bounded separately, so |p_bar - p_bar_d| < sqrt(2) rho(t). Every point q of the hull is within the
+hull radius R of the body origin p (:data:`usv_mj.obstacles.compose.HULL_RADIUS`). Hence
+
+    |q - p_d(t)| <= |q - p| + |p - p_bar| + |p_bar - p_bar_d| + |p_bar_d - p_d|
+                 <  R + |eps| + sqrt(2) rho(t) + |eps|  =: G(t)
+
+so the hull lies inside the disc of radius G(t) about the reference point, and
+
+    clearance(hull, O) > dist(p_d(t), O) - G(t).
+
+The planner makes dist(p_d(t), O_i(t)) >= G(t) + margin for every obstacle and every t of the run
+(checked on the final reference with shapely, not assumed), so **while the tracking errors stay
+inside the funnel, the hull keeps at least ``margin`` from every obstacle**. It is a property of
+the reference and the funnel; it says nothing once the funnel is left (a funnel violation is an
+event of the run, and the clearance log shows what happened then). With the paper's funnel
+(rho_inf = 2 m, rho_0 = 18 m) G is at least 3.9 m and 26.6 m at t = 0: narrow gaps close and the
+reference must stay far from everything early on; a harbour scenario sets a tighter funnel.
+
+Planning (static obstacles): each obstacle is grown by its inflation (G at the time the reference
+passes it + margin + an allowance for the smoothing), the grown shapes are merged (shapely), a
+visibility graph over their vertices plus start and goal is searched with networkx (A*, Euclidean
+heuristic), and the polyline is smoothed by a virtual boat (pure pursuit with look-ahead L, the
+curvature rate-limited) into a path tabulated in arc length: x(s), y(s), psi(s), kappa(s), with
+|kappa| <= max_yaw_rate / u and |dkappa/ds| <= max_yaw_accel / u^2. The reference runs it at speed
+u: r_d = kappa u, psi_d = psi(s), x_d_dot = u cos psi_d (SPEC §4's unicycle-like model, v_d = 0).
+Where the verification finds an obstacle closer than G(t) + margin, that obstacle's inflation is
+raised by the deficit and the path is planned again (at most ``MAX_ITERATIONS`` times).
+
+Moving obstacles (:class:`Guidance`): every ``check_period`` the predicted clearance
+dist(p_d(tau), O_j(tau)) - G(tau) over the next ``horizon`` seconds is computed for each moving
+obstacle (constant velocity); when it drops under the margin, the reference is **re-timed**: it
+slows down (|u_d_dot| <= max_accel), holds a lower speed for a while, and speeds up again; the
+candidate that loses the least progress while keeping the predicted clearance above the margin
+(moving and static obstacles) is taken, and a ``replan`` event is logged. The path itself does not
+change, so r_d and r_d_dot stay bounded (r_d_dot = kappa' u^2 + kappa u_dot). An obstacle that
+cannot be let pass by waiting (one that comes along the path at the ship) is logged as
+``guidance_conflict`` and not avoided.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+import shapely
+
+from controllers.performance_funnel import PerformanceFunnel
+from usv_mj.record import Event
+from usv_mj.trajectories import Reference
+
+from .compose import HULL_RADIUS
+from .spec import GuidanceSpec, ObstacleSpec
+
+SQRT2 = math.sqrt(2.0)
+MAX_ITERATIONS = 12
+PATH_DS = 0.02          # m, arc-length step of the tabulated path
+VERIFY_DT = 0.1         # s, time step of the clearance verification
+
+
+class PlanningError(ValueError):
+    """No path, or the start/goal lies inside an inflated obstacle; the message says which."""
+
+
+@dataclass(frozen=True)
+class SafetyEnvelope:
+    """G(t) = hull_radius + 2 |eps| + sqrt(2) rho(t) (module docstring) and the margin.
+
+    Attributes
+    ----------
+    funnel: the position funnel rho_1 = rho_2 (Eq. 9) [m].
+    eps: m23/m22 [m] (SPEC §3).
+    hull_radius: [m].
+    margin: required clearance on top [m].
+    """
+
+    funnel: PerformanceFunnel
+    eps: float
+    hull_radius: float = HULL_RADIUS
+    margin: float = 0.3
+
+    def guaranteed_radius(self, t):
+        """G(t) [m]: the hull is inside the disc of this radius about p_d(t) while |e1|, |e2| < rho(t)."""
+        return self.hull_radius + 2.0 * abs(self.eps) + SQRT2 * self.funnel(t)
+
+    def required(self, t):
+        """G(t) + margin [m]: the distance the reference keeps from every obstacle."""
+        return self.guaranteed_radius(t) + self.margin
+
+    @classmethod
+    def from_scenario(cls, scenario, margin: float) -> "SafetyEnvelope":
+        f = scenario.funnel
+        return cls(PerformanceFunnel(f.rho_xy[0], f.rho_xy[1], f.rate), scenario.ship.eps, HULL_RADIUS, margin)
+
+
+# --- the path: arc-length table from a virtual boat --------------------------------------------
+
+
+@dataclass
+class PathTable:
+    """x(s), y(s), psi(s), kappa(s) on s = 0, ds, 2 ds, ... [m, rad, 1/m]; beyond the end the path
+    goes on straight along psi(end)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    psi: np.ndarray
+    kappa: np.ndarray
+    ds: float
+
+    @property
+    def length(self) -> float:
+        return (len(self.x) - 1) * self.ds
+
+    def at(self, s: float):
+        """(x, y, psi, kappa) at arc length s [m] (linear interpolation; straight past the end)."""
+        if s <= 0.0:
+            return self.x[0] + s * math.cos(self.psi[0]), self.y[0] + s * math.sin(self.psi[0]), self.psi[0], 0.0
+        f = s / self.ds
+        i = int(f)
+        n = len(self.x) - 1
+        if i >= n:
+            extra = s - n * self.ds
+            p = self.psi[n]
+            return self.x[n] + extra * math.cos(p), self.y[n] + extra * math.sin(p), p, 0.0
+        w = f - i
+        return ((1 - w) * self.x[i] + w * self.x[i + 1], (1 - w) * self.y[i] + w * self.y[i + 1],
+                (1 - w) * self.psi[i] + w * self.psi[i + 1], (1 - w) * self.kappa[i] + w * self.kappa[i + 1])
+
+    def points(self, s: np.ndarray) -> np.ndarray:
+        """Positions at many arc lengths, shape (len(s), 2)."""
+        s = np.asarray(s, dtype=float)
+        n = len(self.x) - 1
+        grid = np.arange(n + 1) * self.ds
+        inside = np.clip(s, 0.0, n * self.ds)
+        x = np.interp(inside, grid, self.x)
+        y = np.interp(inside, grid, self.y)
+        extra = np.maximum(s - n * self.ds, 0.0)
+        return np.c_[x + extra * math.cos(self.psi[n]), y + extra * math.sin(self.psi[n])]
+
+
+def smooth_polyline(points, psi0: float, kappa_max: float, dkappa_max: float, lookahead: float,
+                    extend: float, ds: float = PATH_DS) -> PathTable:
+    """The virtual boat: pure pursuit of the polyline ``points`` (look-ahead ``lookahead`` [m]) from
+    points[0] with heading ``psi0``; curvature kappa_cmd = 2 sin(alpha)/L clipped to ``kappa_max``
+    [1/m], followed with |dkappa/ds| <= ``dkappa_max`` [1/m^2]. The polyline is extended by
+    ``extend`` [m] straight past its last point; the table stops at that end."""
+    pts = np.asarray(points, dtype=float)
+    last = pts[-1] - pts[-2]
+    pts = np.vstack([pts, pts[-1] + extend * last / np.linalg.norm(last)])
+    seg = np.diff(pts, axis=0)
+    seg_len = np.linalg.norm(seg, axis=1)
+    keep = seg_len > 1e-9
+    pts = np.vstack([pts[0], pts[1:][keep]])
+    seg = np.diff(pts, axis=0)
+    seg_len = np.linalg.norm(seg, axis=1)
+    cum = np.concatenate(([0.0], np.cumsum(seg_len)))
+    total = cum[-1]
+
+    def point_at(sp):
+        sp = min(max(sp, 0.0), total)
+        j = min(bisect.bisect_right(cum, sp) - 1, len(seg) - 1)
+        return pts[j] + (sp - cum[j]) / seg_len[j] * seg[j]
+
+    n_max = int(math.ceil(1.5 * total / ds)) + 10
+    xs, ys, ps, ks = (np.empty(n_max) for _ in range(4))
+    x, y, psi, kappa = pts[0, 0], pts[0, 1], psi0, 0.0
+    j = 0          # current segment
+    s_proj = 0.0   # arc length of the projection on the polyline
+    k = 0
+    dk = dkappa_max * ds
+    while k < n_max:
+        xs[k], ys[k], ps[k], ks[k] = x, y, psi, kappa
+        # projection onto the polyline (monotone: look at the current and next segments)
+        best = None
+        for jj in range(j, min(j + 3, len(seg))):
+            a = pts[jj]
+            w = min(max(((x - a[0]) * seg[jj, 0] + (y - a[1]) * seg[jj, 1]) / seg_len[jj] ** 2, 0.0), 1.0)
+            q = a + w * seg[jj]
+            dist2 = (x - q[0]) ** 2 + (y - q[1]) ** 2
+            if best is None or dist2 < best[0] - 1e-12:
+                best = (dist2, jj, cum[jj] + w * seg_len[jj])
+        _, j, s_proj = best
+        if s_proj >= total - lookahead - 1e-9:
+            break
+        target = point_at(s_proj + lookahead)
+        alpha = math.atan2(target[1] - y, target[0] - x) - psi
+        alpha = (alpha + math.pi) % (2 * math.pi) - math.pi
+        dist_t = math.hypot(target[0] - x, target[1] - y)
+        k_cmd = 2.0 * math.sin(alpha) / max(dist_t, 1e-6)
+        k_cmd = min(max(k_cmd, -kappa_max), kappa_max)
+        kappa += min(max(k_cmd - kappa, -dk), dk)
+        # exact arc step
+        if abs(kappa) < 1e-12:
+            x += ds * math.cos(psi)
+            y += ds * math.sin(psi)
+        else:
+            x += (math.sin(psi + kappa * ds) - math.sin(psi)) / kappa
+            y += (math.cos(psi) - math.cos(psi + kappa * ds)) / kappa
+        psi += kappa * ds
+        k += 1
+    return PathTable(xs[:k].copy(), ys[:k].copy(), ps[:k].copy(), ks[:k].copy(), ds)
+
+
+# --- timing -------------------------------------------------------------------------------------
+
+
+class SpeedProfile:
+    """s(t): pieces (t0, s0, u0, a) of constant acceleration a [m/s^2] from time t0 [s]; the last
+    piece lasts for ever. u(t) = u0 + a (t - t0), s(t) = s0 + u0 (t - t0) + a (t - t0)^2 / 2."""
+
+    def __init__(self, speed: float):
+        self.t0 = [0.0]
+        self.pieces = [(0.0, 0.0, float(speed), 0.0)]
+
+    def state(self, t: float):
+        """(s [m], u [m/s], a [m/s^2]) at t."""
+        i = max(bisect.bisect_right(self.t0, t) - 1, 0)
+        t0, s0, u0, a = self.pieces[i]
+        dt = t - t0
+        return s0 + u0 * dt + 0.5 * a * dt * dt, u0 + a * dt, a
+
+    def replace_from(self, t: float, pieces) -> None:
+        """Drop every piece after ``t`` and append ``pieces`` (each (t0 >= t, s0, u0, a))."""
+        i = bisect.bisect_right(self.t0, t)
+        self.t0 = self.t0[:i]
+        self.pieces = self.pieces[:i]
+        for p in pieces:
+            self.t0.append(p[0])
+            self.pieces.append(p)
+
+    def copy(self) -> "SpeedProfile":
+        out = SpeedProfile(0.0)
+        out.t0, out.pieces = list(self.t0), list(self.pieces)
+        return out
+
+    def states(self, times: np.ndarray) -> np.ndarray:
+        return np.array([self.state(float(t))[0] for t in times])
+
+
+def retimed_pieces(t: float, s: float, u: float, u_low: float, hold: float, u_cruise: float, accel: float):
+    """Pieces from (t, s, u): change speed to ``u_low`` at |a| = accel, hold it ``hold`` s, then
+    change speed to ``u_cruise`` and keep it."""
+    pieces = []
+
+    def ramp(t, s, u, target):
+        if abs(target - u) < 1e-12:
+            return t, s, u
+        a = accel if target > u else -accel
+        dur = (target - u) / a
+        pieces.append((t, s, u, a))
+        return t + dur, s + u * dur + 0.5 * a * dur * dur, target
+
+    t, s, u = ramp(t, s, u, u_low)
+    if hold > 0:
+        pieces.append((t, s, u, 0.0))
+        t, s = t + hold, s + u * hold
+    t, s, u = ramp(t, s, u, u_cruise)
+    pieces.append((t, s, u, 0.0))
+    return pieces
+
+
+class GuidedReference(Reference):
+    """A planned path run with a speed profile (:class:`usv_mj.trajectories.Reference`):
+    pose(t) = (x(s), y(s), psi(s), kappa(s) u, u) with (s, u) = profile(t) (module docstring)."""
+
+    kind = "guided"
+
+    def __init__(self, path: PathTable, profile: SpeedProfile):
+        super().__init__()
+        self.path, self.profile = path, profile
+
+    def pose(self, t):
+        s, u, _ = self.profile.state(t)
+        x, y, psi, kappa = self.path.at(s)
+        return x, y, psi, kappa * u, u
+
+    def positions(self, times) -> np.ndarray:
+        """Reference positions at many times, shape (len(times), 2)."""
+        return self.path.points(self.profile.states(np.asarray(times, dtype=float)))
+
+    def yaw_rate_bounds(self, times) -> tuple[float, float]:
+        """max |r_d| [rad/s] and max |r_d_dot| [rad/s^2] over ``times`` (finite differences)."""
+        r = np.array([self.pose(float(t))[3] for t in times])
+        return float(np.max(np.abs(r))), float(np.max(np.abs(np.diff(r) / np.diff(times))))
+
+
+# --- static planning ----------------------------------------------------------------------------
+
+
+@dataclass
+class Plan:
+    """The result of :func:`plan_reference`.
+
+    Attributes
+    ----------
+    reference: the :class:`GuidedReference`.
+    polyline: the visibility-graph path [m], shape (n, 2).
+    inflation: per obstacle [m]: the distance used to grow it for the search (static ones).
+    slack: per static obstacle, min over t of dist(p_d(t), O_i) - (G(t) + margin) [m] (>= 0: verified).
+    slack_time: the time [s] of that minimum.
+    iterations: number of plan/verify rounds.
+    envelope: the :class:`SafetyEnvelope`.
+    """
+
+    reference: GuidedReference
+    polyline: np.ndarray
+    inflation: np.ndarray
+    slack: np.ndarray
+    slack_time: np.ndarray
+    iterations: int
+    envelope: SafetyEnvelope
+    obstacles: tuple = ()
+    events: list = field(default_factory=list)
+
+    @property
+    def verified(self) -> bool:
+        return bool(np.all(self.slack >= -1e-9))
+
+
+QUAD_SEGS = 3  # vertices per quarter circle of the grown shapes (visibility-graph size vs. corner cutting)
+
+
+def _grown(obstacle: ObstacleSpec, inflation: float):
+    """The obstacle grown by ``inflation`` [m] as a polygon that contains the exact grown shape
+    (circles: a circumscribed polygon; boxes: rounded corners with circumscribed arcs)."""
+    n = 4 * QUAD_SEGS
+    grow = 1.0 / math.cos(math.pi / n)
+    if obstacle.kind == "circle":
+        return shapely.Point(*obstacle.center).buffer((obstacle.radius + inflation) * grow, quad_segs=QUAD_SEGS)
+    return obstacle.shape(0.0).buffer(inflation * grow, quad_segs=QUAD_SEGS, join_style="round")
+
+
+def _merged_obstacles(obstacles, inflation):
+    grown = [_grown(o, r) for o, r in zip(obstacles, inflation)]
+    union = shapely.union_all(grown)
+    polys = list(union.geoms) if hasattr(union, "geoms") else [union]
+    return [shapely.Polygon(p.exterior) for p in polys if not p.is_empty]
+
+
+def visibility_path(start, goal, polygons) -> np.ndarray:
+    """Shortest polyline start -> goal around ``polygons`` (visibility graph, networkx A*)."""
+    start, goal = np.asarray(start, float), np.asarray(goal, float)
+    blocked_area = shapely.union_all([p.buffer(-1e-6) for p in polygons]) if polygons else shapely.Polygon()
+    for label, pt in (("start", start), ("goal", goal)):
+        if blocked_area.contains(shapely.Point(*pt)):
+            raise PlanningError(f"the {label} point ({pt[0]:.2f}, {pt[1]:.2f}) m lies inside an inflated obstacle")
+    nodes = [start, goal]
+    for p in polygons:
+        nodes.extend(np.asarray(p.exterior.coords)[:-1])
+    nodes = np.array(nodes)
+    n = len(nodes)
+    ii, jj = np.triu_indices(n, 1)
+    lines = shapely.linestrings(np.stack([nodes[ii], nodes[jj]], axis=1))
+    parts = list(blocked_area.geoms) if hasattr(blocked_area, "geoms") else [blocked_area]
+    parts = [p for p in parts if not p.is_empty]
+    blocked = np.zeros(len(lines), dtype=bool)
+    if parts:
+        tree = shapely.STRtree(parts)
+        hit_lines, _ = tree.query(lines, predicate="intersects")
+        blocked[np.unique(hit_lines)] = True
+    graph = nx.Graph()
+    graph.add_nodes_from(range(n))
+    ok = ~blocked
+    lengths = np.linalg.norm(nodes[ii] - nodes[jj], axis=1)
+    graph.add_weighted_edges_from(zip(ii[ok].tolist(), jj[ok].tolist(), lengths[ok].tolist()))
+    try:
+        route = nx.astar_path(graph, 0, 1, heuristic=lambda a, b: float(np.linalg.norm(nodes[a] - nodes[b])),
+                              weight="weight")
+    except nx.NetworkXNoPath:
+        raise PlanningError("no path from the start to the goal keeps the required clearance: the gaps between "
+                            "the inflated obstacles are closed (tighten the funnel, lower the margin or move "
+                            "the obstacles)") from None
+    return nodes[route]
+
+
+def obstacle_distances(obstacles, positions: np.ndarray, times: np.ndarray | None = None) -> np.ndarray:
+    """dist(p_k, O_i(t_k)) [m], exact for circles (|p - c(t)| - r) and boxes (shapely), shape (K, n)."""
+    positions = np.asarray(positions, dtype=float)
+    out = np.empty((len(positions), len(obstacles)))
+    times = np.zeros(len(positions)) if times is None else np.asarray(times, dtype=float)
+    pts = None
+    for i, o in enumerate(obstacles):
+        cx = o.center[0] + o.velocity[0] * times
+        cy = o.center[1] + o.velocity[1] * times
+        if o.kind == "circle":
+            out[:, i] = np.hypot(positions[:, 0] - cx, positions[:, 1] - cy) - o.radius
+        else:
+            rel = positions - np.c_[cx - o.center[0], cy - o.center[1]]  # move the point, not the box
+            if pts is None or o.moving:
+                pts = shapely.points(rel)
+            out[:, i] = shapely.distance(o.shape(0.0), pts)
+            if o.moving:
+                pts = None
+    return out
+
+
+def plan_reference(start, goal, obstacles, envelope: SafetyEnvelope, guidance: GuidanceSpec, speed: float,
+                   duration: float, psi0: float | None = None) -> Plan:
+    """Plan a reference from ``start`` to ``goal`` [m] around the static ``obstacles`` (module
+    docstring), run at ``speed`` [m/s] from t = 0 and verified over [0, ``duration``] s.
+
+    Moving obstacles are ignored here (see :class:`Guidance`). Raises :class:`PlanningError`.
+    """
+    obstacles = tuple(obstacles)
+    static = [i for i, o in enumerate(obstacles) if not o.moving]
+    start, goal = np.asarray(start, float), np.asarray(goal, float)
+    if psi0 is None:
+        psi0 = math.atan2(goal[1] - start[1], goal[0] - start[0])
+    kappa_max = guidance.max_yaw_rate / speed
+    dkappa_max = guidance.max_yaw_accel / speed**2
+    times = np.arange(0.0, duration + 1e-9, VERIFY_DT)
+    required = envelope.required(times)
+    # first guess: G at the earliest time the reference can reach the obstacle (rho decreases)
+    d0 = obstacle_distances([obstacles[i] for i in static], start[None, :])[0] if static else np.zeros(0)
+    inflation = np.array([envelope.required(max(d - 0.0, 0.0) / speed) + guidance.allowance_m for d in d0])
+    extend = speed * duration + 10.0
+    for iteration in range(1, MAX_ITERATIONS + 1):
+        polygons = _merged_obstacles([obstacles[i] for i in static], inflation) if static else []
+        polyline = visibility_path(start, goal, polygons)
+        path = smooth_polyline(polyline, psi0, kappa_max, dkappa_max, guidance.lookahead_m, extend)
+        reference = GuidedReference(path, SpeedProfile(speed))
+        pos = reference.positions(times)
+        dist = obstacle_distances([obstacles[i] for i in static], pos)
+        slack_t = dist - required[:, None]
+        slack = slack_t.min(axis=0) if static else np.zeros(0)
+        slack_time = times[np.argmin(slack_t, axis=0)] if static else np.zeros(0)
+        if np.all(slack >= 0):
+            break
+        bad = slack < 0
+        inflation[bad] += -slack[bad] + 0.05
+    full_inflation = np.full(len(obstacles), np.nan)
+    full_inflation[static] = inflation
+    full_slack = np.full(len(obstacles), np.nan)
+    full_slack[static] = slack
+    full_time = np.full(len(obstacles), np.nan)
+    full_time[static] = slack_time
+    return Plan(reference, polyline, full_inflation, full_slack[static], full_time[static], iteration, envelope,
+                obstacles)
+
+
+# --- moving obstacles ---------------------------------------------------------------------------
+
+
+class Guidance:
+    """Online guidance: re-times a :class:`GuidedReference` when the predicted clearance to a
+    moving obstacle drops under the margin (module docstring). Call :meth:`update` every control
+    step (it works every ``check_period``); events go to ``log.add_event`` when a log is given.
+    """
+
+    HOLD_STEPS = (0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 60.0)
+    SPEED_FACTORS = (0.75, 0.5, 0.25, 0.1)
+    PREDICT_DT = 0.25
+
+    def __init__(self, reference: GuidedReference, obstacles, envelope: SafetyEnvelope, guidance: GuidanceSpec,
+                 speed: float, log=None):
+        self.reference = reference
+        self.obstacles = tuple(obstacles)
+        self.moving = [i for i, o in enumerate(self.obstacles) if o.moving]
+        self.static = [i for i, o in enumerate(self.obstacles) if not o.moving]
+        self.envelope, self.spec, self.speed = envelope, guidance, float(speed)
+        self.log = log
+        self.events: list[Event] = []
+        self._next_check = 0.0
+        self._conflict_reported = False
+
+    def predicted_slack(self, profile: SpeedProfile, t: float) -> tuple[float, int, float]:
+        """min over tau in [t, t + horizon] and all obstacles of dist(p_d(tau), O(tau)) - G(tau) - margin,
+        with the obstacle index and the time of the minimum."""
+        times = np.arange(t, t + self.spec.horizon + 1e-9, self.PREDICT_DT)
+        pos = self.reference.path.points(profile.states(times))
+        dist = obstacle_distances(self.obstacles, pos, times)
+        slack = dist - self.envelope.required(times)[:, None]
+        k, i = np.unravel_index(int(np.argmin(slack)), slack.shape)
+        return float(slack[k, i]), int(i), float(times[k])
+
+    def update(self, t: float) -> bool:
+        """Check (every ``check_period``) and re-time if needed; True when the reference changed."""
+        if not self.moving or t + 1e-12 < self._next_check:
+            return False
+        self._next_check = t + self.spec.check_period
+        profile = self.reference.profile
+        slack, i, t_min = self.predicted_slack(profile, t)
+        if slack >= 0.0:
+            self._conflict_reported = False
+            return False
+        s, u, _ = profile.state(t)
+        best = None
+        for factor in self.SPEED_FACTORS:
+            for hold in self.HOLD_STEPS:
+                pieces = retimed_pieces(t, s, u, factor * self.speed, hold, self.speed, self.spec.max_accel)
+                cand = profile.copy()
+                cand.replace_from(t, pieces)
+                c_slack, _, _ = self.predicted_slack(cand, t)
+                if c_slack >= 0.0:
+                    progress = cand.state(t + self.spec.horizon)[0]
+                    if best is None or progress > best[0]:
+                        best = (progress, factor, hold, pieces, c_slack)
+                    break  # longer holds at this speed only lose progress
+        name = self.obstacles[i].name
+        if best is None:
+            if not self._conflict_reported:
+                self._conflict_reported = True
+                self._emit(Event(t, "guidance_conflict", f"predicted clearance to {name} drops to "
+                                 f"{slack + self.envelope.margin:.2f} m at t = {t_min:.1f} s and no re-timing "
+                                 f"avoids it", {"obstacle": name, "predicted_slack_m": slack, "t_conflict_s": t_min}))
+            return False
+        progress, factor, hold, pieces, c_slack = best
+        profile.replace_from(t, pieces)
+        self._conflict_reported = False
+        self._emit(Event(t, "replan", f"re-timed the reference for {name}: predicted clearance margin "
+                         f"{slack:.2f} m at t = {t_min:.1f} s -> speed {factor * self.speed:.2f} m/s held "
+                         f"{hold:g} s (new margin {c_slack:.2f} m)",
+                         {"obstacle": name, "predicted_slack_m": slack, "t_conflict_s": t_min,
+                          "speed_mps": factor * self.speed, "hold_s": hold, "new_slack_m": c_slack}))
+        return True
+
+    def _emit(self, event: Event) -> None:
+        self.events.append(event)
+        if self.log is not None:
+            self.log.add_event(event)
