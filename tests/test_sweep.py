@@ -403,3 +403,23 @@ def test_example_sweeps_validate(path):
         return
     assert len(plan.runs) >= 1
     assert all(r.scenario.duration == plan.base.duration for r in plan.runs)
+
+
+def test_jobqueue_errors_exit_2_with_the_batch_systems_message(tmp_path, capsys):
+    pytest.importorskip("dask_jobqueue")
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    path = _write(tmp_path, SMALL)
+    rc = run_command(parser.parse_args([str(path), "--out", str(tmp_path / "a"), "--jobqueue", "slurmm",
+                                        "--no-progress"]))
+    assert rc == 2 and "unknown batch system 'slurmm'" in capsys.readouterr().err
+    # no cores / memory configured for SLURM here: dask-jobqueue's own message, exit 2, nothing run
+    rc = run_command(parser.parse_args([str(path), "--out", str(tmp_path / "b"), "--jobqueue", "slurm",
+                                        "--no-progress"]))
+    err = capsys.readouterr().err
+    assert rc == 2 and "--jobqueue slurm" in err and "cores" in err
+    rc = run_command(parser.parse_args([str(path), "--out", str(tmp_path / "c"), "--jobqueue", "slurm",
+                                        "--scheduler", "tcp://127.0.0.1:1", "--no-progress"]))
+    assert rc == 2 and "exclude each other" in capsys.readouterr().err

@@ -45,6 +45,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="directory for results.parquet, report.md, figures/")
     parser.add_argument("--scheduler", default=None,
                         help="address of a running Dask scheduler (tcp://host:8786); default: a local cluster")
+    parser.add_argument("--jobqueue", default=None, metavar="SYSTEM",
+                        help="run on a batch system through dask-jobqueue (slurm, pbs, sge, lsf, ...); job size "
+                             "from ~/.config/dask/jobqueue.yaml")
+    parser.add_argument("--jobs", type=int, default=1, help="--jobqueue: number of batch jobs (default 1)")
     parser.add_argument("--workers", type=int, default=None,
                         help="local cluster: worker processes (default: the number of cores)")
     parser.add_argument("--resume", action="store_true", help="run only the runs missing from DIR/results.parquet")
@@ -68,7 +72,8 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"{args.sweep}: {len(plan.runs)} runs, all validated", flush=True)
         result = run_sweep(plan, args.out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
                            keep_logs=args.keep_logs, progress=not getattr(args, "no_progress", False),
-                           max_runs=max_runs)
+                           max_runs=max_runs, jobqueue=getattr(args, "jobqueue", None),
+                           jobs=getattr(args, "jobs", 1))
     except SweepError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -228,9 +228,13 @@ def _dashboard(client) -> str:
 
 @contextlib.contextmanager
 def open_client(scheduler: str | None = None, workers: int | None = None,
-                echo: Callable[[str], None] | None = print) -> Iterator[Any]:
-    """A ``distributed.Client`` on ``scheduler`` (an address), or on a new local cluster.
+                echo: Callable[[str], None] | None = print, jobqueue: str | None = None,
+                jobs: int = 1) -> Iterator[Any]:
+    """A ``distributed.Client`` on ``scheduler`` (an address), on a batch system, or on a local cluster.
 
+    ``jobqueue``: a batch system of ``dask-jobqueue`` (``slurm``, ``pbs``, ``sge``, ``lsf``, ...):
+    ``jobs`` batch jobs of workers, sized by dask-jobqueue's own configuration
+    (``~/.config/dask/jobqueue.yaml``: cores, memory, queue, walltime...).
     Local default: ``LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1,
     processes=True)`` (the runs are CPU-bound Python + numba: one process per core). The dashboard
     address is printed through ``echo``.
@@ -240,6 +244,24 @@ def open_client(scheduler: str | None = None, workers: int | None = None,
     from distributed import Client, LocalCluster
 
     echo = echo or (lambda s: None)
+    if scheduler and jobqueue:
+        raise SweepError("--scheduler and --jobqueue exclude each other: give one")
+    if jobqueue:
+        try:
+            cluster = jobqueue_cluster(jobqueue, jobs)
+        except SweepError:
+            raise
+        except Exception as exc:  # dask-jobqueue's own message (missing cores / memory, no sbatch...)
+            raise SweepError(f"--jobqueue {jobqueue}: cannot make the batch cluster: {exc}") from None
+        client = Client(cluster)
+        echo(f"dask-jobqueue {jobqueue} cluster: {jobs} job(s) asked; scheduler {cluster.scheduler_address}; "
+             f"dashboard: {_dashboard(client)}")
+        try:
+            yield client
+        finally:
+            client.close()
+            cluster.close()
+        return
     if scheduler:
         try:
             client = Client(scheduler, timeout="20s")
@@ -283,6 +305,8 @@ def jobqueue_cluster(kind: str = "slurm", jobs: int = 1, **kwargs):
                "oar": "OARCluster", "htcondor": "HTCondorCluster", "moab": "MoabCluster"}
     if kind not in classes:
         raise SweepError(f"unknown batch system {kind!r}; known: {', '.join(classes)}")
+    if jobs < 1:
+        raise SweepError(f"--jobs must be >= 1, got {jobs}")
     cluster = getattr(dask_jobqueue, classes[kind])(**kwargs)
     cluster.scale(jobs=jobs)
     return cluster
@@ -357,11 +381,12 @@ class SweepResult:
 def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
               resume: bool = False, keep_logs: bool = False, progress: bool = True, flush_every: float = 2.0,
               client=None, echo: Callable[[str], None] | None = print, report: bool = True,
-              max_runs: int | None = None) -> SweepResult:
+              max_runs: int | None = None, jobqueue: str | None = None, jobs: int = 1) -> SweepResult:
     """Run the plan's missing runs on Dask, streaming rows into ``out/results.parquet``; then the report.
 
     ``client``: an existing ``distributed.Client`` (else one is opened by :func:`open_client`).
     ``max_runs``: stop after this many new rows, as an interrupt would (the rest waits for ``resume``).
+    ``jobqueue``, ``jobs``: run on a batch system through dask-jobqueue (see :func:`open_client`).
     Raises :class:`SweepError` when ``out`` already holds results and ``resume`` is False, or holds
     results of another plan. KeyboardInterrupt propagates after the rows so far are written.
     """
@@ -396,12 +421,13 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
             echo("--keep-logs: usv_mj.runlog.RunLogWriter (the MCAP issue) is not in this checkout yet; "
                  "running without per-run logs")
     base_options = {"transient": plan.transient, "hooks": plan.test_hooks or None}
-    jobs = []
+    n_jobs = jobs
+    tasks = []
     for run in todo:
         opts = dict(base_options)
         if log_dir is not None:
             opts["log_path"] = str(log_dir / f"run-{run.run_id:06d}.mcap")
-        jobs.append((run, opts))
+        tasks.append((run, opts))
     ran = 0
     if todo:
         echo(f"{len(plan.runs)} runs in the sweep, {len(rows)} already in {results}, {len(todo)} to run")
@@ -433,10 +459,10 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
 
         try:
             if client is not None:
-                gather_rows(client, jobs, on_row)
+                gather_rows(client, tasks, on_row)
             else:
-                with open_client(scheduler, workers, echo) as own:
-                    gather_rows(own, jobs, on_row)
+                with open_client(scheduler, workers, echo, jobqueue=jobqueue, jobs=n_jobs) as own:
+                    gather_rows(own, tasks, on_row)
         except _StopAfter:
             echo(f"stopped after {ran} runs (max_runs); --resume runs the rest")
         finally:
