@@ -1,0 +1,213 @@
+"""The heads-up overlay drawn onto a rendered RGB frame with numpy and Pillow (after MuJoCo rendered it).
+
+What it shows (values of one record row, see :mod:`usv_mj.record`):
+
+- time t [s] of the run, its end, and the playback speed-up;
+- the tracking errors against their prescribed bounds (SPEC §3 steps 2-4, Eqs. 9, 14): one bar per
+  axis spanning -rho_i..+rho_i with a marker at e_i, i.e. z_i = e_i / rho_i in [-1, 1]; green while
+  |z_i| < 0.8, amber below 1, red at or beyond the funnel (|z_i| >= 1, a violation). e1, e2 in m,
+  e3 in degrees;
+- the controls: the law's output tau (outline) and the quantized input Q(tau) the plant received
+  (filled bar), for surge tau_u [N] and yaw tau_r [N m], on a symmetric scale ``tau_*_scale`` fixed
+  for the whole video (the planner's 99th percentile of |tau|; a clipped bar ends in a triangle);
+- a legend of the 3-D layers (wake trail, reference path ahead, ghost hull, funnel box).
+
+Only the two panel regions are converted to Pillow images, so the cost is about a millisecond a frame
+at 1280x720. Everything scales with the frame height (designed at 720 px).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+from .planner import FUNNEL_OK_RGBA, GHOST_RGBA, PATH_RGBA, TRAIL_RGBA
+
+TEXT = (235, 240, 245)
+DIM = (150, 160, 170)
+GOOD = (70, 220, 110)
+WARN = (250, 190, 40)
+BAD = (255, 70, 60)
+LAW = (120, 190, 255)
+QUANT = (255, 150, 40)
+
+
+@lru_cache(maxsize=16)
+def hud_font(size: int, bold: bool = False):
+    """DejaVu Sans Mono (shipped with matplotlib) at ``size`` px; Pillow's default font otherwise."""
+    size = max(6, int(size))
+    try:
+        import matplotlib
+
+        name = "DejaVuSansMono-Bold.ttf" if bold else "DejaVuSansMono.ttf"
+        path = Path(matplotlib.__file__).parent / "mpl-data" / "fonts" / "ttf" / name
+        return ImageFont.truetype(str(path), size)
+    except Exception:  # pragma: no cover - any font will do
+        try:
+            return ImageFont.load_default(size=size)
+        except TypeError:
+            return ImageFont.load_default()
+
+
+def _rgb(rgba) -> tuple[int, int, int]:
+    return tuple(int(round(255 * c)) for c in rgba[:3])
+
+
+def _fmt(v, spec: str, unit: str = "") -> str:
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return "n/a"
+    if not math.isfinite(v):
+        return "n/a"
+    return format(v, spec) + unit
+
+
+def _darken(frame: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> Image.Image:
+    """Crop [y0:y1, x0:x1], darken it for contrast, return it as a Pillow image (to be pasted back)."""
+    region = frame[y0:y1, x0:x1].astype(np.uint16)
+    region = (region * 2 // 5 + 8).astype(np.uint8)
+    return Image.fromarray(region)
+
+
+def _error_bar(draw, x, y, w, h, e, rho):
+    """A bar over [-rho, +rho] with a fill from 0 to e (clipped at the bound)."""
+    draw.rectangle([x, y, x + w, y + h], outline=DIM, width=1)
+    cx = x + w / 2
+    draw.line([cx, y - 2, cx, y + h + 2], fill=DIM, width=1)
+    try:
+        z = float(e) / float(rho)
+    except (TypeError, ValueError, ZeroDivisionError):
+        return
+    if not math.isfinite(z):
+        return
+    colour = GOOD if abs(z) < 0.8 else (WARN if abs(z) < 1.0 else BAD)
+    zc = max(-1.0, min(1.0, z))
+    xe = cx + zc * (w / 2)
+    inset = min(2, (h - 1) // 2)
+    draw.rectangle([min(cx, xe), y + inset, max(cx, xe), y + h - inset], fill=colour)
+    draw.line([xe, y - 3, xe, y + h + 3], fill=colour, width=3)
+
+
+def _tau_bar(draw, x, y, w, h, tau, q, scale):
+    """Law output tau as an outline and Q(tau) as a filled bar, both on [-scale, scale]."""
+    cx = x + w / 2
+    draw.rectangle([x, y, x + w, y + h], outline=DIM, width=1)
+    draw.line([cx, y - 2, cx, y + h + 2], fill=DIM, width=1)
+    try:
+        scale = float(scale)
+    except (TypeError, ValueError):
+        return
+    if not (math.isfinite(scale) and scale > 0):
+        return
+    for value, colour, filled, inset in ((q, QUANT, True, 3), (tau, LAW, False, 1)):
+        try:
+            v = float(value) / scale
+        except (TypeError, ValueError):
+            continue
+        if not math.isfinite(v):
+            continue
+        vc = max(-1.0, min(1.0, v))
+        xe = cx + vc * (w / 2)
+        inset = min(inset, (h - 1) // 2)
+        box = [min(cx, xe), y + inset, max(cx, xe), y + h - inset]
+        if filled:
+            draw.rectangle(box, fill=colour)
+        else:
+            draw.rectangle(box, outline=colour, width=2)
+        if abs(v) > 1.0:  # clipped: an arrow head at the end
+            s = 1 if v > 0 else -1
+            draw.polygon([(xe, y), (xe, y + h), (xe + s * h * 0.6, y + h / 2)], fill=colour)
+
+
+def draw_hud(frame: np.ndarray, values: dict, *, hud: bool = True, legend: bool = True) -> np.ndarray:
+    """Draw the heads-up panel (top left) and the legend (bottom left) onto ``frame`` in place.
+
+    ``values`` keys: t, t_end, speedup, title, e (3), rho (3), tau_u, q_tau_u, tau_r, q_tau_r,
+    tau_u_scale, tau_r_scale, camera. Missing or non-finite values print as "n/a".
+    """
+    H, W = frame.shape[:2]
+    s = H / 720.0
+    if hud:
+        _draw_panel(frame, values, s)
+    if legend:
+        _draw_legend(frame, s)
+    return frame
+
+
+def _draw_panel(frame, values, s):
+    H, W = frame.shape[:2]
+    pad = int(round(14 * s))
+    x0, y0 = pad, pad
+    x1, y1 = min(W, x0 + int(470 * s)), min(H, y0 + int(300 * s))
+    if x1 - x0 < 20 or y1 - y0 < 20:
+        return
+    img = _darken(frame, x0, y0, x1, y1)
+    d = ImageDraw.Draw(img)
+    big, small, tiny = hud_font(round(24 * s), True), hud_font(round(17 * s)), hud_font(round(14 * s))
+    m = int(round(12 * s))
+    y = m
+    t, t_end, sp = values.get("t"), values.get("t_end"), values.get("speedup")
+    d.text((m, y), f"t = {_fmt(t, '6.1f')} s", font=big, fill=TEXT)
+    d.text((int(250 * s), y + int(5 * s)), f"/ {_fmt(t_end, '.0f')} s  {_fmt(sp, '.3g')}x", font=small, fill=DIM)
+    y += int(32 * s)
+    title = str(values.get("title", ""))
+    if title:
+        d.text((m, y), title[:48], font=tiny, fill=DIM)
+    y += int(26 * s)
+    label_w, bar_w, bar_h = int(62 * s), int(190 * s), max(4, int(16 * s))
+    e = list(values.get("e", (None,) * 3)) + [None] * 3
+    rho = list(values.get("rho", (None,) * 3)) + [None] * 3
+    rows = (("x e1", e[0], rho[0], 1.0, "m", "+6.2f", "5.2f"), ("y e2", e[1], rho[1], 1.0, "m", "+6.2f", "5.2f"),
+            ("psi e3", e[2], rho[2], 180.0 / math.pi, "deg", "+6.1f", "5.1f"))
+    d.text((m, y), "error / bound (funnel)", font=tiny, fill=DIM)
+    y += int(20 * s)
+    for label, ei, ri, k, unit, fe, fr in rows:
+        d.text((m, y), label, font=small, fill=TEXT)
+        _error_bar(d, m + label_w, y + int(2 * s), bar_w, bar_h, ei, ri)
+        ev = None if ei is None else float(ei) * k
+        rv = None if ri is None else float(ri) * k
+        d.text((m + label_w + bar_w + int(10 * s), y), f"{_fmt(ev, fe)}/{_fmt(rv, fr)} {unit}", font=tiny,
+               fill=TEXT)
+        y += int(27 * s)
+    y += int(4 * s)
+    d.text((m, y), "control: law tau (outline), Q(tau) (filled)", font=tiny, fill=DIM)
+    y += int(20 * s)
+    for label, key, unit in (("tau_u", "u", "N"), ("tau_r", "r", "Nm")):
+        tau, q = values.get(f"tau_{key}"), values.get(f"q_tau_{key}")
+        d.text((m, y), label, font=small, fill=TEXT)
+        _tau_bar(d, m + label_w, y + int(2 * s), bar_w, bar_h, tau, q, values.get(f"tau_{key}_scale"))
+        d.text((m + label_w + bar_w + int(10 * s), y), f"Q {_fmt(q, '+8.3g')} {unit}", font=tiny, fill=QUANT)
+        y += int(27 * s)
+    frame[y0:y1, x0:x1] = np.asarray(img)
+
+
+LEGEND = (("wake trail", TRAIL_RGBA), ("reference path ahead", PATH_RGBA), ("reference (ghost hull)", GHOST_RGBA),
+          ("funnel |e1|<rho1, |e2|<rho2", FUNNEL_OK_RGBA))
+
+
+def _draw_legend(frame, s):
+    H, W = frame.shape[:2]
+    pad = int(round(14 * s))
+    w, h = int(300 * s), int(len(LEGEND) * 22 * s + 14 * s)
+    x0, y1 = pad, H - pad
+    y0, x1 = max(0, y1 - h), min(W, x0 + w)
+    if x1 - x0 < 20 or y1 - y0 < 10:
+        return
+    img = _darken(frame, x0, y0, x1, y1)
+    d = ImageDraw.Draw(img)
+    font = hud_font(round(14 * s))
+    y = int(7 * s)
+    for label, rgba in LEGEND:
+        c = _rgb(rgba)
+        if rgba is GHOST_RGBA:
+            c = tuple(min(255, int(v * 0.8 + 40)) for v in c)
+        d.rectangle([int(8 * s), y + int(4 * s), int(34 * s), y + int(12 * s)], fill=c)
+        d.text((int(44 * s), y), label, font=font, fill=TEXT)
+        y += int(22 * s)
+    frame[y0:y1, x0:x1] = np.asarray(img)
+

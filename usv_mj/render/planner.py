@@ -1,0 +1,257 @@
+"""From a finished :class:`~usv_mj.record.RunRecord` to the list of frames of a video (no GL, no mujoco).
+
+Time mapping: a run of duration T [s] played ``speedup`` times faster at ``fps`` frames per second
+gives N = round(T fps / speedup) frames; frame j shows the record row nearest to
+t_j = t_0 + T j / (N - 1), so the first frame is the start and the last frame the end of the run
+(the played speed-up is T fps / (N - 1), within 1/N of the requested one). The default speed-up is
+max(1, T / 30 s): a 300 s run becomes a 30 s video, a run shorter than 30 s plays in real time.
+
+Per frame the planner gathers (all in world metres / radians): the hull pose (x, y, psi), the
+reference pose (x_d, y_d, psi_d), the funnel box (centre at the Do & Pan reference point, half-widths
+rho1, rho2, "ok" while |z1| < 1 and |z2| < 1), the wake trail (hull positions over the last
+``trail_s`` seconds), the path ahead ((x_d, y_d) over the next ``ahead_s`` seconds), the top camera's
+view (:class:`TopView`) and the values of the heads-up overlay.
+
+Only rows whose state (x, y, psi) is finite are played: a diverged run ends at its last finite row.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Colours (RGBA, 0..1) of the 3-D layers, shared with the overlay's legend.
+TRAIL_RGBA = (1.0, 1.0, 1.0, 0.85)
+PATH_RGBA = (1.0, 0.84, 0.10, 0.95)
+GHOST_RGBA = (0.35, 0.95, 1.0, 0.38)
+FUNNEL_OK_RGBA = (0.25, 0.95, 0.45, 0.95)
+FUNNEL_BAD_RGBA = (1.0, 0.25, 0.2, 0.95)
+FUNNEL_FILL_ALPHA = 0.12
+
+#: What can be drawn: 3-D layers, then the 2-D overlay ("hud" panel, "legend").
+LAYERS = ("trail", "path", "ghost", "funnel", "hud", "legend")
+
+#: The part of the image the top camera keeps the ship, the reference and the funnel in, as
+#: fractions of (width, height): right of the overlay panel, which takes the top-left corner.
+CONTENT_X = (0.40, 0.97)
+CONTENT_Y = (0.05, 0.95)
+MIN_HALF_HEIGHT = 6.0   # m of water above and below the centre at the closest zoom (a 2 m boat = 1/6 of the height)
+
+
+@dataclass
+class TopView:
+    """The top-down free camera: look at (cx, cy) [m] on the water and see +-half_height [m] vertically."""
+
+    cx: float
+    cy: float
+    half_height: float
+
+
+@dataclass
+class FrameSpec:
+    """Everything one frame needs (built by the planner in the parent process, drawn by a worker).
+
+    Positions are world metres, angles radians. ``trail`` (n, 2) oldest first, ``path`` (m, 2)
+    nearest first. ``hud`` is the dict :func:`usv_mj.render.overlay.draw_hud` reads.
+    """
+
+    index: int
+    t: float
+    pose: tuple[float, float, float]                 # x, y, psi of the hull
+    ref_pose: tuple[float, float, float]             # x_d, y_d, psi_d
+    funnel_center: tuple[float, float]               # Do & Pan reference point (x_bar_d, y_bar_d)
+    funnel_half: tuple[float, float]                 # rho1, rho2
+    funnel_ok: bool
+    trail: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    view: TopView | None = None
+    hud: dict = field(default_factory=dict)
+
+
+@dataclass
+class Plan:
+    """The frames of a video and how time was mapped."""
+
+    frames: list[FrameSpec]
+    rows: np.ndarray            # record row of each frame
+    t_start: float
+    t_end: float
+    speedup: float              # requested
+    played_speedup: float       # (t_end - t_start) fps / (N - 1)
+    fps: float
+    eps: float                  # Do & Pan offset used for the funnel centre [m]
+
+
+def default_speedup(duration: float, video_seconds: float = 30.0) -> float:
+    """max(1, duration / video_seconds): the run's duration maps to 30 s of video, never slow motion."""
+    return max(1.0, float(duration) / video_seconds)
+
+
+def frame_count(duration: float, fps: float, speedup: float) -> int:
+    """N = max(1, round(duration fps / speedup)) frames (see the module docstring)."""
+    return max(1, int(round(float(duration) * float(fps) / float(speedup))))
+
+
+def do_pan_offset(record) -> float:
+    """eps = m23/m22 [m] recovered from the record: e1 = (x - x_d) + eps (cos psi - cos psi_d), same for y.
+
+    A least-squares fit over the rows (SPEC §1 transformed coordinates); 0 when the rows do not
+    determine it (no heading error) or the errors are not Do & Pan's (fit residual not small).
+    """
+    try:
+        x, y, psi = record["x"], record["y"], record["psi"]
+        xd, yd, psid = record["x_d"], record["y_d"], record["psi_d"]
+        e1, e2 = record["e1"], record["e2"]
+    except (KeyError, IndexError):
+        return 0.0
+    a = np.concatenate([e1 - (x - xd), e2 - (y - yd)])
+    b = np.concatenate([np.cos(psi) - np.cos(psid), np.sin(psi) - np.sin(psid)])
+    ok = np.isfinite(a) & np.isfinite(b)
+    a, b = a[ok], b[ok]
+    bb = float(b @ b)
+    if len(a) < 2 or bb < 1e-12:
+        return 0.0
+    eps = float(a @ b) / bb
+    resid = a - eps * b
+    if not (abs(eps) < 5.0 and float(np.sqrt(np.mean(resid ** 2))) <= 1e-6 + 1e-3 * float(np.sqrt(np.mean(a ** 2)))):
+        return 0.0
+    return eps
+
+
+def valid_rows(record) -> int:
+    """Number of leading rows with a finite hull pose (a diverged run may end in a non-finite row)."""
+    n = len(record)
+    if n == 0:
+        return 0
+    good = np.isfinite(record["x"]) & np.isfinite(record["y"]) & np.isfinite(record["psi"]) & np.isfinite(record["t"])
+    if good.all():
+        return n
+    return int(np.argmin(good))   # the first non-finite row
+
+
+def _column(record, name, n):
+    try:
+        return np.asarray(record[name][:n], dtype=float)
+    except (KeyError, IndexError):
+        return np.full(n, np.nan)
+
+
+def _robust_scale(*arrays) -> float:
+    v = np.abs(np.concatenate([np.asarray(a, float) for a in arrays]))
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return 1.0
+    s = float(np.percentile(v, 99.0))
+    return s if s > 0 else (float(v.max()) if v.max() > 0 else 1.0)
+
+
+def top_view(points: np.ndarray, aspect: float, min_half_height: float = MIN_HALF_HEIGHT) -> TopView:
+    """Centre and half-height of the top camera that fit ``points`` (k, 2) into the content region.
+
+    The content region (CONTENT_X, CONTENT_Y, fractions of the image) leaves the overlay panel free;
+    a 15 % margin plus 1 m is kept around the points; ``aspect`` = width / height.
+    """
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    cx, cy = (lo + hi) / 2
+    need_w, need_h = (hi - lo) * 1.15 + 2.0
+    fx, fy = CONTENT_X[1] - CONTENT_X[0], CONTENT_Y[1] - CONTENT_Y[0]
+    # visible height 2h, width 2h aspect; content spans fx of the width and fy of the height
+    h = max(min_half_height, need_h / (2 * fy), need_w / (2 * fx * aspect))
+    vis_w, vis_h = 2 * h * aspect, 2 * h
+    # put the content centre at the centre of the content region
+    ox = ((CONTENT_X[0] + CONTENT_X[1]) / 2 - 0.5) * vis_w
+    oy = (0.5 - (CONTENT_Y[0] + CONTENT_Y[1]) / 2) * vis_h   # image y grows downward, world y upward
+    return TopView(float(cx - ox), float(cy - oy), float(h))
+
+
+def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, width: int = 1280, height: int = 720,
+                trail_s: float | None = None, ahead_s: float | None = None, segments: int = 48,
+                camera: str = "top", max_frames: int | None = None, rows=None) -> Plan:
+    """The frames of the video of ``record`` (see the module docstring for the time mapping).
+
+    ``trail_s`` / ``ahead_s``: seconds of run time in the wake trail and the path ahead (default
+    max(10 s, 3 s of video)); ``segments``: line segments per polyline. ``max_frames`` caps N (tests).
+    ``rows``: one frame per given record row instead of the time mapping (tests, stills).
+    """
+    if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps = {fps!r}: the frame rate must be a positive number")
+    if speedup is not None and not (isinstance(speedup, (int, float)) and math.isfinite(speedup) and speedup > 0):
+        raise ValueError(f"speedup = {speedup!r}: the playback speed-up must be a positive number")
+    n = valid_rows(record)
+    if n == 0:
+        raise ValueError("the run has no row with a finite hull pose (x, y, psi): nothing to render")
+    t = np.asarray(record["t"][:n], float)
+    t0, t1 = float(t[0]), float(t[-1])
+    duration = t1 - t0
+    sp = default_speedup(duration) if speedup is None else float(speedup)
+    nf = frame_count(duration, fps, sp) if duration > 0 else 1
+    if max_frames is not None:
+        nf = max(1, min(nf, int(max_frames)))
+    if rows is not None:
+        rows = np.asarray(rows, dtype=int).ravel()
+        if rows.size == 0 or rows.min() < 0 or rows.max() >= n:
+            raise ValueError(f"rows {rows.tolist()[:8]}: every row must be in 0..{n - 1} (the rows with a finite pose)")
+        times = t[rows]
+        nf = len(rows)
+    else:
+        times = np.array([t1]) if nf == 1 else t0 + duration * np.arange(nf) / (nf - 1)
+        rows = np.clip(np.searchsorted(t, times), 0, n - 1)
+        prev = np.clip(rows - 1, 0, n - 1)
+        rows = np.where(np.abs(t[prev] - times) < np.abs(t[rows] - times), prev, rows)
+    played = duration * fps / (nf - 1) if nf > 1 and duration > 0 else sp
+    span = max(10.0, 3.0 * sp)
+    trail_s = span if trail_s is None else float(trail_s)
+    ahead_s = span if ahead_s is None else float(ahead_s)
+
+    x, y, psi = (np.asarray(record[c][:n], float) for c in ("x", "y", "psi"))
+    xd, yd, psid = (_column(record, c, n) for c in ("x_d", "y_d", "psi_d"))
+    e = [_column(record, f"e{i}", n) for i in (1, 2, 3)]
+    rho = [_column(record, f"rho{i}", n) for i in (1, 2, 3)]
+    z = [_column(record, f"z{i}", n) for i in (1, 2, 3)]
+    tau = {k: _column(record, k, n) for k in ("tau_u", "q_tau_u", "tau_r", "q_tau_r")}
+    eps = do_pan_offset(record)
+    scale_u = _robust_scale(tau["tau_u"], tau["q_tau_u"])
+    scale_r = _robust_scale(tau["tau_r"], tau["q_tau_r"])
+    md = getattr(record, "metadata", {}) or {}
+    title = " / ".join(str(md[k]) for k in ("preset", "controller", "plant") if md.get(k))
+    aspect = width / height
+
+    frames = []
+    for j, (k, tf) in enumerate(zip(rows, times)):
+        k = int(k)
+        has_ref = math.isfinite(xd[k]) and math.isfinite(yd[k])
+        ref = (float(xd[k]), float(yd[k]), float(psid[k]) if math.isfinite(psid[k]) else 0.0) if has_ref else \
+            (float("nan"),) * 3
+        if has_ref:
+            fc = (ref[0] + eps * math.cos(ref[2]), ref[1] + eps * math.sin(ref[2]))
+        else:
+            fc = (float("nan"), float("nan"))
+        fh = (float(rho[0][k]), float(rho[1][k]))
+        zk = [z[i][k] if math.isfinite(z[i][k]) else (e[i][k] / rho[i][k] if rho[i][k] else float("nan"))
+              for i in (0, 1)]
+        ok = bool(abs(zk[0]) < 1.0 and abs(zk[1]) < 1.0)
+        # wake trail and path ahead, sampled uniformly in time
+        ts = np.linspace(max(t0, t[k] - trail_s), t[k], segments + 1)
+        tr = np.clip(np.searchsorted(t, ts), 0, k)
+        trail = np.stack([x[tr], y[tr]], axis=1)
+        ta = np.linspace(t[k], min(t1, t[k] + ahead_s), segments + 1)
+        pa = np.clip(np.searchsorted(t, ta), k, n - 1)
+        path = np.stack([xd[pa], yd[pa]], axis=1)
+        path = path[np.all(np.isfinite(path), axis=1)]
+        # top camera: hull, reference, funnel corners
+        pts = [(x[k], y[k])]
+        if has_ref:
+            pts.append(ref[:2])
+            if math.isfinite(fh[0]) and math.isfinite(fh[1]):
+                pts += [(fc[0] - fh[0], fc[1] - fh[1]), (fc[0] + fh[0], fc[1] + fh[1])]
+        view = top_view(np.array(pts, float), aspect)
+        hud = {"t": float(t[k]), "t_end": t1, "speedup": played, "title": title, "camera": camera,
+               "e": tuple(float(e[i][k]) for i in range(3)), "rho": tuple(float(rho[i][k]) for i in range(3)),
+               "tau_u": float(tau["tau_u"][k]), "q_tau_u": float(tau["q_tau_u"][k]),
+               "tau_r": float(tau["tau_r"][k]), "q_tau_r": float(tau["q_tau_r"][k]),
+               "tau_u_scale": scale_u, "tau_r_scale": scale_r}
+        frames.append(FrameSpec(j, float(t[k]), (float(x[k]), float(y[k]), float(psi[k])), ref, fc, fh, ok,
+                                trail, path, view, hud))
+    return Plan(frames, rows, t0, t1, sp, played, float(fps), eps)

@@ -1,0 +1,449 @@
+"""Rendering a finished run to an H.264 mp4 and a PNG still, on all cores, and the ``render`` command.
+
+Pipeline: the parent process plans the frames (:mod:`usv_mj.render.planner`, numpy only), a pool of
+worker processes each owning one GL context and one :class:`~usv_mj.render.replay.FrameRenderer` draws
+them (frames are independent; ``imap`` keeps their order), and the parent feeds them to ffmpeg
+(imageio-ffmpeg's bundled binary, libx264, yuv420p) and keeps the last one for the PNG.
+
+Workers are started with the ``spawn`` method, after :func:`usv_mj.render.gl_backend.select_backend`
+has exported ``MUJOCO_GL``: each worker imports mujoco fresh with the right backend, whatever the
+parent imported before. (A script that calls :func:`render_run` with more than one worker needs the
+usual ``if __name__ == "__main__":`` guard.) With one worker and a compatible (or not yet imported)
+mujoco the frames are drawn in the parent itself.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import multiprocessing
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .gl_backend import GLUnavailableError, in_process_backend, renderer_name, select_backend
+from .planner import LAYERS, Plan, plan_frames
+
+DEFAULT_WIDTH, DEFAULT_HEIGHT, DEFAULT_FPS = 1280, 720, 30
+CAMERAS_HELP = "top (follows ship and reference from above), chase (behind the hull), or a camera of the model"
+
+
+# --- workers -------------------------------------------------------------------------------------
+
+_worker_renderer = None
+_worker_counter = None
+
+
+def _worker_init(env: dict, renderer_kwargs: dict, counter=None) -> None:
+    os.environ.update(env)
+    if env.get("MUJOCO_GL") == "glfw":
+        os.environ.pop("PYOPENGL_PLATFORM", None)
+    global _worker_renderer, _worker_counter
+    from .replay import FrameRenderer
+
+    _worker_renderer = FrameRenderer(**renderer_kwargs)
+    _worker_counter = counter
+
+
+def _worker_render(spec):
+    return _worker_renderer.render(spec)
+
+
+def _open_writer(path, width, height, fps, encoder):
+    import imageio_ffmpeg
+
+    writer = imageio_ffmpeg.write_frames(str(path), (width, height), fps=fps, codec="libx264", pix_fmt_in="rgb24",
+                                         pix_fmt_out="yuv420p", macro_block_size=1, ffmpeg_log_level="error",
+                                         output_params=["-preset", encoder["preset"], "-crf", str(encoder["crf"])])
+    writer.send(None)
+    return writer
+
+
+def _encode_segment(frames, path, width, height, fps, encoder, png=None, tick=None) -> int:
+    """Encode the RGB ``frames`` (an iterator that renders them) into one H.264 mp4; ``tick()`` after each."""
+    writer = _open_writer(path, width, height, fps, encoder)
+    last, n = None, 0
+    try:
+        for frame in frames:
+            writer.send(frame)
+            last, n = frame, n + 1
+            if tick is not None:
+                tick()
+    finally:
+        writer.close()
+    if png is not None and last is not None:
+        from PIL import Image
+
+        Image.fromarray(np.asarray(last)).save(png)
+    return n
+
+
+def _worker_segment(task):
+    """One contiguous block of the video, rendered and encoded by this worker: (index, frames written)."""
+    index, specs, path, width, height, fps, encoder, png = task
+    frames = (_worker_renderer.render(s) for s in specs)
+    return index, _encode_segment(frames, path, width, height, fps, encoder, png, _count_frame)
+
+
+def _count_frame():
+    if _worker_counter is not None:
+        with _worker_counter.get_lock():
+            _worker_counter.value += 1
+
+
+class _FrameSource:
+    """Frames of a plan, drawn in this process or by a pool of spawned workers (in order)."""
+
+    def __init__(self, backend: str, workers: int, renderer_kwargs: dict):
+        self.backend, self.workers, self.kwargs = backend, workers, renderer_kwargs
+        self.pool = None
+        self.local = None
+        here = in_process_backend()
+        self.in_process = workers == 1 and (here is None or here == backend)
+
+    def __enter__(self):
+        if self.in_process:
+            from .replay import FrameRenderer
+
+            self.local = FrameRenderer(**self.kwargs)
+        else:
+            from .gl_backend import backend_environment
+
+            ctx = multiprocessing.get_context("spawn")
+            self.pool = ctx.Pool(self.workers, initializer=_worker_init,
+                                 initargs=(backend_environment(self.backend), self.kwargs))
+        return self
+
+    def frames(self, specs):
+        if self.local is not None:
+            return (self.local.render(s) for s in specs)
+        return self.pool.imap(_worker_render, specs, chunksize=2)
+
+    def __exit__(self, exc_type, exc, tb):
+        if self.local is not None:
+            self.local.close()
+        if self.pool is not None:
+            if exc_type is None:
+                self.pool.close()
+            else:
+                self.pool.terminate()
+            self.pool.join()
+        return False
+
+
+def _check_size(width, height):
+    for name, v in (("width", width), ("height", height)):
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 16 or v > 8192:
+            raise ValueError(f"{name} = {v!r}: the video size must be an integer number of pixels in [16, 8192]")
+        if v % 2:
+            raise ValueError(f"{name} = {v}: H.264 with yuv420p needs an even number of pixels")
+
+
+def _default_workers(n_frames: int) -> int:
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, n_frames))
+
+
+# --- public API ----------------------------------------------------------------------------------
+
+
+def render_frames(record, *, width: int = 320, height: int = 240, camera: str = "top", rows=None,
+                  fps: float = DEFAULT_FPS, speedup: float | None = None, max_frames: int | None = None,
+                  layers=LAYERS, views=None, workers: int = 1, gl: str | None = None, model=None,
+                  shadows: bool = False, samples: int = 0) -> list[np.ndarray]:
+    """Frames of ``record`` as (height, width, 3) uint8 arrays, without writing a video.
+
+    ``rows``: draw exactly these record rows (one frame each) instead of the video's time mapping.
+    ``views``: a :class:`~usv_mj.render.planner.TopView` (or one per frame) to pin the top camera.
+    """
+    _check_size(width, height)
+    plan = _plan(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera, max_frames=max_frames,
+                 rows=rows)
+    specs = plan.frames
+    if views is not None:
+        views = list(views) if isinstance(views, (list, tuple)) else [views] * len(specs)
+        for s, v in zip(specs, views):
+            s.view = v
+    backend = select_backend(gl)
+    kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
+                  shadows=shadows, samples=samples)
+    with _FrameSource(backend, max(1, int(workers)), kwargs) as source:
+        return [np.array(f) for f in source.frames(specs)]
+
+
+def _plan(record, *, fps, speedup, width, height, camera, max_frames=None, rows=None) -> Plan:
+    return plan_frames(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera,
+                       max_frames=max_frames, rows=rows)
+
+
+def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT,
+               fps: float = DEFAULT_FPS, speedup: float | None = None, camera: str = "top",
+               workers: int | None = None, progress: bool = True, gl: str | None = None, model=None,
+               shadows: bool = False, samples: int = 0, layers=LAYERS, crf: int = 23, preset: str = "ultrafast",
+               max_frames: int | None = None, segment_frames: int = 120) -> dict:
+    """Render ``record`` (a finished :class:`~usv_mj.record.RunRecord`) to an mp4 and a PNG of its last frame.
+
+    Parameters
+    ----------
+    out_path: the .mp4 to write, or a directory (then ``<dir>/run.mp4``); the PNG goes beside it
+        with the same stem.
+    width, height: pixels (even). fps: frames per second of the video.
+    speedup: run seconds per video second; default max(1, duration / 30 s) (a 300 s run -> 30 s).
+    camera: "top", "chase" or another camera of the model.
+    workers: rendering processes (default: the usable cores). With more than one, each worker renders
+        and encodes contiguous blocks of ``segment_frames`` frames into its own H.264 segment, and
+        the segments are joined without re-encoding (ffmpeg's concat demuxer): no frame crosses a
+        process boundary.
+    gl: "egl", "osmesa" or None (auto: the MUJOCO_GL variable, else EGL, else OSMesa).
+    model: the scene MJCF (default models/scene.xml). shadows: MuJoCo's shadow pass (slow on Mesa).
+    samples: multisampling. crf, preset: libx264 quality and speed (ultrafast: about 15 ms of CPU a
+        720p frame, veryfast about 35 ms). max_frames: cap (tests).
+
+    Returns a dict: frames, fps (frames rendered and encoded per wall second, planning and start-up
+    included), wall_s, mp4, png, width, height, video_fps, video_s, speedup (as played), camera,
+    workers, gl, gl_renderer, model.
+
+    Raises GLUnavailableError (a RuntimeError) with the install message when no GL backend starts,
+    ValueError for bad options.
+    """
+    wall0 = time.perf_counter()
+    _check_size(width, height)
+    if not (isinstance(crf, int) and 0 <= crf <= 51):
+        raise ValueError(f"crf = {crf!r}: libx264's quality must be an integer in [0, 51]")
+    if preset not in X264_PRESETS:
+        raise ValueError(f"preset = {preset!r}: use one of libx264's presets {', '.join(X264_PRESETS)}")
+    out = Path(out_path)
+    if out.suffix.lower() != ".mp4":
+        out = out / "run.mp4"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    png = out.with_suffix(".png")
+    backend = select_backend(gl)
+    plan = plan_frames(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera,
+                       max_frames=max_frames)
+    n = len(plan.frames)
+    workers = _default_workers(n) if workers is None else max(1, min(int(workers), n))
+    kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
+                  shadows=shadows, samples=samples)
+    encoder = {"preset": preset, "crf": crf}
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n, unit="frame", desc=f"render {out.name}", file=sys.stderr, dynamic_ncols=True)
+    if png.exists():
+        png.unlink()
+    try:
+        if _in_process(backend, workers):
+            from .replay import FrameRenderer
+
+            renderer = FrameRenderer(**kwargs)
+            model_label = renderer.model_label
+            try:
+                count = _encode_segment((renderer.render(s) for s in plan.frames), out, width, height, fps,
+                                        encoder, png, (lambda: bar.update(1)) if bar is not None else None)
+            finally:
+                renderer.close()
+            workers_used = 1
+        else:
+            count = _render_segments(plan, out, png, backend, workers, kwargs, encoder, fps, segment_frames, bar)
+            workers_used = workers
+            model_label = None
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - wall0
+    if model_label is None:
+        from .replay import DEFAULT_SCENE  # noqa: imports mujoco; the backend is already chosen
+
+        model_label = str(model) if model is not None else (str(DEFAULT_SCENE) if DEFAULT_SCENE.is_file()
+                                                            else "built-in stand-in scene")
+    return {
+        "frames": count, "fps": count / wall if wall > 0 else math.inf, "wall_s": wall,
+        "mp4": str(out), "png": str(png) if png.exists() else None,
+        "width": width, "height": height, "video_fps": float(fps), "video_s": count / float(fps),
+        "speedup": plan.played_speedup, "camera": camera, "workers": workers_used,
+        "gl": backend, "gl_renderer": renderer_name(backend), "model": model_label,
+    }
+
+
+X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow")
+
+
+def _render_segments(plan, out, png, backend, workers, kwargs, encoder, fps, segment_frames, bar) -> int:
+    """Workers render-and-encode blocks of frames into segment files; ffmpeg joins them into ``out``."""
+    import tempfile
+
+    from .gl_backend import backend_environment
+
+    n = len(plan.frames)
+    per = max(1, min(int(segment_frames), math.ceil(n / workers)))
+    bounds = list(range(0, n, per)) + [n]
+    ctx = multiprocessing.get_context("spawn")
+    counter = ctx.Value("i", 0)
+    width, height = kwargs["width"], kwargs["height"]
+    with tempfile.TemporaryDirectory(prefix=".render-", dir=out.parent) as tmp:
+        tasks = []
+        for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+            seg = Path(tmp) / f"seg{i:05d}.mp4"
+            tasks.append((i, plan.frames[a:b], str(seg), width, height, fps, encoder,
+                          str(png) if b == n else None))
+        pool = ctx.Pool(workers, initializer=_worker_init,
+                        initargs=(backend_environment(backend), kwargs, counter))
+        try:
+            result = pool.map_async(_worker_segment, tasks, chunksize=1)
+            while not result.ready():
+                result.wait(0.25)
+                if bar is not None:
+                    bar.update(counter.value - bar.n)
+            written = dict(result.get())
+            pool.close()
+        except BaseException:
+            pool.terminate()
+            raise
+        finally:
+            pool.join()
+        if bar is not None:
+            bar.update(counter.value - bar.n)
+        _concat(sorted(Path(tmp).glob("seg*.mp4")), out)
+    return int(sum(written.values()))
+
+
+def _concat(segments, out: Path) -> None:
+    """Join H.264 mp4 segments made with identical settings, without re-encoding."""
+    import subprocess
+
+    import imageio_ffmpeg
+
+    listing = out.parent / (out.name + ".segments.txt")
+    listing.write_text("".join(f"file '{p.resolve()}'\n" for p in segments))
+    try:
+        proc = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error", "-f", "concat",
+                               "-safe", "0", "-i", str(listing), "-c", "copy", "-movflags", "+faststart", str(out)],
+                              capture_output=True, text=True)
+    finally:
+        listing.unlink(missing_ok=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"ffmpeg could not join the video segments into {str(out)!r}: {proc.stderr.strip()}")
+
+
+def _in_process(backend, workers):
+    here = in_process_backend()
+    return workers == 1 and (here is None or here == backend)
+
+
+def check_gl(gl: str | None = None) -> str:
+    """The GL backend rendering will use ("egl" or "osmesa"), or RuntimeError with what to install."""
+    return select_backend(gl)
+
+
+# --- command line --------------------------------------------------------------------------------
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """'1280x720' -> (1280, 720); argparse type."""
+    try:
+        w, h = (int(v) for v in str(text).lower().replace("*", "x").split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 1280x720") from None
+    try:
+        _check_size(w, h)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--size {text!r}: {exc}") from None
+    return w, h
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
+    return v
+
+
+def add_video_arguments(parser: argparse.ArgumentParser) -> None:
+    """The video options shared by ``usv-mj run`` and ``usv-mj render`` (see :func:`video_options`)."""
+    g = parser.add_argument_group("video")
+    g.add_argument("--size", type=parse_size, default=(DEFAULT_WIDTH, DEFAULT_HEIGHT), metavar="WxH",
+                   help="video size in pixels (default 1280x720)")
+    g.add_argument("--fps", type=_positive, default=DEFAULT_FPS, help="video frame rate (default 30)")
+    g.add_argument("--speedup", type=_positive, default=None,
+                   help="run seconds per video second (default: the run's duration / 30 s, at least 1)")
+    g.add_argument("--camera", default="top", help=CAMERAS_HELP + " (default top)")
+    g.add_argument("--workers", type=int, default=None, help="rendering processes (default: all cores)")
+    g.add_argument("--gl", choices=("auto", "egl", "osmesa", "glfw"), default=None,
+                   help="OpenGL backend (default: $MUJOCO_GL, else EGL, else OSMesa)")
+    g.add_argument("--shadows", action="store_true", help="draw shadows (about 2x slower on Mesa)")
+
+
+def video_options(args: argparse.Namespace) -> dict:
+    """Keyword arguments of :func:`render_run` from parsed :func:`add_video_arguments` options."""
+    w, h = args.size
+    return {"width": w, "height": h, "fps": args.fps, "speedup": args.speedup, "camera": args.camera,
+            "workers": args.workers, "gl": args.gl, "shadows": args.shadows}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``usv-mj render RUN``."""
+    parser.add_argument("run", metavar="RUN", help="a run directory (holding run.mcap) or an .mcap file")
+    parser.add_argument("--out", default=None,
+                        help="the .mp4 to write, or a directory (default: beside the run, <stem>.mp4)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_video_arguments(parser)
+
+
+def load_run_record(path: str | os.PathLike):
+    """The RunRecord of a run directory (its run.mcap) or of an .mcap file (via usv_mj.runlog)."""
+    p = Path(path)
+    if p.is_dir():
+        candidates = [p / "run.mcap"] + sorted(p.glob("*.mcap"))
+        mcap = next((c for c in candidates if c.is_file()), None)
+        if mcap is None:
+            raise FileNotFoundError(f"run directory {str(p)!r} holds no run.mcap")
+        p = mcap
+    elif not p.is_file():
+        raise FileNotFoundError(f"run {str(p)!r} does not exist (give a run directory or an .mcap file)")
+    if p.suffix.lower() != ".mcap":
+        raise ValueError(f"run {str(p)!r}: expected an .mcap file or a run directory")
+    try:
+        from usv_mj.runlog import read_run
+    except ImportError as exc:  # pragma: no cover - until the MCAP issue lands
+        raise RuntimeError(f"reading {str(p)!r} needs usv_mj.runlog (the MCAP run log): {exc}") from exc
+    return read_run(p).record, p
+
+
+def default_output(run_path: Path, mcap_path: Path) -> Path:
+    """Beside the run: ``<run dir>/run.mp4`` for a directory, ``<stem>.mp4`` beside an .mcap file."""
+    if Path(run_path).is_dir():
+        return Path(run_path) / "run.mp4"
+    return mcap_path.with_suffix(".mp4")
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """``usv-mj render RUN``: 0 on success, 2 on bad input, 3 when no OpenGL backend starts."""
+    try:
+        record, mcap = load_run_record(args.run)
+    except (FileNotFoundError, ValueError, RuntimeError) as exc:
+        print(f"usv-mj render: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
+    try:
+        result = render_run(record, out, progress=not args.no_progress, **video_options(args))
+    except GLUnavailableError as exc:
+        print(f"usv-mj render: {exc}", file=sys.stderr)
+        return 3
+    except ValueError as exc:
+        print(f"usv-mj render: {exc}", file=sys.stderr)
+        return 2
+    print(f"video {result['mp4']} ({result['frames']} frames, {result['width']}x{result['height']} at "
+          f"{result['video_fps']:g} fps, {result['speedup']:.3g}x) and still {result['png']}")
+    print(f"rendered {result['fps']:.1f} frames/s in {result['wall_s']:.1f} s on {result['workers']} "
+          f"worker(s), GL {result['gl']} ({result['gl_renderer'] or 'unknown renderer'})")
+    return 0
