@@ -2,7 +2,9 @@
 
     python benchmarks/bench_mujoco.py [--duration 30] [--repeat 3]
 
-Prints, in one run, per 1 ms control step (best of ``--repeat`` timings, microseconds):
+Prints, in one run, per 1 ms control step (best of ``--repeat`` timings, microseconds of CPU time
+of this thread, so that the figures mean something on a shared machine; the closed-loop runs are
+reported in CPU time and in wall time, the realtime factor from both):
 
 - the bare ``mujoco.mj_step`` of models/usv.xml with no callback (the yardstick);
 - ``mj_step`` with the native hydrodynamic callback installed (4 callback calls per RK4 step);
@@ -25,13 +27,18 @@ import numpy as np
 
 
 def best_per_call(fn, n: int, repeat: int) -> float:
+    """Best of ``repeat`` timings of ``n`` calls, in CPU seconds of this thread per call.
+
+    CPU time (``time.thread_time``) rather than wall time: on a shared machine the wall clock also
+    counts the time the process waits for a core.
+    """
     fn()
     best = float("inf")
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         for _ in range(n):
             fn()
-        best = min(best, (time.perf_counter() - t0) / n)
+        best = min(best, (time.thread_time() - t0) / n)
     return best
 
 
@@ -102,28 +109,96 @@ def main(argv=None) -> int:
     for kind in ("mujoco", "analytic"):
         best = None
         for _ in range(max(1, rep - 1)):
+            c0 = time.thread_time()
             rec = simulate(short, plant_kind=kind)
-            if best is None or rec.metadata["wall_time_s"] < best.metadata["wall_time_s"]:
-                best = rec
-        steps = best.n_rows - 1
-        loops[kind] = (best.metadata["wall_time_s"], steps)
-        rows.append((f"closed-loop step, simulate(paper), {kind} plant", best.metadata["wall_time_s"] / steps))
+            cpu = time.thread_time() - c0
+            if best is None or cpu < best[0]:
+                best = (cpu, rec.metadata["wall_time_s"], rec.n_rows - 1)
+        loops[f"simulate, {kind} plant"] = best
+        rows.append((f"closed-loop step, simulate(paper), {kind} plant", best[0] / best[2]))
+    fused = fused_paper_loop(short)
+    loops["compiled loop (prototype), mujoco plant"] = fused[:3]
+    rows.append(("closed-loop step, compiled loop (prototype), mujoco", fused[0] / fused[2]))
 
     yard = rows[0][1]
-    print(f"\n{'per 1 ms control step':52s} {'us':>9s} {'x bare':>8s}")
+    print(f"\n{'per 1 ms control step (CPU time)':56s} {'us':>9s} {'x bare':>8s}")
     for name, sec in rows:
-        print(f"{name:52s} {sec * 1e6:9.2f} {sec / yard:8.2f}")
+        print(f"{name:56s} {sec * 1e6:9.2f} {sec / yard:8.2f}")
     ctrl_us = dict(rows)["PPC controller call"]
     loop_us = dict(rows)["closed-loop step, simulate(paper), mujoco plant"]
     plant_us = dict(rows)["MuJoCoPlant.step + .state (native)"]
-    print(f"\nshares of the MuJoCo closed-loop step: plant {plant_us / loop_us:.0%}, controller "
-          f"{ctrl_us / loop_us:.0%}, rest of the loop (reference, quantizer, recording, checks) "
+    print(f"\nshares of the simulate() step on the MuJoCo plant: plant {plant_us / loop_us:.0%}, controller "
+          f"{ctrl_us / loop_us:.0%}, rest of the loop (reference, quantizers, recording, checks) "
           f"{1 - (plant_us + ctrl_us) / loop_us:.0%}")
-    for kind, (wall, steps) in loops.items():
+    print(f"compiled-loop prototype vs simulate on the MuJoCo plant: max |state difference| over the run "
+          f"{fused[3]:.1e} (the same computation)")
+    for label, (cpu, wall, steps) in loops.items():
         sim = steps * scenario.control_period
-        print(f"paper preset, {sim:.0f} s on the {kind} plant: {wall:.2f} s wall, realtime factor {sim / wall:.0f}x; "
-              f"projected 300 s run: {wall * 300.0 / sim:.1f} s wall")
+        print(f"paper preset, {sim:.0f} s, {label}: {cpu:.2f} s CPU ({sim / cpu:.0f}x realtime), "
+              f"{wall:.2f} s wall ({sim / wall:.0f}x); projected 300 s run: {cpu * 300.0 / sim:.1f} s CPU")
     return 0
+
+
+def fused_paper_loop(scenario):
+    """A prototype of the closed loop compiled as one numba function (paper reference, PPC, quantizer,
+    MuJoCo plant through ``native_stepper``), to measure what the Python loop of ``simulate`` costs.
+
+    Records only the state. Returns (CPU time [s], wall time [s], steps, max |state - simulate's state|).
+    """
+    from numba import njit
+
+    from controllers.hysteresis_quantizer import quantize_step
+    from controllers.ppc import ppc_law
+    from usv_mj.plants import mujoco_callback as mcb
+    from usv_mj.plants.mujoco_plant import MuJoCoPlant
+    from usv_mj.simulation import make_controller, make_quantizers, make_reference, simulate
+    from usv_mj.trajectories import _paper_evaluate
+
+    stepper = mcb.native_stepper()
+
+    @njit
+    def loop(n, dt, m_addr, d_addr, x0, rx, ry, rpsi, rgrid, rspeed, rturn, rphase, ramp, rper, rout,
+             p, g, funnel, centres, w, s2, diag, s_buf, z_buf, du, umu, dr, umr, states):
+        x = x0.copy()
+        ku, kr = 0, 0
+        states[0] = x
+        for k in range(n):
+            t = k * dt
+            ref = _paper_evaluate(rx, ry, rpsi, rgrid, rspeed, rturn, rphase, ramp, rper, t, rout)
+            tau_u, tau_r = ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf)
+            qu, ku = quantize_step(du, umu, ku, tau_u)
+            qr, kr = quantize_step(dr, umr, kr, tau_r)
+            x, failed = stepper(m_addr, d_addr, t, qu, qr, 1)
+            if failed:
+                return k
+            states[k + 1] = x
+        return n
+
+    ctrl = make_controller(scenario)
+    ref = make_reference(scenario)
+    qu, qr = make_quantizers(scenario)
+    n = int(round(scenario.duration / scenario.control_period))
+    states = np.empty((n + 1, 6))
+
+    def run():
+        ctrl.reset()
+        with MuJoCoPlant(scenario.ship, scenario.disturbance, scenario.control_period) as plant:
+            plant.reset(scenario.initial.eta, scenario.initial.nu)
+            x0 = plant.state.copy()
+            c0, t0 = time.thread_time(), time.perf_counter()
+            done = loop(n, scenario.control_period, plant.model._address, plant.data._address, x0,
+                        ref._x, ref._y, ref._psi, ref.GRID, ref.speed, ref.t_turn, ref.t_phase, ref.amplitude,
+                        ref.period, ref._out, ctrl._p, ctrl._g, ctrl._funnel, ctrl._centres, ctrl.weights,
+                        ctrl._s2, ctrl._diag, ctrl._s_buf, ctrl._z_buf, qu.params.delta,
+                        qu.params.u_min, qr.params.delta, qr.params.u_min, states)
+            return time.thread_time() - c0, time.perf_counter() - t0, done
+
+    run()  # compile
+    cpu, wall, done = run()
+    rec = simulate(scenario, plant_kind="mujoco")
+    sim_states = np.stack([rec[c] for c in ("x", "y", "psi", "u", "v", "r")], axis=1)
+    m = min(len(sim_states), done + 1)
+    return cpu, wall, done, float(np.max(np.abs(sim_states[:m] - states[:m])))
 
 
 if __name__ == "__main__":

@@ -64,7 +64,8 @@ U_MA = 5            # added mass M_A, 3x3 row-major (9)
 U_P = U_MA + 9      # ShipParams.as_array() (N_SHIP_PARAMS)
 U_DP = U_P + N_SHIP_PARAMS  # PaperDisturbance.as_array() (N_DIST_PARAMS)
 U_CALLS = U_DP + N_DIST_PARAMS  # number of callback evaluations (diagnostic)
-N_USERDATA = U_CALLS + 1
+U_SCRATCH = U_CALLS + 1  # 15 doubles of scratch space (eta, nu, qfrc, mass_add): no allocation per call
+N_USERDATA = U_SCRATCH + 15
 
 STATUS_OK = 0.0
 STATUS_BAD_STATE = 1.0   # non-finite qpos/qvel at the callback
@@ -110,8 +111,8 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
             and math.isfinite(qvel[0]) and math.isfinite(qvel[1]) and math.isfinite(qvel[2])):
         return STATUS_BAD_STATE
     c, s = math.cos(psi), math.sin(psi)
-    eta = np.empty(3)
-    nu = np.empty(3)
+    eta = ud[U_SCRATCH:U_SCRATCH + 3]  # views into d.userdata: no heap allocation per call
+    nu = ud[U_SCRATCH + 3:U_SCRATCH + 6]
     eta[0], eta[1], eta[2] = qpos[0], qpos[1], psi
     u = c * qvel[0] + s * qvel[1]
     v = -s * qvel[0] + c * qvel[1]
@@ -123,42 +124,35 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
     m = ud[U_MASS]
     mxg = m * ud[U_XG]
     # + C_RB nu: MuJoCo's rigid body already produces it, so C_A nu = C nu - C_RB nu
-    f[0] += -m * v * r - mxg * r * r
-    f[1] += m * u * r
-    f[2] += mxg * u * r
+    f0 = f[0] - m * v * r - mxg * r * r
+    f1 = f[1] + m * u * r
+    f2 = f[2] + mxg * u * r
     # + M_A r [-v, u, 0]: the J_dot nu part of -M_A nu_dot
     w0 = -r * v
     w1 = r * u
-    for i in range(3):
-        f[i] += ud[U_MA + 3 * i] * w0 + ud[U_MA + 3 * i + 1] * w1
-    qfrc[0] = c * f[0] - s * f[1]
-    qfrc[1] = s * f[0] + c * f[1]
-    qfrc[2] = f[2]
-    # J M_A J^T, J = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
-    a = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            a[i, j] = ud[U_MA + 3 * i + j]
-    jm = np.empty((3, 3))  # J M_A
-    for j in range(3):
-        jm[0, j] = c * a[0, j] - s * a[1, j]
-        jm[1, j] = s * a[0, j] + c * a[1, j]
-        jm[2, j] = a[2, j]
-    # (J M_A) J^T: column j of J^T is row j of J
-    m00 = jm[0, 0] * c - jm[0, 1] * s
-    m10 = jm[1, 0] * c - jm[1, 1] * s
-    m11 = jm[1, 0] * s + jm[1, 1] * c
-    m20 = jm[2, 0] * c - jm[2, 1] * s
-    m21 = jm[2, 0] * s + jm[2, 1] * c
-    m22 = jm[2, 2]
-    ok = True
-    for val in (qfrc[0], qfrc[1], qfrc[2], m00, m10, m11, m20, m21, m22):
-        if not math.isfinite(val):
-            ok = False
-    if not ok:
-        for i in range(3):
-            qfrc[i] = 0.0
+    a00, a01 = ud[U_MA], ud[U_MA + 1]
+    a10, a11 = ud[U_MA + 3], ud[U_MA + 4]
+    a20, a21, a22 = ud[U_MA + 6], ud[U_MA + 7], ud[U_MA + 8]
+    f0 += a00 * w0 + a01 * w1
+    f1 += a10 * w0 + a11 * w1
+    f2 += a20 * w0 + a21 * w1
+    q0 = c * f0 - s * f1
+    q1 = s * f0 + c * f1
+    q2 = f2
+    # J M_A J^T with J = [[c, -s, 0], [s, c, 0], [0, 0, 1]]: first J M_A (rows), then times J^T
+    jm00, jm01 = c * a00 - s * a10, c * a01 - s * a11
+    jm10, jm11 = s * a00 + c * a10, s * a01 + c * a11
+    m00 = c * jm00 - s * jm01
+    m10 = c * jm10 - s * jm11
+    m11 = s * jm10 + c * jm11
+    m20 = c * a20 - s * a21
+    m21 = s * a20 + c * a21
+    m22 = a22
+    if not (math.isfinite(q0) and math.isfinite(q1) and math.isfinite(q2) and math.isfinite(m00)
+            and math.isfinite(m10) and math.isfinite(m11) and math.isfinite(m20) and math.isfinite(m21)
+            and math.isfinite(m22)):
         return STATUS_BAD_FORCE
+    qfrc[0], qfrc[1], qfrc[2] = q0, q1, q2
     mass_add[0], mass_add[1], mass_add[2] = m00, m10, m11
     mass_add[3], mass_add[4], mass_add[5] = m20, m21, m22
     return STATUS_OK
@@ -318,7 +312,7 @@ def native_callback():
     o_m, o_frc, o_ud = off["M"] // 8, off["qfrc_passive"] // 8, off["userdata"] // 8
     o_nud = off["nuserdata"] // 8
     n_ud, magic = N_USERDATA, MAGIC
-    u_status, u_status_time, u_calls = U_STATUS, U_STATUS_TIME, U_CALLS
+    u_status, u_status_time, u_calls, u_scratch = U_STATUS, U_STATUS_TIME, U_CALLS, U_SCRATCH
 
     @cfunc(types.void(types.int64, types.int64), error_model="numpy")
     def hydrodynamic_passive(m_addr, d_addr):
@@ -335,8 +329,8 @@ def native_callback():
         qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
         frc = carray(_f64_ptr(dw[o_frc]), (3,))
         mm = carray(_f64_ptr(dw[o_m]), (6,))
-        qf = np.empty(3)
-        ma = np.empty(6)
+        qf = ud[u_scratch + 6:u_scratch + 9]
+        ma = ud[u_scratch + 9:u_scratch + 15]
         status = passive_terms(ud, t, qpos, qvel, qf, ma)
         ud[u_calls] += 1.0
         if status != 0.0:
