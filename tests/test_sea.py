@@ -178,6 +178,19 @@ def test_record_hs_and_peak_period_over_ten_seeds():
     assert abs(tp_est / 2.0 - 1) < 0.10
 
 
+def test_start_up_ramp_scales_elevation_first_order_and_drift():
+    settings = SeaSettings(waves=moderate(direction_deg=150.0))
+    ramped, plain = Environment(settings, ramp_time=2.0), Environment(settings, ramp_time=0.0)
+    eta, nu = np.array([0.5, -1.0, 0.3]), np.array([0.2, 0.0, 0.1])
+    for t in [0.1, 1.0, 3.0, 10.0]:
+        s = 1.0 - math.exp(-t / 2.0)
+        a, b = ramped.loads(t, eta, nu), plain.loads(t, eta, nu)
+        assert np.allclose(a.tau_wave1, s * b.tau_wave1, rtol=1e-12, atol=1e-12)
+        assert np.allclose(a.tau_drift, s * s * b.tau_drift, rtol=1e-12, atol=1e-14)
+        assert abs(ramped.elevation(0.5, -1.0, t) - s * plain.elevation(0.5, -1.0, t)) < 1e-14
+    assert np.all(ramped.loads(0.0, eta, nu).tau_wave1 == 0.0) and ramped.elevation(0.0, 0.0, 0.0) == 0.0
+
+
 # --- check 4: determinism -----------------------------------------------------------------------
 
 

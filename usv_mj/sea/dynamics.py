@@ -19,10 +19,11 @@ import numpy as np
 from numba import njit
 
 from usv_mj.ship import (P_M11, P_M22, P_M23, P_M33, coriolis_damping_force, disturbance_force,
-                         kinematics, solve_mass, uncertainty_force)
+                         hydrodynamic_force, kinematics, solve_mass, uncertainty_force)
 
 from .environment import environment_loads
-from .layout import L_DRIFT, L_NU_C, L_NU_C_DOT, L_WAVE1, L_WIND
+from .layout import (E_CURRENT_ON, E_WAVES_ON, E_WIND_ON, L_DRIFT, L_NU_C, L_NU_C_DOT, L_WAVE1,
+                     L_WIND)
 
 
 @njit(cache=True)
@@ -32,7 +33,10 @@ def sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
     f = M nu_c_dot + tau_env + Delta(eta, nu) + d(t) - C(nu_r) nu_r - D(nu_r) nu_r.
 
     For the MuJoCo callback (SEA.md §6): f_callback = -M_A nu_dot + f + C_RB(nu) nu.
+    In a calm environment this is usv_mj.ship.hydrodynamic_force itself.
     """
+    if ep[E_WAVES_ON] == 0.0 and ep[E_CURRENT_ON] == 0.0 and ep[E_WIND_ON] == 0.0:
+        return hydrodynamic_force(p, dp, t, eta, nu)
     env = environment_loads(ep, waves, current_grid, wind_grid, t, eta, nu)
     nu_r = np.empty(3)
     for i in range(3):

@@ -241,6 +241,12 @@ class Environment:
         return jonswap_spectrum(w, ws.hs, ws.tp, ws.gamma)
 
     def _check_time(self, t) -> None:
+        if isinstance(t, (float, int)):
+            if not math.isfinite(t):
+                raise ValueError(f"Environment: time must be finite, got {t!r}")
+            if t > self._horizon:
+                self.ensure_horizon(t + 60.0)
+            return
         t = np.asarray(t, dtype=float)
         if not np.all(np.isfinite(t)):
             raise ValueError(f"Environment: time must be finite, got {t!r}")
@@ -286,14 +292,18 @@ class Environment:
         mats = self._grid_cache.get(key)
         if mats is None:
             kx, ky = c.k * np.cos(c.beta), c.k * np.sin(c.beta)
-            mats = (np.exp(-1j * np.outer(xs, kx)), np.exp(-1j * np.outer(ys, ky)), kx, ky)
+            ex = np.exp(-1j * np.outer(xs, kx))
+            # Re[(E_y c) E_x^T] = [Re(E_y c), -Im(E_y c)] [Re E_x, Im E_x]^T: one real matmul
+            ex_stack = np.ascontiguousarray(np.concatenate([ex.real, ex.imag], axis=1).T)
+            mats = (ex_stack, np.exp(-1j * np.outer(ys, ky)), kx, ky)
             if len(self._grid_cache) > 8:
                 self._grid_cache.clear()
             self._grid_cache[key] = mats
-        ex, ey, kx, ky = mats
+        ex_stack, ey, kx, ky = mats
         phase = c.w * t + c.eps - kx * origin[0] - ky * origin[1]
         coef = c.a * np.exp(1j * phase) * self.ramp(t)
-        return ((ey * coef) @ ex.T).real
+        left = ey * coef
+        return np.concatenate([left.real, -left.imag], axis=1) @ ex_stack
 
     def current(self, t) -> tuple[np.ndarray, np.ndarray]:
         """(v_c, v_c_dot): current [m/s] and its derivative [m/s^2] in the earth frame (x, y)."""

@@ -191,7 +191,7 @@ _PIO2_3 = 2.0222662487959506e-21
 FAST_TRIG_LIMIT = 1.0e6  # rad: fast_sincos within 1e-13 of libm below it
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)  # explicit: numba would otherwise inherit a fastmath caller's flags
 def fast_sincos(x):
     """(sin x, cos x) by Cody-Waite reduction and fdlibm's kernel polynomials, branch-free so that loops
     over components vectorise (|error| < 1e-13 for |x| < FAST_TRIG_LIMIT, about |x| 1e-16 beyond)."""
@@ -246,7 +246,7 @@ def wave_elevation_sum(waves, t, x, y):
     return z
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=False)
 def _sincos_array(x, s_out, c_out):
     """s_out[i], c_out[i] = sin x[i], cos x[i] (a flat loop that LLVM vectorises)."""
     for i in range(x.shape[0]):
