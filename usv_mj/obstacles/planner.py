@@ -106,10 +106,19 @@ class SafetyEnvelope:
 # --- the path: arc-length table from a virtual boat --------------------------------------------
 
 
+def _hermite_weights(w):
+    """Cubic Hermite basis h00, h10, h01, h11 at w in [0, 1]."""
+    w2 = w * w
+    w3 = w2 * w
+    return 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w, -2 * w3 + 3 * w2, w3 - w2
+
+
 @dataclass
 class PathTable:
-    """x(s), y(s), psi(s), kappa(s) on s = 0, ds, 2 ds, ... [m, rad, 1/m]; beyond the end the path
-    goes on straight along psi(end)."""
+    """x(s), y(s), psi(s), kappa(s) on s = 0, ds, 2 ds, ... [m, rad, 1/m]; kappa is linear between
+    the nodes and psi its integral (so r_d = kappa u is continuous and psi_d_dot = r_d exactly);
+    x, y are cubic Hermite interpolants with the unit tangents (cos psi, sin psi) at the nodes. Beyond the end the path goes
+    on straight along psi(end) (the table ends on a straight: kappa(end) is ~0)."""
 
     x: np.ndarray
     y: np.ndarray
@@ -133,17 +142,25 @@ class PathTable:
             p = self.psi[n]
             return self.x[n] + extra * math.cos(p), self.y[n] + extra * math.sin(p), p, 0.0
         w = f - i
-        return ((1 - w) * self.x[i] + w * self.x[i + 1], (1 - w) * self.y[i] + w * self.y[i + 1],
-                (1 - w) * self.psi[i] + w * self.psi[i + 1], (1 - w) * self.kappa[i] + w * self.kappa[i + 1])
+        k0, k1 = self.kappa[i], self.kappa[i + 1]
+        # kappa is linear in s over a cell and psi its integral, so d psi/ds = kappa exactly;
+        # x, y: cubic Hermite with the unit tangents at the nodes
+        h00, h10, h01, h11 = _hermite_weights(w)
+        p0, p1, ds = self.psi[i], self.psi[i + 1], self.ds
+        x = h00 * self.x[i] + h10 * ds * math.cos(p0) + h01 * self.x[i + 1] + h11 * ds * math.cos(p1)
+        y = h00 * self.y[i] + h10 * ds * math.sin(p0) + h01 * self.y[i + 1] + h11 * ds * math.sin(p1)
+        return x, y, p0 + ds * w * (k0 + 0.5 * (k1 - k0) * w), k0 + (k1 - k0) * w
 
     def points(self, s: np.ndarray) -> np.ndarray:
         """Positions at many arc lengths, shape (len(s), 2)."""
         s = np.asarray(s, dtype=float)
         n = len(self.x) - 1
-        grid = np.arange(n + 1) * self.ds
         inside = np.clip(s, 0.0, n * self.ds)
-        x = np.interp(inside, grid, self.x)
-        y = np.interp(inside, grid, self.y)
+        i = np.minimum((inside / self.ds).astype(np.int64), n - 1)
+        h00, h10, h01, h11 = _hermite_weights(inside / self.ds - i)
+        ds = self.ds
+        x = h00 * self.x[i] + h10 * ds * np.cos(self.psi[i]) + h01 * self.x[i + 1] + h11 * ds * np.cos(self.psi[i + 1])
+        y = h00 * self.y[i] + h10 * ds * np.sin(self.psi[i]) + h01 * self.y[i + 1] + h11 * ds * np.sin(self.psi[i + 1])
         extra = np.maximum(s - n * self.ds, 0.0)
         return np.c_[x + extra * math.cos(self.psi[n]), y + extra * math.sin(self.psi[n])]
 
@@ -198,15 +215,13 @@ def smooth_polyline(points, psi0: float, kappa_max: float, dkappa_max: float, lo
         dist_t = math.hypot(target[0] - x, target[1] - y)
         k_cmd = 2.0 * math.sin(alpha) / max(dist_t, 1e-6)
         k_cmd = min(max(k_cmd, -kappa_max), kappa_max)
-        kappa += min(max(k_cmd - kappa, -dk), dk)
-        # exact arc step
-        if abs(kappa) < 1e-12:
-            x += ds * math.cos(psi)
-            y += ds * math.sin(psi)
-        else:
-            x += (math.sin(psi + kappa * ds) - math.sin(psi)) / kappa
-            y += (math.cos(psi) - math.cos(psi + kappa * ds)) / kappa
-        psi += kappa * ds
+        k_new = kappa + min(max(k_cmd - kappa, -dk), dk)
+        # kappa linear over the step, psi its exact integral, x and y by Simpson's rule
+        psi_mid = psi + 0.5 * ds * kappa + 0.125 * ds * (k_new - kappa)
+        psi_new = psi + 0.5 * ds * (kappa + k_new)
+        x += ds / 6.0 * (math.cos(psi) + 4.0 * math.cos(psi_mid) + math.cos(psi_new))
+        y += ds / 6.0 * (math.sin(psi) + 4.0 * math.sin(psi_mid) + math.sin(psi_new))
+        psi, kappa = psi_new, k_new
         k += 1
     return PathTable(xs[:k].copy(), ys[:k].copy(), ps[:k].copy(), ks[:k].copy(), ds)
 

@@ -1,0 +1,111 @@
+"""Benchmark: the cost of obstacles per control step against the open-water step (issue 8).
+
+    python benchmarks/bench_obstacles.py [--counts 1 10 50] [--steps 5000]
+
+For 1, 10 and 50 obstacles (a random field of buoys and boxes, none touching the hull at the
+origin, plus one run with the hull pressed against a pier so that the contact solver works), it
+prints microseconds per control step of
+
+- the bare ``mujoco.mj_step`` of the open-water model ``models/usv.xml`` (the yardstick, with the
+  hydrodynamic callback) and ``MuJoCoPlant.step`` on it;
+- ``HarbourPlant.step``: the same on the composed model (collision detection on, obstacles present);
+- ``MuJoCoClearance.update``: mj_kinematics + mj_geomDistance per hull geom and obstacle + contacts;
+- ``GeometricClearance.update``: the analytic plant's numba clearance (and the shapely reference);
+- the analytic plant's step, for scale.
+
+The machine is shared: run it twice and take the lower figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import mujoco
+import numpy as np
+
+
+def per_call(fn, n):
+    fn()
+    t0 = time.perf_counter()
+    for _ in range(n):
+        fn()
+    return (time.perf_counter() - t0) / n * 1e6
+
+
+def obstacle_field(count, seed=0):
+    from usv_mj.obstacles import from_tables
+
+    rng = np.random.default_rng(seed)
+    tables = []
+    while len(tables) < count:
+        x, y = rng.uniform(-60, 60, 2)
+        if np.hypot(x, y) < 8.0:
+            continue
+        if rng.random() < 0.6:
+            tables.append({"center": [float(x), float(y)], "radius": float(rng.uniform(0.3, 1.5))})
+        else:
+            tables.append({"kind": "box", "center": [float(x), float(y)], "size": [float(rng.uniform(2, 10)),
+                           float(rng.uniform(1, 4))], "yaw": float(rng.uniform(-3, 3))})
+    return from_tables(tables)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--counts", type=int, nargs="*", default=[1, 10, 50])
+    ap.add_argument("--steps", type=int, default=5000)
+    args = ap.parse_args()
+    n = args.steps
+
+    from usv_mj.obstacles import GeometricClearance, HarbourPlant, MuJoCoClearance, from_tables
+    from usv_mj.plants.analytic import AnalyticPlant
+    from usv_mj.plants.mujoco_plant import MuJoCoPlant
+    from usv_mj.scenario import load_scenario
+
+    sc = load_scenario(preset="paper")
+    ship, dist = sc.ship, sc.disturbance
+
+    open_water = MuJoCoPlant(ship, dist, 1e-3, 1)
+    open_water.reset((0, 0, 0), (0.5, 0, 0))
+    bare = per_call(lambda: mujoco.mj_step(open_water.model, open_water.data), n)
+    open_water.reset((0, 0, 0), (0.5, 0, 0))
+    plant_step = per_call(lambda: open_water.step(10.0, 0.0), n)
+    open_water.close()
+    analytic = AnalyticPlant(ship, dist, 1e-3, 1)
+    analytic.reset((0, 0, 0), (0.5, 0, 0))
+    analytic_step = per_call(lambda: analytic.step(10.0, 0.0), n)
+    print("microseconds per control step (1 ms, 1 substep); machine shared with other jobs")
+    print(f"  open water: bare mj_step {bare:8.1f}   MuJoCoPlant.step {plant_step:8.1f}   "
+          f"AnalyticPlant.step {analytic_step:8.1f}")
+    print(f"{'obstacles':>10} {'Harbour step':>13} {'x open':>7} {'MuJoCo clearance':>17} {'x bare':>7} "
+          f"{'geometric (numba)':>18} {'geometric (shapely)':>20}")
+    state = np.array([0.0, 0.0, 0.2, 0.5, 0.0, 0.0])
+    for count in args.counts:
+        obstacles = obstacle_field(count)
+        with HarbourPlant(ship, dist, obstacles) as plant:
+            plant.reset((0, 0, 0), (0.5, 0, 0))
+            step = per_call(lambda: plant.step(10.0, 0.0), n)
+            monitor = MuJoCoClearance(plant)
+            clear = per_call(lambda: monitor.update(0.0), n)
+        geo = GeometricClearance(obstacles)
+        geo_t = per_call(lambda: geo.update(1.0, state), n)
+        shp = GeometricClearance(obstacles, method="shapely")
+        shp_t = per_call(lambda: shp.update(1.0, state), max(n // 20, 50))
+        print(f"{count:>10d} {step:13.1f} {step / plant_step:7.2f} {clear:17.1f} {clear / bare:7.2f} "
+              f"{geo_t:18.1f} {shp_t:20.1f}")
+    # in contact: the hull pushed against a pier (the constraint solver runs every step)
+    pier = from_tables([{"kind": "box", "center": [8, 0], "size": [2, 6]}])
+    with HarbourPlant(ship, dist, pier) as plant:
+        plant.reset((5.9, 0, 0), (0, 0, 0))
+        for _ in range(500):
+            plant.step(200.0, 0.0)
+        ncon = plant.data.ncon
+        step = per_call(lambda: plant.step(200.0, 0.0), n)
+        monitor = MuJoCoClearance(plant)
+        clear = per_call(lambda: monitor.update(0.0), n)
+        print(f"{'1, contact':>10} {step:13.1f} {step / plant_step:7.2f} {clear:17.1f} {clear / bare:7.2f} "
+              f"  ({plant.data.ncon} contact(s) active, {ncon} at the start)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,294 @@
+"""Obstacles, contacts, clearance and guidance (issue 8).
+
+References: closed-form distances between the hull's collision shapes and circles/boxes; shapely's
+polygon distances (an independent geometry library) for the numba kernels and the planner;
+MuJoCo's own mj_geomDistance against the geometric kernels; static equilibrium (contact normal
+force = thrust + the hull's hydrodynamic force at rest from usv_mj.ship); the safety bound
+clearance >= dist(p_d, O) - G(t) of usv_mj.obstacles.planner checked row by row with MuJoCo's
+distances in closed loop.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import shapely
+
+from usv_mj.obstacles import (HULL_RADIUS, ContactParams, GeometricClearance, GuidanceSpec, HarbourPlant,
+                              MuJoCoClearance, PlanningError, SafetyEnvelope, compose_scene, from_tables,
+                              load_obstacle_scenario, make_plan, run_obstacle_scenario)
+from usv_mj.obstacles.planner import obstacle_distances
+from usv_mj.scenario import ScenarioError
+from usv_mj.ship import PaperDisturbance, ShipParams, hydrodynamic_force
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "examples" / "scenarios"
+SHIP = ShipParams()
+CALM = PaperDisturbance(scale=0.0)
+
+
+# --- specs --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("tables, key", [
+    ([{"center": [0, 0], "radius": 1}, {"center": [3, 0], "radius": 1}, {"center": [0, 5], "radius": -0.5}],
+     "obstacles[2].radius"),
+    ([{"kind": "box", "center": [0, 0]}], "obstacles[0].size"),
+    ([{"kind": "box", "center": [0, 0], "size": [1, 0]}], "obstacles[0].size[1]"),
+    ([{"kind": "boat", "center": [0, 0]}], "obstacles[0].kind"),
+    ([{"center": [0, "a"], "radius": 1}], "obstacles[0].center[1]"),
+    ([{"center": [0, 0], "radius": 1, "velocity": [1.0]}], "obstacles[0].velocity"),
+    ([{"center": [0, 0], "radius": 1, "colour": "red"}], "obstacles[0].colour"),
+    ([{"center": [0, 0], "radius": 1, "yaw": 0.3}], "obstacles[0].yaw"),
+    ([{"center": [0, 0], "radius": float("nan")}], "obstacles[0].radius"),
+])
+def test_bad_obstacle_names_its_key(tables, key):
+    with pytest.raises(ScenarioError, match=key.replace("[", r"\[").replace("]", r"\]")):
+        from_tables(tables, "test.toml")
+
+
+def test_bad_guidance_names_its_key(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text('preset = "paper"\n[guidance]\nmargin_m = -1.0\n')
+    with pytest.raises(ScenarioError, match=r"guidance\.margin_m"):
+        load_obstacle_scenario(path)
+    path.write_text('preset = "paper"\n[guidance]\navoid = 1\n')
+    with pytest.raises(ScenarioError, match=r"guidance\.avoid"):
+        load_obstacle_scenario(path)
+
+
+def test_example_scenarios_load():
+    for name in ("harbour_gap", "ramming_pier", "crossing_boat"):
+        osc = load_obstacle_scenario(SCENARIOS / f"{name}.toml")
+        assert osc.obstacles and osc.scenario.plant.kind == "mujoco"
+    crossing = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml")
+    assert crossing.obstacles[0].moving and crossing.obstacles[0].center_at(10.0) == (20.0, -11.5)
+
+
+# --- composition and contact physics ------------------------------------------------------------
+
+
+def test_composed_model_has_contacts_and_hull_collision_geoms_following_the_visual_hull():
+    obstacles = from_tables([{"kind": "box", "center": [8, 0], "size": [2, 6]},
+                             {"center": [0, 10], "radius": 1.0, "velocity": [0.5, 0.0]}])
+    from dm_control import mjcf
+
+    physics = mjcf.Physics.from_mjcf_model(compose_scene(obstacles))
+    m = physics.model.ptr
+    assert not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+    assert not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    gid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)  # noqa: E731
+    for visual, collision in (("hull_mid", "hull_collision_mid"), ("hull_bow", "hull_collision_bow")):
+        v, c = gid(visual), gid(collision)
+        assert m.geom_type[v] == m.geom_type[c]
+        np.testing.assert_allclose(m.geom_size[c][:2], m.geom_size[v][:2])
+        np.testing.assert_allclose(m.geom_pos[c][:2], m.geom_pos[v][:2])
+        assert m.geom_contype[c] & m.geom_conaffinity[gid("obstacle_obstacle_0")]
+        assert m.geom_contype[v] == 0 and m.geom_conaffinity[v] == 0
+    assert m.nmocap == 1
+    # the hull radius is the farthest collision-geom point in the water plane: box corner (-0.98, 0.38)
+    assert HULL_RADIUS == pytest.approx(math.hypot(0.98, 0.38), abs=1e-9)
+
+
+def test_contact_holds_the_hull_against_a_pier_in_static_equilibrium():
+    """Constant thrust F into a pier: the hull stops at the face and the contact normal force equals
+    F plus the hull's hydrodynamic surge force at rest (usv_mj.ship), i.e. Newton at rest."""
+    pier = from_tables([{"kind": "box", "center": [8, 0], "size": [2, 6]}])
+    force = 100.0
+    with HarbourPlant(SHIP, CALM, pier) as plant:
+        plant.reset((5.5, 0.0, 0.0), (0.0, 0.0, 0.0))
+        monitor = MuJoCoClearance(plant)
+        for _ in range(6000):
+            plant.step(force, 0.0)
+        clearance = monitor.update(0.0)
+        state = plant.state
+        f_h = hydrodynamic_force(SHIP.as_array(), CALM.as_array(), plant.time, state[:3], np.zeros(3))
+        assert monitor.in_contact[0]
+        assert abs(state[3]) < 1e-4 and abs(state[5]) < 1e-3
+        assert monitor.normal_force[0] == pytest.approx(force + f_h[0], rel=2e-3)
+        # the bow (x = +1.0 m in the body frame) is at the pier face x = 7 m, within a millimetre
+        assert state[0] + 1.0 == pytest.approx(7.0, abs=1e-3)
+        assert -1e-3 < clearance[0] <= 1e-6
+
+
+# --- clearance ----------------------------------------------------------------------------------
+
+
+def test_clearance_closed_forms_mujoco_and_geometry():
+    """Hull at the origin heading +x: bow tip at x = 1.0, sides at y = +-0.38, stern at x = -0.98."""
+    obstacles = from_tables([
+        {"center": [5.0, 0.0], "radius": 1.0},                        # 5 - 1 - 1.0 = 3.0
+        {"kind": "box", "center": [0.0, 5.0], "size": [2.0, 2.0]},    # 4 - 0.38 = 3.62
+        {"kind": "box", "center": [-4.0, -0.2], "size": [2.0, 8.0]},  # -0.98 - (-3) = 2.02
+    ])
+    expected = [3.0, 3.62, 2.02]
+    geometric = GeometricClearance(obstacles)
+    np.testing.assert_allclose(geometric.update(0.0, np.zeros(6)), expected, atol=1e-9)
+    with HarbourPlant(SHIP, CALM, obstacles) as plant:
+        plant.reset((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+        np.testing.assert_allclose(MuJoCoClearance(plant).update(0.0), expected, atol=1e-5)
+
+
+def test_geometric_kernels_match_shapely_and_mujoco_at_random_poses():
+    obstacles = from_tables([{"kind": "box", "center": [6, 1], "size": [3, 5], "yaw": 0.4},
+                             {"center": [-3, 3], "radius": 0.7},
+                             {"kind": "box", "center": [0, -6], "size": [4, 1.6], "velocity": [0.2, 0.1]}])
+    numba_kernels = GeometricClearance(obstacles)
+    reference = GeometricClearance(obstacles, method="shapely")
+    rng = np.random.default_rng(3)
+    with HarbourPlant(SHIP, CALM, obstacles) as plant:
+        mj = MuJoCoClearance(plant)
+        for _ in range(150):
+            x = np.r_[rng.uniform(-5, 9), rng.uniform(-8, 6), rng.uniform(-4, 4), 0, 0, 0]
+            t = rng.uniform(0, 10)
+            a = numba_kernels.update(t, x).copy()
+            b = reference.update(t, x).copy()
+            sep = b > 1e-9
+            np.testing.assert_allclose(a[sep], b[sep], atol=1e-9)
+            assert np.all((a <= 1e-9) == (b <= 1e-9))
+            plant.reset(x[:3], (0, 0, 0))
+            plant.move_obstacles(t)
+            c = mj.update(t)
+            # polygonal ellipse (0.7 mm at most) and MuJoCo's convex solver tolerance
+            sep = c > 0.01
+            np.testing.assert_allclose(a[sep], c[sep], atol=2e-3)
+
+
+# --- planner ------------------------------------------------------------------------------------
+
+
+def _exact_distances(obstacles, positions):
+    """Shapely distances, circles exactly: |p - c| - r via the distance to the centre point."""
+    pts = shapely.points(positions)
+    out = []
+    for o in obstacles:
+        if o.kind == "circle":
+            out.append(shapely.distance(shapely.Point(*o.center), pts) - o.radius)
+        else:
+            out.append(shapely.distance(o.shape(0.0), pts))
+    return np.stack(out, axis=1)
+
+
+def test_harbour_plan_keeps_clear_and_is_a_smooth_unicycle_reference():
+    osc = load_obstacle_scenario(SCENARIOS / "harbour_gap.toml")
+    plan = make_plan(osc)
+    sc = osc.scenario
+    t = np.arange(0.0, sc.duration, 0.05)
+    ref = plan.reference.sample(t)
+    dist = _exact_distances(osc.obstacles, ref[:, :2])
+    rho_inf = sc.funnel.rho_xy[1]
+    assert dist.min() >= HULL_RADIUS + rho_inf                      # the issue's requirement
+    envelope = SafetyEnvelope.from_scenario(sc, osc.guidance.margin_m)
+    assert np.all(dist >= envelope.required(t)[:, None] - 1e-9)     # the full property G(t) + margin
+    # the path goes through the gap between the piers (x = 10..18, |y| < 4), not around them
+    in_gap = (ref[:, 0] > 10.0) & (ref[:, 0] < 18.0)
+    assert in_gap.any() and np.all(np.abs(ref[in_gap, 1]) < 4.0)
+    # ... and around the buoy that sits on the straight line
+    assert plan.polyline.shape[0] > 2
+    # unicycle consistency: x_d_dot = u cos psi_d is the derivative of x_d; r_d of psi_d. Trapezoid
+    # rule on a 0.01 s grid: its error is at most dt * (jump of the slope) / 8, the slope of r_d
+    # jumping by at most 2 max_yaw_accel, of x_d_dot by at most 2 u |r_d|max
+    g = osc.guidance
+    dt = 0.01
+    ref = plan.reference.sample(np.arange(0.0, sc.duration, dt))
+    u = sc.trajectory.speed
+    tol_xy = dt * 2 * u * g.max_yaw_rate / 8 + 1e-6
+    np.testing.assert_allclose(np.diff(ref[:, 0]) / dt, 0.5 * (ref[1:, 3] + ref[:-1, 3]), atol=tol_xy)
+    np.testing.assert_allclose(np.diff(ref[:, 1]) / dt, 0.5 * (ref[1:, 4] + ref[:-1, 4]), atol=tol_xy)
+    np.testing.assert_allclose(np.diff(ref[:, 2]) / dt, 0.5 * (ref[1:, 5] + ref[:-1, 5]),
+                               atol=dt * 2 * g.max_yaw_accel / 8 + 1e-9)
+    # bounded r_d and r_d_dot
+    assert np.max(np.abs(ref[:, 5])) <= g.max_yaw_rate + 1e-9
+    assert np.max(np.abs(np.diff(ref[:, 5]) / dt)) <= g.max_yaw_accel * 1.01
+    assert ref[0, 0] == 0.0 and ref[0, 1] == 0.0
+
+
+def test_paper_funnel_closes_the_harbour():
+    """rho_0 = 18 m: G(0) = 26.6 m, so the start itself lies inside the inflated piers."""
+    osc = load_obstacle_scenario(SCENARIOS / "harbour_gap.toml", overrides={"funnel": {"rho_xy": [18.0, 2.0],
+                                                                                          "rate": 0.05}})
+    with pytest.raises(PlanningError, match="inside an inflated obstacle"):
+        make_plan(osc)
+
+
+# --- closed loops on the MuJoCo plant -----------------------------------------------------------
+
+
+def _reference_distance_slack(run, osc):
+    r = run.record
+    t = r["t"]
+    pos = np.c_[r["x_d"], r["y_d"]]
+    dist = obstacle_distances(osc.obstacles, pos, t)
+    envelope = SafetyEnvelope.from_scenario(osc.scenario, osc.guidance.margin_m)
+    return dist, envelope
+
+
+def test_harbour_closed_loop_keeps_clear_on_mujoco():
+    osc = load_obstacle_scenario(SCENARIOS / "harbour_gap.toml")
+    run = run_obstacle_scenario(osc)
+    r = run.record
+    summary = run.log.summary()
+    assert r.status == "completed"
+    assert summary["contacts"] == 0 and summary["min_clearance_m"] > 0
+    z = np.stack([r["z1"], r["z2"]])
+    inside = np.all(np.abs(z) < 1.0, axis=0)
+    assert inside.all()
+    # the safety bound row by row, with MuJoCo's distances: clearance > dist(p_d, O) - G(t)
+    dist, envelope = _reference_distance_slack(run, osc)
+    bound = dist - envelope.guaranteed_radius(r["t"])[:, None]
+    clearance = run.log.clearance[: r.n_rows]
+    assert np.all(clearance[inside] >= bound[inside] - 1e-6)
+    assert summary["min_clearance_m"] >= osc.guidance.margin_m
+    assert r.metadata["obstacles"]["min_clearance_m"] == summary["min_clearance_m"]
+
+
+def test_ramming_a_pier_is_stopped_by_contact_and_stays_finite():
+    osc = load_obstacle_scenario(SCENARIOS / "ramming_pier.toml")
+    run = run_obstacle_scenario(osc)
+    r = run.record
+    assert r.status in ("completed", "diverged")        # a recorded stop at worst, never an exception
+    contacts = [e for e in r.events if e.kind == "contact"]
+    assert contacts and contacts[0].values["obstacle"] == "pier" and contacts[0].values["normal_force_N"] > 0
+    assert run.log.summary()["contacts"] >= 1
+    state = np.c_[r["x"], r["y"], r["psi"], r["u"], r["v"], r["r"]]
+    assert np.all(np.isfinite(state))
+    # the pier face is x = 18 m; the hull's farthest point ahead of its origin is 1.0 m (the bow),
+    # so the origin never gets past 17 m by more than the contact's softness
+    assert np.max(r["x"]) < 17.0 + 0.02
+    assert run.log.clearance[: r.n_rows].min() > -0.02
+    assert np.max(run.log.normal_force) > 1000.0          # the PPC law pushes hard
+
+
+def test_ramming_on_the_analytic_plant_records_a_collision_and_says_so():
+    osc = load_obstacle_scenario(SCENARIOS / "ramming_pier.toml", overrides={"duration": 32.0})
+    run = run_obstacle_scenario(osc, plant_kind="analytic")
+    kinds = [e.kind for e in run.record.events]
+    assert "collision" in kinds and kinds.count("note") == 1
+    assert run.log.summary()["contact_physics"] is False
+    assert run.log.summary()["min_clearance_m"] < 0                # passes through: no contact physics
+
+
+def test_crossing_boat_is_avoided_by_retiming_with_replan_events():
+    osc = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml")
+    # without re-timing the straight reference would come within less than the required distance
+    plan = make_plan(osc)
+    t = np.arange(0.0, osc.scenario.duration, 0.1)
+    nominal = plan.reference.positions(t)
+    envelope = SafetyEnvelope.from_scenario(osc.scenario, osc.guidance.margin_m)
+    nominal_dist = obstacle_distances(osc.obstacles, nominal, t)[:, 0]
+    assert np.min(nominal_dist - envelope.required(t)) < -1.0
+    run = run_obstacle_scenario(osc)
+    r = run.record
+    replans = [e for e in r.events if e.kind == "replan"]
+    assert replans and replans[0].values["obstacle"] == "crossing_boat"
+    assert r.status == "completed"
+    dist, envelope = _reference_distance_slack(run, osc)
+    assert np.all(dist[:, 0] >= envelope.required(r["t"]) - 1e-6)    # the re-timed reference keeps clear
+    summary = run.log.summary()
+    assert summary["contacts"] == 0 and summary["min_clearance_m"] >= osc.guidance.margin_m
+    # smooth re-timing: u_d continuous with |u_d_dot| <= max_accel
+    du = np.diff(r["u_d"]) / osc.scenario.control_period
+    assert np.max(np.abs(du)) <= osc.guidance.max_accel + 1e-9
