@@ -297,7 +297,7 @@ def _plot_pair(path: str, title: str, hist: dict, reference=None) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.legend()
+    ax.legend(loc="upper left")
     ax.set_title("path (overlaid)")
     tiny = 1e-18
     ax = axes[1]
@@ -305,14 +305,14 @@ def _plot_pair(path: str, title: str, hist: dict, reference=None) -> None:
     ax.semilogy(t, np.abs(m[:, 2] - a[:, 2]) + tiny, label="|heading| [rad]")
     ax.set_xlabel("t [s]")
     ax.set_title("MuJoCo - analytic")
-    ax.legend()
+    ax.legend(loc="lower right")
     ax = axes[2]
     for i, (name, unit) in enumerate((("u", "m/s"), ("v", "m/s"), ("r", "rad/s"))):
         ax.plot(t, a[:, 3 + i], lw=2.2, label=f"{name} analytic [{unit}]")
         ax.plot(t, m[:, 3 + i], lw=1.0, ls="--", color="k")
     ax.set_xlabel("t [s]")
     ax.set_title("body velocities (dashed: MuJoCo)")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper right")
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -347,7 +347,7 @@ def _plot_convergence(path: str, open_loop: dict, closed_loop: dict) -> None:
                      else f"{title}: max position difference vs dt")
         ax.set_xlabel("dt [s]")
         ax.set_ylabel("max position difference [m]")
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="lower right")
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
