@@ -184,17 +184,17 @@ def ramp_factor(ramp_time, t):
 # fast-math flags that keep NaN/inf semantics: reassociation lets the sums vectorise. Not on
 # fast_sincos: reassociating its Cody-Waite reduction would lose the exact x - q pi/2.
 _FAST = {"reassoc", "contract", "nsz", "arcp"}
-# Cody-Waite split of pi/2 (fdlibm pio2_1, pio2_1t, pio2_2t-ish): x - q pi/2 exact for |q| < 2^20
+# Cody-Waite split of pi/2 in three parts (fdlibm pio2_1, pio2_2, pio2_2t; 33 + 33 + 53 bits)
 _PIO2_1 = 1.5707963267341256
-_PIO2_2 = 6.077100506506192e-11
+_PIO2_2 = 6.077100506303966e-11
 _PIO2_3 = 2.0222662487959506e-21
-FAST_TRIG_LIMIT = 1.0e6  # rad: fast_sincos within 1e-13 of libm below it
+FAST_TRIG_LIMIT = 1.0e6  # rad: fast_sincos within 1e-15 of libm below it
 
 
 @njit(cache=True, fastmath=False)  # explicit: numba would otherwise inherit a fastmath caller's flags
 def fast_sincos(x):
     """(sin x, cos x) by Cody-Waite reduction and fdlibm's kernel polynomials, branch-free so that loops
-    over components vectorise (|error| < 1e-13 for |x| < FAST_TRIG_LIMIT, about |x| 1e-16 beyond)."""
+    over components vectorise (|error| < 1e-15 for |x| < FAST_TRIG_LIMIT, about |x| 1e-16 beyond)."""
     q = math.floor(x * 0.6366197723675814 + 0.5)
     y = x - q * _PIO2_1
     y = y - q * _PIO2_2
@@ -338,7 +338,7 @@ def wave_loads(ep, waves, t, x, y, psi):
     Drift: Q_j = q_j [B cos b |cos b|, L sin b |sin b|, x_b L sin b |sin b|], b = beta_r;
     "newman": Re[A_Q conj(A)], A = sum a_j e^{i theta_j}, A_Q = sum a_j Q_j e^{i theta_j};
     "mean": sum a_j^2 Q_j; "off": 0.
-    The sines and cosines use :func:`fast_sincos` (vectorised over components; its error, < 1e-13 for
+    The sines and cosines use :func:`fast_sincos` (vectorised over components; its error, < 1e-15 for
     phases below 1e6 rad, grows like |theta| 1e-16 beyond, as the rounding of theta itself does).
     """
     if waves.shape[1] == 0:
