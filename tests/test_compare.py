@@ -97,3 +97,5 @@ def test_run_command_writes_and_rejects_bad_input(tmp_path, capsys):
         compare.run_command(parser.parse_args(["--duration", "-1"]))
     with pytest.raises(ScenarioError):
         compare.run_command(parser.parse_args(["--preset", "no-such-preset"]))
+    with pytest.raises(ScenarioError, match="disturbance"):
+        compare.run_command(parser.parse_args(["--set", "disturbance.scale=-1"]))
