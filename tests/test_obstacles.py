@@ -136,11 +136,13 @@ def test_geometric_kernels_match_shapely_and_mujoco_at_random_poses():
     obstacles = from_tables([{"kind": "box", "center": [6, 1], "size": [3, 5], "yaw": 0.4},
                              {"center": [-3, 3], "radius": 0.7},
                              {"kind": "box", "center": [0, -6], "size": [4, 1.6], "velocity": [0.2, 0.1]}])
-    numba_kernels = GeometricClearance(obstacles)
+    numba_kernels = GeometricClearance(obstacles, exact_within=math.inf)
+    bounded = GeometricClearance(obstacles, exact_within=3.0)
     reference = GeometricClearance(obstacles, method="shapely")
     rng = np.random.default_rng(3)
     with HarbourPlant(SHIP, CALM, obstacles) as plant:
-        mj = MuJoCoClearance(plant)
+        mj = MuJoCoClearance(plant, exact_within=math.inf)
+        mj_bounded = MuJoCoClearance(plant, exact_within=3.0)
         for _ in range(150):
             x = np.r_[rng.uniform(-5, 9), rng.uniform(-8, 6), rng.uniform(-4, 4), 0, 0, 0]
             t = rng.uniform(0, 10)
@@ -151,7 +153,12 @@ def test_geometric_kernels_match_shapely_and_mujoco_at_random_poses():
             assert np.all((a <= 1e-9) == (b <= 1e-9))
             plant.reset(x[:3], (0, 0, 0))
             plant.move_obstacles(t)
-            c = mj.update(t)
+            c = mj.update(t).copy()
+            # far obstacles: a true lower bound, exact where the bound is under exact_within
+            for approx, exact in ((bounded.update(t, x), a), (mj_bounded.update(t), c)):
+                assert np.all(approx <= exact + 1e-9)
+                near = approx <= 3.0
+                np.testing.assert_allclose(approx[near], exact[near], atol=1e-9)
             # polygonal ellipse (0.7 mm at most) and MuJoCo's convex solver tolerance
             sep = c > 0.01
             np.testing.assert_allclose(a[sep], c[sep], atol=2e-3)

@@ -325,6 +325,8 @@ class Plan:
     slack_time: the time [s] of that minimum.
     iterations: number of plan/verify rounds.
     envelope: the :class:`SafetyEnvelope`.
+    safety_radius: per obstacle [m], G + margin at the time the reference passes closest (the
+        "inflated safety boundary" to draw; NaN for moving obstacles).
     """
 
     reference: GuidedReference
@@ -336,6 +338,7 @@ class Plan:
     envelope: SafetyEnvelope
     obstacles: tuple = ()
     events: list = field(default_factory=list)
+    safety_radius: np.ndarray | None = None
 
     @property
     def verified(self) -> bool:
@@ -459,8 +462,11 @@ def plan_reference(start, goal, obstacles, envelope: SafetyEnvelope, guidance: G
     full_slack[static] = slack
     full_time = np.full(len(obstacles), np.nan)
     full_time[static] = slack_time
+    safety = np.full(len(obstacles), np.nan)
+    if static:
+        safety[static] = envelope.required(times[np.argmin(dist, axis=0)])
     return Plan(reference, polyline, full_inflation, full_slack[static], full_time[static], iteration, envelope,
-                obstacles)
+                obstacles, safety_radius=safety)
 
 
 # --- moving obstacles ---------------------------------------------------------------------------

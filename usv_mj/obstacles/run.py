@@ -93,7 +93,7 @@ def run_obstacle_scenario(osc: ObstacleScenario, plant_kind: str | None = None, 
     duration = sc.duration if duration is None else float(duration)
     kind = plant_kind or sc.plant.kind
     plan = make_plan(osc, duration) if osc.guidance.avoid else None
-    inflation = plan.inflation if plan is not None else None
+    inflation = plan.safety_radius if plan is not None else None
     if kind == "mujoco":
         plant = HarbourPlant(sc.ship, sc.disturbance, osc.obstacles, sc.control_period, sc.plant.substeps, contact,
                              safety_radii=np.nan_to_num(inflation, nan=0.0) if (show_safety and inflation is not None)

@@ -37,6 +37,7 @@ class ObstacleLog:
 
     def __init__(self, obstacles, n_rows: int, margin: float, control_period: float, note: str = "",
                  inflation=None):
+        """``inflation``: per obstacle, the safety boundary distance [m] to display (NaN: none)."""
         self.obstacles = tuple(obstacles)
         n = len(self.obstacles)
         self.margin = float(margin)
@@ -132,7 +133,7 @@ class ObstacleLog:
                         "min_clearance_m": float(col[k]) if k >= 0 else None,
                         "t_min_s": float(k * self.dt) if k >= 0 else None,
                         "peak_normal_force_N": float(np.max(self.normal_force[: self.n_rows, i])) if self.n_rows else 0.0,
-                        "inflation_m": None if self.inflation is None else float(self.inflation[i])})
+                        "inflation_m": self._inflation(i)})
         finite = c[np.isfinite(c)]
         kinds = [e.kind for e in self.events]
         return {
@@ -144,14 +145,19 @@ class ObstacleLog:
             "per_obstacle": per,
         }
 
+    def _inflation(self, i: int):
+        """The safety boundary [m] drawn around obstacle i (the plan's G + margin at the pass), or None."""
+        if self.inflation is None or not math.isfinite(self.inflation[i]):
+            return None
+        return float(self.inflation[i])
+
     def frame(self, k: int) -> dict:
         """What the MCAP topic ``/usv/obstacles`` and the renderer need at row k (plain data)."""
         return {
             "t": k * self.dt,
             "obstacles": [{"name": o.name, "kind": o.kind, "center": self.obstacle_xy[k, i].tolist(),
                            "radius": o.radius, "size": list(o.size), "yaw": o.yaw, "moving": o.moving,
-                           "inflation_m": None if self.inflation is None or math.isnan(self.inflation[i])
-                           else float(self.inflation[i]),
+                           "inflation_m": self._inflation(i),
                            "clearance_m": float(self.clearance[k, i]), "normal_force_N": float(self.normal_force[k, i])}
                           for i, o in enumerate(self.obstacles)],
         }
