@@ -423,3 +423,27 @@ def test_jobqueue_errors_exit_2_with_the_batch_systems_message(tmp_path, capsys)
     rc = run_command(parser.parse_args([str(path), "--out", str(tmp_path / "c"), "--jobqueue", "slurm",
                                         "--scheduler", "tcp://127.0.0.1:1", "--no-progress"]))
     assert rc == 2 and "exclude each other" in capsys.readouterr().err
+
+
+def test_directional_search_runs_on_dask_and_zero_load_runs_once(tmp_path, client):
+    """The directional machinery (used by current / wind / waves) on a key the scenario has today:
+    the line path's heading stands in for the load's direction, the disturbance scale for its size."""
+    from usv_mj.sweep.capability import LoadKind, _Evaluator, _write_outputs
+
+    load = LoadKind("test", "disturbance.scale", "trajectory.heading_deg", "", "linear", 0.0, 1.0, "s")
+    base = load_scenario(preset="paper", overrides={"duration": 5.0, "plant": {"kind": "analytic"},
+                                                    "trajectory": {"kind": "line", "start": [2.0, -3.0]}})
+    evaluator = _Evaluator(client, base, load, heading_deg=0.0, source="test")
+    results = search_capability(evaluator, [0.0, 90.0], 0.0, 1.0, "linear", 0.3, 2)
+    zero = [r for r in evaluator.rows if r["load"] == 0.0]
+    assert len(zero) == 1  # one run for both directions at zero load
+    assert sum(r.runs for r in results) == len(evaluator.rows) + 1
+    for r in results:
+        assert r.holds is not None and r.fails is not None and r.holds < r.fails
+        mine = [row for row in evaluator.rows if row["direction_deg"] == r.direction_deg or row["load"] == 0.0]
+        assert r.holds == max(row["load"] for row in mine if row["kept_funnel"])
+        assert r.fails == min(row["load"] for row in mine if not row["kept_funnel"]) or r.notes
+    for row in evaluator.rows:
+        assert row["vary.trajectory.heading_deg"] == row["direction_deg"] or row["load"] == 0.0
+    _write_outputs(tmp_path, results, load, base, 0.0, 0.0, 1.0, 0.3, evaluator.rows)
+    assert "| 90 |" in (tmp_path / "capability.md").read_text()

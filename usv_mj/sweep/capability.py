@@ -122,20 +122,25 @@ class _Evaluator:
 
         jobs = []
         keys = {}
+        same = {}  # a zero load has no direction: one run stands for every direction
         for direction, value in points:
+            canon = (None if value == 0 else direction, value)
+            same.setdefault(canon, []).append((direction, value))
+            if len(same[canon]) > 1:
+                continue
             run_id = len(self.rows) + len(jobs)
             values = self.values(direction, value)
             scenario = apply_values(self.base, values, self.source)
             jobs.append((RunSpec(run_id, values, scenario), {"transient": 20.0}))
-            keys[run_id] = (direction, value)
+            keys[run_id] = canon
         out = {}
 
         def on_row(row):
-            direction, value = keys[row["run_id"]]
-            row["direction_deg"] = direction
-            row["load"] = value
+            canon = keys[row["run_id"]]
+            row["direction_deg"], row["load"] = same[canon][0]
             self.rows.append(row)
-            out[(direction, value)] = row
+            for point in same[canon]:
+                out[point] = row
             if self.progress is not None:
                 self.progress.update(1)
 
