@@ -358,6 +358,23 @@ def test_hfield_node_under_the_hull_equals_elevation():
             z = env.elevation(origin[0] + xs[i], origin[1] + ys[l], t)
             assert abs(grid[l, i] - z) < 1e-5
         assert np.max(np.abs(grid)) <= env.amplitude_bound
+        heights = env.hfield_heights(xs, ys, t, origin=origin)
+        A = np.sum(env.components.a)
+        assert heights.dtype == np.float32 and heights.min() >= 0.0 and heights.max() <= 1.0
+        assert np.allclose(heights * 2 * A - A, grid, atol=1e-6)
+    assert np.all(Environment().hfield_heights(xs, ys, 1.0) == 0.5)
+
+
+def test_sampled_spectrum_follows_the_target():
+    env = Environment(SeaSettings(waves=moderate()))
+    w, s = env.sampled_spectrum()
+    target = env.spectrum(w)
+    dw = env.components.dw
+    # the normalisation scales all a_j by one factor: sum S dw = Hs^2/16 exactly, shape = target
+    assert abs(np.sum(s) * dw - 0.2**2 / 16) < 1e-15
+    ratio = s / np.maximum(target, 1e-300)
+    assert np.allclose(ratio[target > 1e-6 * target.max()], ratio[np.argmax(target)], rtol=1e-9)
+    assert abs(ratio[np.argmax(target)] - 1) < 0.01
 
 
 # --- check 7: zero mean and standard deviation of the first-order load -------------------------

@@ -235,6 +235,15 @@ class Environment:
         s = np.where(t > 0, -np.expm1(-np.maximum(t, 0.0) / self.ramp_time), 0.0)
         return s if s.ndim else float(s)
 
+    def sampled_spectrum(self) -> tuple[np.ndarray, np.ndarray]:
+        """(w_j [rad/s], a_j^2 / (2 dw) [m^2 s/rad]): the spectrum the components carry (for the
+        figure of sampled against target spectrum); empty in calm water or for hand-made components."""
+        c = self.components
+        if c.n == 0 or c.dw <= 0:
+            return np.zeros(0), np.zeros(0)
+        order = np.argsort(c.w)
+        return c.w[order], c.a[order] ** 2 / (2.0 * c.dw)
+
     def spectrum(self, w) -> np.ndarray:
         """The target JONSWAP S(w) [m^2 s/rad] of the settings (for the spectrum figure)."""
         ws = self.settings.waves
@@ -304,6 +313,15 @@ class Environment:
         coef = c.a * np.exp(1j * phase) * self.ramp(t)
         left = ey * coef
         return np.concatenate([left.real, -left.imag], axis=1) @ ex_stack
+
+    def hfield_heights(self, xs, ys, t: float, origin=(0.0, 0.0)) -> np.ndarray:
+        """MuJoCo hfield data (SEA.md §6): (zeta + A) / (2 A), A = sum a_j (never clipped), float32,
+        shape (len(ys), len(xs)) with rows along +y; 0.5 everywhere in calm water."""
+        a_bound = self.amplitude_bound
+        if a_bound <= 0:
+            return np.full((len(ys), len(xs)), 0.5, dtype=np.float32)
+        zeta = self.elevation_grid(xs, ys, t, origin)
+        return ((zeta + a_bound) / (2.0 * a_bound)).astype(np.float32)
 
     def current(self, t) -> tuple[np.ndarray, np.ndarray]:
         """(v_c, v_c_dot): current [m/s] and its derivative [m/s^2] in the earth frame (x, y)."""

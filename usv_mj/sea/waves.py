@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .layout import (DRIFT_MEAN, DRIFT_NEWMAN, E_BEAM, E_BOX_X, E_DRAFT, E_DRIFT_MODE, E_LENGTH,
+from .layout import (DRIFT_MEAN, DRIFT_NEWMAN, E_BEAM, E_BOX_X, E_DRIFT_MODE, E_LENGTH,
                      N_WAVE_COLS, W_A, W_C, W_COSB, W_EPS, W_K, W_Q, W_SINB, W_W)
 
 FREQUENCY_RANGE = (0.5, 4.0)  # components cover w in [0.5, 4] w_p (SEA.md §3.2)
