@@ -259,3 +259,28 @@ def test_render_command_reports_a_missing_run(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         parser.parse_args(["run", "--size", "321x240"])
+
+
+def test_render_command_replays_an_mcap_run(tmp_path, capsys):
+    """usv-mj render RUN: simulate 2 s into run.mcap, render the run directory, decode the video."""
+    _gl_or_skip()
+    import argparse
+
+    import imageio.v3 as iio
+
+    from usv_mj import load_scenario, simulate
+    from usv_mj.render import add_arguments, run_command
+
+    runlog = pytest.importorskip("usv_mj.runlog")
+    scenario = load_scenario(preset="paper", overrides={"duration": 2.0, "plant": {"kind": "analytic"}})
+    with runlog.RunLogWriter(tmp_path / "run.mcap", scenario) as writer:
+        simulate(scenario, sinks=[writer.sink("main")])
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = parser.parse_args([str(tmp_path), "--size", "160x120", "--fps", "10", "--speedup", "0.5",
+                              "--no-progress", "--workers", "1"])
+    assert run_command(args) == 0, capsys.readouterr().err
+    frames = list(iio.imiter(tmp_path / "run.mp4"))
+    assert len(frames) == 40                       # round(2 s * 10 fps / 0.5)
+    assert frames[0].shape == (120, 160, 3) and (tmp_path / "run.png").is_file()
+    assert "frames/s" in capsys.readouterr().out

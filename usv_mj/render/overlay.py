@@ -143,7 +143,7 @@ def _draw_panel(frame, values, s):
     H, W = frame.shape[:2]
     pad = int(round(14 * s))
     x0, y0 = pad, pad
-    x1, y1 = min(W, x0 + int(470 * s)), min(H, y0 + int(300 * s))
+    x1, y1 = min(W, x0 + int(470 * s)), min(H, y0 + int(268 * s))
     if x1 - x0 < 20 or y1 - y0 < 20:
         return
     img = _darken(frame, x0, y0, x1, y1)
