@@ -447,3 +447,13 @@ def test_directional_search_runs_on_dask_and_zero_load_runs_once(tmp_path, clien
         assert row["vary.trajectory.heading_deg"] == row["direction_deg"] or row["load"] == 0.0
     _write_outputs(tmp_path, results, load, base, 0.0, 0.0, 1.0, 0.3, evaluator.rows)
     assert "| 90 |" in (tmp_path / "capability.md").read_text()
+
+
+def test_usv_mj_cli_runs_the_sweep_command_with_exit_2_on_a_bad_file(tmp_path, capsys):
+    from usv_mj.cli import main
+
+    path = _write(tmp_path, 'base = "paper"\n[vary]\n"initial.eta[3]" = [0.0]\n')
+    assert main(["sweep", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "initial.eta[3]" in capsys.readouterr().err
+    assert main(["capability", "--load", "disturbance", "--tol", "2", "--out", str(tmp_path / "c")]) == 2
+    assert "--tol must be in (0, 1)" in capsys.readouterr().err

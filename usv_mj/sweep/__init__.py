@@ -1,15 +1,33 @@
 """Monte-Carlo sweeps and capability plots on Dask (issue 10).
 
-Command line (wired into ``usv-mj`` by :mod:`usv_mj.cli`; also ``python -m usv_mj.sweep``)::
+    usv-mj sweep SWEEP.toml --out DIR [--workers N | --scheduler ADDRESS | --jobqueue slurm --jobs N]
+                 [--resume] [--keep-logs] [--max-runs N]
+    usv-mj capability --load disturbance|current|wind|waves --out DIR [--base paper] [--duration S]
 
-    usv-mj sweep SWEEP.toml --out DIR [--scheduler ADDRESS] [--workers N] [--resume] [--keep-logs]
-    usv-mj capability --load disturbance [--base paper] [--duration S] --out DIR [--scheduler ...]
+A sweep file names a base and what varies, by dotted path into the scenario (SPEC §7)::
+
+    base = "paper"                 # preset or scenario file
+    duration = 60.0
+    samples = 50                   # draws per grid point
+    seed = 7
+    [vary]
+    "initial.eta[0]" = { uniform = [-8.0, 8.0] }      # uniform, loguniform, normal, integers, choice
+    "disturbance.scale" = [1e-4, 5e-4, 1e-3]          # a list is a grid axis
+
+Every sampled scenario is validated before anything runs (a bad path or range: exit 2). Each run
+is one Dask task; its row (varied values, status ok/diverged/failed and why, every summary.json
+field) streams into DIR/results.parquet; --resume runs only the missing ones; DIR/report.md has the
+funnel-kept rate (Wilson 95 %), error histograms, scatter plots and the failures. By default a local
+cluster with one worker process per core; --scheduler tcp://HOST:8786 uses any running Dask cluster
+(``dask scheduler`` on one machine, ``dask worker tcp://HOST:8786 --nthreads 1 --nworkers N`` on
+each other, every one with usv_mj installed); --jobqueue uses a batch system via dask-jobqueue.
 
 Python API::
 
-    from usv_mj.sweep import load_sweep, run_sweep
+    from usv_mj.sweep import load_sweep, run_sweep, read_results
     plan = load_sweep("examples/sweeps/start_pose.toml")   # sampled and validated, nothing run yet
     result = run_sweep(plan, "out/start_pose", workers=2)   # DIR/results.parquet + DIR/report.md
+    rows, _ = read_results("out/start_pose/results.parquet")
 
 The sweep file format is in :mod:`usv_mj.sweep.spec`; the row columns in :mod:`usv_mj.sweep.runner`;
 the capability search in :mod:`usv_mj.sweep.capability`.
