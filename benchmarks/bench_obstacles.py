@@ -14,7 +14,9 @@ prints microseconds per control step of
   8-85 m away, so few are queried);
 - ``GeometricClearance.update``: the analytic plant's numba clearance, the same two ways, and the
   shapely reference;
-- the analytic plant's step, for scale.
+- the analytic plant's step, for scale;
+- the whole closed loop (PPC on the MuJoCo plant, a straight line, 10 s) in open water against
+  :func:`usv_mj.obstacles.run_obstacle_scenario` with the obstacle field (guidance off).
 
 The machine is shared: run it twice and take the lower figures.
 """
@@ -58,6 +60,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--counts", type=int, nargs="*", default=[1, 10, 50])
     ap.add_argument("--steps", type=int, default=5000)
+    ap.add_argument("--loop-seconds", type=float, default=10.0, help="simulated seconds of the closed-loop comparison")
     args = ap.parse_args()
     n = args.steps
 
@@ -113,6 +116,26 @@ def main():
         clear = per_call(lambda: monitor.update(0.0), n)
         print(f"{'1, contact':>10} {step:13.1f} {step / plant_step:7.2f} | {clear:17.1f} {clear / bare:7.2f} "
               f"  ({plant.data.ncon} contact(s) active, {ncon} at the start)")
+    # the whole closed loop (PPC, quantizers, recording): open water against the harbour runner
+    from usv_mj.obstacles import ObstacleScenario, run_obstacle_scenario
+    from usv_mj.obstacles.spec import GuidanceSpec
+    from usv_mj.simulation import simulate
+
+    loop = sc.with_overrides({"duration": args.loop_seconds, "plant": {"kind": "mujoco"},
+                              "initial": {"eta": [0.0, 0.0, 0.0]},
+                              "trajectory": {"kind": "line", "start": [0.0, 0.0], "heading_deg": 0.0}})
+    simulate(loop.with_overrides({"duration": 0.5}))
+    t0 = time.perf_counter()
+    simulate(loop)
+    open_loop = (time.perf_counter() - t0) / loop.steps * 1e6
+    print(f"closed loop ({args.loop_seconds:g} s, PPC, MuJoCo) per step: open water {open_loop:.1f}", end="")
+    for count in args.counts:
+        osc = ObstacleScenario(loop, obstacle_field(count), GuidanceSpec(avoid=False))
+        t0 = time.perf_counter()
+        run_obstacle_scenario(osc)
+        per = (time.perf_counter() - t0) / loop.steps * 1e6
+        print(f"; {count} obstacles {per:.1f} (x{per / open_loop:.2f})", end="")
+    print()
     with MuJoCoPlant(ship, dist, 1e-3, 1) as open_water:
         open_water.reset((0, 0, 0), (0.5, 0, 0))
         again = per_call(lambda: mujoco.mj_step(open_water.model, open_water.data), n)

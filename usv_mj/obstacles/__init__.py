@@ -12,7 +12,8 @@
 """
 
 from .clearance import GeometricClearance, MuJoCoClearance, make_clearance_monitor
-from .compose import HULL_RADIUS, ContactParams, HarbourPlant, compose_scene, export_scene, hull_footprint
+from .compose import (HULL_RADIUS, ContactParams, HarbourPlant, compose_scene, export_scene, hull_footprint,
+                      place_moving_obstacles)
 from .planner import (Guidance, GuidedReference, Plan, PlanningError, SafetyEnvelope, plan_reference)
 from .run import ObstacleRun, ObstacleStepper, make_plan, run_obstacle_scenario
 from .sink import ObstacleLog
@@ -24,5 +25,5 @@ __all__ = [
     "HarbourPlant", "MuJoCoClearance", "ObstacleLog", "ObstacleRun", "ObstacleScenario", "ObstacleSpec",
     "ObstacleStepper", "Plan", "PlanningError", "SafetyEnvelope", "compose_scene", "export_scene",
     "from_tables", "guidance_from_table", "hull_footprint", "load_obstacle_scenario", "make_clearance_monitor",
-    "make_plan", "plan_reference", "run_obstacle_scenario",
+    "make_plan", "place_moving_obstacles", "plan_reference", "run_obstacle_scenario",
 ]

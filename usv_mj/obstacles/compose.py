@@ -117,7 +117,7 @@ class ContactParams:
 
 OBSTACLE_COLORS = {"circle": (0.90, 0.35, 0.10, 1.0), "box": (0.45, 0.33, 0.22, 1.0),
                    "moving": (0.75, 0.75, 0.78, 1.0)}
-SAFETY_COLOR = (1.0, 0.85, 0.1, 0.18)
+SAFETY_COLOR = (0.22, 0.47, 0.60, 1.0)  # opaque tint just above the water: overlapping pieces do not show
 
 
 def obstacle_geom_name(obstacle: ObstacleSpec) -> str:
@@ -186,6 +186,19 @@ def _add_safety_boundary(parent, obstacle: ObstacleSpec, inflation: float, name:
         px, py = sx * hl, sy * hw
         parent.add("geom", name=f"{name}_safety_c{k}", type="cylinder", size=[inflation, h],
                    pos=[cx + c * px - s * py, cy + s * px + c * py, 0.01], **vis)
+
+
+def place_moving_obstacles(model: mujoco.MjModel, data: mujoco.MjData, obstacles, t: float) -> None:
+    """Set the mocap pose of every moving obstacle of a model made by :func:`compose_scene` (or any
+    model holding its bodies, e.g. a renderer's copy) to its position at time t [s]."""
+    for o in obstacles:
+        if not o.moving:
+            continue
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{obstacle_geom_name(o)}_body")
+        if body < 0 or model.body_mocapid[body] < 0:
+            raise ValueError(f"place_moving_obstacles: no mocap body for the moving obstacle {o.name!r} in the model")
+        cx, cy = o.center_at(t)
+        data.mocap_pos[model.body_mocapid[body], :2] = (cx, cy)
 
 
 def export_scene(root: mjcf.RootElement, directory: str | None = None) -> str:

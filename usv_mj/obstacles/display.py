@@ -9,8 +9,9 @@
   centres, clearance and contact force); see :meth:`usv_mj.obstacles.sink.ObstacleLog.frame`.
 
 The MuJoCo video needs nothing from here: the composed model (:func:`usv_mj.obstacles.compose.compose_scene`)
-already contains the obstacle geoms (group 0), moving ones as mocap bodies, and the inflated
-boundaries as translucent visual geoms (group 2) when ``safety_radii`` is given.
+already contains the obstacle geoms (group 0), moving ones as mocap bodies (place them per frame
+with :func:`usv_mj.obstacles.compose.place_moving_obstacles`), and the inflated boundaries as flat
+visual geoms (group 2) when ``safety_radii`` is given.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import math
 
 import numpy as np
 
-from .compose import OBSTACLE_COLORS, OBSTACLE_HALF_HEIGHT, SAFETY_COLOR
+from .compose import OBSTACLE_COLORS, OBSTACLE_HALF_HEIGHT
 
 
 def boundary_points(obstacle, inflation: float, t: float = 0.0, n: int = 64) -> np.ndarray:
@@ -73,7 +74,7 @@ def scene_entities(obstacles, t: float, stamp: dict, inflation=None) -> list[dic
             pts = boundary_points(o, float(inflation[i]), t)[:-1]
             lines.append({"type": 1, "pose": _pose(0.0, 0.0, 0.0), "thickness": 0.05, "scale_invariant": False,
                           "points": [{"x": float(px), "y": float(py), "z": 0.02} for px, py in pts],
-                          "color": _color(SAFETY_COLOR[:3] + (0.9,)), "colors": [], "indices": []})
+                          "color": _color((1.0, 0.8, 0.1, 0.9)), "colors": [], "indices": []})
         out.append({"timestamp": stamp, "frame_id": "world", "id": f"obstacle/{o.name}",
                     "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
                     "metadata": [{"key": "kind", "value": o.kind}, {"key": "moving", "value": str(o.moving).lower()}],
