@@ -130,6 +130,50 @@ def test_calm_rk4_60s_with_a_thrust_schedule_is_bit_identical():
     assert np.array_equal(x_sea, x_ref)
 
 
+def test_sea_force_is_callable_from_a_native_cfunc():
+    """The kernels take plain C-contiguous arrays, so a numba cfunc (the MuJoCo callback) can wrap raw
+    pointers with carray and call sea_force; it must give what the Python-side call gives."""
+    import ctypes
+
+    from numba import carray, cfunc, types
+
+    from usv_mj.sea import sea_force
+    from usv_mj.ship import N_DIST_PARAMS, N_SHIP_PARAMS
+
+    f64p = types.CPointer(types.float64)
+    sig = types.void(f64p, f64p, f64p, types.int64, f64p, types.int64, f64p, types.int64, f64p,
+                     types.float64, f64p, f64p)
+
+    @cfunc(sig)
+    def native(p_ptr, dp_ptr, ep_ptr, n_waves, wv_ptr, n_cur, cg_ptr, n_wind, wg_ptr, t, state_ptr, out_ptr):
+        p = carray(p_ptr, (N_SHIP_PARAMS,))
+        dp = carray(dp_ptr, (N_DIST_PARAMS,))
+        ep = carray(ep_ptr, (lay.N_ENV_PARAMS,))
+        waves = carray(wv_ptr, (lay.N_WAVE_COLS, n_waves))
+        cg = carray(cg_ptr, (n_cur, 2))
+        wg = carray(wg_ptr, (n_wind, 1))
+        state = carray(state_ptr, (6,))
+        out = carray(out_ptr, (3,))
+        f = sea_force(p, dp, ep, waves, cg, wg, t, state[:3], state[3:])
+        for i in range(3):
+            out[i] = f[i]
+
+    env = Environment(_full_sea(), t_max=100.0)
+    ep, waves, cg, wg = env.packed
+    ptr = lambda arr: arr.ctypes.data_as(ctypes.POINTER(ctypes.c_double))  # noqa: E731
+    call = native.ctypes
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        t = rng.uniform(0, 100)
+        state = np.ascontiguousarray(rng.normal(size=6) * 0.5)
+        out = np.zeros(3)
+        call(ptr(P), ptr(DP), ptr(ep), waves.shape[1], ptr(waves), cg.shape[0], ptr(cg), wg.shape[0], ptr(wg),
+             t, ptr(state), ptr(out))
+        direct = sea_force(P, DP, ep, waves, cg, wg, t, state[:3], state[3:])
+        assert np.array_equal(out, direct)
+        assert np.any(direct != sea_force(P, DP, *Environment().packed, t, state[:3], state[3:]))
+
+
 # --- check 2: spectrum --------------------------------------------------------------------------
 
 
