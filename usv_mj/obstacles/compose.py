@@ -245,13 +245,13 @@ class HarbourPlant(MuJoCoPlant):
             if o.moving:
                 body = m.geom_bodyid[self.obstacle_geoms[i]]
                 self.obstacle_mocap[i] = m.body_mocapid[body]
-        self._moving = np.flatnonzero(self.obstacle_mocap >= 0)
+        self._moving_list = np.flatnonzero(self.obstacle_mocap >= 0).tolist()
         self._velocity = np.array([o.velocity for o in self.obstacles], dtype=float).reshape(-1, 2)
         self._center0 = np.array([o.center for o in self.obstacles], dtype=float).reshape(-1, 2)
 
     def move_obstacles(self, t: float) -> None:
         """Put every moving obstacle at center + velocity t (held during the next step)."""
-        for i in self._moving:
+        for i in self._moving_list:
             j = self.obstacle_mocap[i]
             self.data.mocap_pos[j, 0] = self._center0[i, 0] + self._velocity[i, 0] * t
             self.data.mocap_pos[j, 1] = self._center0[i, 1] + self._velocity[i, 1] * t

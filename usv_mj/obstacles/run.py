@@ -37,7 +37,8 @@ class ObstacleStepper:
         self.inner, self.plant, self.monitor, self.log = controller, plant, monitor, log
         self.reference, self.guidance = reference, guidance
         self.name = controller.name
-        self._move = getattr(plant, "move_obstacles", None)
+        moving = any(o.moving for o in getattr(plant, "obstacles", ()))
+        self._move = getattr(plant, "move_obstacles", None) if moving else None
 
     def reset(self) -> None:
         self.inner.reset()

@@ -58,6 +58,8 @@ class ObstacleLog:
         self._noted = False
         self._center0 = np.array([o.center for o in self.obstacles], dtype=float).reshape(n, 2)
         self._velocity = np.array([o.velocity for o in self.obstacles], dtype=float).reshape(n, 2)
+        self._any_moving = any(o.moving for o in self.obstacles)
+        self.obstacle_xy[:] = self._center0  # static obstacles stay; moving ones are written per step
 
     # --- fed by the stepper ----------------------------------------------------------------------
 
@@ -68,10 +70,12 @@ class ObstacleLog:
             return
         self.clearance[k] = clearance
         self.normal_force[k] = normal_force
-        self.obstacle_xy[k] = self._center0 + self._velocity * t
-        self.n_rows = max(self.n_rows, k + 1)
+        if self._any_moving:
+            self.obstacle_xy[k] = self._center0 + self._velocity * t
+        if k >= self.n_rows:
+            self.n_rows = k + 1
         near = clearance < self.margin
-        if (near & ~self._near).any():
+        if near.any() and (near & ~self._near).any():
             for i in np.flatnonzero(near & ~self._near):
                 o = self.obstacles[i]
                 self.add_event(Event(t, "near_miss", f"clearance to {o.name} fell to {clearance[i]:.3f} m "
