@@ -299,3 +299,9 @@ def test_crossing_boat_is_avoided_by_retiming_with_replan_events():
     # smooth re-timing: u_d continuous with |u_d_dot| <= max_accel
     du = np.diff(r["u_d"]) / osc.scenario.control_period
     assert np.max(np.abs(du)) <= osc.guidance.max_accel + 1e-9
+
+
+def test_start_inside_an_obstacle_is_a_scenario_error():
+    osc = load_obstacle_scenario(SCENARIOS / "ramming_pier.toml", overrides={"initial": {"eta": [19.0, 0.0, 0.0]}})
+    with pytest.raises(ScenarioError, match=r"initial\.eta .* inside obstacles\[0\] \(pier"):
+        run_obstacle_scenario(osc, duration=1.0)

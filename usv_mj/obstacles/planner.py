@@ -57,6 +57,7 @@ import shapely
 
 from controllers.performance_funnel import PerformanceFunnel
 from usv_mj.record import Event
+from usv_mj.scenario import ScenarioError
 from usv_mj.trajectories import Reference
 
 from .compose import HULL_RADIUS
@@ -68,8 +69,10 @@ PATH_DS = 0.02          # m, arc-length step of the tabulated path
 VERIFY_DT = 0.1         # s, time step of the clearance verification
 
 
-class PlanningError(ValueError):
-    """No path, or the start/goal lies inside an inflated obstacle; the message says which."""
+class PlanningError(ScenarioError):
+    """No path, or the start/goal lies inside an inflated obstacle; the message says which. A
+    :class:`usv_mj.scenario.ScenarioError`: the scenario (funnel, margin, obstacles) asks for the
+    impossible, and the CLI reports it as such (exit code 2)."""
 
 
 @dataclass(frozen=True)

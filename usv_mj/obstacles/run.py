@@ -20,9 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from usv_mj.plants.analytic import AnalyticPlant
+from usv_mj.scenario import ScenarioError
 from usv_mj.simulation import make_controller, simulate
 
-from .clearance import make_clearance_monitor
+from .clearance import GeometricClearance, make_clearance_monitor
 from .compose import ContactParams, HarbourPlant
 from .planner import Guidance, GuidedReference, Plan, SafetyEnvelope, plan_reference
 from .sink import ObstacleLog
@@ -93,6 +94,10 @@ def run_obstacle_scenario(osc: ObstacleScenario, plant_kind: str | None = None, 
     sc = osc.scenario
     duration = sc.duration if duration is None else float(duration)
     kind = plant_kind or sc.plant.kind
+    start_clearance = GeometricClearance(osc.obstacles, exact_within=math.inf).update(0.0, np.r_[sc.initial.eta, 0, 0, 0])
+    for i in np.flatnonzero(start_clearance <= 0.0):
+        raise ScenarioError(f"{sc.source}: initial.eta = {list(sc.initial.eta)} puts the hull inside obstacles[{i}] "
+                            f"({osc.obstacles[i].name}, clearance {start_clearance[i]:.3f} m)")
     plan = make_plan(osc, duration) if osc.guidance.avoid else None
     inflation = plan.safety_radius if plan is not None else None
     if kind == "mujoco":
