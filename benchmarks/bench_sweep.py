@@ -2,7 +2,8 @@
 
     python benchmarks/bench_sweep.py [--runs 24] [--duration 10] [--workers 1 2]
 
-Each run is the paper scenario on the analytic plant (``--duration`` s of simulated time) with a
+Each run is the paper scenario on the analytic plant (``--plant mujoco`` for MuJoCo's; ``--duration`` s of
+simulated time) with a
 sampled start pose, the same runs in every mode. The plain loop calls the sweep's own task function
 (:func:`usv_mj.sweep.runner.run_one`) in this process, one run after the other. The Dask figures
 are measured from the first submission to the last result written to ``results.parquet``, on a
@@ -22,12 +23,12 @@ import time
 from pathlib import Path
 
 
-def _warm(duration: float) -> float:
+def _warm(duration: float, plant: str = "analytic") -> float:
     """One short run in this process (numba's cache is loaded or compiled)."""
     from usv_mj import load_scenario, simulate
 
     t0 = time.perf_counter()
-    simulate(load_scenario(preset="paper", overrides={"duration": duration, "plant": {"kind": "analytic"}}))
+    simulate(load_scenario(preset="paper", overrides={"duration": duration, "plant": {"kind": plant}}))
     return time.perf_counter() - t0
 
 
@@ -36,6 +37,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=24)
     parser.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--plant", choices=("analytic", "mujoco"), default="analytic")
     args = parser.parse_args()
 
     from distributed import Client, LocalCluster
@@ -43,13 +45,13 @@ def main() -> None:
     from usv_mj.sweep import plan_sweep
     from usv_mj.sweep.runner import run_one, run_sweep
 
-    plan = plan_sweep({"base": "paper", "duration": args.duration, "plant": "analytic", "samples": args.runs,
+    plan = plan_sweep({"base": "paper", "duration": args.duration, "plant": args.plant, "samples": args.runs,
                        "seed": 1, "vary": {"initial.eta[0]": {"uniform": [-5.0, 5.0]},
                                            "initial.eta[2]": {"uniform": [-1.0, 1.0]}}},
                       source="bench_sweep")
-    print(f"{args.runs} runs of {args.duration:g} s (paper, analytic plant); cores: {os.cpu_count()}; "
+    print(f"{args.runs} runs of {args.duration:g} s (paper, {args.plant} plant); cores: {os.cpu_count()}; "
           f"load average before: {os.getloadavg()[0]:.2f}")
-    first = _warm(args.duration)
+    first = _warm(args.duration, args.plant)
     print(f"warm-up run in this process: {first:.2f} s")
 
     t0 = time.perf_counter()
@@ -68,7 +70,7 @@ def main() -> None:
                 client.wait_for_workers(n)
                 start = time.perf_counter() - t0
                 t1 = time.perf_counter()
-                client.run(_warm, args.duration)
+                client.run(_warm, args.duration, args.plant)
                 warm = time.perf_counter() - t1
                 t2 = time.perf_counter()
                 run_sweep(plan, out_root / f"w{n}", client=client, progress=False, echo=None, report=False)

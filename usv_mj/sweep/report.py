@@ -131,10 +131,14 @@ def write_report(out: str | Path, rows: list[dict], plan) -> Path:
 
     numeric_axes = [a for a in plan.axes if _numeric([r.get(f"vary.{a.path}") for r in rows])]
     if numeric_axes and rows:
-        fig, axs = plt.subplots(1, len(numeric_axes), figsize=(4.5 * len(numeric_axes), 3.5), squeeze=False)
+        ncols = min(3, len(numeric_axes))
+        nrows = math.ceil(len(numeric_axes) / ncols)
+        fig, axs = plt.subplots(nrows, ncols, figsize=(4.6 * ncols, 3.5 * nrows), squeeze=False)
+        for extra in axs.flat[len(numeric_axes):]:
+            extra.set_visible(False)
         worst = [r.get("max_position_error_after_transient") for r in rows]
         top = max([w for w in worst if w is not None], default=1.0) * 1.15 or 1.0
-        for ax, axis in zip(axs[0], numeric_axes):
+        for ax, axis in zip(axs.flat, numeric_axes):
             col = f"vary.{axis.path}"
             for group, color, marker in (("kept", "tab:blue", "o"), ("left", "tab:orange", "o"),
                                          ("not ok", "tab:red", "x")):
@@ -180,9 +184,18 @@ def write_report(out: str | Path, rows: list[dict], plan) -> Path:
     else:
         lines.append("None.")
     left = [r for r in rows if r["status"] == "ok" and not r.get("kept_funnel")]
+    lines += ["", "## Runs that finished but left the funnel", ""]
     if left:
-        lines += ["", f"{len(left)} run(s) finished but left the funnel at some time: run ids "
-                  + ", ".join(str(r["run_id"]) for r in left[:50]) + (" ..." if len(left) > 50 else "") + "."]
+        cols = [f"vary.{p}" for p in plan.paths]
+        lines += ["| run | first violation [s] | samples outside | " + " | ".join(f"`{p}`" for p in plan.paths)
+                  + " |", "| --- | --- | --- | " + " | ".join("---" for _ in plan.paths) + " |"]
+        for r in left[:100]:
+            lines.append(f"| {r['run_id']} | {_fmt(r.get('first_violation_s'))} | {_fmt(r.get('funnel_violations'))} | "
+                         + " | ".join(_fmt(r.get(c)) for c in cols) + " |")
+        if len(left) > 100:
+            lines.append(f"\n... and {len(left) - 100} more (see results.parquet).")
+    else:
+        lines.append("None.")
     path = out / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path
