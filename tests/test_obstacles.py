@@ -305,3 +305,41 @@ def test_start_inside_an_obstacle_is_a_scenario_error():
     osc = load_obstacle_scenario(SCENARIOS / "ramming_pier.toml", overrides={"initial": {"eta": [19.0, 0.0, 0.0]}})
     with pytest.raises(ScenarioError, match=r"initial\.eta .* inside obstacles\[0\] \(pier"):
         run_obstacle_scenario(osc, duration=1.0)
+
+
+def _guidance_for(osc, **changes):
+    from dataclasses import replace
+
+    from usv_mj.obstacles import Guidance
+
+    osc = replace(osc, guidance=replace(osc.guidance, **changes))
+    plan = make_plan(osc)
+    guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.scenario.trajectory.speed)
+    return osc, plan, guidance
+
+
+def test_guidance_detects_the_crossing_boat_within_its_horizon_and_retimes_smoothly():
+    """With a 15 s horizon the conflict (the boat crosses x = 20 m at about 33 s) is seen only on
+    the way: the re-timing happens mid-run, and the reference it leaves keeps G(t) + margin."""
+    osc, plan, guidance = _guidance_for(load_obstacle_scenario(SCENARIOS / "crossing_boat.toml"), horizon=15.0)
+    times = np.arange(0.0, 60.0, 0.01)
+    ref = np.empty((len(times), 7))
+    for k, t in enumerate(times):           # what the loop does: update, then evaluate
+        guidance.update(float(t))
+        ref[k] = plan.reference.evaluate(float(t))
+    replans = [e for e in guidance.events if e.kind == "replan"]
+    assert replans and replans[0].t > 5.0
+    dist = obstacle_distances(osc.obstacles, ref[:, :2], times)[:, 0]
+    assert np.all(dist >= plan.envelope.required(times) - 1e-6)
+    du = np.diff(ref[:, 6]) / 0.01
+    assert np.max(np.abs(du)) <= osc.guidance.max_accel + 1e-9 and np.min(ref[:, 6]) > 0
+
+
+def test_head_on_boat_cannot_be_waited_out_and_is_reported():
+    osc = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml", overrides={
+        "obstacles": [{"kind": "box", "center": [30.0, 0.0], "size": [4.0, 1.6], "velocity": [-0.5, 0.0],
+                       "name": "head_on"}]})
+    _, _, guidance = _guidance_for(osc)
+    assert guidance.update(0.0) is False
+    assert [e.kind for e in guidance.events] == ["guidance_conflict"]
+    assert guidance.events[0].values["obstacle"] == "head_on"

@@ -14,6 +14,7 @@ vector (which the loop then records in the row).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -24,7 +25,7 @@ from usv_mj.scenario import ScenarioError
 from usv_mj.simulation import make_controller, simulate
 
 from .clearance import GeometricClearance, make_clearance_monitor
-from .compose import ContactParams, HarbourPlant
+from .compose import HULL_RADIUS, ContactParams, HarbourPlant
 from .planner import Guidance, GuidedReference, Plan, SafetyEnvelope, plan_reference
 from .sink import ObstacleLog
 from .spec import ObstacleScenario
@@ -125,5 +126,7 @@ def run_obstacle_scenario(osc: ObstacleScenario, plant_kind: str | None = None, 
         plant.close()
     record.metadata["guidance"] = {"avoid": osc.guidance.avoid, "margin_m": osc.guidance.margin_m,
                                    "plan_verified": None if plan is None else plan.verified,
-                                   "plan_iterations": None if plan is None else plan.iterations}
+                                   "plan_iterations": None if plan is None else plan.iterations,
+                                   "hull_radius_m": HULL_RADIUS, "eps_m": sc.ship.eps,
+                                   "contact": dataclasses.asdict(contact) if kind == "mujoco" else None}
     return ObstacleRun(record, log, plan, guidance)
