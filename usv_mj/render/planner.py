@@ -189,7 +189,8 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     nf = frame_count(duration, fps, sp) if duration > 0 else 1
     if max_frames is not None:
         nf = max(1, min(nf, int(max_frames)))
-    if rows is not None:
+    explicit_rows = rows is not None
+    if explicit_rows:
         rows = np.asarray(rows, dtype=int).ravel()
         if rows.size == 0 or rows.min() < 0 or rows.max() >= n:
             raise ValueError(f"rows {rows.tolist()[:8]}: every row must be in 0..{n - 1} (the rows with a finite pose)")
@@ -200,7 +201,7 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
         rows = np.clip(np.searchsorted(t, times), 0, n - 1)
         prev = np.clip(rows - 1, 0, n - 1)
         rows = np.where(np.abs(t[prev] - times) < np.abs(t[rows] - times), prev, rows)
-    played = duration * fps / (nf - 1) if nf > 1 and duration > 0 else sp
+    played = duration * fps / (nf - 1) if nf > 1 and duration > 0 and not explicit_rows else sp
     span = max(10.0, 3.0 * sp)
     trail_s = span if trail_s is None else float(trail_s)
     ahead_s = span if ahead_s is None else float(ahead_s)

@@ -226,11 +226,31 @@ class FrameRenderer:
             self.camera = cid
             self.fovy = float(m.cam_fovy[cid])
         self.renderer = mujoco.Renderer(m, self.height, self.width, max_geom=4000)
+        self._cheapen_texture_filtering()
         _OPEN.add(self)
         global _atexit_registered
         if not _atexit_registered:
             atexit.register(_close_open_renderers)
             _atexit_registered = True
+
+    def _cheapen_texture_filtering(self) -> None:
+        """Bilinear filtering within one mipmap level (GL_LINEAR_MIPMAP_NEAREST) for 2-D textures.
+
+        MuJoCo uploads textures with trilinear filtering; on llvmpipe the water's texture lookups
+        are then a third of a frame's cost (measured 28 vs 35-39 ms of CPU a 1280x720 frame). From
+        straight above the whole sea sits at one mipmap level, so nothing visible changes.
+        """
+        try:
+            from OpenGL import GL
+
+            ctx = self.renderer._mjr_context
+            for i in range(self.model.ntex):
+                if self.model.tex_type[i] == mujoco.mjtTexture.mjTEXTURE_2D:
+                    GL.glBindTexture(GL.GL_TEXTURE_2D, int(ctx.texture[i]))
+                    GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, GL.GL_LINEAR_MIPMAP_NEAREST)
+            GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+        except Exception:  # pragma: no cover - keep MuJoCo's filtering if PyOpenGL cannot do it
+            pass
 
     # --- one frame ---------------------------------------------------------------------------
 
