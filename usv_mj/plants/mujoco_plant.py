@@ -132,7 +132,10 @@ class MuJoCoPlant(PlantBase):
     ----------
     model, data:
         The ``mujoco.MjModel`` / ``mujoco.MjData`` (for renderers and environments; ``data.qpos``
-        = (x, y, psi), ``data.qvel`` = (x_dot, y_dot, r) in the world frame).
+        = (x, y, psi), ``data.qvel`` = (x_dot, y_dot, r) in the world frame). After :meth:`step`
+        the derived quantities (``xpos``, ``xmat``, ...) are those of the last RK4 stage, as always
+        after ``mj_step``: call ``mujoco.mj_kinematics(model, data)`` before drawing from ``data``.
+        Do not change ``userdata`` (the callback's parameters) or the inertial of body "hull".
     """
 
     name = "mujoco"
