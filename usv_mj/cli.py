@@ -24,7 +24,7 @@ import time
 import tomllib
 from pathlib import Path
 
-from .scenario import ScenarioError, load_scenario, preset_names
+from .scenario import ScenarioError, _merge, load_scenario, preset_names
 
 EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -58,10 +58,15 @@ def add_scenario_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
                    help="override one scenario value by dotted key, e.g. --set disturbance.scale=1e-3")
     p.add_argument("--duration", type=float, help="simulated time [s] (default: the scenario's)")
+    p.add_argument("--sea", metavar="NAME", help="a sea preset on top of the scenario (moderate, steady-current, "
+                   "breeze, varying-current): waves, current and wind of SEA.md")
 
 
 def scenario_from_args(args):
-    overrides = _parse_set(args.set)
+    overrides = {}
+    if getattr(args, "sea", None):
+        overrides["sea"] = {"preset": args.sea}
+    overrides = _merge(overrides, _parse_set(args.set))
     if args.duration is not None:
         overrides["duration"] = args.duration
     if getattr(args, "plant", None):

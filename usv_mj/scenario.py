@@ -28,6 +28,7 @@ from typing import Any
 from controllers.pi_baseline import PIGains
 from controllers.ppc import PPCGains
 
+from .sea.settings import SeaSettings, SeaSettingsError, sea_preset_table
 from .ship import PaperDisturbance, ShipParams
 
 PLANT_KINDS = ("mujoco", "analytic")
@@ -226,6 +227,7 @@ class Scenario:
     controller: ControllerSpec = field(default_factory=ControllerSpec)
     baseline: BaselineSpec = field(default_factory=BaselineSpec)
     limits: LimitsSpec = field(default_factory=LimitsSpec)
+    sea: SeaSettings = field(default_factory=SeaSettings)
     source: str = field(default="", compare=False)
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -350,8 +352,26 @@ def _build_scenario(data: dict, source: str) -> Scenario:
         raise ScenarioError(f"{source}: baseline.enabled must be true or false, got {enabled!r}")
     pi_gains = _build(PIGains, base, source, "baseline", extra_known={"enabled"})
     top["baseline"] = BaselineSpec(enabled=enabled, gains=pi_gains)
+    if "sea" in data:
+        top["sea"] = _build_sea(data["sea"], source)
     scenario = _construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
+
+
+def _build_sea(table, source: str) -> SeaSettings:
+    """``[sea]``: the fixed keys of issue 7 (SEA.md); ``preset = "moderate"`` names a sea preset
+    whose tables sit under the scenario's own ``[sea.*]`` keys."""
+    try:
+        if isinstance(table, dict) and "preset" in table:
+            table = dict(table)
+            name = table.pop("preset")
+            if not isinstance(name, str):
+                raise ScenarioError(f"{source}: sea.preset must be a string, got {name!r}")
+            table = _merge(sea_preset_table(name), table)
+        return SeaSettings.from_table(table, source)
+    except SeaSettingsError as exc:
+        msg = str(exc)
+        raise ScenarioError(msg if msg.startswith(source) else f"{source}: {msg}") from None
 
 
 def _unknown(source, section, key, known):

@@ -25,7 +25,7 @@ from controllers.ppc import PPCController
 
 from .plants.analytic import AnalyticPlant
 from .record import COL, SL_DIAG, SL_REF, SL_STATE, Event, RunRecord
-from .scenario import Scenario
+from .scenario import Scenario, ScenarioError
 from .trajectories import CircleReference, LineReference, PaperReference, WaypointReference
 
 
@@ -79,10 +79,25 @@ def make_quantizers(scenario: Scenario) -> tuple[HysteresisQuantizer, Hysteresis
             HysteresisQuantizer(QuantizerParams(q.delta_r, q.u_min_r), q.enabled))
 
 
-def make_plant(scenario: Scenario, kind: str | None = None):
+def make_environment(scenario: Scenario, duration: float | None = None):
+    """The scenario's sea (waves, current, wind; SEA.md) or None when it is calm."""
+    if scenario.sea.calm:
+        return None
+    from .sea import Environment
+
+    return Environment(scenario.sea, ship=scenario.ship, t_max=(duration or scenario.duration) + 1.0)
+
+
+def make_plant(scenario: Scenario, kind: str | None = None, environment=None):
     kind = kind or scenario.plant.kind
+    if environment is None:
+        environment = make_environment(scenario)
     if kind == "analytic":
-        return AnalyticPlant(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps)
+        return AnalyticPlant(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
+                             environment=environment)
+    if kind == "mujoco" and environment is not None:
+        raise ScenarioError("the MuJoCo plant does not take a sea state yet: use --plant analytic for [sea] "
+                            "scenarios")
     if kind == "mujoco":
         from .plants.mujoco_plant import MuJoCoPlant
 

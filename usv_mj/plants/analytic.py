@@ -38,12 +38,15 @@ class AnalyticPlant(PlantBase):
         Hold time of the input [s].
     substeps:
         RK4 steps per control period (>= 1).
+    environment:
+        A :class:`usv_mj.sea.Environment` (waves, current, wind; SEA.md §1) or None for calm water.
+        Calm water takes the exact same kernels as before the sea existed (bit-identical runs).
     """
 
     name = "analytic"
 
     def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, control_period: float = 1e-3,
-                 substeps: int = 1):
+                 substeps: int = 1, environment=None):
         if not control_period > 0:
             raise ValueError(f"control_period must be > 0, got {control_period!r}")
         if int(substeps) < 1:
@@ -56,6 +59,7 @@ class AnalyticPlant(PlantBase):
         self._x = np.zeros(6)
         self._t = 0.0
         self._k = 0
+        self.environment = environment if environment is not None and not environment.calm else None
 
     def reset(self, eta0, nu0, t0: float = 0.0) -> None:
         self._x = np.concatenate([np.asarray(eta0, float), np.asarray(nu0, float)])
@@ -64,7 +68,15 @@ class AnalyticPlant(PlantBase):
         self._k = 0
 
     def step(self, tau_u: float, tau_r: float) -> None:
-        self._x = rk4_advance(self._p, self._dp, self._t, self._x, float(tau_u), float(tau_r), self._h, self.substeps)
+        if self.environment is None:
+            self._x = rk4_advance(self._p, self._dp, self._t, self._x, float(tau_u), float(tau_r), self._h,
+                                  self.substeps)
+        else:
+            from usv_mj.sea import sea_rk4_advance
+
+            self.environment.ensure_horizon(self._t + 2 * self.control_period)
+            self._x = sea_rk4_advance(self._p, self._dp, *self.environment.packed, self._t, self._x,
+                                      float(tau_u), float(tau_r), self._h, self.substeps)
         self._k += 1
         # time from the step count: no drift from summing dt 300 000 times
         self._t = self._t0 + self._k * self.control_period
