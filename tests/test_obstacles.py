@@ -61,7 +61,7 @@ def test_bad_guidance_names_its_key(tmp_path):
 
 
 def test_example_scenarios_load():
-    for name in ("harbour_gap", "ramming_pier", "crossing_boat"):
+    for name in ("harbour_gap", "ramming_pier", "crossing_boat", "head_on_boat"):
         osc = load_obstacle_scenario(SCENARIOS / f"{name}.toml")
         assert osc.obstacles and osc.scenario.plant.kind == "mujoco"
     crossing = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml")
@@ -335,11 +335,49 @@ def test_guidance_detects_the_crossing_boat_within_its_horizon_and_retimes_smoot
     assert np.max(np.abs(du)) <= osc.guidance.max_accel + 1e-9 and np.min(ref[:, 6]) > 0
 
 
-def test_head_on_boat_cannot_be_waited_out_and_is_reported():
+def test_head_on_boat_gets_a_starboard_detour_that_keeps_clear():
+    """A boat coming along the path cannot be waited out: the guidance shifts the path to starboard
+    (time-aware check over the horizon), continuing from the current heading and curvature."""
     osc = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml", overrides={
-        "obstacles": [{"kind": "box", "center": [30.0, 0.0], "size": [4.0, 1.6], "velocity": [-0.5, 0.0],
+        "duration": 80.0,
+        "obstacles": [{"kind": "box", "center": [40.0, 0.0], "size": [4.0, 1.6], "velocity": [-0.5, 0.0],
                        "name": "head_on"}]})
-    _, _, guidance = _guidance_for(osc)
+    from usv_mj.obstacles import Guidance
+
+    plan = make_plan(osc)
+    guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.scenario.trajectory.speed,
+                        goal=plan.polyline[-1])
+    dt = 0.01
+    times = np.arange(0.0, 80.0, dt)
+    ref = np.empty((len(times), 7))
+    for k, t in enumerate(times):
+        guidance.update(float(t))
+        ref[k] = plan.reference.evaluate(float(t))
+    replans = [e for e in guidance.events if e.kind == "replan"]
+    assert replans and replans[0].values["mode"] == "path" and replans[0].values["side"] == "starboard"
+    dist = obstacle_distances(osc.obstacles, ref[:, :2], times)[:, 0]
+    assert np.all(dist >= plan.envelope.required(times) - 1e-6)
+    # the boat passes on the ship's port side (the ship is south of it, y < 0, when they are abeam)
+    boat_x = 40.0 - 0.5 * times
+    abeam = np.argmin(np.abs(ref[:, 0] - boat_x))
+    assert ref[abeam, 1] < -2.0
+    # continuous and bounded: no jump of the reference, |r_d| and |r_d_dot| within the limits
+    g = osc.guidance
+    assert np.max(np.hypot(np.diff(ref[:, 0]), np.diff(ref[:, 1]))) <= 0.6 * dt * 1.001
+    assert np.max(np.abs(ref[:, 5])) <= g.max_yaw_rate + 1e-9
+    assert np.max(np.abs(np.diff(ref[:, 5]) / dt)) <= g.max_yaw_accel * 1.01
+
+
+def test_an_obstacle_that_cannot_be_avoided_is_reported():
+    """A 200 m wide barge sweeping down the path: neither re-timing nor a detour helps."""
+    osc = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml", overrides={
+        "obstacles": [{"kind": "box", "center": [30.0, 0.0], "size": [4.0, 200.0], "velocity": [-0.5, 0.0],
+                       "name": "barge"}]})
+    from usv_mj.obstacles import Guidance
+
+    plan = make_plan(osc)
+    guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.scenario.trajectory.speed,
+                        goal=plan.polyline[-1])
     assert guidance.update(0.0) is False
     assert [e.kind for e in guidance.events] == ["guidance_conflict"]
-    assert guidance.events[0].values["obstacle"] == "head_on"
+    assert guidance.events[0].values["obstacle"] == "barge"

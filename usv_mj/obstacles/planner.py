@@ -39,10 +39,13 @@ dist(p_d(tau), O_j(tau)) - G(tau) over the next ``horizon`` seconds is computed 
 obstacle (constant velocity); when it drops under the margin, the reference is **re-timed**: it
 slows down (|u_d_dot| <= max_accel), holds a lower speed for a while, and speeds up again; the
 candidate that loses the least progress while keeping the predicted clearance above the margin
-(moving and static obstacles) is taken, and a ``replan`` event is logged. The path itself does not
-change, so r_d and r_d_dot stay bounded (r_d_dot = kappa' u^2 + kappa u_dot). An obstacle that
-cannot be let pass by waiting (one that comes along the path at the ship) is logged as
-``guidance_conflict`` and not avoided.
+(moving and static obstacles) is taken, and a ``replan`` event (``mode = "timing"``) is logged.
+The path itself does not change, so r_d and r_d_dot stay bounded (r_d_dot = kappa' u^2 + kappa
+u_dot). When no re-timing helps (a boat coming along the path), the path is shifted sideways
+around the conflict point, starboard first, with growing offsets, smoothed by the same virtual
+boat from the current heading and curvature (r_d stays continuous), and accepted when the
+predicted clearance over the horizon holds (``mode = "path"``). When nothing helps, a
+``guidance_conflict`` event is logged and the reference is left as it is.
 """
 
 from __future__ import annotations
@@ -169,11 +172,12 @@ class PathTable:
 
 
 def smooth_polyline(points, psi0: float, kappa_max: float, dkappa_max: float, lookahead: float,
-                    extend: float, ds: float = PATH_DS) -> PathTable:
+                    extend: float, ds: float = PATH_DS, kappa0: float = 0.0) -> PathTable:
     """The virtual boat: pure pursuit of the polyline ``points`` (look-ahead ``lookahead`` [m]) from
     points[0] with heading ``psi0``; curvature kappa_cmd = 2 sin(alpha)/L clipped to ``kappa_max``
     [1/m], followed with |dkappa/ds| <= ``dkappa_max`` [1/m^2]. The polyline is extended by
-    ``extend`` [m] straight past its last point; the table stops at that end."""
+    ``extend`` [m] straight past its last point; the table stops at that end. ``kappa0``: initial
+    curvature (a path that continues another one keeps r_d continuous)."""
     pts = np.asarray(points, dtype=float)
     last = pts[-1] - pts[-2]
     pts = np.vstack([pts, pts[-1] + extend * last / np.linalg.norm(last)])
@@ -193,7 +197,7 @@ def smooth_polyline(points, psi0: float, kappa_max: float, dkappa_max: float, lo
 
     n_max = int(math.ceil(1.5 * total / ds)) + 10
     xs, ys, ps, ks = (np.empty(n_max) for _ in range(4))
-    x, y, psi, kappa = pts[0, 0], pts[0, 1], psi0, 0.0
+    x, y, psi, kappa = pts[0, 0], pts[0, 1], psi0, float(kappa0)
     j = 0          # current segment
     s_proj = 0.0   # arc length of the projection on the polyline
     k = 0
@@ -289,22 +293,67 @@ def retimed_pieces(t: float, s: float, u: float, u_low: float, hold: float, u_cr
 
 class GuidedReference(Reference):
     """A planned path run with a speed profile (:class:`usv_mj.trajectories.Reference`):
-    pose(t) = (x(s), y(s), psi(s), kappa(s) u, u) with (s, u) = profile(t) (module docstring)."""
+    pose(t) = (x(s), y(s), psi(s), kappa(s) u, u) with (s, u) = profile(t) (module docstring).
+
+    A detour replaces the path from a time on (:meth:`switch_path`): ``segments`` holds
+    (t_start, s_start, path) and the path of the last segment started by t is read at s - s_start.
+    """
 
     kind = "guided"
 
     def __init__(self, path: PathTable, profile: SpeedProfile):
         super().__init__()
-        self.path, self.profile = path, profile
+        self.profile = profile
+        self.segments = [(0.0, 0.0, path)]
+
+    @property
+    def path(self) -> PathTable:
+        """The path in use at the end (the original one until a detour)."""
+        return self.segments[-1][2]
+
+    @staticmethod
+    def _segment(segments, t):
+        i = len(segments) - 1
+        while i > 0 and segments[i][0] > t:
+            i -= 1
+        return segments[i]
+
+    def geometry(self, t: float):
+        """(x, y, psi, kappa, s_local, segment) of the reference at time t."""
+        s, _, _ = self.profile.state(t)
+        seg = self._segment(self.segments, t)
+        return (*seg[2].at(s - seg[1]), s - seg[1], seg)
 
     def pose(self, t):
         s, u, _ = self.profile.state(t)
-        x, y, psi, kappa = self.path.at(s)
+        t0, s0, path = self._segment(self.segments, t)
+        x, y, psi, kappa = path.at(s - s0)
         return x, y, psi, kappa * u, u
 
-    def positions(self, times) -> np.ndarray:
-        """Reference positions at many times, shape (len(times), 2)."""
-        return self.path.points(self.profile.states(np.asarray(times, dtype=float)))
+    def positions(self, times, profile: SpeedProfile | None = None, segments=None) -> np.ndarray:
+        """Reference positions at many times, shape (len(times), 2) (optionally for a candidate
+        profile and segment list)."""
+        times = np.asarray(times, dtype=float)
+        profile = profile or self.profile
+        segments = segments or self.segments
+        s = profile.states(times)
+        if len(segments) == 1:
+            return segments[0][2].points(s - segments[0][1])
+        starts = np.array([seg[0] for seg in segments])
+        idx = np.maximum(np.searchsorted(starts, times, side="right") - 1, 0)
+        out = np.empty((len(times), 2))
+        for j in np.unique(idx):
+            mask = idx == j
+            out[mask] = segments[j][2].points(s[mask] - segments[j][1])
+        return out
+
+    def segments_with(self, t: float, path: PathTable) -> list:
+        """The segment list with ``path`` taking over at time t (from the reference's s(t))."""
+        keep = [seg for seg in self.segments if seg[0] <= t]
+        return keep + [(t, self.profile.state(t)[0], path)]
+
+    def switch_path(self, t: float, path: PathTable) -> None:
+        self.segments = self.segments_with(t, path)
 
     def yaw_rate_bounds(self, times) -> tuple[float, float]:
         """max |r_d| [rad/s] and max |r_d_dot| [rad/s^2] over ``times`` (finite differences)."""
@@ -476,18 +525,23 @@ def plan_reference(start, goal, obstacles, envelope: SafetyEnvelope, guidance: G
 
 
 class Guidance:
-    """Online guidance: re-times a :class:`GuidedReference` when the predicted clearance to a
-    moving obstacle drops under the margin (module docstring). Call :meth:`update` every control
-    step (it works every ``check_period``); events go to ``log.add_event`` when a log is given.
+    """Online guidance: re-times a :class:`GuidedReference` (or detours it, when ``goal`` is given)
+    when the predicted clearance to a moving obstacle drops under the margin (module docstring).
+    Call :meth:`update` every control step (it works every ``check_period``); events go to
+    ``log.add_event`` when a log is given.
     """
 
     HOLD_STEPS = (0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 60.0)
     SPEED_FACTORS = (0.75, 0.5, 0.25, 0.1)
     PREDICT_DT = 0.25
 
+    DETOUR_OFFSETS = (4.0, 6.0, 9.0, 13.0)   # m, lateral offsets tried, starboard first
+    DETOUR_SPAN = 12.0                        # m, before and after the conflict point along the path
+
     def __init__(self, reference: GuidedReference, obstacles, envelope: SafetyEnvelope, guidance: GuidanceSpec,
-                 speed: float, log=None):
+                 speed: float, log=None, goal=None):
         self.reference = reference
+        self.goal = None if goal is None else np.asarray(goal, dtype=float)
         self.obstacles = tuple(obstacles)
         self.moving = [i for i, o in enumerate(self.obstacles) if o.moving]
         self.static = [i for i, o in enumerate(self.obstacles) if not o.moving]
@@ -497,11 +551,11 @@ class Guidance:
         self._next_check = 0.0
         self._conflict_reported = False
 
-    def predicted_slack(self, profile: SpeedProfile, t: float) -> tuple[float, int, float]:
+    def predicted_slack(self, profile: SpeedProfile, t: float, segments=None) -> tuple[float, int, float]:
         """min over tau in [t, t + horizon] and all obstacles of dist(p_d(tau), O(tau)) - G(tau) - margin,
         with the obstacle index and the time of the minimum."""
         times = np.arange(t, t + self.spec.horizon + 1e-9, self.PREDICT_DT)
-        pos = self.reference.path.points(profile.states(times))
+        pos = self.reference.positions(times, profile, segments)
         dist = obstacle_distances(self.obstacles, pos, times)
         slack = dist - self.envelope.required(times)[:, None]
         k, i = np.unravel_index(int(np.argmin(slack)), slack.shape)
@@ -531,6 +585,18 @@ class Guidance:
                         best = (progress, factor, hold, pieces, c_slack)
                     break  # longer holds at this speed only lose progress
         name = self.obstacles[i].name
+        if best is None and self.goal is not None:
+            detour = self._detour(t, t_min)
+            if detour is not None:
+                path, side, offset, c_slack = detour
+                self.reference.switch_path(t, path)
+                self._conflict_reported = False
+                self._emit(Event(t, "replan", f"detour for {name}: predicted clearance margin {slack:.2f} m at "
+                                 f"t = {t_min:.1f} s, no re-timing avoids it -> path shifted {offset:g} m to "
+                                 f"{side} (new margin {c_slack:.2f} m)",
+                                 {"obstacle": name, "mode": "path", "predicted_slack_m": slack, "t_conflict_s": t_min,
+                                  "side": side, "offset_m": offset, "new_slack_m": c_slack}))
+                return True
         if best is None:
             if not self._conflict_reported:
                 self._conflict_reported = True
@@ -544,9 +610,40 @@ class Guidance:
         self._emit(Event(t, "replan", f"re-timed the reference for {name}: predicted clearance margin "
                          f"{slack:.2f} m at t = {t_min:.1f} s -> speed {factor * self.speed:.2f} m/s held "
                          f"{hold:g} s (new margin {c_slack:.2f} m)",
-                         {"obstacle": name, "predicted_slack_m": slack, "t_conflict_s": t_min,
+                         {"obstacle": name, "mode": "timing", "predicted_slack_m": slack, "t_conflict_s": t_min,
                           "speed_mps": factor * self.speed, "hold_s": hold, "new_slack_m": c_slack}))
         return True
+
+    def _detour(self, t: float, t_conflict: float):
+        """Shift the path sideways around the conflict point (starboard first, then port; growing
+        offsets): current point -> offset point 12 m before the conflict -> offset point 12 m after ->
+        back on the path 12 m later -> goal, smoothed from the current heading and curvature, and
+        accepted when the predicted clearance over the horizon (moving and static obstacles) holds.
+        Returns (path, side, offset, slack) or None."""
+        x, y, psi, kappa, s_loc, (t0, s0, path) = self.reference.geometry(t)
+        s_c = self.reference.profile.state(t_conflict)[0] - s0
+        goal_s = float(np.argmin(np.hypot(path.x - self.goal[0], path.y - self.goal[1]))) * path.ds
+        sa = max(s_c - self.DETOUR_SPAN, s_loc + 4.0)
+        sb = max(s_c + self.DETOUR_SPAN, sa + 4.0)
+        sr = sb + self.DETOUR_SPAN
+        u = self.speed
+        extend = u * self.spec.horizon * 2.0 + 10.0
+        for side, sign in (("starboard", -1.0), ("port", 1.0)):
+            for offset in self.DETOUR_OFFSETS:
+                pts = [(x, y)]
+                for sv, off in ((sa, offset), (sb, offset), (sr, 0.0)):
+                    px, py, pp, _ = path.at(sv)
+                    # the left normal is (-sin psi, cos psi); sign -1 is starboard
+                    pts.append((px - sign * off * math.sin(pp), py + sign * off * math.cos(pp)))
+                if goal_s > sr + 1.0:
+                    pts.append(tuple(self.goal))
+                new = smooth_polyline(np.array(pts), psi, self.spec.max_yaw_rate / u, self.spec.max_yaw_accel / u**2,
+                                      self.spec.lookahead_m, extend, kappa0=kappa)
+                segments = self.reference.segments_with(t, new)
+                c_slack, _, _ = self.predicted_slack(self.reference.profile, t, segments)
+                if c_slack >= 0.0:
+                    return new, side, offset, c_slack
+        return None
 
     def _emit(self, event: Event) -> None:
         self.events.append(event)

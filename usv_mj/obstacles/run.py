@@ -116,7 +116,8 @@ def run_obstacle_scenario(osc: ObstacleScenario, plant_kind: str | None = None, 
         guidance = None
         reference = plan.reference if plan is not None else None
         if plan is not None and any(o.moving for o in osc.obstacles):
-            guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, sc.trajectory.speed, log)
+            guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, sc.trajectory.speed, log,
+                                goal=plan.polyline[-1])
         stepper = ObstacleStepper(controller or make_controller(sc), plant, monitor, log, reference, guidance)
         if plan is not None:
             for event in plan.events:
