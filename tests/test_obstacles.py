@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 import shapely
 
-from usv_mj.obstacles import (HULL_RADIUS, ContactParams, GeometricClearance, GuidanceSpec, HarbourPlant,
-                              MuJoCoClearance, PlanningError, SafetyEnvelope, compose_scene, from_tables,
-                              load_obstacle_scenario, make_plan, run_obstacle_scenario)
+from usv_mj.obstacles import (HULL_RADIUS, GeometricClearance, HarbourPlant, MuJoCoClearance, PlanningError,
+                              SafetyEnvelope, compose_scene, from_tables, load_obstacle_scenario, make_plan,
+                              run_obstacle_scenario)
 from usv_mj.obstacles.planner import obstacle_distances
 from usv_mj.scenario import ScenarioError
 from usv_mj.ship import PaperDisturbance, ShipParams, hydrodynamic_force
