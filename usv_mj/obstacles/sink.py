@@ -52,6 +52,7 @@ class ObstacleLog:
         self.record = None
         self._near = np.zeros(n, dtype=bool)
         self._contact = np.zeros(n, dtype=bool)
+        self._any_contact = False
         self._contact_start = np.zeros(n)
         self._contact_peak = np.zeros(n)
         self._contacts = 0
@@ -75,14 +76,14 @@ class ObstacleLog:
         if k >= self.n_rows:
             self.n_rows = k + 1
         near = clearance < self.margin
-        if near.any() and (near & ~self._near).any():
+        if (near & ~self._near).any():
             for i in np.flatnonzero(near & ~self._near):
                 o = self.obstacles[i]
                 self.add_event(Event(t, "near_miss", f"clearance to {o.name} fell to {clearance[i]:.3f} m "
                                      f"(< margin {self.margin:g} m)",
                                      {"obstacle": o.name, "index": int(i), "clearance_m": float(clearance[i])}))
         self._near = near
-        if in_contact.any() or self._contact.any():
+        if self._any_contact or in_contact.any():
             kind = "contact" if not self.note else "collision"
             for i in np.flatnonzero(in_contact & ~self._contact):
                 o = self.obstacles[i]
@@ -106,6 +107,7 @@ class ObstacleLog:
                                      {"obstacle": o.name, "index": int(i), "duration_s": float(t - self._contact_start[i]),
                                       "peak_normal_force_N": float(self._contact_peak[i])}))
             self._contact = in_contact.copy()
+            self._any_contact = bool(self._contact.any())
 
     def add_event(self, event: Event) -> None:
         self.events.append(event)
