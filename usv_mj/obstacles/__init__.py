@@ -6,24 +6,42 @@
 - :mod:`.clearance`: per-step signed distances and contacts (:class:`MuJoCoClearance`,
   :class:`GeometricClearance`).
 - :mod:`.planner`: :func:`plan_reference` (visibility graph + smoothing, verified against the funnel),
-  :class:`GuidedReference`, :class:`Guidance` (re-timing for moving obstacles), :class:`SafetyEnvelope`.
+  :class:`GuidedReference`, :class:`Guidance` (re-timing / detours for moving obstacles), :class:`SafetyEnvelope`.
 - :mod:`.sink`: :class:`ObstacleLog` (RunSink; clearance per step, events, summary).
+- :mod:`.display`: obstacles for figures, Foxglove scenes and the ``/usv/obstacles`` topic.
 - :mod:`.run`: :func:`run_obstacle_scenario`.
+
+Names are imported lazily, so ``usv_mj.obstacles.spec`` (used by scenario loading) does not pull in
+MuJoCo, dm_control, shapely or networkx.
 """
 
-from .clearance import GeometricClearance, MuJoCoClearance, make_clearance_monitor
-from .compose import (HULL_RADIUS, ContactParams, HarbourPlant, compose_scene, export_scene, hull_footprint,
-                      place_moving_obstacles)
-from .planner import (Guidance, GuidedReference, Plan, PlanningError, SafetyEnvelope, plan_reference)
-from .run import ObstacleRun, ObstacleStepper, make_plan, run_obstacle_scenario
-from .sink import ObstacleLog
-from .spec import (GuidanceSpec, ObstacleScenario, ObstacleSpec, from_tables, guidance_from_table,
-                   load_obstacle_scenario)
+from __future__ import annotations
 
-__all__ = [
-    "ContactParams", "GeometricClearance", "Guidance", "GuidanceSpec", "GuidedReference", "HULL_RADIUS",
-    "HarbourPlant", "MuJoCoClearance", "ObstacleLog", "ObstacleRun", "ObstacleScenario", "ObstacleSpec",
-    "ObstacleStepper", "Plan", "PlanningError", "SafetyEnvelope", "compose_scene", "export_scene",
-    "from_tables", "guidance_from_table", "hull_footprint", "load_obstacle_scenario", "make_clearance_monitor",
-    "make_plan", "place_moving_obstacles", "plan_reference", "run_obstacle_scenario",
-]
+import importlib
+
+_WHERE = {
+    "GeometricClearance": "clearance", "MuJoCoClearance": "clearance", "make_clearance_monitor": "clearance",
+    "HULL_RADIUS": "compose", "ContactParams": "compose", "HarbourPlant": "compose", "compose_scene": "compose",
+    "export_scene": "compose", "hull_footprint": "compose", "place_moving_obstacles": "compose",
+    "Guidance": "planner", "GuidedReference": "planner", "Plan": "planner", "PlanningError": "planner",
+    "SafetyEnvelope": "planner", "plan_reference": "planner",
+    "ObstacleRun": "run", "ObstacleStepper": "run", "make_plan": "run", "run_obstacle_scenario": "run",
+    "ObstacleLog": "sink",
+    "GuidanceSpec": "spec", "ObstacleScenario": "spec", "ObstacleSpec": "spec", "from_tables": "spec",
+    "guidance_from_table": "spec", "load_obstacle_scenario": "spec",
+    "draw_obstacles": "display", "scene_entities": "display", "obstacles_message": "display",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name not in _WHERE:
+        raise AttributeError(f"module 'usv_mj.obstacles' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return __all__
