@@ -284,3 +284,18 @@ def test_render_command_replays_an_mcap_run(tmp_path, capsys):
     assert len(frames) == 40                       # round(2 s * 10 fps / 0.5)
     assert frames[0].shape == (120, 160, 3) and (tmp_path / "run.png").is_file()
     assert "frames/s" in capsys.readouterr().out
+
+
+def test_workers_started_ahead_render_two_videos(tmp_path):
+    _gl_or_skip()
+    import imageio.v3 as iio
+
+    from usv_mj.render import RenderWorkers, render_run
+
+    with RenderWorkers(width=160, height=120, workers=2) as pool:
+        for duration, expected in ((2.0, 10), (3.0, 15)):
+            info = render_run(straight_run(duration=duration), tmp_path / f"v{duration:g}.mp4", width=160,
+                              height=120, fps=5, speedup=1.0, pool=pool, progress=False, segment_frames=4)
+            assert info["frames"] == expected == len(list(iio.imiter(info["mp4"])))
+        with pytest.raises(ValueError, match="workers were started for"):
+            render_run(straight_run(), tmp_path / "bad.mp4", width=320, height=240, pool=pool, progress=False)

@@ -8,7 +8,8 @@ simulating again. Public API::
     info = render_run(record, "renders/paper.mp4")      # mp4 + renders/paper.png
     info["fps"], info["frames"], info["wall_s"]
 
-``check_gl()`` returns the backend in use ("egl" or "osmesa") or raises RuntimeError saying which
+``RenderWorkers(...)`` starts the rendering processes ahead of time (they warm up while the run is
+simulated); pass it as ``render_run(..., pool=workers)``. ``check_gl()`` returns the backend in use ("egl" or "osmesa") or raises RuntimeError saying which
 Debian packages to install. ``add_arguments(parser)`` / ``run_command(args)`` make ``usv-mj render
 RUN``; ``add_video_arguments(parser)`` / ``video_options(args)`` give ``usv-mj run`` the same options.
 
@@ -17,9 +18,9 @@ Importing this package does not import mujoco (the backend must be chosen first)
 
 from .gl_backend import GLUnavailableError, install_message, select_backend
 from .planner import LAYERS, FrameSpec, TopView, plan_frames
-from .video import (add_arguments, add_video_arguments, check_gl, load_run_record, render_frames, render_run,
-                    run_command, video_options)
+from .video import (RenderWorkers, add_arguments, add_video_arguments, check_gl, load_run_record, render_frames,
+                    render_run, run_command, video_options)
 
-__all__ = ["render_run", "render_frames", "check_gl", "add_arguments", "add_video_arguments", "video_options",
+__all__ = ["render_run", "RenderWorkers", "render_frames", "check_gl", "add_arguments", "add_video_arguments", "video_options",
            "run_command", "load_run_record", "plan_frames", "FrameSpec", "TopView", "LAYERS",
            "GLUnavailableError", "install_message", "select_backend"]

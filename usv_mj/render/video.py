@@ -186,7 +186,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
                fps: float = DEFAULT_FPS, speedup: float | None = None, camera: str = "top",
                workers: int | None = None, progress: bool = True, gl: str | None = None, model=None,
                shadows: bool = False, samples: int = 0, layers=LAYERS, crf: int = 23, preset: str = "ultrafast",
-               max_frames: int | None = None, segment_frames: int = 120) -> dict:
+               max_frames: int | None = None, segment_frames: int = 120, pool: "RenderWorkers | None" = None) -> dict:
     """Render ``record`` (a finished :class:`~usv_mj.record.RunRecord`) to an mp4 and a PNG of its last frame.
 
     Parameters
@@ -202,6 +202,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
         process boundary.
     gl: "egl", "osmesa" or None (auto: the MUJOCO_GL variable, else EGL, else OSMesa).
     model: the scene MJCF (default models/scene.xml). shadows: MuJoCo's shadow pass (slow on Mesa).
+    pool: :class:`RenderWorkers` started earlier (same size, camera and options); not closed here.
     samples: multisampling. crf, preset: libx264 quality and speed (ultrafast: about 15 ms of CPU a
         720p frame, veryfast about 35 ms). max_frames: cap (tests).
 
@@ -223,13 +224,20 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
         out = out / "run.mp4"
     out.parent.mkdir(parents=True, exist_ok=True)
     png = out.with_suffix(".png")
-    backend = select_backend(gl)
+    kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
+                  shadows=shadows, samples=samples)
+    if pool is not None:
+        if pool.pool is None:
+            raise ValueError("pool: these RenderWorkers are closed")
+        if not pool.matches(kwargs):
+            raise ValueError(f"pool: the workers were started for {pool.kwargs}, the video asks for {kwargs}")
+        backend = pool.backend
+    else:
+        backend = select_backend(gl)
     plan = plan_frames(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera,
                        max_frames=max_frames)
     n = len(plan.frames)
     workers = _default_workers(n) if workers is None else max(1, min(int(workers), n))
-    kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
-                  shadows=shadows, samples=samples)
     encoder = {"preset": preset, "crf": crf}
     bar = None
     if progress:
@@ -239,7 +247,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
     if png.exists():
         png.unlink()
     try:
-        if _in_process(backend, workers):
+        if pool is None and _in_process(backend, workers):
             from .replay import FrameRenderer
 
             renderer = FrameRenderer(**kwargs)
@@ -251,8 +259,13 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
                 renderer.close()
             workers_used = 1
         else:
-            count = _render_segments(plan, out, png, backend, workers, kwargs, encoder, fps, segment_frames, bar)
-            workers_used = workers
+            if pool is not None:
+                count = _render_segments(plan, out, png, pool, encoder, fps, segment_frames, bar)
+                workers_used = pool.workers
+            else:
+                with RenderWorkers(workers=workers, gl=backend, **_pool_options(kwargs)) as own:
+                    count = _render_segments(plan, out, png, own, encoder, fps, segment_frames, bar)
+                workers_used = workers
             model_label = None
     finally:
         if bar is not None:
@@ -275,47 +288,91 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
 X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow")
 
 
-def _render_segments(plan, out, png, backend, workers, kwargs, encoder, fps, segment_frames, bar) -> int:
+class RenderWorkers:
+    """A pool of rendering processes started ahead of time (e.g. while the simulation runs).
+
+    Each worker imports mujoco, compiles the scene and opens its GL context as soon as it starts,
+    which takes 1-3 s; pass the pool to :func:`render_run` (``pool=``) to skip that wait::
+
+        with RenderWorkers(width=1280, height=720, camera="top") as pool:
+            record = simulate(scenario)                  # the workers warm up meanwhile
+            info = render_run(record, "renders/run.mp4", pool=pool)
+
+    The size, camera, layers and GL options of the pool are the ones the video gets.
+    """
+
+    def __init__(self, *, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, camera: str = "top",
+                 workers: int | None = None, gl: str | None = None, model=None, shadows: bool = False,
+                 samples: int = 0, layers=LAYERS):
+        from .gl_backend import backend_environment
+
+        _check_size(width, height)
+        self.backend = select_backend(gl)
+        self.workers = _default_workers(1 << 30) if workers is None else max(1, int(workers))
+        self.kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
+                           shadows=shadows, samples=samples)
+        ctx = multiprocessing.get_context("spawn")
+        self.counter = ctx.Value("i", 0)
+        env = backend_environment(self.backend)
+        if "LP_NUM_THREADS" not in os.environ:
+            # one llvmpipe thread per worker: with a process per core, more threads only contend
+            # (measured 60 vs 70 ms of CPU a 720p frame with 2 workers on 2 cores)
+            env["LP_NUM_THREADS"] = "1"
+        self.pool = ctx.Pool(self.workers, initializer=_worker_init, initargs=(env, self.kwargs, self.counter))
+
+    def matches(self, kwargs: dict) -> bool:
+        return kwargs == self.kwargs
+
+    def close(self, terminate: bool = False) -> None:
+        if self.pool is None:
+            return
+        if terminate:
+            self.pool.terminate()
+        else:
+            self.pool.close()
+        self.pool.join()
+        self.pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self.close(terminate=exc_type is not None)
+        return False
+
+
+def _render_segments(plan, out, png, workers: RenderWorkers, encoder, fps, segment_frames, bar) -> int:
     """Workers render-and-encode blocks of frames into segment files; ffmpeg joins them into ``out``."""
     import tempfile
 
-    from .gl_backend import backend_environment
-
     n = len(plan.frames)
-    per = max(1, min(int(segment_frames), math.ceil(n / workers)))
+    per = max(1, min(int(segment_frames), math.ceil(n / workers.workers)))
     bounds = list(range(0, n, per)) + [n]
-    ctx = multiprocessing.get_context("spawn")
-    counter = ctx.Value("i", 0)
-    width, height = kwargs["width"], kwargs["height"]
+    width, height = workers.kwargs["width"], workers.kwargs["height"]
+    with workers.counter.get_lock():
+        workers.counter.value = 0
     with tempfile.TemporaryDirectory(prefix=".render-", dir=out.parent) as tmp:
         tasks = []
         for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
             seg = Path(tmp) / f"seg{i:05d}.mp4"
             tasks.append((i, plan.frames[a:b], str(seg), width, height, fps, encoder,
                           str(png) if b == n else None))
-        env = backend_environment(backend)
-        if "LP_NUM_THREADS" not in os.environ:
-            # one llvmpipe thread per worker: with a process per core, more threads only contend
-            # (measured 60 vs 70 ms of CPU a 720p frame with 2 workers on 2 cores)
-            env["LP_NUM_THREADS"] = "1"
-        pool = ctx.Pool(workers, initializer=_worker_init, initargs=(env, kwargs, counter))
-        try:
-            result = pool.map_async(_worker_segment, tasks, chunksize=1)
-            while not result.ready():
-                result.wait(0.25)
-                if bar is not None:
-                    bar.update(counter.value - bar.n)
-            written = dict(result.get())
-            pool.close()
-        except BaseException:
-            pool.terminate()
-            raise
-        finally:
-            pool.join()
+        result = workers.pool.map_async(_worker_segment, tasks, chunksize=1)
+        while not result.ready():
+            result.wait(0.25)
+            if bar is not None:
+                bar.update(workers.counter.value - bar.n)
+        written = dict(result.get())
         if bar is not None:
-            bar.update(counter.value - bar.n)
+            bar.update(workers.counter.value - bar.n)
         _concat(sorted(Path(tmp).glob("seg*.mp4")), out)
     return int(sum(written.values()))
+
+
+def _pool_options(kwargs: dict) -> dict:
+    k = dict(kwargs)
+    k["model"] = k.pop("model_path")
+    return k
 
 
 def _concat(segments, out: Path) -> None:
