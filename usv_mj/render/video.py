@@ -46,6 +46,20 @@ def _worker_init(env: dict, renderer_kwargs: dict, counter=None) -> None:
 
     _worker_renderer = FrameRenderer(**renderer_kwargs)
     _worker_counter = counter
+    # llvmpipe compiles a shader variant the first time each kind of draw is seen (~0.5 s in all):
+    # do it now, while the pool warms up, rather than in the first frame of the video
+    _worker_renderer.render(warmup_frame())
+
+
+def warmup_frame():
+    """A frame with every layer in it (hull, ghost, trail, path, funnel, overlay), for warming up a renderer."""
+    from .planner import FrameSpec, TopView
+
+    line = np.array([[-3.0, 0.0], [-1.5, 0.2], [0.0, 0.0]])
+    hud = {"t": 0.0, "t_end": 1.0, "speedup": 1.0, "title": "", "e": (0.1, -0.1, 0.01), "rho": (1.0, 1.0, 1.0),
+           "tau_u": 1.0, "q_tau_u": 1.0, "tau_r": -1.0, "q_tau_r": -1.0, "tau_u_scale": 2.0, "tau_r_scale": 2.0}
+    return FrameSpec(0, 0.0, (0.0, 0.0, 0.0), (1.0, 0.5, 0.1), (1.0, 0.5), (2.0, 2.0), True, line, line + 1.0,
+                     TopView(0.0, 0.0, 6.0), hud)
 
 
 def _worker_render(spec):
@@ -323,7 +337,9 @@ class RenderWorkers:
     def matches(self, kwargs: dict) -> bool:
         return kwargs == self.kwargs
 
-    def close(self, terminate: bool = False) -> None:
+    def close(self, terminate: bool = True) -> None:
+        """Stop the workers. They hold no unfinished output once render_run returned, so by default they
+        are terminated: a clean interpreter exit of a worker (module teardown) took about 2 s here."""
         if self.pool is None:
             return
         if terminate:
@@ -337,7 +353,7 @@ class RenderWorkers:
         return self
 
     def __exit__(self, exc_type, exc, tb):
-        self.close(terminate=exc_type is not None)
+        self.close()
         return False
 
 
