@@ -301,9 +301,21 @@ def test_interrupt_and_resume_give_the_uninterrupted_table(tmp_path, client):
         resumed = run_sweep(plan, tmp_path / "part", client=client, progress=False, echo=None, resume=True)
     assert resumed.ran == 6 - len(kept)
     a, _ = read_results(tmp_path / "whole" / "results.parquet")
-    b, _ = read_results(tmp_path / "part" / "results.parquet")
+    b, fingerprint = read_results(tmp_path / "part" / "results.parquet")
     assert _comparable(a) == _comparable(b)
     assert whole.ran == 6
+    # a failed row (a worker lost to memory, say) is run again with retry_failed, and only it
+    from usv_mj.sweep.runner import failed_row, write_results
+
+    b[3] = failed_row(3, plan.runs[3].values, "worker died: test")
+    write_results(tmp_path / "part" / "results.parquet", b, plan.paths, fingerprint)
+    again = run_sweep(plan, tmp_path / "part", client=client, progress=False, echo=None, resume=True)
+    assert again.ran == 0 and again.rows[3]["status"] == "failed"
+    again = run_sweep(plan, tmp_path / "part", client=client, progress=False, echo=None, resume=True,
+                      retry_failed=True)
+    assert again.ran == 1
+    c, _ = read_results(tmp_path / "part" / "results.parquet")
+    assert _comparable(a) == _comparable(c)
 
 
 def test_keep_logs_writes_one_mcap_per_run_with_the_same_run(tmp_path, client):

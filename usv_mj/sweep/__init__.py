@@ -70,6 +70,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=None,
                         help="local cluster: worker processes (default: the number of cores)")
     parser.add_argument("--resume", action="store_true", help="run only the runs missing from DIR/results.parquet")
+    parser.add_argument("--retry-failed", action="store_true",
+                        help="with --resume: run the failed runs again too (diverged ones are results and stay)")
     parser.add_argument("--keep-logs", action="store_true", help="write an MCAP log of every run to DIR/logs/")
     parser.add_argument("--max-runs", type=int, default=None,
                         help="run at most N runs now, then stop (--resume continues): sweeps in chunks")
@@ -84,6 +86,8 @@ def run_command(args: argparse.Namespace) -> int:
         plan = load_sweep(args.sweep)
         if args.workers is not None and args.workers < 1:
             raise SweepError(f"--workers must be >= 1, got {args.workers}")
+        if getattr(args, "retry_failed", False) and not args.resume:
+            raise SweepError("--retry-failed goes with --resume")
         max_runs = getattr(args, "max_runs", None)
         if max_runs is not None and max_runs < 1:
             raise SweepError(f"--max-runs must be >= 1, got {max_runs}")
@@ -91,7 +95,7 @@ def run_command(args: argparse.Namespace) -> int:
         result = run_sweep(plan, args.out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
                            keep_logs=args.keep_logs, progress=not getattr(args, "no_progress", False),
                            max_runs=max_runs, jobqueue=getattr(args, "jobqueue", None),
-                           jobs=getattr(args, "jobs", 1))
+                           jobs=getattr(args, "jobs", 1), retry_failed=getattr(args, "retry_failed", False))
     except SweepError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

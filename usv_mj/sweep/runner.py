@@ -381,12 +381,15 @@ class SweepResult:
 def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
               resume: bool = False, keep_logs: bool = False, progress: bool = True, flush_every: float = 2.0,
               client=None, echo: Callable[[str], None] | None = print, report: bool = True,
-              max_runs: int | None = None, jobqueue: str | None = None, jobs: int = 1) -> SweepResult:
+              max_runs: int | None = None, jobqueue: str | None = None, jobs: int = 1,
+              retry_failed: bool = False) -> SweepResult:
     """Run the plan's missing runs on Dask, streaming rows into ``out/results.parquet``; then the report.
 
     ``client``: an existing ``distributed.Client`` (else one is opened by :func:`open_client`).
     ``max_runs``: stop after this many new rows, as an interrupt would (the rest waits for ``resume``).
     ``jobqueue``, ``jobs``: run on a batch system through dask-jobqueue (see :func:`open_client`).
+    ``retry_failed``: with ``resume``, run the ``failed`` rows again too (a worker that died of a
+    lack of memory, say); diverged runs are results and stay.
     Raises :class:`SweepError` when ``out`` already holds results and ``resume`` is False, or holds
     results of another plan. KeyboardInterrupt propagates after the rows so far are written.
     """
@@ -405,7 +408,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
         if fingerprint != plan.fingerprint:
             raise SweepError(f"{results} holds the results of another sweep (its file, seed or base differ): "
                              f"choose another --out")
-        rows = {int(r["run_id"]): r for r in old}
+        rows = {int(r["run_id"]): r for r in old if not (retry_failed and r["status"] == "failed")}
     (out / "sweep.json").write_text(json.dumps({
         "source": plan.source, "fingerprint": plan.fingerprint, "runs": len(plan.runs), "seed": plan.seed,
         "samples": plan.samples, "transient_s": plan.transient, "base_preset": plan.base.preset,
