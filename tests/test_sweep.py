@@ -381,27 +381,73 @@ def test_capability_disturbance_bracket_checked_by_direct_runs(tmp_path, client)
     assert (tmp_path / "cap" / "capability.png").stat().st_size > 10_000
 
 
+def _sea_known() -> bool:
+    from usv_mj.scenario import ScenarioError
+
+    try:
+        load_scenario(preset="paper", overrides={"sea": {"current": {"speed": 0.1, "direction_deg": 0.0}}})
+    except ScenarioError:
+        return False
+    return True
+
+
 def test_capability_sea_loads_exit_2_until_the_scenario_has_them(tmp_path, capsys):
     import argparse
 
-    from usv_mj.scenario import ScenarioError
     from usv_mj.sweep import add_capability_arguments, capability_command
 
     parser = argparse.ArgumentParser()
     add_capability_arguments(parser)
-    try:
-        load_scenario(preset="paper", overrides={"sea": {"current": {"speed": 0.1}}})
-        sea_known = True
-    except ScenarioError:
-        sea_known = False
-    if sea_known:
+    rc = capability_command(parser.parse_args(["--load", "disturbance", "--min", "1", "--max", "0.5",
+                                               "--out", str(tmp_path / "c")]))
+    assert rc == 2 and "need 0 <= --min < --max" in capsys.readouterr().err
+    if _sea_known():
         pytest.skip("the scenario accepts the sea-state keys: --load current is a real search now")
     rc = capability_command(parser.parse_args(["--load", "current", "--out", str(tmp_path / "c")]))
     assert rc == 2
     assert "only --load disturbance works" in capsys.readouterr().err
-    rc = capability_command(parser.parse_args(["--load", "disturbance", "--min", "1", "--max", "0.5",
-                                               "--out", str(tmp_path / "c")]))
-    assert rc == 2
+
+
+def test_capability_current_per_direction_checked_by_direct_runs(tmp_path, client):
+    if not _sea_known():
+        pytest.skip("the scenario format has no [sea.current] in this checkout")
+    results = run_capability("current", duration=10.0, plant="analytic", step=90.0, load_max=10.0, tol=0.25,
+                             out=tmp_path / "cur", client=client, progress=False, echo=None)
+    assert [r.direction_deg for r in results] == [0.0, 90.0, 180.0, 270.0]
+    import json
+
+    doc = json.loads((tmp_path / "cur" / "capability.json").read_text())
+    assert doc["path_heading_deg"] == 0.0  # the paper path starts along +x
+    assert sum(run["load"] == 0.0 for run in doc["runs"]) == 1  # calm once for all directions
+
+    def kept(speed, direction):
+        rec = simulate(load_scenario(preset="paper", overrides={
+            "duration": 10.0, "plant": {"kind": "analytic"},
+            "sea": {"current": {"speed": speed, "direction_deg": direction}}}))
+        return rec.status == "completed" and summarize(rec)["funnel_violations"] == 0
+
+    for r in results:
+        assert r.holds is not None and r.fails is not None and r.fails - r.holds <= 0.25 * r.fails
+        assert kept(r.holds, r.direction_deg) and not kept(r.fails, r.direction_deg)
+
+
+def test_capability_stops_on_a_failed_run_instead_of_calling_it_a_limit(tmp_path, client):
+    if not _sea_known():
+        pytest.skip("the scenario format has no [sea.current] in this checkout")
+    try:
+        load_scenario(preset="paper", overrides={"plant": {"kind": "mujoco"}, "sea": {"current": {"speed": 0.1}}})
+        from usv_mj.simulation import make_plant
+
+        make_plant(load_scenario(preset="paper", overrides={"plant": {"kind": "mujoco"},
+                                                            "sea": {"current": {"speed": 0.1}}})).close()
+    except Exception as exc:  # the MuJoCo plant refuses a sea state: every loaded run fails
+        reason = str(exc)
+    else:
+        pytest.skip("the MuJoCo plant takes the sea state: no failing set-up to show")
+    with pytest.raises(SweepError, match="failed, so the search cannot go on") as info:
+        run_capability("current", duration=2.0, plant="mujoco", step=180.0, load_max=1.0, tol=0.25,
+                       out=tmp_path / "cur", client=client, progress=False, echo=None)
+    assert reason.split(":")[0] in str(info.value)
 
 
 @pytest.mark.parametrize("path", sorted((ROOT / "examples" / "sweeps").glob("*.toml")), ids=lambda p: p.name)

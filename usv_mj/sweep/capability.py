@@ -24,8 +24,12 @@ Loads
   invent one.)
 - ``current`` (``sea.current.speed`` m/s), ``wind`` (``sea.wind.speed`` m/s), ``waves``
   (``sea.waves.hs`` m), each with its ``direction_deg`` set to path heading + relative direction:
-  these need the sea-state keys of issue 7 in the scenario format. Until :mod:`usv_mj.scenario`
-  accepts them, the command stops with exit code 2 and says so.
+  these need the sea-state keys of issue 7 in the scenario format (a checkout whose
+  :mod:`usv_mj.scenario` does not accept them stops with exit code 2 and says so), and a plant
+  that takes the sea state. A load of 0 is calm whatever its direction: it is run once.
+
+A run that *fails* (raises, or its worker dies) is not an answer about the funnel: the search stops
+with its reason (exit code 2), where a diverged run counts as the funnel lost.
 """
 
 from __future__ import annotations
@@ -145,6 +149,11 @@ class _Evaluator:
                 self.progress.update(1)
 
         gather_rows(self.client, jobs, on_row, key_prefix="usv-capability")
+        for (direction, value), row in out.items():
+            if row["status"] == "failed":  # an error of the set-up, not an answer about the funnel
+                where = "" if direction is None else f" toward {direction:g} deg"
+                raise SweepError(f"{self.source}: the run with {self.load.path} = {value:g}{where} failed, so the "
+                                 f"search cannot go on: {row['reason']}")
         return out
 
 
@@ -243,7 +252,8 @@ def add_capability_arguments(parser: argparse.ArgumentParser) -> None:
                         help="what to scale: disturbance (d(t) scale s), current, wind or waves (need the sea state)")
     parser.add_argument("--base", default="paper", help="preset name or scenario file (default: paper)")
     parser.add_argument("--duration", type=float, default=None, help="run length in s (default: the base's)")
-    parser.add_argument("--plant", choices=("analytic", "mujoco"), default=None, help="default: the base's")
+    parser.add_argument("--plant", choices=("analytic", "mujoco"), default=None,
+                        help="default: the base's (current, wind and waves need a plant that takes the sea state)")
     parser.add_argument("--step", type=float, default=15.0, help="direction step in degrees (default 15)")
     parser.add_argument("--min", dest="load_min", type=float, default=None, help="lower end of the search")
     parser.add_argument("--max", dest="load_max", type=float, default=None, help="upper end of the search")
