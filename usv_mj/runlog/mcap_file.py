@@ -260,11 +260,15 @@ class McapFileWriter:
         """Compress and write one chunk, then its message indexes; flush to the OS."""
         if not len(buf):
             return
-        records = b"".join(bytes(p) if isinstance(p, np.ndarray) else p for p in buf.parts)
-        compressed = self._compressor.compress(records)
+        cobj = self._compressor.compressobj(size=buf.size)
+        pieces, crc = [], 0
+        for part in buf.parts:
+            crc = zlib.crc32(part, crc)
+            pieces.append(cobj.compress(part))
+        pieces.append(cobj.flush())
+        compressed = b"".join(pieces)
         chunk = Chunk(compression="zstd", data=compressed, message_start_time=buf.start_time,
-                      message_end_time=buf.end_time, uncompressed_crc=zlib.crc32(records),
-                      uncompressed_size=len(records))
+                      message_end_time=buf.end_time, uncompressed_crc=crc, uncompressed_size=buf.size)
         chunk_offset, chunk_length = self._write_record(chunk)
         index_start = self._file.tell()
         index_offsets = {}
@@ -286,7 +290,7 @@ class McapFileWriter:
         self.chunk_indexes.append(ChunkIndex(
             message_start_time=buf.start_time, message_end_time=buf.end_time, chunk_start_offset=chunk_offset,
             chunk_length=chunk_length, message_index_offsets=index_offsets, message_index_length=pos - index_start,
-            compression="zstd", compressed_size=len(compressed), uncompressed_size=len(records)))
+            compression="zstd", compressed_size=len(compressed), uncompressed_size=buf.size))
         st = self.stats
         n = len(buf)
         if st.message_count == 0:

@@ -309,7 +309,7 @@ class RunLogWriter:
     """
 
     def __init__(self, path, scenario, attachments: dict | None = None, *, background: bool = True,
-                 rows_per_chunk: int = 1000, compression_level: int = 1, queue_blocks: int = 8):
+                 rows_per_chunk: int = 1000, compression_level: int = 1, queue_blocks: int = 32):
         self.path = Path(path)
         if not self.path.parent.is_dir():
             raise RunLogError(f"cannot write run log {self.path}: folder {self.path.parent} does not exist")
@@ -394,8 +394,11 @@ class RunLogWriter:
         if self._closed:
             return
         for s in self._sinks:
-            if s.started and not s.finished:
-                s._end(None, "the sink was not finished (the run did not call finish())")
+            if s.started and not s.finished and not s.broken:
+                try:
+                    s._end(None, "the sink was not finished (the run did not call finish())")
+                except RunLogError as exc:
+                    self._errors.append(str(exc))
         self._closed = True
         error = None
         if self._background:
@@ -413,8 +416,10 @@ class RunLogWriter:
                 elif not self._proc.is_alive():
                     status = ("error", f"the background writer exited with code {self._proc.exitcode}", {})
             self._proc.join(timeout=30)
+            # the worker is gone: anything still buffered for it can never be read, so do not wait
+            # for the queue's feeder thread to deliver it (that would hang when the worker died)
+            self._queue.cancel_join_thread()
             self._queue.close()
-            self._queue.join_thread()
             self.stats = dict(status[2])
             if status[0] == "error":
                 error = status[1]
@@ -453,6 +458,7 @@ class RunLogSink:
         self._seq = 0
         self._record: RunRecord | None = None
         self._rows = 0
+        self.broken = False       # the writer failed; rows are no longer sent
 
     def _new_events(self, record) -> list:
         out = []
@@ -479,14 +485,27 @@ class RunLogSink:
         if lo != self._rows:
             raise RunLogError(f"run {self.run!r}: rows {lo}..{hi} do not follow row {self._rows}")
         block = np.array(record.data[lo:hi], dtype=np.float64, copy=True)
-        self.writer._send(("rows", self.run, lo, block, self._new_events(record)))
+        events = self._new_events(record)
         self._rows = hi
+        if self.broken:
+            return
+        try:
+            self.writer._send(("rows", self.run, lo, block, events))
+        except RunLogError as exc:
+            # the log is lost from here on, the run is not: keep simulating, fail at close()
+            self.broken = True
+            self.writer._errors.append(f"run {self.run!r}: rows from {lo} on were not logged: {exc}")
+            warnings.warn(f"run log {self.writer.path}: {exc}; the run goes on without its log",
+                          RuntimeWarning, stacklevel=2)
 
     def finish(self, record: RunRecord) -> None:
         """Write the rows not yet sent, the remaining events and the end record. Never raises."""
         try:
             if record.n_rows > self._rows:
                 self.rows(record, self._rows, record.n_rows)
+            if self.broken:
+                self.finished = True
+                return
             self._end(record, None)
         except BaseException as exc:  # noqa: BLE001 - a finish must not hide the run's own exception
             self.writer._errors.append(f"run {self.run!r}: finish failed: {type(exc).__name__}: {exc}")
