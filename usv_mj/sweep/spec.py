@@ -24,10 +24,11 @@ A path is a dotted key into the scenario table of SPEC §7, with ``[i]`` for one
 ``disturbance.scale`` (s of SPEC §1) and ``disturbance.amplitudes[i]``...; ``ship.<parameter>``;
 ``quantizer.enabled|delta_u|u_min_u|delta_r|u_min_r``; ``funnel.rho_xy[0|1]``, ``funnel.rho_psi[0|1]``,
 ``funnel.rate``; ``plant.kind|substeps``; ``controller.kind`` and every PPC gain by its SPEC §3
-name (``controller.k1``, ``controller.gamma_u``, ...); ``baseline.<PI gain>``; ``limits.*``; and
-once the sea-state issue has landed ``sea.waves.hs``, ``sea.current.speed``, ``sea.wind.speed``,
-their ``direction_deg`` and the rest of SEA's keys. A path the scenario does not know is rejected
-by :mod:`usv_mj.scenario` itself, with its message (and its "did you mean").
+name (``controller.k1``, ``controller.gamma_u``, ...); ``baseline.<PI gain>``; ``limits.*``; and the
+sea state's ``sea.waves.hs|tp|gamma|direction_deg|seed``, ``sea.current.speed|direction_deg|sigma``,
+``sea.wind.speed|direction_deg|gust_sigma`` (SEA.md; on a plant that takes the sea state). A path
+the scenario does not know is rejected by :mod:`usv_mj.scenario` itself, with its message (and its
+"did you mean").
 
 Distributions (one key in an inline table):
 
