@@ -41,8 +41,9 @@ def _save(fig, path: Path) -> None:
     plt.close(fig)
 
 
-def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None) -> list[Path]:
-    """Write the seven figures into ``out_dir`` and return their paths."""
+def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, obstacles=()) -> list[Path]:
+    """Write the seven figures into ``out_dir`` and return their paths (obstacles, with their
+    inflated safety boundaries, in the trajectory figure)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     s = _stride(len(record))
@@ -57,6 +58,12 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None) 
         sb = _stride(len(baseline))
         ax.plot(baseline["x"][::sb], baseline["y"][::sb], "C3", lw=1.0, alpha=0.8, label="PI baseline")
     ax.plot(record["x"][0], record["y"][0], "o", color="C0", label="start")
+    if obstacles:
+        from .obstacles.display import draw_obstacles
+
+        per = (record.metadata.get("obstacles") or {}).get("per_obstacle") or []
+        inflation = [o.get("inflation_m") for o in per] if per else None
+        draw_obstacles(ax, obstacles, inflation=inflation)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal", adjustable="datalim")

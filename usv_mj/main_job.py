@@ -65,7 +65,7 @@ def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | Non
         return {}
     half = scenario.with_overrides({"control_period": dt / 2, "duration": horizon,
                                     "baseline": {"enabled": False}})
-    fine = simulate(half, plant_kind=plant_kind)
+    fine = _simulate(half, plant_kind, None, [], None)
     if fine.status != "completed":
         return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": math.inf,
                 "max_heading_rad": math.inf, "ok": False}
@@ -77,6 +77,23 @@ def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | Non
         dpsi = max(dpsi, abs(e_c["psi"][kc] - e_f["psi"][kf]))
     return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": float(dpos),
             "max_heading_rad": float(dpsi), "ok": bool(dpos < 0.01 and dpsi < 0.01)}
+
+
+def _simulate(scenario: Scenario, plant_kind: str, controller_kind: str | None, sinks, progress) -> RunRecord:
+    """One closed-loop run; scenarios with obstacles go through the obstacle runner (clearance,
+    contacts and guidance as loop hooks)."""
+    if scenario.obstacles:
+        from .obstacles.run import run_obstacle_scenario
+        from .obstacles.spec import ObstacleScenario
+        from .simulation import make_controller
+
+        osc = ObstacleScenario(scenario, scenario.obstacles, scenario.guidance)
+        run = run_obstacle_scenario(osc, plant_kind=plant_kind, sinks=sinks, progress=progress,
+                                    controller=make_controller(scenario, controller_kind))
+        if run.log.note:
+            run.record.metadata["note"] = run.log.note
+        return run.record
+    return simulate(scenario, plant_kind=plant_kind, controller_kind=controller_kind, sinks=sinks, progress=progress)
 
 
 def _write_json(path: Path, data: dict) -> None:
@@ -109,14 +126,14 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
                 files["mcap"] = out / "run.mcap"
         cb, close = progress_bar(scenario.duration, f"{scenario.controller.kind.upper()} on {plant_kind}", progress, dt)
         try:
-            record = simulate(scenario, plant_kind=plant_kind, sinks=sink_main, progress=cb)
+            record = _simulate(scenario, plant_kind, None, sink_main, cb)
         finally:
             close()
         base_rec = None
         if run_baseline and record.status != "interrupted":
             cb, close = progress_bar(scenario.duration, "PI baseline", progress, dt)
             try:
-                base_rec = simulate(scenario, plant_kind=plant_kind, controller_kind="pi", sinks=sink_base, progress=cb)
+                base_rec = _simulate(scenario, plant_kind, "pi", sink_base, cb)
             finally:
                 close()
     summary = summarize(record)
@@ -129,7 +146,7 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
             "quantizer_switches")}
     if check:
         summary_out["step_check"] = check
-    files["figures"] = draw_figures(record, out / "figures", base_rec)
+    files["figures"] = draw_figures(record, out / "figures", base_rec, obstacles=scenario.obstacles)
     files["report"] = write_report(out / "report.md", summary, base_summary, check)
     render_stats = None
     if video and len(record) > 1:
@@ -170,6 +187,10 @@ def one_screen_summary(result: JobResult, wall_s: float) -> str:
     if "step_check" in s:
         c = s["step_check"]
         lines.append(f"  half-step check: errors moved {c['max_position_m']*100:.3f} cm, {c['max_heading_rad']:.1e} rad")
+    if s.get("min_clearance_m") is not None:
+        lines.append(f"  obstacles: min clearance {s['min_clearance_m']:.3f} m, contacts {s['contacts']}")
+    if result.record.metadata.get("note"):
+        lines.append(f"  note: {result.record.metadata['note']}")
     if "render" in s:
         r = s["render"]
         lines.append(f"  video: {r.get('frames')} frames at {r.get('render_fps', 0):.1f} frames/s rendered")

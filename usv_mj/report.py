@@ -80,6 +80,16 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
                   f"{step_check['max_position_m']*100:.3f} cm in position and {step_check['max_heading_rad']:.2e} rad "
                   f"in heading (bound: 1 cm and 0.01 rad): "
                   + ("within the bound." if step_check["ok"] else "**outside the bound**.")]
+    if summary.get("obstacles"):
+        lines += ["", "## Obstacles", "",
+                  f"Minimum clearance over the run: {_fmt(summary['min_clearance_m'])} m; contact events: "
+                  f"{summary['contacts']}.", "",
+                  "| obstacle | kind | min clearance [m] | at t [s] | peak normal force [N] | safety inflation [m] |",
+                  "|---|---|---|---|---|---|"]
+        for o in summary["obstacles"]:
+            lines.append(f"| {o['name']} | {o['kind']}{' (moving)' if o.get('moving') else ''} | "
+                         f"{_fmt(o['min_clearance_m'])} | {_fmt(o['t_min_s'], 2)} | "
+                         f"{_fmt(o['peak_normal_force_N'], 1)} | {_fmt(o.get('inflation_m'))} |")
     for section in extra_sections or []:
         lines += ["", section]
     lines += ["", "## Figures", ""]

@@ -210,6 +210,12 @@ class LimitsSpec:
                 raise ValueError(f"{f.name} must be > 0, got {value!r}")
 
 
+def _default_guidance():
+    from .obstacles.spec import GuidanceSpec  # imported late: obstacles.spec imports this module
+
+    return GuidanceSpec()
+
+
 @dataclass(frozen=True)
 class Scenario:
     """A complete, validated run description. Build it with :func:`load_scenario` or :func:`from_dict`."""
@@ -228,6 +234,8 @@ class Scenario:
     baseline: BaselineSpec = field(default_factory=BaselineSpec)
     limits: LimitsSpec = field(default_factory=LimitsSpec)
     sea: SeaSettings = field(default_factory=SeaSettings)
+    obstacles: tuple = ()  # ObstacleSpec per [[obstacles]] table (usv_mj.obstacles.spec)
+    guidance: Any = field(default_factory=_default_guidance)  # GuidanceSpec of [guidance]
     source: str = field(default="", compare=False)
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -354,6 +362,11 @@ def _build_scenario(data: dict, source: str) -> Scenario:
     top["baseline"] = BaselineSpec(enabled=enabled, gains=pi_gains)
     if "sea" in data:
         top["sea"] = _build_sea(data["sea"], source)
+    if "obstacles" in data or "guidance" in data:
+        from .obstacles.spec import from_tables, guidance_from_table
+
+        top["obstacles"] = from_tables(data.get("obstacles"), source)
+        top["guidance"] = guidance_from_table(data.get("guidance"), source)
     scenario = _construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
 

@@ -110,12 +110,15 @@ def make_plant(scenario: Scenario, kind: str | None = None, environment=None):
 
 def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str | None = None,
              controller_kind: str | None = None, sinks: Iterable[RunSink] = (), block: int = 2000,
-             progress: Callable[[int], None] | None = None, duration: float | None = None) -> RunRecord:
+             progress: Callable[[int], None] | None = None, duration: float | None = None,
+             reference=None, hooks: Iterable[Callable] = ()) -> RunRecord:
     """Run ``scenario`` in closed loop and return its :class:`RunRecord`.
 
-    ``plant`` and ``controller`` default to the scenario's; pass your own to run anything that
-    follows the interfaces. ``progress(n)`` is called with the number of new steps every block.
-    Plants built here are closed here.
+    ``plant``, ``controller`` and ``reference`` default to the scenario's; pass your own to run
+    anything that follows the interfaces. ``hooks`` are called as ``hook(t, k, plant)`` at every
+    control step before the reference is evaluated (the obstacles' clearance and guidance, say).
+    ``progress(n)`` is called with the number of new steps every block. Plants built here are
+    closed here.
     """
     duration = scenario.duration if duration is None else float(duration)
     dt = scenario.control_period
@@ -123,8 +126,10 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
     own_plant = plant is None
     plant = plant if plant is not None else make_plant(scenario, plant_kind)
     controller = controller if controller is not None else make_controller(scenario, controller_kind)
-    reference = make_reference(scenario) if duration <= scenario.duration else make_reference(
-        scenario.with_overrides({"duration": duration}))
+    if reference is None:
+        reference = make_reference(scenario) if duration <= scenario.duration else make_reference(
+            scenario.with_overrides({"duration": duration}))
+    hooks = tuple(hooks)
     quant_u, quant_r = make_quantizers(scenario)
     limits = scenario.limits
     record = RunRecord(n + 1, metadata={
@@ -149,6 +154,8 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
         x = plant.state
         while True:
             t = k * dt
+            for hook in hooks:
+                hook(t, k, plant)
             ref = reference.evaluate(t)
             tau_u, tau_r, diag = controller(t, x, ref)
             if not (abs(tau_u) < limits.max_force and abs(tau_r) < limits.max_force):

@@ -59,4 +59,8 @@ def summarize(record: RunRecord) -> dict:
         "wall_time_s": meta.get("wall_time_s"),
         "realtime_factor": meta.get("realtime_factor"),
         "events": len(record.events),
+        # obstacles (issue 8): None / 0 in open water
+        "min_clearance_m": (meta.get("obstacles") or {}).get("min_clearance_m"),
+        "contacts": (meta.get("obstacles") or {}).get("contacts", 0),
+        "obstacles": (meta.get("obstacles") or {}).get("per_obstacle"),
     }

@@ -25,7 +25,7 @@ _WHERE = {
     "export_scene": "compose", "hull_footprint": "compose", "place_moving_obstacles": "compose",
     "Guidance": "planner", "GuidedReference": "planner", "Plan": "planner", "PlanningError": "planner",
     "SafetyEnvelope": "planner", "plan_reference": "planner",
-    "ObstacleRun": "run", "ObstacleStepper": "run", "make_plan": "run", "run_obstacle_scenario": "run",
+    "ObstacleRun": "run", "ObstacleHook": "run", "make_plan": "run", "run_obstacle_scenario": "run",
     "ObstacleLog": "sink",
     "GuidanceSpec": "spec", "ObstacleScenario": "spec", "ObstacleSpec": "spec", "from_tables": "spec",
     "guidance_from_table": "spec", "load_obstacle_scenario": "spec",

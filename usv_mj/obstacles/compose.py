@@ -26,6 +26,8 @@ thrust of the PPC law, no bounce that looks like rubber.
 
 from __future__ import annotations
 
+import warnings
+
 import math
 import os
 import tempfile
@@ -33,7 +35,11 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from dm_control import mjcf
+with warnings.catch_warnings():
+    # dm_control probes GLFW at import when MUJOCO_GL is unset and warns that there is no DISPLAY;
+    # mjcf needs no GL at all (rendering picks its own backend: usv_mj.render.gl_backend)
+    warnings.simplefilter("ignore")
+    from dm_control import mjcf
 
 from usv_mj.plants.mujoco_callback import MODELS_DIR
 from usv_mj.plants.mujoco_plant import MuJoCoPlant

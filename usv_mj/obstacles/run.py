@@ -3,13 +3,11 @@
 :func:`run_obstacle_scenario` builds the plant (a :class:`~usv_mj.obstacles.compose.HarbourPlant`
 for ``plant = "mujoco"``, the analytic plant otherwise), the clearance monitor, the
 :class:`~usv_mj.obstacles.sink.ObstacleLog`, the plan and the online :class:`~usv_mj.obstacles.planner.Guidance`,
-and runs :func:`usv_mj.simulation.simulate` with an :class:`ObstacleStepper` around the controller.
+and runs :func:`usv_mj.simulation.simulate` with an :class:`ObstacleHook` called before every step.
 
-Until ``simulate`` takes a reference and per-step hooks itself (see the integration notes), the
-stepper does the per-step work inside the controller call, which the loop makes once per row
-before the plant step: move the mocap obstacles to time t, measure the clearance and contacts,
-let the guidance re-time the reference, and write the guided reference into the loop's reference
-vector (which the loop then records in the row).
+The per-step obstacle work is an :class:`ObstacleHook` that the loop calls before it evaluates the
+(guided) reference: move the mocap obstacles to time t, measure the clearance and contacts, and let
+the guidance re-time the reference.
 """
 
 from __future__ import annotations
@@ -31,31 +29,23 @@ from .sink import ObstacleLog
 from .spec import ObstacleScenario
 
 
-class ObstacleStepper:
-    """A controller wrapper doing the obstacle work once per control step (module docstring)."""
+class ObstacleHook:
+    """The obstacle work of one control step, as a :func:`usv_mj.simulation.simulate` hook: move
+    the moving obstacles to time t, measure clearance and contacts, log them, and let the guidance
+    re-time or shift the reference before the loop evaluates it."""
 
-    def __init__(self, controller, plant, monitor, log: ObstacleLog, reference: GuidedReference | None = None,
-                 guidance: Guidance | None = None):
-        self.inner, self.plant, self.monitor, self.log = controller, plant, monitor, log
-        self.reference, self.guidance = reference, guidance
-        self.name = controller.name
+    def __init__(self, plant, monitor, log: ObstacleLog, guidance: Guidance | None = None):
+        self.monitor, self.log, self.guidance = monitor, log, guidance
         moving = any(o.moving for o in getattr(plant, "obstacles", ()))
         self._move = getattr(plant, "move_obstacles", None) if moving else None
 
-    def reset(self) -> None:
-        self.inner.reset()
-
-    def __call__(self, t, x, ref):
+    def __call__(self, t, k, plant):
         if self._move is not None:
             self._move(t)
-        monitor = self.monitor
-        clearance = monitor.update(t, self.plant)
-        self.log.record_step(t, clearance, monitor.normal_force, monitor.in_contact)
-        if self.reference is not None:
-            if self.guidance is not None:
-                self.guidance.update(t)
-            ref[:] = self.reference.evaluate(t)
-        return self.inner(t, x, ref)
+        clearance = self.monitor.update(t, plant)
+        self.log.record_step(t, clearance, self.monitor.normal_force, self.monitor.in_contact)
+        if self.guidance is not None:
+            self.guidance.update(t)
 
 
 @dataclass
@@ -90,7 +80,7 @@ def make_plan(osc: ObstacleScenario, duration: float | None = None) -> Plan:
 
 def run_obstacle_scenario(osc: ObstacleScenario, plant_kind: str | None = None, duration: float | None = None,
                           sinks=(), contact: ContactParams = ContactParams(), controller=None,
-                          show_safety: bool = True) -> ObstacleRun:
+                          show_safety: bool = True, progress=None) -> ObstacleRun:
     """Run ``osc`` in closed loop with obstacles (module docstring); the plant is closed at the end."""
     sc = osc.scenario
     duration = sc.duration if duration is None else float(duration)
@@ -118,11 +108,12 @@ def run_obstacle_scenario(osc: ObstacleScenario, plant_kind: str | None = None, 
         if plan is not None and any(o.moving for o in osc.obstacles):
             guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, sc.trajectory.speed, log,
                                 goal=plan.polyline[-1])
-        stepper = ObstacleStepper(controller or make_controller(sc), plant, monitor, log, reference, guidance)
+        hook = ObstacleHook(plant, monitor, log, guidance)
         if plan is not None:
             for event in plan.events:
                 log.add_event(event)
-        record = simulate(sc, plant, stepper, sinks=[log, *sinks], duration=duration)
+        record = simulate(sc, plant, controller or make_controller(sc), sinks=[log, *sinks], duration=duration,
+                          reference=reference, hooks=[hook], progress=progress)
     finally:
         plant.close()
     record.metadata["guidance"] = {"avoid": osc.guidance.avoid, "margin_m": osc.guidance.margin_m,

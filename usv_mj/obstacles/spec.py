@@ -27,12 +27,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from usv_mj.scenario import Scenario, ScenarioError, from_dict
+from usv_mj.scenario import Scenario, ScenarioError, load_scenario
 
 OBSTACLE_KINDS = ("circle", "box")
 
@@ -240,48 +239,9 @@ class ObstacleScenario:
     guidance: GuidanceSpec = GuidanceSpec()
 
 
-def split_tables(data: dict, source: str) -> tuple[dict, tuple[ObstacleSpec, ...], GuidanceSpec]:
-    """Take ``obstacles`` and ``guidance`` out of a TOML-like dict; return (rest, obstacles, guidance)."""
-    rest = dict(data)
-    obstacles = from_tables(rest.pop("obstacles", None), source)
-    guidance = guidance_from_table(rest.pop("guidance", None), source)
-    return rest, obstacles, guidance
-
-
 def load_obstacle_scenario(path: str | Path | None = None, preset: str | None = None,
                            overrides: dict | None = None) -> ObstacleScenario:
-    """Like :func:`usv_mj.scenario.load_scenario`, also reading ``[[obstacles]]`` and ``[guidance]``."""
-    data: dict = {}
-    source = f"preset {preset or 'paper'}"
-    if path is not None:
-        path = Path(path)
-        source = str(path)
-        try:
-            data = tomllib.loads(path.read_text())
-        except OSError as exc:
-            raise ScenarioError(f"{path}: cannot read the scenario file ({exc.strerror})") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    overrides = dict(overrides or {})
-    if "obstacles" in overrides:
-        data["obstacles"] = overrides.pop("obstacles")
-    if "guidance" in overrides:
-        data["guidance"] = {**data.get("guidance", {}), **overrides.pop("guidance")}
-    rest, obstacles, guidance = split_tables(data, source)
-    scenario = _scenario_from_rest(rest, source, preset, overrides)
-    return ObstacleScenario(scenario, obstacles, guidance)
-
-
-def _merge_tables(base: dict, over: dict) -> dict:
-    out = dict(base)
-    for key, value in over.items():
-        out[key] = _merge_tables(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
-    return out
-
-
-def _scenario_from_rest(rest: dict, source: str, preset: str | None, overrides: dict) -> Scenario:
-    if preset is not None:
-        rest["preset"] = preset
-    if overrides:
-        rest = _merge_tables(rest, overrides)
-    return from_dict(rest, source=source)
+    """:func:`usv_mj.scenario.load_scenario` (which reads ``[[obstacles]]`` and ``[guidance]``),
+    with the obstacles and guidance at hand."""
+    scenario = load_scenario(path, preset=preset, overrides=overrides)
+    return ObstacleScenario(scenario, scenario.obstacles, scenario.guidance)
