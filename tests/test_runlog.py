@@ -395,6 +395,11 @@ def test_foxglove_topics_match_the_state(logged):
     ys = sorted({p["y"] for p in first["lines"][0]["points"]})
     assert xs == [main["x_d"][i] - main["rho1"][i], main["x_d"][i] + main["rho1"][i]]
     assert ys == [main["y_d"][i] - main["rho2"][i], main["y_d"][i] + main["rho2"][i]]
+    path_msgs = load_topic(path, "/usv/scene/path")
+    pts = path_msgs["entities"][0][0]["lines"][0]["points"]
+    assert len(pts) == int(DURATION / 0.5) + 1
+    assert (pts[0]["x"], pts[0]["y"]) == (main["x_d"][0], main["y_d"][0])
+    assert (pts[-1]["x"], pts[-1]["y"]) == (main["x_d"][-1], main["y_d"][-1])
     state = load_topic(path, "/baseline/usv/state")
     assert set(state) == {"log_time", "t", "x", "y", "psi", "u", "v", "r"}
     assert np.array_equal(state["log_time"], np.round(state["t"] * 1e9).astype(np.int64))

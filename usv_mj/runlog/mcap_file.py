@@ -194,6 +194,22 @@ class ChunkBuffer:
         self._times(log_time, log_time)
 
 
+def _merge_small(parts: list) -> list:
+    """Runs of small bytes parts joined into one (fewer compressor calls); big arrays passed as they are."""
+    out, small = [], []
+    for p in parts:
+        if isinstance(p, bytes) and len(p) < 65536:
+            small.append(p)
+            continue
+        if small:
+            out.append(b"".join(small))
+            small = []
+        out.append(p)
+    if small:
+        out.append(b"".join(small))
+    return out
+
+
 class McapFileWriter:
     """Writes one MCAP file: data section as it comes, summary and footer on :meth:`finish`."""
 
@@ -262,7 +278,7 @@ class McapFileWriter:
             return
         cobj = self._compressor.compressobj(size=buf.size)
         pieces, crc = [], 0
-        for part in buf.parts:
+        for part in _merge_small(buf.parts):
             crc = zlib.crc32(part, crc)
             pieces.append(cobj.compress(part))
         pieces.append(cobj.flush())

@@ -150,7 +150,8 @@ class RunLogFile:
         self.runs[run] = {
             "layout": RowLayout(COLUMNS, row_topics), "chans": chans, "dt": dt,
             "decim": max(1, int(round(FRAME_PERIOD / dt))), "slow": max(1, int(round(SLOW_PERIOD / dt))),
-            "frame": frame_for(run), "path": info.get("path", []), "rows": 0, "last_ns": 0, "ended": False,
+            "frame": frame_for(run), "path": info.get("path") or reference_path(info.get("scenario")), "rows": 0,
+            "last_ns": 0, "ended": False,
         }
         self.mcap.add_metadata(f"run_start/{run}", {
             "run": run, "prefix": p, "schema_version": SCHEMA_VERSION, "columns": _json(list(COLUMNS)),
@@ -230,6 +231,19 @@ class RunLogFile:
                              "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
                     "size": {"x": HULL_SIZE[0], "y": HULL_SIZE[1], "z": HULL_SIZE[2]},
                     "color": {"r": 0.9, "g": 0.9, "b": 0.95, "a": 1.0}}]), int(k[i]))
+
+
+def reference_path(scenario) -> list:
+    """The scenario's reference path (x_d, y_d) every PATH_SAMPLE s, for the 3D view ([] if unknown)."""
+    try:
+        from ..simulation import make_reference
+
+        ref = make_reference(scenario)
+        times = np.arange(0.0, float(scenario.duration) + 1e-9, PATH_SAMPLE)
+        pts = [(float(p[0]), float(p[1])) for p in (ref.evaluate(float(t)) for t in times)]
+        return [p for p in pts if math.isfinite(p[0]) and math.isfinite(p[1])]
+    except Exception:   # noqa: BLE001 - the path is decoration; never fail a run for it
+        return []
 
 
 def _ns(t) -> int:
@@ -377,18 +391,6 @@ class RunLogWriter:
         self._sinks.append(s)
         return s
 
-    def reference_path(self) -> list:
-        """The scenario's reference path (x_d, y_d) every PATH_SAMPLE s, for the 3D view."""
-        try:
-            from ..simulation import make_reference
-
-            ref = make_reference(self.scenario)
-            times = np.arange(0.0, float(self.scenario.duration) + 1e-9, PATH_SAMPLE)
-            pts = [(float(p[0]), float(p[1])) for p in (ref.evaluate(float(t)) for t in times)]
-            return [p for p in pts if math.isfinite(p[0]) and math.isfinite(p[1])]
-        except Exception:   # the path is decoration; never fail a run for it
-            return []
-
     def close(self):
         """Finish every run still open, write the summary and footer; raise if writing failed."""
         if self._closed:
@@ -476,8 +478,10 @@ class RunLogSink:
         self.started = True
         self._record = record
         dt = record.metadata.get("control_period_s", getattr(self.writer.scenario, "control_period", 0.001))
+        # the reference path for the 3D view is computed by the writer (building a reference can take
+        # most of a second: not on the loop's time)
         self.writer._send(("start", self.run, {"control_period_s": float(dt), "metadata": record.metadata,
-                                               "path": self.writer.reference_path()}))
+                                               "scenario": self.writer.scenario}))
 
     def rows(self, record: RunRecord, lo: int, hi: int) -> None:
         if hi <= lo:
