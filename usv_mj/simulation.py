@@ -25,7 +25,7 @@ from controllers.ppc import PPCController
 
 from .plants.analytic import AnalyticPlant
 from .record import COL, SL_DIAG, SL_REF, SL_STATE, Event, RunRecord
-from .scenario import Scenario, ScenarioError
+from .scenario import Scenario
 from .trajectories import CircleReference, LineReference, PaperReference, WaypointReference
 
 
@@ -95,13 +95,11 @@ def make_plant(scenario: Scenario, kind: str | None = None, environment=None):
     if kind == "analytic":
         return AnalyticPlant(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
                              environment=environment)
-    if kind == "mujoco" and environment is not None:
-        raise ScenarioError("the MuJoCo plant does not take a sea state yet: use --plant analytic for [sea] "
-                            "scenarios")
     if kind == "mujoco":
         from .plants.mujoco_plant import MuJoCoPlant
 
-        return MuJoCoPlant(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps)
+        return MuJoCoPlant(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
+                           environment=environment)
     raise ValueError(f"unknown plant kind {kind!r}")
 
 

@@ -22,6 +22,12 @@ matrix ``d.M`` and re-factors it (``mj_factorM``); the second joins the generali
     qfrc_passive += J(psi) (f_h' + M_A r [-v, u, 0]),   f_h' = d(t) + Delta - C nu - D nu + C_RB nu,
 
 where ``d + Delta - C nu - D nu`` is :func:`usv_mj.ship.hydrodynamic_force` (never re-written here).
+In a sea (SEA.md §6; ``d.userdata[U_SEA_ON]`` = 1) that term is :func:`usv_mj.sea.sea_force`,
+``M nu_c_dot + tau_env + Delta + d - C(nu_r) nu_r - D(nu_r) nu_r``, on the four arrays of
+``Environment.packed`` whose addresses and sizes the plant writes into ``d.userdata[U_SEA_*]`` (the
+plant keeps the arrays alive and rewrites the addresses whenever the environment's grids grow). The
+C_RB nu and exact added-mass terms are unchanged. The environment is a pure function of
+(t, eta, nu), so every RK4 stage sees the sea at its own stage time and pose.
 MuJoCo calls the passive callback once per RK4 stage after building ``d.M`` for that stage's pose
 and with ``d.time`` at the stage time, so d(t) is evaluated exactly where the analytic plant
 evaluates it.
@@ -49,6 +55,8 @@ import numpy as np
 from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
+from usv_mj.sea.dynamics import sea_force
+from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
 from usv_mj.ship import N_DIST_PARAMS, N_SHIP_PARAMS, hydrodynamic_force
 
 MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "models")
@@ -65,7 +73,17 @@ U_P = U_MA + 9      # ShipParams.as_array() (N_SHIP_PARAMS)
 U_DP = U_P + N_SHIP_PARAMS  # PaperDisturbance.as_array() (N_DIST_PARAMS)
 U_CALLS = U_DP + N_DIST_PARAMS  # number of callback evaluations (diagnostic)
 U_SCRATCH = U_CALLS + 1  # 15 doubles of scratch space (eta, nu, qfrc, mass_add): no allocation per call
-N_USERDATA = U_SCRATCH + 15
+# the sea (SEA.md §6): addresses and sizes of the four arrays of usv_mj.sea.Environment.packed,
+# stored as doubles (addresses < 2^53 are exact); U_SEA_ON = 0 takes the calm path of today
+U_SEA_ON = U_SCRATCH + 15   # 1.0: call sea_force instead of hydrodynamic_force
+U_SEA_EP = U_SEA_ON + 1     # address of ep (N_ENV_PARAMS doubles)
+U_SEA_WAVES = U_SEA_ON + 2  # address of waves, (N_WAVE_COLS, n) C order
+U_SEA_NWAVES = U_SEA_ON + 3  # n: wave components
+U_SEA_CG = U_SEA_ON + 4     # address of current_grid, (n_c, 2)
+U_SEA_NCG = U_SEA_ON + 5    # n_c
+U_SEA_WG = U_SEA_ON + 6     # address of wind_grid, (n_w, 1)
+U_SEA_NWG = U_SEA_ON + 7    # n_w
+N_USERDATA = U_SEA_ON + 8
 
 STATUS_OK = 0.0
 STATUS_BAD_STATE = 1.0   # non-finite qpos/qvel at the callback
@@ -82,6 +100,31 @@ class HydrodynamicCallbackError(RuntimeError):
     """The passive-force callback failed during a step (raised by the plant after ``mj_step``)."""
 
 
+# --- raw pointers (numba intrinsics) ------------------------------------------------------------
+
+
+@intrinsic
+def _f64_ptr(typingctx, address):
+    """Reinterpret an integer address as ``double*`` (numba intrinsic)."""
+    sig = types.CPointer(types.float64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+
+    return sig, codegen
+
+
+@intrinsic
+def _i64_ptr(typingctx, address):
+    """Reinterpret an integer address as ``int64*`` (numba intrinsic)."""
+    sig = types.CPointer(types.int64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
+
+    return sig, codegen
+
+
 # --- the physics, shared by the native and the Python callback ----------------------------------
 
 
@@ -92,7 +135,8 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
     Parameters
     ----------
     ud:
-        ``d.userdata`` with the layout ``U_*`` (parameters of ship, disturbance and split).
+        ``d.userdata`` with the layout ``U_*`` (parameters of ship, disturbance and split; with
+        ``ud[U_SEA_ON]`` = 1 the addresses and sizes of the sea's packed arrays, SEA.md §6).
     t:
         Stage time [s]. ``qpos`` = (x, y, psi) [m, m, rad], ``qvel`` = (x_dot, y_dot, r) (world).
     qfrc:
@@ -120,7 +164,15 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
     nu[0], nu[1], nu[2] = u, v, r
     p = ud[U_P:U_P + N_SHIP_PARAMS]
     dp = ud[U_DP:U_DP + N_DIST_PARAMS]
-    f = hydrodynamic_force(p, dp, t, eta, nu)  # d + Delta - C nu - D nu (SPEC §1)
+    if ud[U_SEA_ON] != 0.0:
+        # SEA.md §6: M nu_c_dot + tau_env + Delta + d - C(nu_r) nu_r - D(nu_r) nu_r
+        ep = carray(_f64_ptr(np.int64(ud[U_SEA_EP])), (N_ENV_PARAMS,))
+        waves = carray(_f64_ptr(np.int64(ud[U_SEA_WAVES])), (N_WAVE_COLS, np.int64(ud[U_SEA_NWAVES])))
+        cgrid = carray(_f64_ptr(np.int64(ud[U_SEA_CG])), (np.int64(ud[U_SEA_NCG]), 2))
+        wgrid = carray(_f64_ptr(np.int64(ud[U_SEA_WG])), (np.int64(ud[U_SEA_NWG]), 1))
+        f = sea_force(p, dp, ep, waves, cgrid, wgrid, t, eta, nu)
+    else:
+        f = hydrodynamic_force(p, dp, t, eta, nu)  # d + Delta - C nu - D nu (SPEC §1)
     m = ud[U_MASS]
     mxg = m * ud[U_XG]
     # + C_RB nu: MuJoCo's rigid body already produces it, so C_A nu = C nu - C_RB nu
@@ -262,28 +314,6 @@ def check_offsets(model: mujoco.MjModel, data: mujoco.MjData) -> None:
 
 
 # --- native callback ----------------------------------------------------------------------------
-
-
-@intrinsic
-def _f64_ptr(typingctx, address):
-    """Reinterpret an integer address as ``double*`` (numba intrinsic)."""
-    sig = types.CPointer(types.float64)(types.int64)
-
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
-
-    return sig, codegen
-
-
-@intrinsic
-def _i64_ptr(typingctx, address):
-    """Reinterpret an integer address as ``int64*`` (numba intrinsic)."""
-    sig = types.CPointer(types.int64)(types.int64)
-
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
-
-    return sig, codegen
 
 
 def _libmujoco() -> ctypes.CDLL:

@@ -13,6 +13,11 @@ callback (numba ``cfunc``, the default) reads every parameter from the mjData it
 so any number of plants with different ships coexist; the Python callback (``callback="python"``,
 a reference and fallback) looks plants up by their mjData address and hands mjData it does not
 know to the native callback.
+
+Sea state (SEA.md §6): with a non-calm :class:`usv_mj.sea.Environment` the callback's hydrodynamic
+term becomes :func:`usv_mj.sea.sea_force` (current through nu_r in C and D, wave, drift and wind
+loads, M nu_c_dot); the C_RB nu and exact added-mass terms are as in calm water. Calm (None or a
+calm environment) takes exactly the path of before the sea existed (bit-identical runs).
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ DEFAULT_MODEL = os.path.join(mcb.MODELS_DIR, "usv.xml")
 _BAD_WARNINGS = ((mujoco.mjtWarning.mjWARN_BADQPOS, "qpos"), (mujoco.mjtWarning.mjWARN_BADQVEL, "qvel"),
                  (mujoco.mjtWarning.mjWARN_BADQACC, "qacc"))
 _mj_step = mujoco.mj_step
+SEA_HORIZON_AHEAD_S = 120.0  # the environment's OU grids are kept this far ahead of the plant time [s]
 
 
 class _CallbackRegistry:
@@ -127,6 +133,11 @@ class MuJoCoPlant(PlantBase):
         With the native callback, advance through :func:`mujoco_callback.native_stepper` (mj_step
         called from compiled code, state computed there) instead of the Python bindings; the
         result is identical, only faster.
+    environment:
+        A :class:`usv_mj.sea.Environment` (waves, current, wind; SEA.md §1, §6) or None for calm
+        water. The plant keeps it and its packed arrays alive, extends its OU grids ahead of the
+        plant time (:data:`SEA_HORIZON_AHEAD_S`) and re-writes the arrays' addresses into
+        ``d.userdata`` when they grow. A calm environment is treated as None.
 
     Attributes
     ----------
@@ -142,7 +153,7 @@ class MuJoCoPlant(PlantBase):
 
     def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, control_period: float = 1e-3,
                  substeps: int = 1, split: RigidBodySplit = RigidBodySplit(), model_path: str | None = None,
-                 callback: str = "native", native_step: bool = True):
+                 callback: str = "native", native_step: bool = True, environment=None):
         if not (isinstance(control_period, (int, float)) and math.isfinite(control_period) and control_period > 0):
             raise ValueError(f"MuJoCoPlant: control_period must be a finite number > 0 s, got {control_period!r}")
         if int(substeps) != substeps or int(substeps) < 1:
@@ -153,6 +164,12 @@ class MuJoCoPlant(PlantBase):
         self.control_period = float(control_period)
         self.substeps = int(substeps)
         self.callback = callback
+        if environment is not None and not hasattr(environment, "packed"):
+            raise TypeError(f"MuJoCoPlant: environment must be a usv_mj.sea.Environment or None, "
+                            f"got {type(environment).__name__}")
+        self.environment = environment if environment is not None and not environment.calm else None
+        self._sea_arrays = None        # the packed arrays whose addresses are in d.userdata
+        self._sea_horizon = math.inf   # plant time up to which they are valid [s]
         self.model_path = os.path.abspath(model_path or DEFAULT_MODEL)
         self.model, self.data = self._load(self.model_path)
         self._set_parameters()
@@ -233,7 +250,43 @@ class MuJoCoPlant(PlantBase):
         ud[mcb.U_MA:mcb.U_MA + 9] = self.split.added_mass(self.ship).ravel()
         ud[mcb.U_P:mcb.U_P + len(self.ship.as_array())] = self.ship.as_array()
         ud[mcb.U_DP:mcb.U_DP + len(self.disturbance.as_array())] = self.disturbance.as_array()
+        self._write_sea(ud)
         ud[mcb.U_MAGIC] = mcb.MAGIC
+
+    def _write_sea(self, ud) -> None:
+        """Point the callback at the environment's packed arrays (SEA.md §6); calm: U_SEA_ON = 0."""
+        env = self.environment
+        if env is None:
+            ud[mcb.U_SEA_ON:mcb.N_USERDATA] = 0.0
+            self._sea_arrays, self._sea_horizon = None, math.inf
+            return
+        packed = tuple(env.packed)
+        ep, waves, cgrid, wgrid = packed
+        for name, arr, ndim in (("ep", ep, 1), ("waves", waves, 2), ("current_grid", cgrid, 2),
+                                ("wind_grid", wgrid, 2)):
+            if not (isinstance(arr, np.ndarray) and arr.dtype == np.float64 and arr.ndim == ndim
+                    and arr.flags.c_contiguous):
+                raise ValueError(f"MuJoCoPlant: environment array {name} must be C-contiguous float64 with "
+                                 f"{ndim} dimensions")
+        if ep.shape != (mcb.N_ENV_PARAMS,) or waves.shape[0] != mcb.N_WAVE_COLS or cgrid.shape[1] != 2 \
+                or wgrid.shape[1] != 1:
+            raise ValueError(f"MuJoCoPlant: environment arrays have unexpected shapes ep {ep.shape}, waves "
+                             f"{waves.shape}, current_grid {cgrid.shape}, wind_grid {wgrid.shape}")
+        self._sea_arrays = packed  # keeps them alive while their addresses are in userdata
+        self._sea_horizon = float(env.horizon)
+        ud[mcb.U_SEA_EP] = float(ep.ctypes.data)
+        ud[mcb.U_SEA_WAVES] = float(waves.ctypes.data)
+        ud[mcb.U_SEA_NWAVES] = float(waves.shape[1])
+        ud[mcb.U_SEA_CG] = float(cgrid.ctypes.data)
+        ud[mcb.U_SEA_NCG] = float(cgrid.shape[0])
+        ud[mcb.U_SEA_WG] = float(wgrid.ctypes.data)
+        ud[mcb.U_SEA_NWG] = float(wgrid.shape[0])
+        ud[mcb.U_SEA_ON] = 1.0
+
+    def _extend_sea(self, t_end: float) -> None:
+        """Grow the environment's grids past ``t_end`` [s] and refresh the addresses in userdata."""
+        self.environment.ensure_horizon(t_end + SEA_HORIZON_AHEAD_S)
+        self._write_sea(self._userdata)
 
     # --- plant interface -----------------------------------------------------------------------
 
@@ -245,6 +298,8 @@ class MuJoCoPlant(PlantBase):
         if not math.isfinite(t0):
             raise ValueError(f"MuJoCoPlant.reset: t0 must be finite, got {t0!r}")
         mujoco.mj_resetData(self.model, self.data)
+        if self.environment is not None:
+            self.environment.ensure_horizon(max(float(t0), 0.0) + SEA_HORIZON_AHEAD_S)
         self._set_parameters()
         c, s = math.cos(eta0[2]), math.sin(eta0[2])
         self._qpos[:] = eta0
@@ -261,6 +316,8 @@ class MuJoCoPlant(PlantBase):
         """Advance one control period with surge force tau_u [N] and yaw moment tau_r [N m] held."""
         # time from the step count (as the analytic plant): no drift from summing dt
         t = self._t0 + self._k * self.control_period
+        if t + self.control_period > self._sea_horizon:
+            self._extend_sea(t + self.control_period)
         if self._stepper is not None:
             self._x, failed = self._stepper(self._m_addr, self._d_addr, t, float(tau_u), float(tau_r), self.substeps)
             self._k += 1
@@ -320,6 +377,8 @@ class MuJoCoPlant(PlantBase):
         if tau_r is not None:
             self._ctrl[1] = tau_r
         self.data.time = self.time
+        if self.time > self._sea_horizon:
+            self._extend_sea(self.time)
         mujoco.mj_forward(self.model, self.data)
         self._raise_if_failed()
         x = self.state
