@@ -495,3 +495,27 @@ def test_killed_writer_leaves_a_readable_prefix_and_close_reports_it(tmp_path, s
     assert log.truncated and 1000 <= len(log.record) <= 2000
     assert_same_rows(log.record, rec, len(log.record))
     assert log.record.status == "truncated"
+
+
+def test_writer_never_closed_is_closed_at_interpreter_exit(tmp_path):
+    """No with-block, no close(): the process still exits, and the file is complete."""
+    import sys
+
+    path = tmp_path / "noclose.mcap"
+    script = (
+        "from usv_mj.scenario import load_scenario\n"
+        "from usv_mj.simulation import simulate\n"
+        "from usv_mj.runlog import RunLogWriter\n"
+        "if __name__ == '__main__':\n"
+        "    sc = load_scenario(preset='paper', overrides={'duration': 1.0, 'plant': {'kind': 'analytic'}})\n"
+        f"    w = RunLogWriter({str(path)!r}, sc)\n"
+        "    simulate(sc, sinks=[w.sink('main')])\n")
+    (tmp_path / "noclose.py").write_text(script)
+    import os
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, str(tmp_path / "noclose.py")], cwd=ROOT, timeout=300,
+                          capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr
+    log = read_run(path)
+    assert log.complete and len(log.record) == 1001 and log.record.status == "completed"

@@ -34,6 +34,7 @@ does not kill the file with the run. A killed process leaves a file without summ
 
 from __future__ import annotations
 
+import atexit
 import json
 import math
 import mimetypes
@@ -43,9 +44,11 @@ import platform
 import queue
 import signal
 import subprocess
+import sys
 import time
 import traceback
 import warnings
+import weakref
 from datetime import datetime, timezone
 from importlib import metadata as importlib_metadata
 from pathlib import Path
@@ -360,9 +363,12 @@ class RunLogWriter:
             self._queue = ctx.Queue(maxsize=max(1, queue_blocks))
             self._reply, child_reply = ctx.Pipe(duplex=False)
             self._proc = ctx.Process(target=_worker_main, args=(*args, self._queue, child_reply, os.getpid()),
-                                     name="usv_mj-runlog", daemon=False)
+                                     name="usv_mj-runlog", daemon=True)
             self._proc.start()
             child_reply.close()
+            # a writer never closed (no with-block) is closed at interpreter exit, before
+            # multiprocessing ends its children (atexit runs the later registration first)
+            atexit.register(_close_at_exit, weakref.ref(self))
         else:
             self._file = RunLogFile(*args)
 
@@ -446,6 +452,15 @@ class RunLogWriter:
                 raise
             warnings.warn(f"run log {self.path}: writer failed too", RuntimeWarning, stacklevel=2)
         return False
+
+
+def _close_at_exit(ref):
+    writer = ref()
+    if writer is not None and not writer._closed:
+        try:
+            writer.close()
+        except Exception as exc:  # noqa: BLE001 - at exit, say it and go on
+            print(f"usv_mj.runlog: closing {writer.path} at exit failed: {exc}", file=sys.stderr)
 
 
 class RunLogSink:
