@@ -23,13 +23,14 @@ import struct
 import zlib
 
 import numpy as np
-import orjson
 import zstandard
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (Attachment, AttachmentIndex, Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Metadata,
                           MetadataIndex, Schema, Statistics, SummaryOffset)
 from numba import njit
+
+from . import json_codec
 
 MAGIC = b"\x89MCAP0\r\n"
 MESSAGE_HEADER = 31         # opcode 1 + length 8 + channel 2 + sequence 4 + log_time 8 + publish_time 8
@@ -121,7 +122,7 @@ class RowLayout:
         for _, fields in topics:
             for q, f in enumerate(fields):
                 cols.append(col[f])
-                keys += (b"{" if q == 0 else b",") + orjson.dumps(f) + b":"
+                keys += (b"{" if q == 0 else b",") + json_codec.dumps(f) + b":"
                 key_start.append(len(keys))
             starts.append(len(cols))
         self.topic_cols = np.array(cols, np.int64)
@@ -135,7 +136,7 @@ class RowLayout:
         """Message records (uint8 array) and record offsets (rows x topics) for a float64 block."""
         n = block.shape[0]
         flat = np.ascontiguousarray(np.asarray(block, dtype=np.float64)[:, self.topic_cols]).reshape(-1)
-        text = np.frombuffer(orjson.dumps(flat, option=orjson.OPT_SERIALIZE_NUMPY), np.uint8)
+        text = np.frombuffer(json_codec.dumps_floats(flat), np.uint8)
         special = np.zeros(flat.size, np.int8)
         inf = np.isinf(flat)
         if inf.any():

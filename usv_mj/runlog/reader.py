@@ -16,12 +16,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import orjson
 import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.records import Attachment, Channel, Chunk, Footer, Header, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from numba import njit
+
+from . import json_codec
 
 from ..record import COLUMNS, Event, RunRecord
 from .topics import ROW_TOPICS, prefix_for
@@ -311,10 +312,7 @@ def _take_chunk(scan: _Scan, data: bytes, want, decode: bool):
 
 
 def _decode_array(text: bytes):
-    try:
-        return orjson.loads(text)
-    except orjson.JSONDecodeError:
-        return json.loads(text)         # 1e999 / -1e999 (+-inf), which orjson refuses
+    return json_codec.loads(text)
 
 
 def _messages(scan: _Scan, ch: int) -> tuple[np.ndarray, list]:

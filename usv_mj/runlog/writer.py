@@ -54,9 +54,9 @@ from importlib import metadata as importlib_metadata
 from pathlib import Path
 
 import numpy as np
-import orjson
 
 from ..record import COL, COLUMNS, RunRecord
+from . import json_codec
 from .mcap_file import ChunkBuffer, McapFileWriter, RowLayout
 from .topics import (EVENT_SCHEMA, FRAME_PERIOD, FRAME_TRANSFORM_SCHEMA, HULL_SIZE, PATH_SAMPLE, ROW_TOPICS,
                      SCENE_UPDATE_SCHEMA, SCHEMA_VERSION, SLOW_PERIOD, frame_for, prefix_for, row_topic_schema)
@@ -69,7 +69,7 @@ class RunLogError(RuntimeError):
 
 
 def _json(obj) -> str:
-    return orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS, default=str).decode()
+    return json_codec.dumps(obj).decode()
 
 
 def package_versions() -> dict:
@@ -184,7 +184,7 @@ class RunLogFile:
         buf = ChunkBuffer()
         self._events(st, buf, events)
         t_end = max([st["last_ns"]] + [_ns(e["t"]) for e in events])
-        buf.add_message(st["chans"]["events"], t_end, orjson.dumps({
+        buf.add_message(st["chans"]["events"], t_end, json_codec.dumps({
             "t": t_end / 1e9, "seq": -1, "kind": "run_end", "synthetic": True, "status": end["status"],
             "stop_reason": end["stop_reason"],
             "message": f"run {run} ended: {end['status']}" + (f" ({end['stop_reason']})" if end["stop_reason"] else ""),
@@ -202,8 +202,7 @@ class RunLogFile:
     def _events(self, st, buf, events):
         ch = st["chans"]["events"]
         for e in sorted(events, key=lambda e: (e["t"], e["seq"])):
-            buf.add_message(ch, _ns(e["t"]), orjson.dumps(e, option=orjson.OPT_SERIALIZE_NUMPY
-                                                          | orjson.OPT_NON_STR_KEYS, default=str), e["seq"])
+            buf.add_message(ch, _ns(e["t"]), json_codec.dumps(e), e["seq"])
 
     def _foxglove(self, st, buf, sub, k0, log_time):
         decim, slow, ch = st["decim"], st["slow"], st["chans"]
@@ -255,7 +254,7 @@ def _ns(t) -> int:
 
 
 def _frame(stamp, child, x, y, psi) -> bytes:
-    return orjson.dumps({"timestamp": stamp, "parent_frame_id": "world", "child_frame_id": child,
+    return json_codec.dumps({"timestamp": stamp, "parent_frame_id": "world", "child_frame_id": child,
                          "translation": {"x": float(x), "y": float(y), "z": 0.0},
                          "rotation": {"x": 0.0, "y": 0.0, "z": math.sin(psi / 2), "w": math.cos(psi / 2)}})
 
@@ -272,7 +271,7 @@ def _scene(stamp, frame_id, entity_id, frame_locked=False, lines=(), cubes=()) -
     entity = {"timestamp": stamp, "frame_id": frame_id, "id": entity_id, "lifetime": {"sec": 0, "nsec": 0},
               "frame_locked": frame_locked, "metadata": [], "arrows": [], "cubes": list(cubes), "spheres": [],
               "cylinders": [], "lines": list(lines), "triangles": [], "texts": [], "models": []}
-    return orjson.dumps({"deletions": [], "entities": [entity]})
+    return json_codec.dumps({"deletions": [], "entities": [entity]})
 
 
 def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_level, commands, reply, parent_pid):
