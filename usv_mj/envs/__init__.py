@@ -1,0 +1,218 @@
+"""The USV as dm_control tasks, for learning and benchmarking controllers (issue 9).
+
+Public API::
+
+    from usv_mj import envs
+    env = envs.load("track", seed=0)              # a dm_control.rl.control.Environment
+    policy = envs.PPCPolicy(env)                  # the paper's controller as a policy
+    ts = env.reset()
+    while not ts.last():
+        ts = env.step(policy(ts))
+    env.task.info                                  # why the episode ended
+    env.close()
+
+Tasks (:data:`ALL_TASKS`; the observation, action, reward and termination conventions are in
+:mod:`usv_mj.envs.tasks`):
+
+- ``track``: follow the paper's reference (SPEC §4) from a start drawn uniformly within
+  +-(3 m, 3 m, 0.5 rad) of its pose at t = 0, at rest; 30 s episodes, control period 0.01 s
+  (10 RK4 steps of 1 ms), the paper preset's ship, disturbance, funnel and quantizer.
+- ``track_waves``: the same in the ``moderate`` sea (SEA.md §3.1: JONSWAP Hs 0.2 m, Tp 2 s) with a
+  0.3 m/s current (toward 30 deg) and a 5 m/s wind (from 90 deg, gusts sigma 1 m/s).
+- ``harbor``: from the origin to a goal 40 m ahead through a randomised harbour (two piers with a
+  gap, a buoy field; a new layout every episode) without contact; the observed reference is the
+  guidance plan; 16 rangefinders fan around the hull; 90 s episodes.
+
+Options of :func:`load` (keyword arguments): ``scenario`` (a :class:`usv_mj.scenario.Scenario`
+used as is), else ``preset`` ("paper") and ``overrides`` (a nested dict as in scenario files);
+``control_period`` [s] (0.01), ``substeps`` (10), ``duration`` [s] (30 / 90), ``quantize`` (True),
+``max_surge_force`` [N] (1000), ``max_yaw_moment`` [N m] (1000), ``preview_times`` [s],
+``start_offset`` (track), ``max_distance`` [m] (50), harbor: ``n_rays`` (16), ``max_range`` [m] (20),
+``goal_radius`` [m] (1.5), ``goal_distance`` [m] (40).
+
+The physics is the MuJoCo plant itself (:class:`usv_mj.envs.physics.USVPhysics` is a
+``dm_control.mujoco.Physics`` over the plant's own mjModel/mjData), so a policy sees exactly what
+``usv-mj run --plant mujoco`` integrates, with the same hydrodynamic callback. Close environments
+with ``env.close()`` (the plant unmarks its mjData; the global callback goes with the last plant).
+
+A Gymnasium view: :func:`gym_env` (shimmy's ``DmControlCompatibilityV0``).
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import warnings
+
+import numpy as np
+
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.obstacles.compose)
+    from dm_control.rl import control
+
+from usv_mj.plants.mujoco_plant import MuJoCoPlant
+from usv_mj.scenario import Scenario, load_scenario
+from usv_mj.simulation import make_environment
+
+from .physics import HarbourEnvPlant, USVPhysics
+from .policies import PPCPolicy, RandomPolicy
+from .tasks import DEFAULT_PREVIEW, HarbourTask, TrackTask
+
+ALL_TASKS = ("track", "track_waves", "harbor")
+
+WAVES_SEA = {"preset": "moderate",
+             "current": {"speed": 0.3, "direction_deg": 30.0, "sigma": 0.0, "time_constant": 120.0},
+             "wind": {"speed": 5.0, "direction_deg": 90.0, "gust_sigma": 1.0, "gust_time_constant": 2.0, "seed": 2}}
+HARBOUR_FUNNEL = {"rho_xy": [3.0, 0.5], "rate": 0.2}  # as examples/scenarios/harbour_gap.toml
+
+__all__ = ["ALL_TASKS", "load", "gym_env", "PPCPolicy", "RandomPolicy", "USVEnvironment", "TrackTask",
+           "HarbourTask", "USVPhysics", "episode_record"]
+
+
+class USVEnvironment(control.Environment):
+    """``dm_control.rl.control.Environment`` that owns its plant: :meth:`close` closes it, and a task
+    with a per-episode model (harbor) gets a new physics at every :meth:`reset` after the first."""
+
+    def __init__(self, physics, task, *, time_limit, n_sub_steps, rebuild=None):
+        super().__init__(physics, task, time_limit=time_limit, n_sub_steps=n_sub_steps)
+        self._rebuild = rebuild
+        self._fresh = True
+        self._closed = False
+
+    def reset(self):
+        if self._closed:
+            raise RuntimeError("USVEnvironment: the environment is closed")
+        if self._rebuild is not None and not self._fresh:
+            old = self._physics
+            self._physics = self._rebuild()
+            self._physics.legacy_step = old.legacy_step
+            old.close()
+        self._fresh = False
+        return super().reset()
+
+    def step(self, action):
+        if self._closed:
+            raise RuntimeError("USVEnvironment: the environment is closed")
+        return super().step(action)
+
+    def close(self):
+        if not self._closed:
+            self._closed = True
+            self._physics.close()
+
+
+def _scenario(task: str, options: dict, duration: float) -> Scenario:
+    scenario = options.pop("scenario", None)
+    preset = options.pop("preset", "paper")
+    overrides = options.pop("overrides", None) or {}
+    cp = options.pop("control_period", 0.01)
+    sub = options.pop("substeps", 10)
+    if scenario is not None:
+        if not isinstance(scenario, Scenario):
+            raise TypeError(f"usv_mj.envs.load: scenario must be a usv_mj.scenario.Scenario, got {type(scenario).__name__}")
+        return scenario
+    base = {"control_period": cp, "plant": {"kind": "mujoco", "substeps": sub}, "duration": duration}
+    if task == "track_waves":
+        base["sea"] = WAVES_SEA
+    if task == "harbor":
+        base["funnel"] = HARBOUR_FUNNEL
+        base["trajectory"] = {"kind": "waypoints", "points": [[0.0, 0.0], [40.0, 0.0]], "speed": 0.6}
+        base["initial"] = {"eta": [0.0, 0.0, 0.0]}
+    from usv_mj.scenario import _merge  # the scenario module's own nested merge
+
+    return load_scenario(preset=preset, overrides=_merge(base, overrides))
+
+
+def _plant_supports_sea() -> bool:
+    return "environment" in inspect.signature(MuJoCoPlant.__init__).parameters
+
+
+def load(task: str, seed=None, **options) -> USVEnvironment:
+    """A new environment for ``task`` (one of :data:`ALL_TASKS`) seeded with ``seed`` (an int, a
+    ``numpy.random.RandomState`` or None for fresh entropy); options: see the module docstring.
+
+    Raises ValueError for an unknown task or option, NotImplementedError for ``track_waves`` when
+    the MuJoCo plant does not take a sea state.
+    """
+    if task not in ALL_TASKS:
+        raise ValueError(f"usv_mj.envs.load: unknown task {task!r}; tasks: {', '.join(ALL_TASKS)}")
+    options = dict(options)
+    default_duration = 90.0 if task == "harbor" else 30.0
+    duration = float(options.pop("duration", default_duration))
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"usv_mj.envs.load: duration must be a finite number > 0 s, got {duration!r}")
+    preview = tuple(options.get("preview_times", DEFAULT_PREVIEW))
+    scenario = _scenario(task, options, duration + max(preview) + 1.0)
+    if scenario.plant.kind != "mujoco":
+        scenario = scenario.with_overrides({"plant": {"kind": "mujoco"}})
+    task_kw = {k: options.pop(k) for k in ("quantize", "max_surge_force", "max_yaw_moment", "preview_times",
+                                           "start_offset", "max_distance") if k in options}
+    cp, sub = scenario.control_period, scenario.plant.substeps
+    environment = None
+    if not scenario.sea.calm:
+        if not _plant_supports_sea():
+            raise NotImplementedError(f"usv_mj.envs.load({task!r}): the MuJoCo plant does not take a sea state yet "
+                                      "(MuJoCoPlant has no 'environment' argument)")
+        environment = make_environment(scenario, duration + max(preview) + 1.0)
+    n_steps = int(round(duration / cp))
+    time_limit = n_steps * cp
+    if task in ("track", "track_waves"):
+        if options:
+            raise ValueError(f"usv_mj.envs.load({task!r}): unknown options {sorted(options)}")
+        kwargs = {} if environment is None else {"environment": environment}
+        plant = MuJoCoPlant(scenario.ship, scenario.disturbance, cp, sub, **kwargs)
+        tsk = TrackTask(scenario, random=seed, **task_kw)
+        return USVEnvironment(USVPhysics.from_plant(plant), tsk, time_limit=time_limit, n_sub_steps=sub)
+    # harbor
+    harbour_kw = {k: options.pop(k) for k in ("n_rays", "max_range", "goal_radius") if k in options}
+    goal_distance = float(options.pop("goal_distance", 40.0))
+    if options:
+        raise ValueError(f"usv_mj.envs.load('harbor'): unknown options {sorted(options)}")
+    tsk = HarbourTask(scenario, margin_m=scenario.guidance.margin_m, random=seed, **harbour_kw, **task_kw)
+
+    def build():
+        from usv_mj.obstacles.clearance import MuJoCoClearance
+
+        from .layout import harbour_layout
+
+        layout = harbour_layout(tsk.random, scenario, scenario.guidance, duration, goal_distance)
+        kwargs = {} if environment is None else {"environment": environment}
+        plant = HarbourEnvPlant(scenario.ship, scenario.disturbance, layout.obstacles, cp, sub,
+                                ray_angles=tsk.ray_angles, **kwargs)
+        tsk.attach_layout(layout, MuJoCoClearance(plant))
+        return USVPhysics.from_plant(plant)
+
+    return USVEnvironment(build(), tsk, time_limit=time_limit, n_sub_steps=sub, rebuild=build)
+
+
+def gym_env(task: str, seed=None, render_mode=None, **options):
+    """A Gymnasium view of :func:`load` through shimmy's ``DmControlCompatibilityV0`` (observations a
+    dict of arrays, action the thrust box). Raises ImportError if shimmy is not installed."""
+    try:
+        from shimmy.dm_control_compatibility import DmControlCompatibilityV0
+    except ImportError as exc:  # pragma: no cover - optional dependency
+        raise ImportError("usv_mj.envs.gym_env needs shimmy[dm-control] (pip install 'shimmy[dm-control]')") from exc
+    return DmControlCompatibilityV0(load(task, seed=seed, **options), render_mode=render_mode)
+
+
+def episode_record(env, steps, metadata=None):
+    """A :class:`usv_mj.record.RunRecord` of an episode for the renderer (``usv_mj.render.render_run``).
+
+    ``steps``: a list of (t, state (6), reference (7), action (2), thrust (2)) rows, as collected by
+    :func:`usv_mj.envs.cli.rollout`.
+    """
+    from usv_mj.record import COLUMNS, RunRecord
+
+    n = len(steps)
+    cols = {name: np.full(n, np.nan) for name in COLUMNS}
+    for i, (t, x, ref, a, q) in enumerate(steps):
+        cols["t"][i] = t
+        for j, name in enumerate(("x", "y", "psi", "u", "v", "r")):
+            cols[name][i] = x[j]
+        for j, name in enumerate(("x_d", "y_d", "psi_d", "x_d_dot", "y_d_dot", "r_d", "u_d")):
+            cols[name][i] = ref[j]
+        cols["tau_u"][i], cols["tau_r"][i] = a
+        cols["q_tau_u"][i], cols["q_tau_r"][i] = q
+    meta = {"plant": "mujoco", "controller": "env", "control_period_s": env.control_timestep()}
+    meta.update(metadata or {})
+    return RunRecord.from_arrays(cols, metadata=meta)

@@ -1,0 +1,70 @@
+"""Policies for the USV environments: the paper's controller and uniform random actions.
+
+A policy is a callable ``policy(time_step) -> action`` (numpy (2,) = (tau_u [N], tau_r [N m])).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from usv_mj.simulation import make_controller
+
+
+class PPCPolicy:
+    """The adaptive PPC law (SPEC §3, Eqs. 14-37) run on the environment's observations.
+
+    What it reads
+    -------------
+    From the time step's observation: ``time``, ``heading`` (cos psi, sin psi), ``position_error``
+    (body frame), ``velocity`` (u, v, r). From the environment: the task's reference trajectory
+    (``env.task.reference.evaluate(t)``: the same trajectory the ``reference_preview`` and
+    ``reference_velocity`` observations are sampled from; the law needs its pose, velocity and yaw
+    rate at t) and the scenario's controller design (gains, nominal ship model, funnel, quantizer
+    delta for Eq. 37's margin, control period). It does not read the physics: the world-frame pose
+    is rebuilt as p = p_d + R(psi) position_error, psi = atan2(sin, cos) (within rounding of the
+    plant's own state, about 1e-15 m).
+
+    The output is the unquantized law (tau_u, tau_r); the environment's quantizer (``quantize=True``)
+    plays the actuator's role as in :func:`usv_mj.simulation.simulate`. A FIRST time step resets the
+    adaptive states (W = 0, s2 = 0).
+    """
+
+    def __init__(self, env, controller=None):
+        self.env = env
+        task = env.task
+        self.controller = controller if controller is not None else make_controller(task.scenario, "ppc")
+        self._x = np.zeros(6)
+
+    @property
+    def reference(self):
+        return self.env.task.reference  # read each call: the harbor task re-plans every episode
+
+    def __call__(self, time_step) -> np.ndarray:
+        obs = time_step.observation
+        if time_step.first():
+            self.controller.reset()
+        t = float(obs["time"][0])
+        ref = self.reference.evaluate(t)
+        c, s = float(obs["heading"][0]), float(obs["heading"][1])
+        eb = obs["position_error"]
+        x = self._x
+        x[0] = ref[0] + c * eb[0] - s * eb[1]
+        x[1] = ref[1] + s * eb[0] + c * eb[1]
+        x[2] = math.atan2(s, c)
+        x[3:6] = obs["velocity"]
+        tau_u, tau_r, _ = self.controller(t, x, ref)
+        return np.array([tau_u, tau_r])
+
+
+class RandomPolicy:
+    """Actions drawn uniformly within the action spec's bounds (seeded ``numpy`` RandomState)."""
+
+    def __init__(self, env, seed=None):
+        spec = env.action_spec()
+        self.low, self.high = np.asarray(spec.minimum, float), np.asarray(spec.maximum, float)
+        self.random = np.random.RandomState(seed)
+
+    def __call__(self, time_step) -> np.ndarray:
+        return self.random.uniform(self.low, self.high)

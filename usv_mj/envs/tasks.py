@@ -1,0 +1,333 @@
+"""The USV tasks (``dm_control.suite.base.Task`` subclasses): what is observed, rewarded and ends.
+
+Conventions (all tasks)
+-----------------------
+Action: ``thrust`` = (tau_u [N], tau_r [N m]), a ``specs.BoundedArray`` with bounds
+(+-``max_surge_force``, +-``max_yaw_moment``); values outside are clipped, non-finite ones raise
+ValueError. With ``quantize=True`` the clipped action goes through the hysteresis quantizer of Eq. 3
+(SPEC §2; the scenario's delta and u_min per channel), exactly as in :func:`usv_mj.simulation.simulate`.
+The (quantized) thrust is held over the control period: ``n_sub_steps`` = ``plant.substeps`` RK4
+steps of the plant's time step.
+
+Observations (an OrderedDict of float64 arrays; "body frame" = rotated by -psi, x forward):
+
+- ``position_error`` (2,): R(psi)^T (p - p_d) [m], the hull origin minus the reference position;
+- ``heading_error`` (1,): wrap(psi - psi_d) [rad] in [-pi, pi);
+- ``heading`` (2,): (cos psi, sin psi) (the funnel of Eq. 9 bounds world-frame errors);
+- ``velocity`` (3,): (u, v, r) [m/s, m/s, rad/s];
+- ``reference_velocity`` (3,): R(psi)^T (x_d_dot, y_d_dot) [m/s] and r_d [rad/s];
+- ``reference_preview`` (n, 2): R(psi)^T (p_d(t + tau_k) - p) [m] at the preview times tau_k
+  (default 0.5, 1, 2, 4 s);
+- ``funnel`` (2,): rho_xy(t) [m], rho_psi(t) [rad] of Eq. 9 (the prescribed performance);
+- ``time`` (1,): t [s];
+- harbor only: ``goal`` (3,): R(psi)^T (p_goal - p) [m] and wrap(psi_goal - psi) [rad];
+  ``rangefinder`` (n_rays,): distance [m] from the hull origin to the first obstacle along rays
+  fanned evenly around the hull (first ray at the bow, counter-clockwise), ``max_range`` when none.
+
+Rewards (per step, in [0, 1], ``dm_control.utils.rewards.tolerance``):
+
+- track tasks: (2 r_pos + r_psi)/3 with r_pos = tolerance(|p - p_d|, bounds (0, 0.25 m), margin
+  2 m, gaussian) and r_psi = tolerance(|heading_error|, bounds (0, 0.1 rad), margin 0.5 rad, gaussian);
+- harbor: r_clear (r_goal + (2 r_pos + r_psi)/3)/2 with r_goal = tolerance(|p_goal - p|, bounds
+  (0, goal_radius), margin = the start's distance, linear), r_pos/r_psi against the planned
+  reference, r_clear = tolerance(min clearance, bounds (margin_m, inf), margin margin_m, linear)
+  (0 at contact).
+
+Termination (``get_termination`` -> discount 0, reason in ``task.termination_reason`` and
+``task.info``): divergence (the hydrodynamic callback failed, or |u|, |v| > limits.max_speed, |r| >
+limits.max_yaw_rate, distance to the reference > ``max_distance``); in harbor also contact with an
+obstacle (MuJoCo contact or clearance <= 0) and success (|p - p_goal| < goal_radius). The time limit
+ends the episode with discount 1.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+
+import numpy as np
+import warnings
+
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.obstacles.compose)
+    from dm_control.suite import base
+    from dm_control.utils import rewards
+from dm_env import specs
+
+from controllers.hysteresis_quantizer import quantize_step
+from controllers.tracking_errors import wrap
+from usv_mj.simulation import make_funnels, make_quantizers, make_reference
+
+DEFAULT_PREVIEW = (0.5, 1.0, 2.0, 4.0)
+
+
+def _tol_pos(d: float) -> float:
+    return float(rewards.tolerance(d, bounds=(0.0, 0.25), margin=2.0, sigmoid="gaussian", value_at_margin=0.1))
+
+
+def _tol_psi(e: float) -> float:
+    return float(rewards.tolerance(abs(e), bounds=(0.0, 0.1), margin=0.5, sigmoid="gaussian", value_at_margin=0.1))
+
+
+class TrackTask(base.Task):
+    """Follow the scenario's reference (SPEC §4 for the paper preset) from a randomised start.
+
+    The start pose is the reference's pose at t = 0 plus uniform offsets of at most
+    ``start_offset`` = (dx [m], dy [m], dpsi [rad]), at rest. See the module docstring for the
+    action, observations, reward and termination.
+
+    Parameters: ``scenario`` (:class:`usv_mj.scenario.Scenario`), ``quantize`` (bool),
+    ``max_surge_force`` [N], ``max_yaw_moment`` [N m], ``preview_times`` [s], ``start_offset``,
+    ``max_distance`` [m], ``random`` (seed or RandomState).
+    """
+
+    def __init__(self, scenario, quantize: bool = True, max_surge_force: float = 1000.0,
+                 max_yaw_moment: float = 1000.0, preview_times=DEFAULT_PREVIEW, start_offset=(3.0, 3.0, 0.5),
+                 max_distance: float = 50.0, reference=None, random=None):
+        for name, value in (("max_surge_force", max_surge_force), ("max_yaw_moment", max_yaw_moment),
+                            ("max_distance", max_distance)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{type(self).__name__}: {name} must be a finite number > 0, got {value!r}")
+        preview = np.asarray(preview_times, dtype=float).reshape(-1)
+        if preview.size == 0 or not np.all(np.isfinite(preview)) or np.any(preview <= 0):
+            raise ValueError(f"{type(self).__name__}: preview_times must be finite times > 0 s, got {preview_times!r}")
+        offset = np.asarray(start_offset, dtype=float).reshape(-1)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)) or np.any(offset < 0):
+            raise ValueError(f"{type(self).__name__}: start_offset must be 3 finite numbers >= 0, got {start_offset!r}")
+        super().__init__(random=random)
+        self.scenario = scenario
+        self.quantize = bool(quantize)
+        self.max_distance = float(max_distance)
+        self.preview_times = preview
+        self.start_offset = offset
+        self._bounds = np.array([max_surge_force, max_yaw_moment], dtype=float)
+        self.reference = reference if reference is not None else make_reference(scenario)
+        self.funnel_xy, self.funnel_psi = make_funnels(scenario)
+        q_u, q_r = make_quantizers(scenario)
+        self._qp = ((q_u.params.delta, q_u.params.u_min), (q_r.params.delta, q_r.params.u_min))
+        self._k = [0, 0]
+        self.last_action = np.zeros(2)      # clipped action [N, N m]
+        self.last_thrust = np.zeros(2)      # after the quantizer: what the plant got
+        self.termination_reason: str | None = None
+        self.termination_kind: str | None = None
+
+    # --- episode -------------------------------------------------------------------------------
+
+    def start_pose(self):
+        """The randomised initial (eta0, nu0) of an episode (uses ``self.random``)."""
+        ref = self.reference.evaluate(0.0)
+        d = self.random.uniform(-1.0, 1.0, size=3) * self.start_offset
+        return np.array([ref[0] + d[0], ref[1] + d[1], ref[2] + d[2]]), np.zeros(3)
+
+    def initialize_episode(self, physics):
+        self._k = [0, 0]
+        self.last_action[:] = 0.0
+        self.last_thrust[:] = 0.0
+        self.termination_reason = None
+        self.termination_kind = None
+        eta0, nu0 = self.start_pose()
+        physics.set_initial_state(eta0, nu0)
+
+    def action_spec(self, physics):
+        return specs.BoundedArray((2,), np.float64, -self._bounds, self._bounds, name="thrust")
+
+    def before_step(self, action, physics):
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (2,):
+            raise ValueError(f"{type(self).__name__}: action must be (tau_u [N], tau_r [N m]), shape (2,), "
+                             f"got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{type(self).__name__}: action must be finite, got {a.tolist()}")
+        a = np.clip(a, -self._bounds, self._bounds)
+        self.last_action[:] = a
+        if self.quantize:
+            for i in range(2):
+                delta, u_min = self._qp[i]
+                q, self._k[i] = quantize_step(delta, u_min, self._k[i], float(a[i]))
+                self.last_thrust[i] = q
+        else:
+            self.last_thrust[:] = a
+        physics.plant.data.ctrl[:] = self.last_thrust
+
+    def after_step(self, physics):
+        if self.termination_reason is not None:
+            return
+        t = physics.time()
+        if physics.failure is not None:
+            self._terminate("diverged", physics.failure)
+            return
+        x = physics.state
+        lim = self.scenario.limits
+        ref = self.reference.evaluate(t)
+        dist = math.hypot(x[0] - ref[0], x[1] - ref[1])
+        if not np.all(np.isfinite(x)):
+            self._terminate("diverged", f"non-finite state at t = {t:.3f} s")
+        elif abs(x[3]) >= lim.max_speed or abs(x[4]) >= lim.max_speed:
+            self._terminate("diverged", f"|u| or |v| reached limits.max_speed = {lim.max_speed:g} m/s at t = {t:.3f} s")
+        elif abs(x[5]) >= lim.max_yaw_rate:
+            self._terminate("diverged", f"|r| reached limits.max_yaw_rate = {lim.max_yaw_rate:g} rad/s at t = {t:.3f} s")
+        elif dist >= self.max_distance:
+            self._terminate("lost", f"distance to the reference {dist:.3g} m reached max_distance = "
+                                    f"{self.max_distance:g} m at t = {t:.3f} s")
+
+    def _terminate(self, kind: str, reason: str) -> None:
+        self.termination_kind = kind
+        self.termination_reason = f"{kind}: {reason}"
+
+    def get_termination(self, physics):
+        return 0.0 if self.termination_reason is not None else None
+
+    @property
+    def info(self) -> dict:
+        """Why the episode ended (``kind``: None, "diverged", "lost", "contact", "goal"; ``reason``),
+        the last action and the thrust the plant got."""
+        return {"kind": self.termination_kind, "reason": self.termination_reason,
+                "action": self.last_action.copy(), "thrust": self.last_thrust.copy()}
+
+    # --- observations and reward ---------------------------------------------------------------
+
+    def _frame(self, physics):
+        x = physics.state
+        if not np.all(np.isfinite(x)):
+            x = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
+        return x, math.cos(x[2]), math.sin(x[2])
+
+    def get_observation(self, physics):
+        t = physics.time()
+        x, c, s = self._frame(physics)
+        ref = self.reference.evaluate(t)
+        dx, dy = x[0] - ref[0], x[1] - ref[1]
+        obs = collections.OrderedDict()
+        obs["position_error"] = np.array([c * dx + s * dy, -s * dx + c * dy])
+        obs["heading_error"] = np.array([wrap(x[2] - ref[2])])
+        obs["heading"] = np.array([c, s])
+        obs["velocity"] = np.array([x[3], x[4], x[5]])
+        obs["reference_velocity"] = np.array([c * ref[3] + s * ref[4], -s * ref[3] + c * ref[4], ref[5]])
+        prev = np.empty((self.preview_times.size, 2))
+        for k, tau in enumerate(self.preview_times):
+            r = self.reference.evaluate(t + tau)
+            px, py = r[0] - x[0], r[1] - x[1]
+            prev[k, 0] = c * px + s * py
+            prev[k, 1] = -s * px + c * py
+        obs["reference_preview"] = prev
+        obs["funnel"] = np.array([float(self.funnel_xy(t)), float(self.funnel_psi(t))])
+        obs["time"] = np.array([t])
+        return obs
+
+    def observation_spec(self, physics):
+        spec = collections.OrderedDict()
+        for name, shape in self._observation_shapes():
+            spec[name] = specs.Array(shape, np.float64, name=name)
+        return spec
+
+    def _observation_shapes(self):
+        return [("position_error", (2,)), ("heading_error", (1,)), ("heading", (2,)), ("velocity", (3,)),
+                ("reference_velocity", (3,)), ("reference_preview", (self.preview_times.size, 2)),
+                ("funnel", (2,)), ("time", (1,))]
+
+    def tracking_reward(self, physics) -> float:
+        t = physics.time()
+        x, _, _ = self._frame(physics)
+        ref = self.reference.evaluate(t)
+        d = math.hypot(x[0] - ref[0], x[1] - ref[1])
+        return (2.0 * _tol_pos(d) + _tol_psi(wrap(x[2] - ref[2]))) / 3.0
+
+    def get_reward(self, physics):
+        return self.tracking_reward(physics)
+
+
+class HarbourTask(TrackTask):
+    """Reach a goal through a randomised harbour (piers with a gap, then a buoy field) without contact.
+
+    Each episode draws a layout (:func:`usv_mj.envs.layout.harbour_layout`), plans the guidance
+    reference around it (:func:`usv_mj.obstacles.planner.plan_reference`; the reference observed is
+    that plan) and builds the harbour physics with rangefinders (the environment rebuilds the model
+    when the layout changes: see :class:`usv_mj.envs.USVEnvironment`). Observations add ``goal`` and
+    ``rangefinder``; the reward adds the goal distance and the clearance; contact ends the episode
+    (module docstring).
+    """
+
+    def __init__(self, scenario, *, n_rays: int = 16, max_range: float = 20.0, goal_radius: float = 1.5,
+                 margin_m: float = 0.3, **kwargs):
+        if not (isinstance(n_rays, int) and n_rays >= 1):
+            raise ValueError(f"HarbourTask: n_rays must be an integer >= 1, got {n_rays!r}")
+        for name, value in (("max_range", max_range), ("goal_radius", goal_radius)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"HarbourTask: {name} must be a finite number > 0, got {value!r}")
+        kwargs.setdefault("start_offset", (0.0, 0.0, 0.0))
+        super().__init__(scenario, **kwargs)
+        self.n_rays = n_rays
+        self.ray_angles = 2.0 * math.pi * np.arange(n_rays) / n_rays
+        self.max_range = float(max_range)
+        self.goal_radius = float(goal_radius)
+        self.margin_m = float(margin_m)
+        self.layout = None          # set by the environment before each episode
+        self.monitor = None
+        self.min_clearance = math.inf
+        self._start_distance = 1.0
+
+    def attach_layout(self, layout, monitor) -> None:
+        """Use ``layout`` (:class:`usv_mj.envs.layout.HarbourLayout`) and its clearance monitor."""
+        self.layout = layout
+        self.reference = layout.plan.reference
+        self.monitor = monitor
+
+    def start_pose(self):
+        lay = self.layout
+        return np.array([lay.start[0], lay.start[1], lay.psi0]), np.zeros(3)
+
+    def initialize_episode(self, physics):
+        super().initialize_episode(physics)
+        g = self.layout.goal
+        self._start_distance = max(math.hypot(g[0] - self.layout.start[0], g[1] - self.layout.start[1]), 1e-6)
+        self.min_clearance = self._clearance(physics)
+
+    def before_step(self, action, physics):
+        super().before_step(action, physics)
+        physics.plant.move_obstacles(physics.time())
+
+    def _clearance(self, physics) -> float:
+        c = self.monitor.update(physics.time(), physics.plant)
+        self._contact = bool(np.any(self.monitor.in_contact)) or bool(np.any(c <= 0.0))
+        self._nearest = int(np.argmin(c)) if c.size else -1
+        return float(np.min(c)) if c.size else math.inf
+
+    def after_step(self, physics):
+        super().after_step(physics)
+        self.min_clearance = self._clearance(physics)
+        if self.termination_reason is not None:
+            return
+        t = physics.time()
+        x = physics.state
+        if self._contact:
+            name = self.layout.obstacles[self._nearest].name if self._nearest >= 0 else "?"
+            self._terminate("contact", f"hull touched obstacle {name!r} at t = {t:.3f} s "
+                                       f"(clearance {self.min_clearance:.3f} m)")
+        elif math.hypot(x[0] - self.layout.goal[0], x[1] - self.layout.goal[1]) < self.goal_radius:
+            self._terminate("goal", f"reached the goal at t = {t:.3f} s")
+
+    def get_observation(self, physics):
+        obs = super().get_observation(physics)
+        x, c, s = self._frame(physics)
+        g = self.layout.goal
+        gx, gy = g[0] - x[0], g[1] - x[1]
+        obs["goal"] = np.array([c * gx + s * gy, -s * gx + c * gy, wrap(self.layout.psi_goal - x[2])])
+        r = physics.plant.rangefinders()
+        obs["rangefinder"] = np.where((r < 0) | (r > self.max_range), self.max_range, r)
+        return obs
+
+    def _observation_shapes(self):
+        return super()._observation_shapes() + [("goal", (3,)), ("rangefinder", (self.n_rays,))]
+
+    def get_reward(self, physics):
+        x, _, _ = self._frame(physics)
+        g = self.layout.goal
+        d_goal = math.hypot(x[0] - g[0], x[1] - g[1])
+        r_goal = float(rewards.tolerance(d_goal, bounds=(0.0, self.goal_radius), margin=self._start_distance,
+                                         sigmoid="linear", value_at_margin=0.0))
+        if self.margin_m > 0:
+            r_clear = float(rewards.tolerance(self.min_clearance, bounds=(self.margin_m, math.inf),
+                                              margin=self.margin_m, sigmoid="linear", value_at_margin=0.0))
+        else:
+            r_clear = 1.0 if self.min_clearance > 0 else 0.0
+        return r_clear * 0.5 * (r_goal + self.tracking_reward(physics))
