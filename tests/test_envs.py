@@ -1,0 +1,247 @@
+"""usv_mj.envs: dm_env conformance, determinism, isolation of the callback, the PPC baseline."""
+
+from __future__ import annotations
+
+import math
+import unittest
+
+import numpy as np
+import pytest
+from dm_env import test_utils
+
+from usv_mj import envs
+from usv_mj.plants.mujoco_plant import MuJoCoPlant
+from usv_mj.simulation import simulate
+
+SHORT = dict(duration=0.5)  # 50 control steps of 0.01 s: conformance tests end episodes too
+
+
+def _rollout(env, policy, max_steps=None):
+    ts = env.reset()
+    states, rewards = [env.physics.state.copy()], []
+    while not ts.last() and (max_steps is None or len(rewards) < max_steps):
+        ts = env.step(policy(ts))
+        states.append(env.physics.state.copy())
+        rewards.append(ts.reward)
+    return np.array(states), np.array(rewards), ts
+
+
+class TrackConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
+    def make_object_under_test(self):
+        return envs.load("track", seed=1, **SHORT)
+
+
+class TrackUnquantizedConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
+    def make_object_under_test(self):
+        return envs.load("track", seed=2, quantize=False, **SHORT)
+
+
+class HarbourConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
+    def make_object_under_test(self):
+        return envs.load("harbor", seed=3, **SHORT)
+
+
+def _waves_supported():
+    import inspect
+
+    return "environment" in inspect.signature(MuJoCoPlant.__init__).parameters
+
+
+@pytest.mark.skipif(not _waves_supported(), reason="MuJoCoPlant takes no sea state yet")
+class WavesConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
+    def make_object_under_test(self):
+        return envs.load("track_waves", seed=4, **SHORT)
+
+
+def test_waves_without_sea_support_is_a_clear_error(monkeypatch):
+    import inspect
+
+    sig = inspect.signature(MuJoCoPlant.__init__)
+    params = [p for name, p in sig.parameters.items() if name != "environment"]
+    monkeypatch.setattr(MuJoCoPlant.__init__, "__signature__", sig.replace(parameters=params), raising=False)
+    with pytest.raises(NotImplementedError, match="sea state"):
+        envs.load("track_waves", seed=0)
+
+
+def test_all_tasks_and_bad_input():
+    assert envs.ALL_TASKS == ("track", "track_waves", "harbor")
+    with pytest.raises(ValueError, match="unknown task 'nope'"):
+        envs.load("nope")
+    with pytest.raises(ValueError, match="unknown options"):
+        envs.load("track", bogus=1)
+    env = envs.load("track", seed=0, **SHORT)
+    try:
+        env.reset()
+        with pytest.raises(ValueError, match="finite"):
+            env.step(np.array([np.nan, 0.0]))
+        with pytest.raises(ValueError, match="shape"):
+            env.step(np.zeros(3))
+        spec = env.action_spec()
+        assert spec.shape == (2,) and np.all(spec.maximum > 0) and np.all(spec.minimum == -spec.maximum)
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("task", ["track", "harbor"])
+def test_same_seed_same_episode_bit_for_bit(task):
+    out = []
+    for _ in range(2):
+        env = envs.load(task, seed=7, duration=1.0)
+        try:
+            out.append(_rollout(env, envs.RandomPolicy(env, seed=11)))
+        finally:
+            env.close()
+    (s1, r1, _), (s2, r2, _) = out
+    assert s1.shape == s2.shape and np.array_equal(s1, s2) and np.array_equal(r1, r2)
+    env = envs.load(task, seed=8, duration=1.0)
+    try:
+        s3, _, _ = _rollout(env, envs.RandomPolicy(env, seed=11))
+    finally:
+        env.close()
+    assert not np.array_equal(s1[0], s3[0])  # another seed, another start (or layout)
+
+
+def test_two_environments_do_not_disturb_each_other():
+    """Interleaving the steps of an environment with a different ship (harsh disturbance) changes
+    nothing in the first one's trajectory: the callback reads each mjData's own parameters."""
+    def run(interleave):
+        a = envs.load("track", seed=5, duration=1.0)
+        b = envs.load("track", seed=6, duration=1.0, preset="harsh") if interleave else None
+        try:
+            pa, pb = envs.RandomPolicy(a, 1), (envs.RandomPolicy(b, 2) if b else None)
+            ts = a.reset()
+            tb = b.reset() if b else None
+            states = []
+            while not ts.last():
+                ts = a.step(pa(ts))
+                if b is not None:
+                    tb = b.step(pb(tb)) if not tb.last() else b.reset()
+                states.append(a.physics.state.copy())
+            return np.array(states)
+        finally:
+            a.close()
+            if b is not None:
+                b.close()
+    alone, together = run(False), run(True)
+    assert np.array_equal(alone, together)
+    # and the harsh ship really is another physics (else the test could not fail)
+    a = envs.load("track", seed=5, duration=1.0, preset="harsh")
+    try:
+        s, _, _ = _rollout(a, envs.RandomPolicy(a, 1))
+    finally:
+        a.close()
+    assert np.max(np.abs(s[1:] - alone)) > 1e-6
+
+
+def test_close_releases_the_plant():
+    from usv_mj.plants import mujoco_callback as mcb
+
+    env = envs.load("track", seed=0, **SHORT)
+    ud = env.physics.plant.data.userdata
+    assert ud[mcb.U_MAGIC] == mcb.MAGIC
+    env.close()
+    assert ud[mcb.U_MAGIC] == 0.0
+    with pytest.raises(RuntimeError, match="closed"):
+        env.reset()
+
+
+def test_observations_match_their_definitions():
+    """Body-frame errors and preview against the plant state and the reference, computed here."""
+    env = envs.load("track", seed=3, duration=1.0)
+    try:
+        ts = env.reset()
+        for _ in range(20):
+            ts = env.step(np.array([5.0, 1.0]))
+        x = env.physics.state
+        t = env.physics.time()
+        assert ts.observation["time"][0] == pytest.approx(0.2, abs=1e-12)
+        ref = env.task.reference.sample([t, t + 0.5, t + 1.0, t + 2.0, t + 4.0])
+        c, s = math.cos(x[2]), math.sin(x[2])
+        rot = np.array([[c, s], [-s, c]])  # R(psi)^T
+        np.testing.assert_allclose(ts.observation["position_error"], rot @ (x[:2] - ref[0, :2]), atol=1e-12)
+        np.testing.assert_allclose(ts.observation["reference_preview"], (rot @ (ref[1:, :2] - x[:2]).T).T, atol=1e-12)
+        np.testing.assert_allclose(ts.observation["velocity"], x[3:], atol=0)
+        rho = 16.0 * math.exp(-0.05 * t) + 2.0  # paper preset: rho_xy = 16 exp(-0.05 t) + 2
+        assert ts.observation["funnel"][0] == pytest.approx(rho, rel=1e-12)
+        assert 0.0 <= ts.reward <= 1.0
+        # quantized thrust: 5 N lies on a level of the surge ladder (|Q - tau| <= delta |tau|, Lemma 1)
+        q = env.task.info["thrust"]
+        assert abs(q[0] - 5.0) <= 0.3 * 5.0 and q[0] != 5.0
+    finally:
+        env.close()
+
+
+def test_ppc_trajectory_equals_simulate_on_the_mujoco_plant():
+    """PPCPolicy in the environment = simulate() with the same scenario, start and reference on a
+    fresh MuJoCoPlant (quantizer on): the environment is the plant, not a copy."""
+    env = envs.load("track", seed=0, duration=5.0, max_surge_force=1e6, max_yaw_moment=1e6)
+    try:
+        states, _, ts = _rollout(env, envs.PPCPolicy(env))
+        sc = env.task.scenario.with_overrides({"initial": {"eta": [float(v) for v in states[0, :3]],
+                                                            "nu": [0.0, 0.0, 0.0]}})
+        record = simulate(sc, plant_kind="mujoco", duration=5.0, reference=env.task.reference)
+    finally:
+        env.close()
+    assert record.status == "completed" and record.n_rows == len(states) == 501
+    err = np.hypot(record["x"] - states[:, 0], record["y"] - states[:, 1])
+    assert np.max(err) < 1e-6, np.max(err)
+    assert np.max(np.abs(record["psi"] - states[:, 2])) < 1e-6
+
+
+def test_ppc_earns_clearly_more_than_random_on_track():
+    returns = {"ppc": [], "random": []}
+    for seed in (0, 1, 2):
+        env = envs.load("track", seed=seed, duration=10.0)
+        try:
+            for name, policy in (("ppc", envs.PPCPolicy(env)), ("random", envs.RandomPolicy(env, seed))):
+                _, rewards, _ = _rollout(env, policy)
+                returns[name].append(float(np.sum(rewards)))
+        finally:
+            env.close()
+    ppc, rnd = np.mean(returns["ppc"]), np.mean(returns["random"])
+    print(f"\ntrack, 10 s episodes (1000 steps), mean return over seeds 0-2: PPC {ppc:.1f} "
+          f"{returns['ppc']}, random {rnd:.1f} {returns['random']}")
+    assert ppc > 2.0 * rnd and ppc > 500.0
+
+
+def test_harbour_rangefinders_see_the_piers():
+    """A ray's reading equals the distance from the hull origin to the obstacle along it (mj_ray
+    on the same model, and a box edge computed by hand for the bow ray)."""
+    import mujoco
+
+    env = envs.load("harbor", seed=0, duration=1.0)
+    try:
+        ts = env.reset()
+        plant = env.physics.plant
+        r = ts.observation["rangefinder"]
+        assert r.shape == (16,) and np.all((r > 0) & (r <= 20.0))
+        m, d = plant.model, plant.data
+        geomid = np.zeros(1, dtype=np.int32)
+        hull = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "hull")
+        psi = plant.state[2]
+        for i, a in enumerate(env.task.ray_angles):
+            vec = np.array([math.cos(psi + a), math.sin(psi + a), 0.0])
+            dist = mujoco.mj_ray(m, d, np.array([*plant.state[:2], 0.3]), vec, None, 1, hull, geomid)
+            expected = 20.0 if (dist < 0 or dist > 20.0) else dist
+            assert r[i] == pytest.approx(expected, abs=1e-9)
+        assert np.any(r < 20.0)
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+def test_harbour_ppc_with_guidance_reaches_the_goal():
+    n, reached, contacts = 20, 0, 0
+    env = envs.load("harbor", seed=0)
+    try:
+        policy = envs.PPCPolicy(env)
+        for _ in range(n):
+            _rollout(env, policy)
+            kind = env.task.info["kind"]
+            reached += kind == "goal"
+            contacts += kind == "contact"
+    finally:
+        env.close()
+    print(f"\nharbor: PPC + guidance reached the goal without contact in {reached}/{n} layouts "
+          f"({contacts} contacts)")
+    assert reached >= 0.8 * n
