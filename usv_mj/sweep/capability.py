@@ -234,10 +234,16 @@ def draw_polar(results: list[DirectionResult], load: LoadKind, path: Path, title
     else:
         theta = np.radians([r.direction_deg for r in results] + [results[0].direction_deg])
         caps = [r.capability or 0.0 for r in results]
-        ax.plot(theta, caps + caps[:1], color="tab:blue", lw=2, marker="o", ms=3, label="funnel holds up to")
+        ax.plot(theta, caps + caps[:1], color="tab:blue", lw=2, label="funnel holds up to")
+        bracketed = [i for i, r in enumerate(results) if r.fails is not None]
+        open_top = [i for i, r in enumerate(results) if r.fails is None and r.holds is not None]
+        ax.plot(theta[bracketed], [caps[i] for i in bracketed], ls="none", marker="o", ms=4, color="tab:blue")
+        if open_top:
+            ax.plot(theta[open_top], [caps[i] for i in open_top], ls="none", marker="^", ms=6, mfc="white",
+                    color="tab:blue", label="held at the search's upper end (at least)")
         fails = [r.fails if r.fails is not None else np.nan for r in results]
         ax.plot(theta, fails + fails[:1], color="tab:red", lw=1, ls="--", label="funnel lost at")
-        ax.text(0.5, -0.16, "angle: going-to direction relative to the path, counter-clockwise",
+        ax.text(0.5, -0.2, "angle: going-to direction relative to the path, counter-clockwise",
                 transform=ax.transAxes, ha="center", va="top", fontsize=8)
     ax.set_title(title, fontsize=10, pad=18)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=2, fontsize=8)
