@@ -431,23 +431,38 @@ def test_capability_current_per_direction_checked_by_direct_runs(tmp_path, clien
         assert kept(r.holds, r.direction_deg) and not kept(r.fails, r.direction_deg)
 
 
-def test_capability_stops_on_a_failed_run_instead_of_calling_it_a_limit(tmp_path, client):
-    if not _sea_known():
-        pytest.skip("the scenario format has no [sea.current] in this checkout")
-    try:
-        load_scenario(preset="paper", overrides={"plant": {"kind": "mujoco"}, "sea": {"current": {"speed": 0.1}}})
-        from usv_mj.simulation import make_plant
+def test_capability_stops_on_a_failed_run_instead_of_calling_it_a_limit(monkeypatch):
+    """A failed run (raised, worker died) is no answer about the funnel: the search stops with its reason."""
+    from usv_mj.sweep import runner
+    from usv_mj.sweep.capability import LOADS, _Evaluator
+    from usv_mj.sweep.runner import failed_row
 
-        make_plant(load_scenario(preset="paper", overrides={"plant": {"kind": "mujoco"},
-                                                            "sea": {"current": {"speed": 0.1}}})).close()
-    except Exception as exc:  # the MuJoCo plant refuses a sea state: every loaded run fails
-        reason = str(exc)
-    else:
-        pytest.skip("the MuJoCo plant takes the sea state: no failing set-up to show")
-    with pytest.raises(SweepError, match="failed, so the search cannot go on") as info:
-        run_capability("current", duration=2.0, plant="mujoco", step=180.0, load_max=1.0, tol=0.25,
-                       out=tmp_path / "cur", client=client, progress=False, echo=None)
-    assert reason.split(":")[0] in str(info.value)
+    def fake_gather(client, jobs, on_row, key_prefix=""):
+        for run, _ in jobs:
+            if run.values["disturbance.scale"] > 0.01:
+                on_row(failed_row(run.run_id, run.values, "worker died: out of memory"))
+            else:
+                on_row({"run_id": run.run_id, "status": "ok", "kept_funnel": True, "reason": None})
+
+    monkeypatch.setattr(runner, "gather_rows", fake_gather)
+    base = load_scenario(preset="paper", overrides={"duration": 5.0})
+    evaluator = _Evaluator(None, base, LOADS["disturbance"], 0.0, "test")
+    assert evaluator([(None, 0.001)])[(None, 0.001)]["kept_funnel"]
+    with pytest.raises(SweepError, match=r"disturbance.scale = 0.5 failed, so the search cannot go on: "
+                                         r"worker died: out of memory"):
+        search_capability(evaluator, [None], 1e-4, 0.5, "log", 0.05, 2)
+
+
+def test_a_reference_the_trajectories_refuse_stops_the_sweep_before_it_runs(tmp_path):
+    # the scenario format takes a one-point waypoint list; the reference path does not
+    with pytest.raises(SweepError, match=r"reference path of run 1 .*trajectory.points.*at least two"):
+        plan_sweep({"base": "paper", "duration": 5.0, "set": {"trajectory.kind": "waypoints"},
+                    "vary": {"trajectory.points": [[[0.0, 0.0], [10.0, 0.0]], [[0.0, 0.0]]]}})
+    base = _write(tmp_path, 'preset = "paper"\n[trajectory]\nkind = "waypoints"\npoints = [[0.0, 0.0]]\n',
+                  "one_waypoint.toml")
+    with pytest.raises(SweepError, match="reference path cannot be built"):
+        run_capability("disturbance", base=str(base), out=tmp_path / "cap", progress=False, echo=None)
+    assert not (tmp_path / "cap").exists()
 
 
 @pytest.mark.parametrize("path", sorted((ROOT / "examples" / "sweeps").glob("*.toml")), ids=lambda p: p.name)

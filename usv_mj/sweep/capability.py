@@ -316,7 +316,10 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
         raise
     directions = [None] if load.direction_path is None else [
         round(i * step, 9) for i in range(int(math.floor(360.0 / step + 1e-9)))]
-    heading = path_heading_deg(scenario)
+    try:
+        heading = path_heading_deg(scenario)
+    except ValueError as exc:
+        raise SweepError(f"{source}: the base's reference path cannot be built: {exc}") from None
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     from .runner import open_client

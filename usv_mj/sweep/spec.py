@@ -47,7 +47,8 @@ Validation
 ----------
 Before anything is submitted, every sampled scenario is built by :func:`usv_mj.scenario.from_dict`
 (and for uniform / loguniform / integers both ends of the range too, so that a range that reaches
-outside a key's domain is reported even if no draw happened to land there). Any problem raises
+outside a key's domain is reported even if no draw happened to land there), and the reference path
+of every distinct trajectory is built once. Any problem raises
 :class:`SweepError` (a ``ValueError``) whose message names the sweep file, the path and the value;
 the CLI turns it into exit code 2.
 """
@@ -425,6 +426,7 @@ def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = Non
                 values[axis.path] = point[grid.index(axis)] if axis.kind == "grid" else drawn[axis.path][run_id]
             scenario = apply_values(base, values, source) if values else base
             runs.append(RunSpec(run_id, values, scenario))
+    _check_references(runs, source)
     hooks = {}
     if "test_hooks" in data:
         hooks = {k: set(int(i) for i in v) for k, v in data["test_hooks"].items()}
@@ -432,6 +434,26 @@ def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = Non
                      transient=transient, name=name, test_hooks=hooks)
     plan.fingerprint = _fingerprint(plan)
     return plan
+
+
+def _check_references(runs: list, source: str) -> None:
+    """Build the reference path of every distinct (trajectory, duration) among ``runs``: the
+    scenario format accepts some paths that :mod:`usv_mj.trajectories` refuses (a waypoint list of
+    one point), and those must stop the sweep here, not fail every run on the workers."""
+    from ..simulation import make_reference
+
+    seen = set()
+    for run in runs:
+        key = json.dumps([dataclasses.asdict(run.scenario.trajectory), run.scenario.duration], default=repr)
+        if key in seen:
+            continue
+        seen.add(key)
+        try:
+            make_reference(run.scenario)
+        except ValueError as exc:
+            shown = ", ".join(f"{p} = {v!r}" for p, v in run.values.items()) or "the base"
+            raise SweepError(f"{source}: the reference path of run {run.run_id} ({shown}) cannot be built: "
+                             f"{exc}") from None
 
 
 def _fingerprint(plan: SweepPlan) -> str:
