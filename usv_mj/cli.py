@@ -12,7 +12,8 @@
     usv-mj capability --load ...       the environment capability polar of the controller
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
-recorded); 2 bad input (the message names the key and the file).
+recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
+message names the Debian packages to install; --no-video skips the video).
 """
 
 from __future__ import annotations
@@ -26,10 +27,10 @@ from pathlib import Path
 
 from .scenario import ScenarioError, _merge, load_scenario, preset_names
 
-EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT, EXIT_NO_GL = 0, 1, 2, 3
 
 
-class _Formatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
+class _Formatter(argparse.RawDescriptionHelpFormatter):
     pass
 
 
@@ -88,40 +89,29 @@ def _add_run(sub):
     p.add_argument("--no-video", action="store_true", help="skip the video")
     p.add_argument("--no-baseline", action="store_true", help="skip the PI baseline run")
     p.add_argument("--no-log", action="store_true", help="skip the MCAP log")
-    p.add_argument("--camera", default="top", choices=("top", "chase"), help="video camera")
-    p.add_argument("--size", default="1280x720", help="video size WIDTHxHEIGHT")
-    p.add_argument("--fps", type=int, default=30, help="video frames per second")
-    p.add_argument("--speedup", type=float, help="playback speed-up (default: the run fits in 30 s of video)")
+    from .render import add_video_arguments
+
+    add_video_arguments(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=_run_command)
-
-
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ScenarioError(f"--size must be WIDTHxHEIGHT, e.g. 1280x720, got {text!r}") from None
-    if not (16 <= w <= 7680 and 16 <= h <= 4320):
-        raise ScenarioError(f"--size {text!r} is out of range (16x16 to 7680x4320)")
-    return w, h
 
 
 def _run_command(args) -> int:
     from .main_job import one_screen_summary, run_job
 
+    from .render import video_options
+
     scenario = scenario_from_args(args)
-    width, height = _size(args.size)
-    if args.fps < 1 or args.fps > 240:
-        raise ScenarioError(f"--fps must be in 1..240, got {args.fps}")
-    if args.speedup is not None and not args.speedup > 0:
-        raise ScenarioError(f"--speedup must be > 0, got {args.speedup}")
+    try:
+        render_options = video_options(args)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
     name = Path(args.scenario).stem if args.scenario else scenario.preset
     out = Path(args.out) if args.out else Path("renders") / name
     t0 = time.perf_counter()
     result = run_job(scenario, out, baseline=False if args.no_baseline else None, video=not args.no_video,
                      log=not args.no_log, progress=not args.quiet,
-                     render_options={"width": width, "height": height, "fps": args.fps,
-                                     "speedup": args.speedup, "camera": args.camera})
+                     render_options=render_options)
     print(one_screen_summary(result, time.perf_counter() - t0))
     return EXIT_OK if result.summary["status"] == "completed" else EXIT_STOPPED
 
@@ -238,6 +228,13 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"usv-mj {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:
+        from .render import GLUnavailableError
+
+        if isinstance(exc, GLUnavailableError):
+            print(f"usv-mj {args.command}: {exc}", file=sys.stderr)
+            return EXIT_NO_GL
+        raise
 
 
 if __name__ == "__main__":

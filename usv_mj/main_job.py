@@ -7,8 +7,8 @@
     result = run_job(load_scenario(preset="paper"), "renders/paper", video=False)
     result.summary["errors_at"]
 
-Outputs in ``out_dir``: ``summary.json``, ``report.md``, ``figures/*.png``, ``run.mcap`` (when the MCAP
-writer is installed), ``video.mp4`` and ``final.png`` (unless ``video=False``). Everything is written
+Outputs in ``out_dir``: ``summary.json``, ``report.md``, ``figures/*.png``, ``run.mcap`` (unless
+``log=False``), ``video.mp4`` and ``video.png``, its last frame (unless ``video=False``). Everything is written
 from the finished records, so ``usv-mj plot run.mcap`` and ``usv-mj render run.mcap`` remake them.
 """
 
@@ -113,17 +113,27 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     run_baseline = run_baseline and scenario.controller.kind != "pi"
     dt = scenario.control_period
     files: dict = {}
+    render_opts = dict(render_options or {})
     with ExitStack() as stack:
+        pool = None
+        if video:
+            from .render import RenderWorkers
+
+            if scenario.obstacles and "model" not in render_opts:
+                from .obstacles.compose import compose_scene, export_scene
+
+                render_opts["model"] = export_scene(compose_scene(scenario.obstacles))
+            # the render workers open their GL contexts while the ship is simulated
+            pool = stack.enter_context(RenderWorkers(**{k: v for k, v in render_opts.items()
+                                                        if k in ("width", "height", "camera", "workers", "gl",
+                                                                 "model", "shadows")}))
         sink_main, sink_base = [], []
         if log:
-            try:
-                from .runlog import RunLogWriter
-            except ImportError:
-                RunLogWriter = None
-            if RunLogWriter is not None:
-                writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario))
-                sink_main, sink_base = [writer.sink(run="main")], [writer.sink(run="baseline")]
-                files["mcap"] = out / "run.mcap"
+            from .runlog import RunLogWriter
+
+            writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario))
+            sink_main, sink_base = [writer.sink(run="main")], [writer.sink(run="baseline")]
+            files["mcap"] = out / "run.mcap"
         cb, close = progress_bar(scenario.duration, f"{scenario.controller.kind.upper()} on {plant_kind}", progress, dt)
         try:
             record = _simulate(scenario, plant_kind, None, sink_main, cb)
@@ -136,6 +146,13 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
                 base_rec = _simulate(scenario, plant_kind, "pi", sink_base, cb)
             finally:
                 close()
+        render_stats = None
+        if pool is not None and len(record) > 1:
+            from .render import render_run
+
+            render_stats = render_run(record, out / "video.mp4", progress=progress, pool=pool, **render_opts)
+            files["video"] = out / "video.mp4"
+            files["still"] = Path(render_stats["png"])
     summary = summarize(record)
     base_summary = summarize(base_rec) if base_rec is not None else None
     check = step_size_check(scenario, record, plant_kind) if step_check and record.status == "completed" else None
@@ -148,14 +165,9 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         summary_out["step_check"] = check
     files["figures"] = draw_figures(record, out / "figures", base_rec, obstacles=scenario.obstacles)
     files["report"] = write_report(out / "report.md", summary, base_summary, check)
-    render_stats = None
-    if video and len(record) > 1:
-        from .render import render_run
-
-        opts = dict(render_options or {})
-        render_stats = render_run(record, out / "video.mp4", progress=progress, **opts)
-        files["video"] = out / "video.mp4"
-        summary_out["render"] = {k: v for k, v in render_stats.items() if isinstance(v, (int, float, str))}
+    if render_stats is not None:
+        summary_out["render"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in render_stats.items()
+                                 if isinstance(v, (int, float, str, Path))}
     files["summary"] = out / "summary.json"
     _write_json(files["summary"], summary_out)
     return JobResult(out, record, summary_out, base_rec, base_summary, check, files, render_stats)
@@ -193,7 +205,8 @@ def one_screen_summary(result: JobResult, wall_s: float) -> str:
         lines.append(f"  note: {result.record.metadata['note']}")
     if "render" in s:
         r = s["render"]
-        lines.append(f"  video: {r.get('frames')} frames at {r.get('render_fps', 0):.1f} frames/s rendered")
+        lines.append(f"  video: {r.get('frames')} frames {r.get('width')}x{r.get('height')} in {r.get('wall_s', 0):.1f} s "
+                     f"({r.get('fps', 0):.1f} frames/s rendered, {r.get('gl')}), played at {r.get('speedup', 0):.1f}x")
     lines.append(f"  outputs in {result.out_dir}/: " + ", ".join(sorted(
         p.name if isinstance(p, Path) else k for k, p in result.files.items())))
     return "\n".join(lines)
