@@ -12,7 +12,12 @@ reported in CPU time and in wall time, the realtime factor from both):
 - the analytic plant step + state, for comparison;
 - the PPC controller call (PPCController.__call__) and the reference evaluation;
 - the whole closed loop: ``simulate`` on the ``paper`` preset for ``--duration`` seconds, on both
-  plants, with the realtime factor and the projection to the 300 s paper run.
+  plants, with the realtime factor and the projection to the 300 s paper run;
+- the sea (issue 7, SEA.md §6; :func:`sea_section`, alone with ``--sea-only``): the force kernel
+  (``hydrodynamic_force`` against ``sea_force`` with 128 wave components, current and wind), the
+  plant step (4 RK4 stages, so 4 kernel calls) calm / ``moderate`` waves / waves + current + wind on
+  both plants, and ``simulate`` of the paper preset in the ``moderate`` sea on both plants with its
+  realtime factor (aim: 50x on the MuJoCo plant).
 
 The machine may be shared: the figures are as good as its load at the time (printed first).
 """
@@ -47,7 +52,10 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=30.0, help="closed-loop run length [s] (default 30)")
     ap.add_argument("--repeat", type=int, default=3, help="timings per figure; the best is printed")
     ap.add_argument("-n", type=int, default=20000, help="calls per timing")
+    ap.add_argument("--sea-only", action="store_true", help="only the sea section")
     args = ap.parse_args(argv)
+    if args.sea_only:
+        return sea_section(args)
 
     import mujoco
 
@@ -142,14 +150,114 @@ def main(argv=None) -> int:
         sim = steps * scenario.control_period
         print(f"paper preset, {sim:.0f} s, {label}: {cpu:.2f} s CPU ({sim / cpu:.0f}x realtime), "
               f"{wall:.2f} s wall ({sim / wall:.0f}x); projected 300 s run: {cpu * 300.0 / sim:.1f} s CPU")
+    return sea_section(args)
+
+
+def sea_section(args) -> int:
+    """The cost of the sea per step beside the calm step, on both plants, and the paper run in the
+    ``moderate`` sea (issue 7). Per-call figures: best of ``--repeat`` interleaved rounds, CPU time."""
+    import mujoco
+
+    from usv_mj.plants.analytic import AnalyticPlant
+    from usv_mj.plants.mujoco_plant import DEFAULT_MODEL, MuJoCoPlant
+    from usv_mj.scenario import load_scenario
+    from usv_mj.sea import Environment, SeaSettings, load_sea_preset, sea_force
+    from usv_mj.sea import CurrentSettings, WindSettings
+    from usv_mj.ship import hydrodynamic_force
+    from usv_mj.simulation import simulate
+
+    print(f"\n--- sea (issue 7) --- load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    scenario = load_scenario(preset="paper")
+    n, rep = args.n, args.repeat
+    dt = scenario.control_period
+    moderate = load_sea_preset("moderate")
+    envs = {
+        "calm": None,
+        "moderate waves (128 components)": Environment(moderate, t_max=400.0),
+        "waves + current 0.3 m/s + wind 5 m/s (gusts)": Environment(SeaSettings(
+            waves=moderate.waves, current=CurrentSettings(speed=0.3, direction_deg=30.0, sigma=0.05),
+            wind=WindSettings(speed=5.0, direction_deg=90.0, gust_sigma=1.0)), t_max=400.0),
+    }
+    p, dp = scenario.ship.as_array(), scenario.disturbance.as_array()
+    eta, nu = np.array([2.0, -3.0, 0.4]), np.array([0.8, 0.1, 0.05])
+    model = mujoco.MjModel.from_xml_path(DEFAULT_MODEL)
+    data = mujoco.MjData(model)
+
+    def one_round():
+        out = []
+        mujoco.set_mjcb_passive(None)
+        out.append(("bare mj_step, no callback (RK4, 1 ms)", best_per_call(lambda: mujoco.mj_step(model, data), n, 1)))
+        out.append(("kernel: hydrodynamic_force (calm)", best_per_call(lambda: hydrodynamic_force(p, dp, 12.3, eta, nu), n, 1)))
+        for label, env in envs.items():
+            if env is None:
+                continue
+            packed = env.packed
+            out.append((f"kernel: sea_force, {label}",
+                        best_per_call(lambda: sea_force(p, dp, *packed, 12.3, eta, nu), n, 1)))
+        for label, env in envs.items():
+            with MuJoCoPlant(scenario.ship, scenario.disturbance, dt, environment=env) as plant:
+                plant.reset((2.0, -3.0, 0.0), (0.5, 0.0, 0.0))
+
+                def mj_step():
+                    plant.step(60.0, 1.0)
+                    return plant.state
+
+                out.append((f"MuJoCoPlant.step + .state, {label}", best_per_call(mj_step, n, 1)))
+            analytic = AnalyticPlant(scenario.ship, scenario.disturbance, dt, environment=env)
+            analytic.reset((2.0, -3.0, 0.0), (0.5, 0.0, 0.0))
+
+            def an_step():
+                analytic.step(60.0, 1.0)
+                return analytic.state
+
+            out.append((f"AnalyticPlant.step + .state, {label}", best_per_call(an_step, n, 1)))
+        return out
+
+    rounds = [one_round() for _ in range(rep)]
+    rows = [(name, min(r[i][1] for r in rounds)) for i, (name, _) in enumerate(rounds[0])]
+    yard = rows[0][1]
+    print(f"{'per 1 ms control step or call (CPU time)':64s} {'us':>9s} {'x bare':>8s}")
+    for name, sec in rows:
+        print(f"{name:64s} {sec * 1e6:9.2f} {sec / yard:8.2f}")
+    d = dict(rows)
+    for plant in ("MuJoCoPlant", "AnalyticPlant"):
+        calm = d[f"{plant}.step + .state, calm"]
+        for label in list(envs)[1:]:
+            print(f"sea cost per step, {plant}, {label}: +{(d[f'{plant}.step + .state, {label}'] - calm) * 1e6:.1f} us")
+
+    sea_scn = load_scenario(preset="paper", overrides={"sea": {"waves": dict(moderate.to_dict()["waves"])}})
+    short = sea_scn.with_overrides({"duration": min(args.duration, sea_scn.duration)})
+    for kind in ("mujoco", "analytic"):
+        simulate(short.with_overrides({"duration": 1.0}), plant_kind=kind)  # compile / cache load
+        best = None
+        for _ in range(max(1, rep - 1)):
+            c0 = time.thread_time()
+            rec = simulate(short, plant_kind=kind)
+            cpu = time.thread_time() - c0
+            if best is None or cpu < best[0]:
+                best = (cpu, rec.metadata["wall_time_s"], rec.n_rows - 1, rec.status)
+        cpu, wall, steps, status = best
+        sim = steps * dt
+        print(f"paper preset in the moderate sea, {sim:.0f} s, simulate, {kind} plant ({status}): {cpu:.2f} s CPU "
+              f"({sim / cpu:.0f}x realtime), {wall:.2f} s wall ({sim / wall:.0f}x); projected 300 s run: "
+              f"{cpu * 300.0 / sim:.1f} s CPU")
+    from usv_mj.simulation import make_environment
+
+    env = make_environment(short)
+    cpu, wall, steps, diff = fused_paper_loop(short, env)
+    sim = steps * dt
+    print(f"paper preset in the moderate sea, {sim:.0f} s, compiled loop (prototype), mujoco plant: {cpu:.2f} s CPU "
+          f"({sim / cpu:.0f}x realtime), {wall:.2f} s wall ({sim / wall:.0f}x); max |state - simulate's| {diff:.1e}")
     return 0
 
 
-def fused_paper_loop(scenario):
+def fused_paper_loop(scenario, environment=None):
     """A prototype of the closed loop compiled as one numba function (paper reference, PPC, quantizer,
     MuJoCo plant through ``native_stepper``), to measure what the Python loop of ``simulate`` costs.
 
     Records only the state. Returns (CPU time [s], wall time [s], steps, max |state - simulate's state|).
+    ``environment``: the sea of ``scenario`` (its grids must already cover the run: the compiled loop
+    does not extend them).
     """
     from numba import njit
 
@@ -188,7 +296,8 @@ def fused_paper_loop(scenario):
 
     def run():
         ctrl.reset()
-        with MuJoCoPlant(scenario.ship, scenario.disturbance, scenario.control_period) as plant:
+        with MuJoCoPlant(scenario.ship, scenario.disturbance, scenario.control_period,
+                         environment=environment) as plant:
             plant.reset(scenario.initial.eta, scenario.initial.nu)
             x0 = plant.state.copy()
             c0, t0 = time.thread_time(), time.perf_counter()
