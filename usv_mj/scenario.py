@@ -32,6 +32,7 @@ from controllers.ppc import PPCGains
 
 from .sea.settings import SeaSettings, SeaSettingsError, sea_preset_table
 from .ship import PaperDisturbance, ShipParams
+from .toml_values import coerce, read_toml
 
 PLANT_KINDS = ("mujoco", "analytic")
 CONTROLLER_KINDS = ("ppc", "pi")
@@ -213,7 +214,9 @@ class LimitsSpec:
 
 
 def _default_guidance():
-    from .obstacles.spec import GuidanceSpec  # imported late: obstacles.spec imports this module
+    from .obstacles.spec import (
+        GuidanceSpec,  # imported late: obstacles.spec imports this module
+    )
 
     return GuidanceSpec()
 
@@ -310,16 +313,8 @@ def load_scenario(path: str | Path | None = None, preset: str | None = None, ove
     data: dict = {}
     source = f"preset {preset or 'paper'}"
     if path is not None:
-        path = Path(path)
         source = str(path)
-        try:
-            text = path.read_text()
-        except OSError as exc:
-            raise ScenarioError(f"{path}: cannot read the scenario file ({exc.strerror})") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+        data = read_toml(path, ScenarioError, "scenario file")
     if preset is not None:
         data["preset"] = preset
     if overrides:
@@ -405,37 +400,7 @@ def _unknown(source, section, key, known):
 
 
 def _convert(source: str, where: str, value: Any, default: Any) -> Any:
-    """Coerce a TOML value to the type of ``default``, with a message naming ``where``."""
-    def bad(what):
-        return ScenarioError(f"{source}: {where} must be {what}, got {value!r}")
-
-    if isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise bad("true or false")
-        return value
-    if isinstance(default, int):
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise bad("an integer")
-        return value
-    if isinstance(default, float):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise bad("a number")
-        if not math.isfinite(value):
-            raise bad("a finite number")
-        return float(value)
-    if isinstance(default, str):
-        if not isinstance(value, str):
-            raise bad("a string")
-        return value
-    if isinstance(default, tuple):
-        if not isinstance(value, (list, tuple)):
-            raise bad("a list")
-        if default and not isinstance(default[0], tuple):  # flat vector of fixed length
-            if len(value) != len(default):
-                raise bad(f"a list of {len(default)} numbers")
-            return tuple(_convert(source, f"{where}[{i}]", v, 0.0) for i, v in enumerate(value))
-        return tuple(tuple(_convert(source, f"{where}[{i}]", v, (0.0, 0.0))) for i, v in enumerate(value))
-    return value
+    return coerce(source, where, value, default, ScenarioError)
 
 
 def _build(cls, table: Any, source: str, section: str, extra_known: set | None = None):

@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
+from usv_mj.toml_values import coerce
+
 DRIFT_MODES = ("newman", "mean", "off")
 
 
@@ -236,31 +238,7 @@ def _build_section(section: str, table: Any, source: str):
 
 
 def _convert(source: str, where: str, value: Any, default: Any) -> Any:
-    def bad(what):
-        return SeaSettingsError(f"{source}: {where} must be {what}, got {value!r}")
-
-    if isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise bad("true or false")
-        return value
-    if isinstance(default, int):
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise bad("an integer")
-        return value
-    if isinstance(default, float):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise bad("a number")
-        if not math.isfinite(value):
-            raise bad("a finite number")
-        return float(value)
-    if isinstance(default, str):
-        if not isinstance(value, str):
-            raise bad("a string")
-        return value
-    return value
-
-
-# --- presets ----------------------------------------------------------------------------------
+    return coerce(source, where, value, default, SeaSettingsError)
 
 
 def sea_preset_names() -> list[str]:

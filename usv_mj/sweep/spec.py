@@ -64,7 +64,6 @@ import json
 import math
 import os
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -72,6 +71,7 @@ from typing import Any
 import numpy as np
 
 from ..scenario import Scenario, ScenarioError, from_dict, load_scenario, preset_names
+from ..toml_values import read_toml
 
 DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
 TOP_KEYS = ("base", "duration", "plant", "samples", "seed", "transient", "set", "vary", "name")
@@ -323,14 +323,7 @@ def load_sweep(path: str | Path) -> SweepPlan:
     """Read, sample and validate a sweep file; see the module docstring for the format."""
     path = Path(path)
     source = str(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise SweepError(f"{path}: cannot read the sweep file ({exc.strerror})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SweepError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, SweepError, "sweep file")
     return plan_sweep(data, source=source, directory=path.parent)
 
 
