@@ -112,6 +112,10 @@ def run_obstacle_scenario(osc: ObstacleScenario, plant_kind: str | None = None, 
         if plan is not None:
             for event in plan.events:
                 log.add_event(event)
+        for sink in sinks:   # a run-log sink writes the log's arrays on P/obstacles (usv_mj.runlog.extra_topics)
+            attach = getattr(sink, "attach_obstacle_log", None)
+            if attach is not None:
+                attach(log)
         record = simulate(sc, plant, controller or make_controller(sc), sinks=[log, *sinks], duration=duration,
                           reference=reference, hooks=[hook], progress=progress)
     finally:

@@ -149,6 +149,27 @@ class RowLayout:
         return out[:size], offsets
 
 
+class TemplateLayout(RowLayout):
+    """One topic whose messages are a fixed JSON template with float64 holes (nested objects, arrays).
+
+    ``pieces[q]`` is the JSON text written before value q (the first starts the message, e.g.
+    b'{"t":'), ``closing`` the text after the last value (e.g. b'}}]}'). The block handed to
+    :meth:`encode` has exactly ``len(pieces)`` columns, value q in column q. Same kernel, same number
+    conventions (shortest round-trip decimal, null = NaN, +-1e999 = +-inf) as the row topics.
+    """
+
+    def __init__(self, channel_id: int, pieces: list[bytes], closing: bytes):
+        self.n_cols = len(pieces)
+        self.channel_ids = np.array([channel_id], np.int64)
+        self.topic_cols = np.arange(len(pieces), dtype=np.int64)
+        self.topic_start = np.array([0, len(pieces)], np.int64)
+        keys = b"".join(pieces)
+        self.keys = np.frombuffer(keys, np.uint8)
+        self.key_start = np.concatenate([[0], np.cumsum([len(p) for p in pieces])]).astype(np.int64)
+        self.closing = np.frombuffer(closing, np.uint8)
+        self.bytes_per_row = MESSAGE_HEADER + len(closing) + len(keys) + len(pieces) * MAX_TOKEN
+
+
 def message_record(channel_id: int, log_time: int, data: bytes, sequence: int = 0) -> bytes:
     """One MCAP Message record (for the few messages not laid out in bulk)."""
     return struct.pack("<BQHIQQ", Opcode.MESSAGE, 22 + len(data), channel_id, sequence & 0xFFFFFFFF,

@@ -25,6 +25,7 @@ from numba import njit
 from . import json_codec
 
 from ..record import COLUMNS, Event, RunRecord
+from .extra_topics import environment_arrays, obstacle_arrays
 from .topics import ROW_TOPICS, prefix_for
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -391,6 +392,20 @@ class RunLog:
     complete: bool              # the file has its summary and footer
     problem: str
     summaries: dict             # run name -> summary dict written at the run's end ({} if none)
+    obstacles_by_run: dict = field(default_factory=dict)    # run -> extra_topics.obstacle_arrays(...)
+    environment_by_run: dict = field(default_factory=dict)  # run -> extra_topics.environment_arrays(...)
+
+    @property
+    def obstacles(self) -> dict | None:
+        """The main run's ``P/obstacles`` as arrays: {"t" (n,), "names", "clearance_m" (n, m),
+        "normal_force_N" (n, m), "center" (n, m, 2)}; None when the run has no obstacle topic."""
+        return self.obstacles_by_run.get("main", next(iter(self.obstacles_by_run.values()), None))
+
+    @property
+    def environment(self) -> dict | None:
+        """The main run's ``P/environment`` as arrays: {"t", "zeta", "tau_wave", "tau_drift", "tau_wind"
+        (n, 3), "current" (n, 2), "wind_speed", "wind_direction"}; None in a calm sea."""
+        return self.environment_by_run.get("main", next(iter(self.environment_by_run.values()), None))
 
     @property
     def record(self) -> RunRecord:
@@ -445,6 +460,7 @@ def read_run(path) -> RunLog:
                 k: _maybe_json(v) if k in ("metadata", "summary", "columns") else v for k, v in m.items()}
     by_topic = {c.topic: cid for cid, c in scan.channels.items()}
     runs, summaries = {}, {}
+    obstacles_by_run, environment_by_run = {}, {}
     for run in _run_names(scan):
         try:
             p = prefix_for(run)
@@ -494,6 +510,14 @@ def read_run(path) -> RunLog:
             summaries[run] = {}
         rec = RunRecord.from_arrays(columns, events=events, metadata=record_meta, status=status, stop_reason=stop_reason)
         runs[run] = rec
+        cid = by_topic.get(f"{p}/obstacles")
+        if cid is not None:
+            obstacles_by_run[run] = obstacle_arrays(_messages(scan, cid)[1])
+        cid = by_topic.get(f"{p}/environment")
+        if cid is not None:
+            log_time, msgs = _messages(scan, cid)
+            if msgs:
+                environment_by_run[run] = environment_arrays(_arrays(msgs, log_time))
     file_meta["runs"] = runs_meta
     counts = {scan.channels[cid].topic: c for cid, c in scan.counts.items() if cid in scan.channels}
     for cid, c in scan.channels.items():
@@ -502,7 +526,7 @@ def read_run(path) -> RunLog:
         raise RunLogReadError(f"{path}: no usv_mj run in this MCAP file ({scan.problem or 'no /usv/state topic'})")
     return RunLog(path=str(path), runs=runs, metadata=file_meta, attachments=dict(scan.attachments),
                   topic_counts=counts, truncated=scan.truncated, complete=scan.complete, problem=scan.problem,
-                  summaries=summaries)
+                  summaries=summaries, obstacles_by_run=obstacles_by_run, environment_by_run=environment_by_run)
 
 
 def load_topic(path, topic: str) -> dict:

@@ -42,6 +42,13 @@ of the CyberShip II's size locked to frame ``F``). Frame names: ``F`` = "usv" fo
 "baseline/usv" for the baseline, "NAME/usv" otherwise. The "world" frame is the simulation's earth
 frame with z = x cross y; a yaw psi turns x towards y as in the kinematics of :mod:`usv_mj.ship`.
 
+When the run has them (:mod:`usv_mj.runlog.extra_topics`): ``P/obstacles`` (per control step: t and,
+per obstacle, name, clearance_m, normal_force_N, center {x, y}), ``P/scene/obstacles``
+(``foxglove.SceneUpdate`` of the obstacles and their inflated boundaries, at t = 0 and every 10 s,
+moving obstacles every 20 ms) and ``P/environment`` (per control step in a non-calm sea: t, zeta,
+tau_wave, tau_drift, tau_wind {x, y, n} body frame, current {x, y} world frame, wind {speed,
+direction}).
+
 Numbers: every float64 is written as the shortest decimal that reads back to the same double
 (orjson's float formatting, ``repr``-equivalent), so values round-trip bit-exactly. JSON has no NaN or
 infinity: NaN is written ``null`` (read back as NaN; NaN payload bits are not kept), +inf as

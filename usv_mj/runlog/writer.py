@@ -58,6 +58,8 @@ import numpy as np
 from ..record import COL, COLUMNS, RunRecord
 from . import json_codec
 from .mcap_file import ChunkBuffer, McapFileWriter, RowLayout
+from .extra_topics import (ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME, OBSTACLES_SCHEMA, OBSTACLES_SCHEMA_NAME,
+                           environment_block, environment_layout, obstacle_layout)
 from .topics import (EVENT_SCHEMA, FRAME_PERIOD, FRAME_TRANSFORM_SCHEMA, HULL_SIZE, PATH_SAMPLE, ROW_TOPICS,
                      SCENE_UPDATE_SCHEMA, SCHEMA_VERSION, SLOW_PERIOD, frame_for, prefix_for, row_topic_schema)
 
@@ -113,7 +115,8 @@ class RunLogFile:
     """Turns the sink's commands into MCAP records. One instance per file."""
 
     def __init__(self, path: str, file_metadata: dict, attachments: list, rows_per_chunk: int,
-                 compression_level: int):
+                 compression_level: int, environment=None):
+        self.environment = environment   # None: from each run's scenario (calm: no environment topic)
         self.mcap = McapFileWriter(path, profile="", library=f"usv_mj.runlog ({SCHEMA_VERSION})",
                                    compression_level=compression_level)
         self.rows_per_chunk = max(1, int(rows_per_chunk))
@@ -149,8 +152,9 @@ class RunLogFile:
                                          ("path", "scene/path", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA),
                                          ("hull", "scene/hull", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)):
             chans[key] = self.mcap.register_channel(f"{p}/{topic}", "json", self._schema(schema, data), {"run": run})
+        extra = self._extra_topics(run, p, info)
         dt = float(info["control_period_s"])
-        self.runs[run] = {
+        self.runs[run] = {**extra,
             "layout": RowLayout(COLUMNS, row_topics), "chans": chans, "dt": dt,
             "decim": max(1, int(round(FRAME_PERIOD / dt))), "slow": max(1, int(round(SLOW_PERIOD / dt))),
             "frame": frame_for(run), "path": info.get("path") or reference_path(info.get("scenario")), "rows": 0,
@@ -159,9 +163,36 @@ class RunLogFile:
         self.mcap.add_metadata(f"run_start/{run}", {
             "run": run, "prefix": p, "schema_version": SCHEMA_VERSION, "columns": _json(list(COLUMNS)),
             "control_period_s": repr(dt), "metadata": _json(info.get("metadata", {})),
+            **({"obstacles": _json(obstacle_table(info["obstacles"], info.get("inflation")))}
+               if info.get("obstacles") else {}),
         })
 
-    def cmd_rows(self, run: str, lo: int, block: np.ndarray, events: list):
+    def _extra_topics(self, run: str, p: str, info: dict) -> dict:
+        """Channels and layouts of P/obstacles, P/scene/obstacles and P/environment (extra_topics)."""
+        out = {"obstacles": tuple(info.get("obstacles") or ()), "inflation": info.get("inflation"),
+               "obs_layout": None, "env": None, "env_layout": None, "obs_scene": None}
+        if out["obstacles"]:
+            out["obs_scene"] = self.mcap.register_channel(f"{p}/scene/obstacles", "json",
+                                                          self._schema("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA),
+                                                          {"run": run})
+            out["any_moving"] = any(o.moving for o in out["obstacles"])
+            if info.get("obstacle_log"):
+                cid = self.mcap.register_channel(f"{p}/obstacles", "json",
+                                                 self._schema(OBSTACLES_SCHEMA_NAME, OBSTACLES_SCHEMA), {"run": run})
+                out["obs_layout"] = obstacle_layout(cid, [o.name for o in out["obstacles"]])
+        env = self.environment
+        if env is None and info.get("scenario") is not None and hasattr(info["scenario"], "sea"):
+            from ..simulation import make_environment
+
+            env = make_environment(info["scenario"])
+        if env is not None and not env.calm:
+            out["env"] = env
+            cid = self.mcap.register_channel(f"{p}/environment", "json",
+                                             self._schema(ENVIRONMENT_SCHEMA_NAME, ENVIRONMENT_SCHEMA), {"run": run})
+            out["env_layout"] = environment_layout(cid)
+        return out
+
+    def cmd_rows(self, run: str, lo: int, block: np.ndarray, events: list, obstacles: np.ndarray | None = None):
         st = self.runs[run]
         n = block.shape[0]
         step = self.rows_per_chunk
@@ -172,6 +203,14 @@ class RunLogFile:
             log_time = np.rint(np.nan_to_num(t, nan=0.0, posinf=0.0, neginf=0.0) * 1e9).clip(0).astype(np.int64)
             records, offsets = st["layout"].encode(sub, log_time, lo + a)
             buf.add_rows(records, offsets, log_time, st["layout"].channel_ids)
+            if obstacles is not None and st["obs_layout"] is not None:
+                lay = st["obs_layout"]
+                records, offsets = lay.encode(obstacles[a:a + step], log_time, lo + a)
+                buf.add_rows(records, offsets, log_time, lay.channel_ids)
+            if st["env"] is not None:
+                lay = st["env_layout"]
+                records, offsets = lay.encode(environment_block(st["env"], sub), log_time, lo + a)
+                buf.add_rows(records, offsets, log_time, lay.channel_ids)
             self._foxglove(st, buf, sub, lo + a, log_time)
             if a + step >= n:
                 self._events(st, buf, events)
@@ -223,6 +262,16 @@ class RunLogFile:
                     pts = [(xd - r1, yd - r2), (xd + r1, yd - r2), (xd + r1, yd + r2), (xd - r1, yd + r2)]
                     buf.add_message(ch["funnel"], ns, _scene(stamp, "world", "funnel", lines=[
                         _line(1, pts, (1.0, 0.55, 0.0, 1.0), 0.05)]), int(k[i]))
+            if st["obs_scene"] is not None and (k[i] % slow == 0 or st["any_moving"]):
+                from ..obstacles.display import scene_entities
+
+                obstacles = st["obstacles"] if k[i] % slow == 0 else [o for o in st["obstacles"] if o.moving]
+                infl = st["inflation"]
+                if infl is not None and k[i] % slow != 0:
+                    infl = [v for v, o in zip(infl, st["obstacles"]) if o.moving]
+                buf.add_message(st["obs_scene"], ns, json_codec.dumps(
+                    {"deletions": [], "entities": scene_entities(obstacles, float(row[c["t"]]), stamp, infl)}),
+                    int(k[i]))
             if k[i] % slow == 0:
                 if st["path"]:
                     buf.add_message(ch["path"], ns, _scene(stamp, "world", "reference_path", lines=[
@@ -233,6 +282,19 @@ class RunLogFile:
                              "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
                     "size": {"x": HULL_SIZE[0], "y": HULL_SIZE[1], "z": HULL_SIZE[2]},
                     "color": {"r": 0.9, "g": 0.9, "b": 0.95, "a": 1.0}}]), int(k[i]))
+
+
+def obstacle_table(obstacles, inflation=None) -> list:
+    """The obstacles' fixed shapes for the run_start metadata (JSON-ready)."""
+    out = []
+    for i, o in enumerate(obstacles):
+        infl = None
+        if inflation is not None and i < len(inflation) and math.isfinite(float(inflation[i])):
+            infl = float(inflation[i])
+        out.append({"name": o.name, "kind": o.kind, "center": list(o.center), "radius": o.radius,
+                    "size": list(o.size), "yaw": o.yaw, "velocity": list(o.velocity), "moving": o.moving,
+                    "inflation_m": infl})
+    return out
 
 
 def reference_path(scenario) -> list:
@@ -274,13 +336,14 @@ def _scene(stamp, frame_id, entity_id, frame_locked=False, lines=(), cubes=()) -
     return json_codec.dumps({"deletions": [], "entities": [entity]})
 
 
-def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_level, commands, reply, parent_pid):
+def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_level, environment, commands, reply,
+                 parent_pid):
     """The background writer: consume commands until "close" (or until the parent process is gone)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C stops the run, not the file
     error = None
     log = None
     try:
-        log = RunLogFile(path, file_metadata, attachments, rows_per_chunk, compression_level)
+        log = RunLogFile(path, file_metadata, attachments, rows_per_chunk, compression_level, environment)
     except BaseException:
         error = traceback.format_exc()
     while True:
@@ -322,10 +385,17 @@ class RunLogWriter:
     ``attachments``: extra files to carry, name -> bytes or text. ``background=False`` writes in the
     calling process (same file, slower loop). ``rows_per_chunk`` bounds a chunk (~1.8 kB per row
     before compression); ``queue_blocks`` bounds the blocks waiting for the background writer.
+    ``environment``: the :class:`usv_mj.sea.Environment` the runs were simulated in, for the
+    ``P/environment`` topic (default: ``usv_mj.simulation.make_environment(scenario)``, the same
+    seeded sea the plants get; a calm sea writes no environment topic). An obstacle run gets
+    ``P/obstacles`` when its :class:`~usv_mj.obstacles.sink.ObstacleLog` is attached to the sink
+    (:meth:`RunLogSink.attach_obstacle_log`; :func:`usv_mj.obstacles.run.run_obstacle_scenario` does
+    it) and ``P/scene/obstacles`` whenever the scenario has obstacles.
     """
 
     def __init__(self, path, scenario, attachments: dict | None = None, *, background: bool = True,
-                 rows_per_chunk: int = 1000, compression_level: int = 1, queue_blocks: int = 32):
+                 rows_per_chunk: int = 1000, compression_level: int = 1, queue_blocks: int = 32,
+                 environment=None):
         self.path = Path(path)
         if not self.path.parent.is_dir():
             raise RunLogError(f"cannot write run log {self.path}: folder {self.path.parent} does not exist")
@@ -355,7 +425,7 @@ class RunLogWriter:
             if not isinstance(data, (bytes, bytearray)):
                 raise TypeError(f"attachment {name!r} must be bytes or str, got {type(data).__name__}")
             att.append((str(name), mimetypes.guess_type(str(name))[0] or "application/octet-stream", bytes(data)))
-        args = (str(self.path), file_metadata, att, rows_per_chunk, compression_level)
+        args = (str(self.path), file_metadata, att, rows_per_chunk, compression_level, environment)
         self._background = background
         if background:
             ctx = multiprocessing.get_context("spawn")
@@ -475,6 +545,14 @@ class RunLogSink:
         self._record: RunRecord | None = None
         self._rows = 0
         self.broken = False       # the writer failed; rows are no longer sent
+        self.obstacle_log = None  # an ObstacleLog whose per-step arrays go to P/obstacles
+
+    def attach_obstacle_log(self, log) -> None:
+        """Log ``log``'s clearance, normal force and centres on ``P/obstacles`` (call before ``start``;
+        the ObstacleLog must be a sink placed before this one, so its rows are filled first)."""
+        if self.started:
+            raise RunLogError(f"run {self.run!r}: attach the obstacle log before the run starts")
+        self.obstacle_log = log
 
     def _new_events(self, record) -> list:
         out = []
@@ -494,8 +572,12 @@ class RunLogSink:
         dt = record.metadata.get("control_period_s", getattr(self.writer.scenario, "control_period", 0.001))
         # the reference path for the 3D view is computed by the writer (building a reference can take
         # most of a second: not on the loop's time)
+        log = self.obstacle_log
+        obstacles = tuple(log.obstacles) if log is not None else tuple(getattr(self.writer.scenario, "obstacles", ()) or ())
+        inflation = None if log is None or log.inflation is None else [float(v) for v in log.inflation]
         self.writer._send(("start", self.run, {"control_period_s": float(dt), "metadata": record.metadata,
-                                               "scenario": self.writer.scenario}))
+                                               "scenario": self.writer.scenario, "obstacles": obstacles,
+                                               "inflation": inflation, "obstacle_log": log is not None}))
 
     def rows(self, record: RunRecord, lo: int, hi: int) -> None:
         if hi <= lo:
@@ -508,7 +590,19 @@ class RunLogSink:
         if self.broken:
             return
         try:
-            self.writer._send(("rows", self.run, lo, block, events))
+            obs = None
+            if self.obstacle_log is not None:
+                from .extra_topics import obstacle_block
+
+                log = self.obstacle_log
+                m = len(log.obstacles)
+                clear, force = np.full((hi - lo, m), np.nan), np.full((hi - lo, m), np.nan)
+                xy = np.full((hi - lo, m, 2), np.nan)
+                have = max(0, min(hi, len(log.clearance)) - lo)   # rows past the log's horizon: NaN
+                clear[:have], force[:have], xy[:have] = (log.clearance[lo:lo + have], log.normal_force[lo:lo + have],
+                                                         log.obstacle_xy[lo:lo + have])
+                obs = obstacle_block(block[:, COL["t"]], clear, force, xy)
+            self.writer._send(("rows", self.run, lo, block, events, obs))
         except RunLogError as exc:
             # the log is lost from here on, the run is not: keep simulating, fail at close()
             self.broken = True

@@ -1,0 +1,185 @@
+"""The per-step topics a run log has only when the run has them: ``P/obstacles`` and ``P/environment``.
+
+Both are laid out in bulk by the same numba kernel as the row topics (:class:`~usv_mj.runlog.mcap_file.TemplateLayout`,
+one message per control step, ``log_time`` = round(t * 1e9) ns, ``sequence`` = row index k, the same
+number conventions: shortest round-trip decimal, ``null`` = NaN, ``+-1e999`` = +-inf).
+
+``P/obstacles`` (issue 8; schema ``usv_mj.Obstacles``), when the run has an
+:class:`~usv_mj.obstacles.sink.ObstacleLog` (attached to the run's sink by
+:func:`usv_mj.obstacles.run.run_obstacle_scenario`)::
+
+    {"t": 0.0, "obstacles": [{"name": "buoy", "clearance_m": 3.2, "normal_force_N": 0.0,
+                               "center": {"x": 12.0, "y": 4.0}}, ...]}
+
+clearance_m: signed distance hull <-> obstacle [m] (negative: penetration; null before the first
+measurement); normal_force_N: summed normal contact force [N]; center: the obstacle's centre in
+the world frame [m] at t (moving obstacles move). The obstacles' fixed shapes (kind, radius, size,
+yaw, velocity, inflation) are in the run's ``run_start`` metadata under ``obstacles``.
+Foxglove: ``P/scene/obstacles`` (``foxglove.SceneUpdate``, entities "obstacle/NAME" from
+:func:`usv_mj.obstacles.display.scene_entities`: cube / cylinder and the inflated boundary) at t = 0
+and every 10 s, and the moving obstacles again every 20 ms.
+
+``P/environment`` (issue 7, SEA.md §1; schema ``usv_mj.Environment``), when the scenario's sea is
+not calm::
+
+    {"t": .., "zeta": .., "tau_wave": {"x", "y", "n"}, "tau_drift": {"x", "y", "n"},
+     "tau_wind": {"x", "y", "n"}, "current": {"x", "y"}, "wind": {"speed", "direction"}}
+
+zeta: wave elevation [m] at the hull's origin (x, y) at t; tau_wave = s(t) tau_wave1, tau_drift =
+s(t)^2 tau_drift, tau_wind [N, N, N m] in the body frame (the loads that act, ramp applied);
+current [m/s] in the world frame; wind speed [m/s] and going-to direction [rad] in the world frame.
+They are computed by the writer (off the simulation loop) from the recorded (t, eta, nu) with
+:meth:`usv_mj.sea.Environment.loads_record`: the environment is a pure function of (t, eta, nu),
+so these are the loads the plant saw at the start of each control step. Rows whose state is not
+finite (a divergence) get null.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..record import COL
+from . import json_codec
+from .mcap_file import TemplateLayout
+
+OBSTACLES_SCHEMA_NAME = "usv_mj.Obstacles"
+ENVIRONMENT_SCHEMA_NAME = "usv_mj.Environment"
+
+_NUM = {"type": ["number", "null"], "$comment": "float64; null = NaN, 1e999 = +inf, -1e999 = -inf"}
+
+
+def _xyz(desc, names=("x", "y", "n")):
+    return {"type": "object", "description": desc, "properties": {k: _NUM for k in names}, "required": list(names)}
+
+
+OBSTACLES_SCHEMA = json.dumps({
+    "title": OBSTACLES_SCHEMA_NAME, "type": "object",
+    "description": "clearance and contact force per obstacle at one control step (usv_mj.runlog.extra_topics)",
+    "properties": {
+        "t": {**_NUM, "description": "time [s]"},
+        "obstacles": {"type": "array", "items": {"type": "object", "properties": {
+            "name": {"type": "string"},
+            "clearance_m": {**_NUM, "description": "signed distance hull <-> obstacle [m]"},
+            "normal_force_N": {**_NUM, "description": "summed normal contact force [N]"},
+            "center": _xyz("obstacle centre in the world frame [m]", ("x", "y"))},
+            "required": ["name", "clearance_m", "normal_force_N", "center"]}},
+    },
+    "required": ["t", "obstacles"],
+}, indent=1).encode()
+
+ENVIRONMENT_SCHEMA = json.dumps({
+    "title": ENVIRONMENT_SCHEMA_NAME, "type": "object",
+    "description": "sea state at the hull at one control step (SEA.md §1; usv_mj.runlog.extra_topics)",
+    "properties": {
+        "t": {**_NUM, "description": "time [s]"},
+        "zeta": {**_NUM, "description": "wave elevation at the hull origin [m]"},
+        "tau_wave": _xyz("first-order wave load, body frame, ramp applied [N, N, N m]"),
+        "tau_drift": _xyz("wave drift load, body frame, ramp applied [N, N, N m]"),
+        "tau_wind": _xyz("wind load, body frame [N, N, N m]"),
+        "current": _xyz("current velocity, world frame [m/s]", ("x", "y")),
+        "wind": {"type": "object", "properties": {
+            "speed": {**_NUM, "description": "wind speed incl. gusts [m/s]"},
+            "direction": {**_NUM, "description": "going-to direction, world frame [rad]"}},
+            "required": ["speed", "direction"]},
+    },
+    "required": ["t", "zeta", "tau_wave", "tau_drift", "tau_wind", "current", "wind"],
+}, indent=1).encode()
+
+
+# --- obstacles -----------------------------------------------------------------------------------
+
+
+def obstacle_layout(channel_id: int, names) -> TemplateLayout:
+    """Layout of ``P/obstacles``: the block is [t, (clearance, force, cx, cy) per obstacle]."""
+    pieces = [b'{"t":']
+    for i, name in enumerate(names):
+        lead = b',"obstacles":[' if i == 0 else b"}},"
+        pieces += [lead + b'{"name":' + json_codec.dumps(str(name)) + b',"clearance_m":', b',"normal_force_N":',
+                   b',"center":{"x":', b',"y":']
+    closing = b"}}]}" if len(names) else b',"obstacles":[]}'
+    return TemplateLayout(channel_id, pieces, closing)
+
+
+def obstacle_block(t: np.ndarray, clearance: np.ndarray, normal_force: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """(n, 1 + 4 m) float64 block for :func:`obstacle_layout` from the ObstacleLog's rows."""
+    n, m = clearance.shape
+    per = np.stack([clearance, normal_force, center[:, :, 0], center[:, :, 1]], axis=2).reshape(n, 4 * m)
+    return np.concatenate([np.asarray(t, float).reshape(n, 1), per], axis=1)
+
+
+def obstacle_arrays(msgs: list) -> dict:
+    """``P/obstacles`` messages -> {"t" (n,), "names" [m], "clearance_m" (n, m), "normal_force_N" (n, m),
+    "center" (n, m, 2)} (float64; null -> NaN)."""
+    n = len(msgs)
+    names = [o["name"] for o in msgs[0]["obstacles"]] if n else []
+    m = len(names)
+    t = np.array([msg["t"] for msg in msgs], dtype=np.float64)
+    vals = np.array([[(o["clearance_m"], o["normal_force_N"], o["center"]["x"], o["center"]["y"])
+                      for o in msg["obstacles"]] for msg in msgs], dtype=np.float64).reshape(n, m, 4)
+    return {"t": t, "names": names, "clearance_m": vals[:, :, 0].copy(), "normal_force_N": vals[:, :, 1].copy(),
+            "center": vals[:, :, 2:4].copy()}
+
+
+# --- environment ---------------------------------------------------------------------------------
+
+ENVIRONMENT_FIELDS = ("t", "zeta", "tau_wave.x", "tau_wave.y", "tau_wave.n", "tau_drift.x", "tau_drift.y",
+                      "tau_drift.n", "tau_wind.x", "tau_wind.y", "tau_wind.n", "current.x", "current.y",
+                      "wind.speed", "wind.direction")
+
+
+def environment_layout(channel_id: int) -> TemplateLayout:
+    """Layout of ``P/environment``: the block columns are :data:`ENVIRONMENT_FIELDS`."""
+    pieces = [b'{"t":', b',"zeta":', b',"tau_wave":{"x":', b',"y":', b',"n":', b'},"tau_drift":{"x":', b',"y":',
+              b',"n":', b'},"tau_wind":{"x":', b',"y":', b',"n":', b'},"current":{"x":', b',"y":',
+              b'},"wind":{"speed":', b',"direction":']
+    return TemplateLayout(channel_id, pieces, b"}}")
+
+
+def environment_block(env, rows: np.ndarray) -> np.ndarray:
+    """(n, 15) block of :data:`ENVIRONMENT_FIELDS` for record rows (columns of :data:`usv_mj.record.COLUMNS`).
+
+    From the rows' (t, eta, nu) with ``env.loads_record`` and ``env.elevation`` (SEA.md §1);
+    current in the world frame = R(psi) nu_c. Rows with a non-finite t or state are NaN.
+    """
+    from ..sea import layout as lay
+
+    t = rows[:, COL["t"]]
+    eta = rows[:, [COL["x"], COL["y"], COL["psi"]]]
+    nu = rows[:, [COL["u"], COL["v"], COL["r"]]]
+    out = np.full((rows.shape[0], len(ENVIRONMENT_FIELDS)), np.nan)
+    out[:, 0] = t
+    ok = np.isfinite(t) & np.all(np.isfinite(eta), axis=1) & np.all(np.isfinite(nu), axis=1)
+    if not ok.any():
+        return out
+    ts, etas, nus = t[ok], eta[ok], nu[ok]
+    loads = env.loads_record(ts, etas, nus)
+    sel = out[ok]
+    sel[:, 1] = env.elevation(etas[:, 0], etas[:, 1], ts)
+    sel[:, 2:5] = loads[:, lay.L_WAVE1:lay.L_WAVE1 + 3]
+    sel[:, 5:8] = loads[:, lay.L_DRIFT:lay.L_DRIFT + 3]
+    sel[:, 8:11] = loads[:, lay.L_WIND:lay.L_WIND + 3]
+    c, s = np.cos(etas[:, 2]), np.sin(etas[:, 2])
+    ucb, vcb = loads[:, lay.L_NU_C], loads[:, lay.L_NU_C + 1]
+    sel[:, 11] = c * ucb - s * vcb
+    sel[:, 12] = s * ucb + c * vcb
+    sel[:, 13] = env.wind_speed(ts)
+    sel[:, 14] = np.radians(env.settings.wind.direction_deg)
+    out[ok] = sel
+    return out
+
+
+def environment_arrays(cols: dict) -> dict:
+    """Flattened ``P/environment`` columns -> {"t", "zeta" (n,), "tau_wave", "tau_drift", "tau_wind" (n, 3),
+    "current" (n, 2), "wind_speed", "wind_direction" (n,)}."""
+    def stack(*names):
+        return np.stack([np.asarray(cols[k], np.float64) for k in names], axis=1)
+
+    return {"t": np.asarray(cols["t"], np.float64), "zeta": np.asarray(cols["zeta"], np.float64),
+            "tau_wave": stack("tau_wave.x", "tau_wave.y", "tau_wave.n"),
+            "tau_drift": stack("tau_drift.x", "tau_drift.y", "tau_drift.n"),
+            "tau_wind": stack("tau_wind.x", "tau_wind.y", "tau_wind.n"),
+            "current": stack("current.x", "current.y"),
+            "wind_speed": np.asarray(cols["wind.speed"], np.float64),
+            "wind_direction": np.asarray(cols["wind.direction"], np.float64)}
