@@ -19,7 +19,7 @@ class PPCPolicy:
     -------------
     From the time step's observation: ``time``, ``heading`` (cos psi, sin psi), ``position_error``
     (body frame), ``velocity`` (u, v, r). From the environment: the task's reference trajectory
-    (``env.task.reference.evaluate(t)``: the same trajectory the ``reference_preview`` and
+    (``env.task.reference_at(t)``: the same trajectory the ``reference_preview`` and
     ``reference_velocity`` observations are sampled from; the law needs its pose, velocity and yaw
     rate at t) and the scenario's controller design (gains, nominal ship model, funnel, quantizer
     delta for Eq. 37's margin, control period). It does not read the physics: the world-frame pose
@@ -46,7 +46,7 @@ class PPCPolicy:
         if time_step.first():
             self.controller.reset()
         t = float(obs["time"][0])
-        ref = self.reference.evaluate(t)
+        ref = self.env.task.reference_at(t)
         c, s = float(obs["heading"][0]), float(obs["heading"][1])
         eb = obs["position_error"]
         x = self._x

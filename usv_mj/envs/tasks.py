@@ -55,6 +55,7 @@ with warnings.catch_warnings():
 from dm_env import specs
 
 from controllers.hysteresis_quantizer import quantize_step
+from controllers.performance_funnel import funnel_bound
 from controllers.tracking_errors import wrap
 from usv_mj.simulation import make_funnels, make_quantizers, make_reference
 
@@ -101,6 +102,9 @@ class TrackTask(base.Task):
         self.preview_times = preview
         self.start_offset = offset
         self._bounds = np.array([max_surge_force, max_yaw_moment], dtype=float)
+        self._bounds_t = (float(max_surge_force), float(max_yaw_moment))
+        self._ref_t = None          # cache: the reference at the last time asked for
+        self._ref = None
         self.reference = reference if reference is not None else make_reference(scenario)
         self.funnel_xy, self.funnel_psi = make_funnels(scenario)
         q_u, q_r = make_quantizers(scenario)
@@ -121,6 +125,7 @@ class TrackTask(base.Task):
 
     def initialize_episode(self, physics):
         self._k = [0, 0]
+        self._ref_t = None
         self.last_action[:] = 0.0
         self.last_thrust[:] = 0.0
         self.termination_reason = None
@@ -136,18 +141,22 @@ class TrackTask(base.Task):
         if a.shape != (2,):
             raise ValueError(f"{type(self).__name__}: action must be (tau_u [N], tau_r [N m]), shape (2,), "
                              f"got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
+        a0, a1 = float(a[0]), float(a[1])
+        if not (math.isfinite(a0) and math.isfinite(a1)):
             raise ValueError(f"{type(self).__name__}: action must be finite, got {a.tolist()}")
-        a = np.clip(a, -self._bounds, self._bounds)
-        self.last_action[:] = a
+        b0, b1 = self._bounds_t
+        a0 = min(max(a0, -b0), b0)
+        a1 = min(max(a1, -b1), b1)
+        self.last_action[0], self.last_action[1] = a0, a1
         if self.quantize:
-            for i in range(2):
-                delta, u_min = self._qp[i]
-                q, self._k[i] = quantize_step(delta, u_min, self._k[i], float(a[i]))
-                self.last_thrust[i] = q
+            (d0, m0), (d1, m1) = self._qp
+            q0, self._k[0] = quantize_step(d0, m0, self._k[0], a0)
+            q1, self._k[1] = quantize_step(d1, m1, self._k[1], a1)
         else:
-            self.last_thrust[:] = a
-        physics.plant.data.ctrl[:] = self.last_thrust
+            q0, q1 = a0, a1
+        self.last_thrust[0], self.last_thrust[1] = q0, q1
+        ctrl = physics.plant.data.ctrl
+        ctrl[0], ctrl[1] = q0, q1
 
     def after_step(self, physics):
         if self.termination_reason is not None:
@@ -158,9 +167,9 @@ class TrackTask(base.Task):
             return
         x = physics.state
         lim = self.scenario.limits
-        ref = self.reference.evaluate(t)
+        ref = self.reference_at(t)
         dist = math.hypot(x[0] - ref[0], x[1] - ref[1])
-        if not np.all(np.isfinite(x)):
+        if not all(math.isfinite(v) for v in x):
             self._terminate("diverged", f"non-finite state at t = {t:.3f} s")
         elif abs(x[3]) >= lim.max_speed or abs(x[4]) >= lim.max_speed:
             self._terminate("diverged", f"|u| or |v| reached limits.max_speed = {lim.max_speed:g} m/s at t = {t:.3f} s")
@@ -186,17 +195,26 @@ class TrackTask(base.Task):
 
     # --- observations and reward ---------------------------------------------------------------
 
+    def reference_at(self, t: float) -> np.ndarray:
+        """The reference vector (REF_FIELDS) at t [s] (cached for the current step; do not modify)."""
+        if t != self._ref_t or self._ref is None:
+            self._ref = self.reference.evaluate(t).copy()
+            self._ref_t = t
+        return self._ref
+
     def _frame(self, physics):
         x = physics.state
-        if not np.all(np.isfinite(x)):
+        if not (math.isfinite(x[0]) and math.isfinite(x[1]) and math.isfinite(x[2]) and math.isfinite(x[3])
+                and math.isfinite(x[4]) and math.isfinite(x[5])):
             x = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
         return x, math.cos(x[2]), math.sin(x[2])
 
     def get_observation(self, physics):
         t = physics.time()
         x, c, s = self._frame(physics)
-        ref = self.reference.evaluate(t)
+        ref = self.reference_at(t)
         dx, dy = x[0] - ref[0], x[1] - ref[1]
+        fx, fp = self.funnel_xy, self.funnel_psi
         obs = collections.OrderedDict()
         obs["position_error"] = np.array([c * dx + s * dy, -s * dx + c * dy])
         obs["heading_error"] = np.array([wrap(x[2] - ref[2])])
@@ -210,7 +228,8 @@ class TrackTask(base.Task):
             prev[k, 0] = c * px + s * py
             prev[k, 1] = -s * px + c * py
         obs["reference_preview"] = prev
-        obs["funnel"] = np.array([float(self.funnel_xy(t)), float(self.funnel_psi(t))])
+        obs["funnel"] = np.array([funnel_bound(fx.rho_0, fx.rho_inf, fx.rate, t),
+                                  funnel_bound(fp.rho_0, fp.rho_inf, fp.rate, t)])
         obs["time"] = np.array([t])
         return obs
 
@@ -228,7 +247,7 @@ class TrackTask(base.Task):
     def tracking_reward(self, physics) -> float:
         t = physics.time()
         x, _, _ = self._frame(physics)
-        ref = self.reference.evaluate(t)
+        ref = self.reference_at(t)
         d = math.hypot(x[0] - ref[0], x[1] - ref[1])
         return (2.0 * _tol_pos(d) + _tol_psi(wrap(x[2] - ref[2]))) / 3.0
 
@@ -270,6 +289,7 @@ class HarbourTask(TrackTask):
         """Use ``layout`` (:class:`usv_mj.envs.layout.HarbourLayout`) and its clearance monitor."""
         self.layout = layout
         self.reference = layout.plan.reference
+        self._ref_t = None
         self.monitor = monitor
 
     def start_pose(self):

@@ -1,0 +1,118 @@
+"""``usv-mj env TASK --policy ppc|random --episodes N``: roll out a policy, print returns, video of episode 1.
+
+Wiring (in usv_mj/cli.py)::
+
+    from usv_mj.envs import cli as env_cli
+    p = sub.add_parser("env", help="roll out a policy in a dm_control task")
+    env_cli.add_arguments(p)
+    ... return env_cli.run_command(args)
+
+Exit codes: 0 done, 2 bad options (unknown task/option, scenario error), 1 other failures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from . import ALL_TASKS
+
+    parser.add_argument("task", choices=ALL_TASKS, help="track: the paper's reference from a randomised start; "
+                        "track_waves: the same in the moderate sea with current and wind; harbor: reach a goal "
+                        "through a randomised harbour without contact")
+    parser.add_argument("--policy", choices=("ppc", "random"), default="ppc",
+                        help="ppc: the paper's controller (SPEC §3) on the observations; random: uniform actions")
+    parser.add_argument("--episodes", type=int, default=1, help="number of episodes (default 1)")
+    parser.add_argument("--seed", type=int, default=0, help="environment (and random policy) seed (default 0)")
+    parser.add_argument("--duration", type=float, default=None, help="episode length [s] (default 30, harbor 90)")
+    parser.add_argument("--no-quantize", action="store_true", help="apply actions without the hysteresis quantizer")
+    parser.add_argument("--video", default="renders/env.mp4",
+                        help="video of the first episode (default renders/env.mp4); 'none' to skip")
+    parser.add_argument("--video-size", default="640x360", help="WIDTHxHEIGHT of the video (default 640x360)")
+
+
+def rollout(env, policy):
+    """One episode: returns (return, steps, info, rows) with rows = (t, state, reference, action, thrust)."""
+    ts = env.reset()
+    task = env.task
+    rows = []
+
+    def row(action, thrust):
+        t = env.physics.time()
+        rows.append((t, env.physics.state.copy(), task.reference.evaluate(t).copy(), action, thrust))
+
+    total, n = 0.0, 0
+    row(task.last_action.copy(), task.last_thrust.copy())
+    while not ts.last():
+        ts = env.step(policy(ts))
+        total += ts.reward
+        n += 1
+        row(task.last_action.copy(), task.last_thrust.copy())
+    return total, n, dict(task.info), rows
+
+
+def run_command(args: argparse.Namespace) -> int:
+    from usv_mj.scenario import ScenarioError
+
+    from . import PPCPolicy, RandomPolicy, load
+
+    if args.episodes < 1:
+        print(f"usv-mj env: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
+        return 2
+    options = {"quantize": not args.no_quantize}
+    if args.duration is not None:
+        options["duration"] = args.duration
+    try:
+        env = load(args.task, seed=args.seed, **options)
+    except (ValueError, ScenarioError) as exc:
+        print(f"usv-mj env: {exc}", file=sys.stderr)
+        return 2
+    except NotImplementedError as exc:
+        print(f"usv-mj env: {exc}", file=sys.stderr)
+        return 1
+    try:
+        policy = PPCPolicy(env) if args.policy == "ppc" else RandomPolicy(env, seed=args.seed)
+        first_rows, returns = None, []
+        for ep in range(args.episodes):
+            wall = time.perf_counter()
+            total, n, info, rows = rollout(env, policy)
+            wall = time.perf_counter() - wall
+            returns.append(total)
+            if ep == 0 and args.video and args.video.lower() != "none":
+                first_rows = rows  # rendered now: the harbor model of this episode goes at the next reset
+            end = info["reason"] or "time limit"
+            print(f"episode {ep + 1}: return {total:.2f} over {n} steps ({total / max(n, 1):.3f} per step), "
+                  f"{end}; {n / wall:.0f} steps/s")
+            if first_rows is not None:
+                _video(env, first_rows, args)
+                first_rows = None
+        mean = sum(returns) / len(returns)
+        print(f"{args.task} / {args.policy}: mean return {mean:.2f} over {len(returns)} episode(s)")
+    finally:
+        env.close()
+    return 0
+
+
+def _video(env, rows, args) -> None:
+    """Render the first episode through usv_mj.render (a RunRecord replay); skipped with a note if the
+    renderer or GL is not available."""
+    try:
+        from usv_mj.render import render_run
+
+        from . import episode_record
+
+        w, h = (int(v) for v in args.video_size.lower().split("x"))
+        record = episode_record(env, rows, {"task": args.task, "policy": args.policy})
+        out = Path(args.video)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        kwargs = {}
+        if args.task == "harbor":
+            kwargs["model"] = env.physics.plant.model_xml_path  # the episode's own harbour layout
+        info = render_run(record, out, width=w, height=h, progress=False, **kwargs)
+        print(f"video: {info['mp4']} ({info['frames']} frames)")
+    except Exception as exc:  # noqa: BLE001 - the rollout is the result; the video is a bonus
+        print(f"usv-mj env: no video ({type(exc).__name__}: {exc})", file=sys.stderr)
