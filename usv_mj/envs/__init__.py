@@ -199,8 +199,12 @@ def episode_record(env, steps, metadata=None):
     """A :class:`usv_mj.record.RunRecord` of an episode for the renderer (``usv_mj.render.render_run``).
 
     ``steps``: a list of (t, state (6), reference (7), action (2), thrust (2)) rows, as collected by
-    :func:`usv_mj.envs.cli.rollout`.
+    :func:`usv_mj.envs.cli.rollout`. The diagnostics the HUD shows are filled from the task: e1, e2 =
+    x - x_d, y - y_d [m] (the hull origin, not the controller's offset point), e3 = wrap(psi - psi_d),
+    rho1 = rho2 = rho_xy(t), rho3 = rho_psi(t) and z_i = e_i / rho_i; the controller's own adaptive
+    states are not known here (NaN).
     """
+    from controllers.tracking_errors import wrap
     from usv_mj.record import COLUMNS, RunRecord
 
     n = len(steps)
@@ -213,6 +217,12 @@ def episode_record(env, steps, metadata=None):
             cols[name][i] = ref[j]
         cols["tau_u"][i], cols["tau_r"][i] = a
         cols["q_tau_u"][i], cols["q_tau_r"][i] = q
+        rxy, rpsi = float(env.task.funnel_xy(t)), float(env.task.funnel_psi(t))
+        e = (x[0] - ref[0], x[1] - ref[1], wrap(x[2] - ref[2]))
+        for j, rho in enumerate((rxy, rxy, rpsi)):
+            cols[f"e{j + 1}"][i] = e[j]
+            cols[f"rho{j + 1}"][i] = rho
+            cols[f"z{j + 1}"][i] = e[j] / rho
     meta = {"plant": "mujoco", "controller": "env", "control_period_s": env.control_timestep()}
     meta.update(metadata or {})
     return RunRecord.from_arrays(cols, metadata=meta)

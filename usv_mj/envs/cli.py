@@ -111,7 +111,7 @@ def _video(env, rows, args) -> None:
         out.parent.mkdir(parents=True, exist_ok=True)
         kwargs = {}
         if args.task == "harbor":
-            kwargs["model"] = env.physics.plant.model_xml_path  # the episode's own harbour layout
+            kwargs["model"] = env.physics.plant.render_model_path  # the episode's own harbour layout
         info = render_run(record, out, width=w, height=h, progress=False, **kwargs)
         print(f"video: {info['mp4']} ({info['frames']} frames)")
     except Exception as exc:  # noqa: BLE001 - the rollout is the result; the video is a bonus

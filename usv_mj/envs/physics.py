@@ -130,7 +130,8 @@ class HarbourEnvPlant(MuJoCoPlant):
     Readings are the distance [m] from the hull origin along the ray, -1 when nothing is hit.
 
     Attributes as ``HarbourPlant``: ``obstacles``, ``hull_geoms``, ``obstacle_geoms``,
-    ``obstacle_mocap``, ``model_xml_path``; plus ``ray_angles`` and :meth:`rangefinders`.
+    ``obstacle_mocap``, ``model_xml_path``; plus ``ray_angles``, :meth:`rangefinders` and
+    ``render_model_path`` (the same harbour without the rangefinder sites, for ``usv_mj.render``).
     """
 
     def __init__(self, ship, disturbance, obstacles=(), control_period: float = 1e-3, substeps: int = 1,
@@ -153,6 +154,9 @@ class HarbourEnvPlant(MuJoCoPlant):
             root.sensor.add("rangefinder", name=f"range_{i}", site=site)
         self._tmp = tempfile.TemporaryDirectory(prefix="usv_mj_env_harbour_")
         self.model_xml_path = export_scene(root, self._tmp.name)
+        # the same harbour without the rangefinders, for the renderer (MuJoCo draws rangefinder rays)
+        self.render_model_path = export_scene(compose_scene(self.obstacles, contact),
+                                              tempfile.mkdtemp(dir=self._tmp.name))
         kwargs = {} if environment is None else {"environment": environment}
         super().__init__(ship, disturbance, control_period, substeps, model_path=self.model_xml_path, **kwargs)
         m = self.model
