@@ -245,3 +245,19 @@ def test_harbour_ppc_with_guidance_reaches_the_goal():
     print(f"\nharbor: PPC + guidance reached the goal without contact in {reached}/{n} layouts "
           f"({contacts} contacts)")
     assert reached >= 0.8 * n
+
+
+def test_gymnasium_view_through_shimmy():
+    pytest.importorskip("shimmy")
+    from gymnasium.utils.env_checker import check_env
+
+    g = envs.gym_env("track", seed=0, duration=0.5)
+    try:
+        check_env(g, skip_render_check=True)
+        obs, _ = g.reset(seed=3)
+        assert set(obs) >= {"position_error", "funnel", "reference_preview"}
+        assert g.action_space.shape == (2,) and g.action_space.high[0] == 1000.0
+        _, reward, terminated, truncated, _ = g.step(np.array([1.0, 0.1]))
+        assert 0.0 <= reward <= 1.0 and not terminated and not truncated
+    finally:
+        g.close()

@@ -118,9 +118,16 @@ def _scenario(task: str, options: dict, duration: float) -> Scenario:
         base["funnel"] = HARBOUR_FUNNEL
         base["trajectory"] = {"kind": "waypoints", "points": [[0.0, 0.0], [40.0, 0.0]], "speed": 0.6}
         base["initial"] = {"eta": [0.0, 0.0, 0.0]}
-    from usv_mj.scenario import _merge  # the scenario module's own nested merge
+    return load_scenario(preset=preset, overrides=_nested_merge(base, overrides))
 
-    return load_scenario(preset=preset, overrides=_merge(base, overrides))
+
+def _nested_merge(a: dict, b: dict) -> dict:
+    """``a`` with ``b`` merged in, tables recursively (``b`` wins)."""
+    out = dict(a)
+    for key, value in b.items():
+        out[key] = _nested_merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) \
+            else value
+    return out
 
 
 def _plant_supports_sea() -> bool:
