@@ -261,3 +261,25 @@ def test_gymnasium_view_through_shimmy():
         assert 0.0 <= reward <= 1.0 and not terminated and not truncated
     finally:
         g.close()
+
+
+def test_harbour_contact_ends_the_episode_with_its_reason():
+    """Full surge thrust at a pier from 2.5 m in front of it: the episode ends on contact (discount
+    0, reward 0 since the clearance factor is 0), the reason names the pier."""
+    env = envs.load("harbor", seed=0, duration=10.0)
+    try:
+        env.reset()
+        pier = next(o for o in env.task.layout.obstacles if o.name == "pier_south")
+        x0 = pier.center[0] - 0.5 * pier.size[0] - 2.5
+        env.physics.set_initial_state((x0, pier.center[1], 0.0), (0.0, 0.0, 0.0))
+        ts, n = None, 0
+        while ts is None or not ts.last():
+            ts = env.step(np.array([1000.0, 0.0]))
+            n += 1
+        info = env.task.info
+        assert info["kind"] == "contact" and "pier_south" in info["reason"], info
+        assert ts.discount == 0.0 and ts.reward == 0.0
+        assert n < 500  # well before the time limit
+        assert env.physics.state[0] + 1.0 > pier.center[0] - 0.5 * pier.size[0] - 0.1  # bow at the pier face
+    finally:
+        env.close()
