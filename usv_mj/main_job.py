@@ -14,6 +14,7 @@ from the finished records, so ``usv-mj plot run.mcap`` and ``usv-mj render run.m
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from contextlib import ExitStack
@@ -96,6 +97,40 @@ def _simulate(scenario: Scenario, plant_kind: str, controller_kind: str | None, 
     return simulate(scenario, plant_kind=plant_kind, controller_kind=controller_kind, sinks=sinks, progress=progress)
 
 
+def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_out: dict, out: Path,
+                 plant_kind: str, files: dict) -> str:
+    """Issue 7: the sea's figures and summary fields, and the same scenario in calm water beside it."""
+    from .sea_figures import draw_sea_figures, sea_summary
+    from .simulation import make_environment
+
+    env = make_environment(scenario, scenario.duration)  # pure in (t, eta, nu): the sea the plant saw
+    summary_out.update(sea_summary(record, env))
+    files["sea_figures"] = draw_sea_figures(record, env, out / "figures")
+    calm = scenario.with_overrides({"sea": {}, "baseline": {"enabled": False}})
+    calm = dataclasses.replace(calm, sea=type(scenario.sea)())
+    calm_summary = summarize(_simulate(calm, plant_kind, None, [], None))
+    summary_out["calm"] = {k: calm_summary[k] for k in ("status", "errors_at", "max_abs_error_after_20s",
+                                                         "funnel_violations", "first_violation_s")}
+    held = "held" if summary["funnel_violations"] == 0 else f"was lost ({summary['funnel_violations']} steps outside)"
+    lines = ["## The controller in this sea", "",
+             f"Sea: {json.dumps(scenario.sea.to_dict())}; significant wave height seen at the hull "
+             f"{summary_out['hs_at_hull_m']:.3f} m. The funnel {held}. The same scenario in calm water beside it "
+             "(the controller is not tuned to the sea: the capability study is `usv-mj capability`):", "",
+             "| error | t | in this sea | calm water |", "|---|---|---|---|"]
+    for axis, unit in (("x", "m"), ("y", "m"), ("psi", "rad")):
+        for tc in ("5", "10", "20"):
+            a, b = summary["errors_at"][tc][axis], calm_summary["errors_at"][tc][axis]
+            lines.append(f"| {axis} [{unit}] | {tc} s | {'—' if a is None else f'{a:.3f}'} | "
+                         f"{'—' if b is None else f'{b:.3f}'} |")
+    for axis in ("x", "y", "psi"):
+        a, b = summary["max_abs_error_after_20s"][axis], calm_summary["max_abs_error_after_20s"][axis]
+        lines.append(f"| max after 20 s, {axis} | | {'—' if a is None else f'{a:.3f}'} | "
+                     f"{'—' if b is None else f'{b:.3f}'} |")
+    lines += ["", "![Sampled wave spectrum against the target](figures/sea_spectrum.png)", "",
+              "![Sea loads on the hull over time](figures/sea_loads.png)"]
+    return "\n".join(lines)
+
+
 def _write_json(path: Path, data: dict) -> None:
     tmp = path.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
@@ -164,7 +199,10 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     if check:
         summary_out["step_check"] = check
     files["figures"] = draw_figures(record, out / "figures", base_rec, obstacles=scenario.obstacles)
-    files["report"] = write_report(out / "report.md", summary, base_summary, check)
+    extra_sections = []
+    if not scenario.sea.calm:
+        extra_sections.append(_sea_outputs(scenario, record, summary, summary_out, out, plant_kind, files))
+    files["report"] = write_report(out / "report.md", summary, base_summary, check, extra_sections)
     if render_stats is not None:
         summary_out["render"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in render_stats.items()
                                  if isinstance(v, (int, float, str, Path))}
