@@ -211,3 +211,53 @@ def _draw_legend(frame, s):
         y += int(22 * s)
     frame[y0:y1, x0:x1] = np.asarray(img)
 
+
+
+def _arrow(draw, cx, cy, length, angle, colour, width):
+    """An arrow of ``length`` px centred on (cx, cy), pointing at ``angle`` (rad, counter-clockwise from
+    image right, image up = +angle/2 pi turn; i.e. world x right, world y up in the top view)."""
+    dx, dy = 0.5 * length * math.cos(angle), -0.5 * length * math.sin(angle)
+    tail, tip = (cx - dx, cy - dy), (cx + dx, cy + dy)
+    draw.line([tail, tip], fill=colour, width=width)
+    head = 0.32 * length
+    for side in (-1, 1):
+        a = angle + math.pi + side * 0.45
+        draw.line([tip, (tip[0] + head * math.cos(a), tip[1] - head * math.sin(a))], fill=colour, width=width)
+
+
+def draw_sea_arrows(frame: np.ndarray, current_xy, wind_speed: float, wind_direction: float, *,
+                    top_down: bool = True) -> np.ndarray:
+    """The sea panel (left, under the heads-up panel) onto ``frame`` in place (issue 7).
+
+    ``current_xy``: current velocity [m/s] in the world frame; ``wind_speed`` [m/s] and
+    ``wind_direction`` [rad], the going-to direction in the world frame. In the top view (image right =
+    world +x, image up = world +y) each arrow points where the current / wind goes; in another camera
+    the arrows are drawn the same way and the panel says "world frame, x right, y up".
+    """
+    H, W = frame.shape[:2]
+    s = H / 720.0
+    pad = int(round(14 * s))
+    x0, y0 = pad, pad + int(268 * s) + pad
+    x1, y1 = min(W, x0 + int(300 * s)), min(H, y0 + int(112 * s))
+    if x1 - x0 < 40 or y1 - y0 < 30:
+        return frame
+    img = _darken(frame, x0, y0, x1, y1)
+    d = ImageDraw.Draw(img)
+    small, tiny = hud_font(round(17 * s)), hud_font(round(13 * s))
+    m = int(round(12 * s))
+    d.text((m, int(6 * s)), "sea (arrows: going to)" if top_down else "sea (world frame, x right, y up)",
+           font=tiny, fill=DIM)
+    cu, cv = float(current_xy[0]), float(current_xy[1])
+    items = (("current", math.hypot(cu, cv), math.atan2(cv, cu), (90, 200, 255)),
+             ("wind", float(wind_speed), float(wind_direction), (235, 235, 240)))
+    size = int(44 * s)
+    for j, (label, speed, angle, colour) in enumerate(items):
+        cx, cy = m + size // 2 + j * int(150 * s), int(58 * s)
+        if math.isfinite(speed) and speed > 1e-9 and math.isfinite(angle):
+            _arrow(d, cx, cy, size, angle, colour, max(2, int(3 * s)))
+        else:
+            d.ellipse([cx - 4 * s, cy - 4 * s, cx + 4 * s, cy + 4 * s], outline=colour, width=max(1, int(2 * s)))
+        d.text((cx + size // 2 + int(8 * s), cy - int(20 * s)), label, font=tiny, fill=DIM)
+        d.text((cx + size // 2 + int(8 * s), cy - int(2 * s)), _fmt(speed, ".2f", " m/s"), font=small, fill=TEXT)
+    frame[y0:y1, x0:x1] = np.asarray(img)
+    return frame

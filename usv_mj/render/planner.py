@@ -68,6 +68,7 @@ class FrameSpec:
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     view: TopView | None = None
     hud: dict = field(default_factory=dict)
+    world: object = None                             # usv_mj.render.world.RenderWorld (sea, obstacles) or None
 
 
 @dataclass
@@ -218,6 +219,9 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     md = getattr(record, "metadata", {}) or {}
     title = " / ".join(str(md[k]) for k in ("preset", "controller", "plant") if md.get(k))
     aspect = width / height
+    from .world import render_world
+
+    world = render_world(record)
 
     frames = []
     for j, (k, tf) in enumerate(zip(rows, times)):
@@ -254,5 +258,5 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
                "tau_r": float(tau["tau_r"][k]), "q_tau_r": float(tau["q_tau_r"][k]),
                "tau_u_scale": scale_u, "tau_r_scale": scale_r}
         frames.append(FrameSpec(j, float(t[k]), (float(x[k]), float(y[k]), float(psi[k])), ref, fc, fh, ok,
-                                trail, path, view, hud))
+                                trail, path, view, hud, world))
     return Plan(frames, rows, t0, t1, sp, played, float(fps), eps)

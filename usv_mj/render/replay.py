@@ -45,6 +45,7 @@ import mujoco
 from .planner import (FUNNEL_BAD_RGBA, FUNNEL_FILL_ALPHA, FUNNEL_OK_RGBA, GHOST_RGBA, LAYERS, PATH_RGBA,
                       TRAIL_RGBA, FrameSpec, TopView)
 
+SAFETY_LINE_RGBA = (1.0, 0.8, 0.1, 0.9)   # inflated safety boundary (as the Foxglove scene's)
 REPO_MODELS = Path(__file__).resolve().parents[2] / "models"
 DEFAULT_SCENE = REPO_MODELS / "scene.xml"
 
@@ -142,12 +143,20 @@ def _hull_geoms_in_hull_frame(model: mujoco.MjModel, hull_id: int) -> list[dict]
     return out
 
 
+SEA_HFIELD, SEA_GEOM = "usv_mj_sea", "usv_mj_sea_surface"
+SEA_RGBA = (0.16, 0.42, 0.62, 1.0)     # the wave surface (lit: crests and troughs show by their shading)
+SEA_MAX_HALF = 320.0                  # m: compiled half-size of the hfield (bounds for MuJoCo's queries)
+
+
 def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720, ghost: bool = True,
-                       samples: int = 0) -> tuple[mujoco.MjModel, str]:
+                       samples: int = 0, sea: bool = True) -> tuple[mujoco.MjModel, str]:
     """Compile the scene with a mocap ``ghost`` hull added and an off-screen buffer of width x height.
 
     ``samples``: multisampling of the off-screen buffer (0: none; 2 or MuJoCo's default 4 cost about
     2.5x the CPU time of a frame on Mesa's llvmpipe, measured 110 vs 40 ms at 1280x720).
+    ``sea``: add the wave surface of SEA.md §6, a hidden hfield geom (``SEA_GEOM``, contype =
+    conaffinity = 0) of SEA_NODES x SEA_NODES nodes that :meth:`FrameRenderer.update_sea` shows,
+    re-centres, fills and uploads per frame when the run had a sea.
     """
     spec, label = load_scene_spec(model_path)
     base = spec.compile()
@@ -168,6 +177,14 @@ def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720,
             if g["mesh"]:
                 kw["meshname"] = g["mesh"]
             body.add_geom(**kw)
+    if sea:
+        from .world import SEA_NODES
+
+        hf = spec.add_hfield(name=SEA_HFIELD, size=[SEA_MAX_HALF, SEA_MAX_HALF, 1.0, 0.05], nrow=SEA_NODES,
+                             ncol=SEA_NODES)
+        hf.userdata = [0.5] * (SEA_NODES * SEA_NODES)
+        spec.worldbody.add_geom(name=SEA_GEOM, type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=SEA_HFIELD,
+                                contype=0, conaffinity=0, group=0, rgba=[*SEA_RGBA[:3], 0.0], mass=0)
     spec.visual.global_.offwidth = max(int(width), int(spec.visual.global_.offwidth))
     spec.visual.global_.offheight = max(int(height), int(spec.visual.global_.offheight))
     spec.visual.quality.offsamples = int(samples)
@@ -232,6 +249,18 @@ class FrameRenderer:
             self.fovy = float(m.cam_fovy[cid])
         self.renderer = mujoco.Renderer(m, self.height, self.width, max_geom=4000)
         self._cheapen_texture_filtering()
+        # sea and obstacles of the run being drawn (usv_mj.render.world), set per frame from FrameSpec.world
+        self.sea_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, SEA_GEOM)
+        self.sea_hfield = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_HFIELD, SEA_HFIELD)
+        self._planes = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE
+                        and m.geom_bodyid[g] == 0]
+        self._plane_z = m.geom_pos[self._planes, 2].copy()
+        self.world = None            # ResolvedWorld or None
+        self._world_key = None
+        self._sea_dirty = False
+        self._boundaries: dict = {}  # obstacle index -> outline (static obstacles, cached)
+        self._in_model: dict = {}    # obstacle index -> the model has its geom
+        self.decor_z = self.z_water
         _OPEN.add(self)
         global _atexit_registered
         if not _atexit_registered:
@@ -263,8 +292,100 @@ class FrameRenderer:
         """Distance [m] from the water at which the free camera sees +-view.half_height vertically."""
         return view.half_height / math.tan(math.radians(self.fovy) / 2.0)
 
+    # --- sea and obstacles ------------------------------------------------------------------
+
+    def use_world(self, world) -> None:
+        """Switch to the sea and obstacles of ``world`` (a RenderWorld, or None: calm, none)."""
+        if world == self._world_key:
+            return
+        from .world import ResolvedWorld
+
+        self._world_key = world
+        self.world = ResolvedWorld(world) if world is not None else None
+        self._boundaries.clear()
+        self._in_model.clear()
+        m = self.model
+        env = self.world.environment if self.world is not None else None
+        if env is not None and self.sea_geom >= 0:
+            a = float(env.amplitude_bound)
+            m.hfield_size[self.sea_hfield, 2] = 2.0 * a          # SEA.md §6: size (r_x, r_y, 2A, base)
+            m.geom_pos[self.sea_geom, 2] = self.z_water - a      # geom z = -A
+            m.geom_rgba[self.sea_geom, 3] = 1.0
+            m.geom_pos[self._planes, 2] = self._plane_z - a - 0.02   # the flat sea beyond, under the troughs
+            self.decor_z = self.z_water + a                      # lines and funnel above the crests
+        else:
+            if self.sea_geom >= 0:
+                m.geom_rgba[self.sea_geom, 3] = 0.0
+            m.geom_pos[self._planes, 2] = self._plane_z
+            self.decor_z = self.z_water
+
+    def update_sea(self, spec: FrameSpec) -> None:
+        """SEA.md §6: re-centre the hfield on the hull in whole cells (``geom_pos``), size it to the view
+        and fill ``hfield_data`` with the elevation at the simulated time ``spec.t`` of the drawn state.
+        The upload to the GL context happens in :meth:`render_scene`."""
+        from .world import SEA_BASE_EXTENT, SEA_NODES, sea_extent
+
+        env = self.world.environment
+        m = self.model
+        x, y = spec.pose[0], spec.pose[1]
+        if self.camera_name == "top":
+            view = spec.view or TopView(x, y, 12.0)
+            half_w = view.half_height * self.width / self.height
+            extent = sea_extent(abs(view.cx - x) + half_w, abs(view.cy - y) + view.half_height)
+        else:
+            extent = 8.0 * SEA_BASE_EXTENT
+        half = extent / 2.0
+        cell = extent / (SEA_NODES - 1)
+        cx, cy = round(x / cell) * cell, round(y / cell) * cell
+        nodes = np.linspace(-half, half, SEA_NODES)
+        heights = env.hfield_heights(nodes, nodes, float(spec.t), origin=(cx, cy))
+        h = self.sea_hfield
+        m.hfield_size[h, 0] = m.hfield_size[h, 1] = half
+        m.geom_pos[self.sea_geom, 0] = cx
+        m.geom_pos[self.sea_geom, 1] = cy
+        adr = int(m.hfield_adr[h])
+        m.hfield_data[adr:adr + SEA_NODES * SEA_NODES] = heights.ravel()
+        self._sea_dirty = True
+
+    def sea_node_under_hull(self) -> tuple[float, float, float]:
+        """(x, y, z) [m] of the hfield node nearest the hull as drawn (after a frame): the geometry
+        MuJoCo holds (geom_pos + node offset, geom z + data x 2A)."""
+        from .world import SEA_NODES
+
+        m, h, g = self.model, self.sea_hfield, self.sea_geom
+        half = float(m.hfield_size[h, 0])
+        cell = 2.0 * half / (SEA_NODES - 1)
+        hx = self.data.qpos[self.qadr[0]] + self.hull_offset[0]
+        hy = self.data.qpos[self.qadr[1]] + self.hull_offset[1]
+        c = int(round((hx - m.geom_pos[g, 0] + half) / cell))
+        r = int(round((hy - m.geom_pos[g, 1] + half) / cell))
+        z = m.geom_pos[g, 2] + m.hfield_data[int(m.hfield_adr[h]) + r * SEA_NODES + c] * m.hfield_size[h, 2]
+        return (float(m.geom_pos[g, 0] - half + c * cell), float(m.geom_pos[g, 1] - half + r * cell), float(z))
+
+    def _place_obstacles(self, t: float) -> None:
+        from usv_mj.obstacles.compose import place_moving_obstacles
+
+        try:
+            place_moving_obstacles(self.model, self.data, self.world.obstacles, t)
+        except ValueError:   # the render model was not composed with these obstacles: drawn as outlines
+            pass
+
+    def _obstacle_in_model(self, i: int) -> bool:
+        if i not in self._in_model:
+            from usv_mj.obstacles.compose import obstacle_geom_name
+
+            self._in_model[i] = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM,
+                                                  obstacle_geom_name(self.world.obstacles[i])) >= 0
+        return self._in_model[i]
+
     def set_state(self, spec: FrameSpec) -> None:
         d = self.data
+        self.use_world(getattr(spec, "world", None))
+        if self.world is not None:
+            if self.world.environment is not None and self.sea_geom >= 0:
+                self.update_sea(spec)
+            if self.world.any_moving:
+                self._place_obstacles(float(spec.t))
         x, y, psi = spec.pose
         d.qpos[self.qadr[0]] = x - self.hull_offset[0]
         d.qpos[self.qadr[1]] = y - self.hull_offset[1]
@@ -276,6 +397,10 @@ class FrameRenderer:
         else:
             d.mocap_pos[self.ghost_mocap] = (0.0, 0.0, -1e4)   # hidden far below the sea
         mujoco.mj_forward(self.model, d)
+        # geoms of the world body keep the positions of mj_makeData (mj_kinematics does not move them):
+        # the re-centred sea and the lowered plane are placed here
+        for g in ([self.sea_geom] if self.sea_geom >= 0 else []) + self._planes:
+            d.geom_xpos[g] = self.model.geom_pos[g]
 
     def render_scene(self, spec: FrameSpec) -> np.ndarray:
         """The 3-D picture of one frame, before the 2-D overlay."""
@@ -285,6 +410,10 @@ class FrameRenderer:
             self.camera.lookat[:] = (view.cx, view.cy, self.z_water)
             self.camera.distance = self.top_camera_distance(view)
         r = self.renderer
+        if self._sea_dirty:
+            r._gl_context.make_current()
+            mujoco.mjr_uploadHField(self.model, r._mjr_context, self.sea_hfield)
+            self._sea_dirty = False
         r.update_scene(self.data, camera=self.camera)
         scn = r.scene
         scn.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.shadows
@@ -301,6 +430,14 @@ class FrameRenderer:
             from .overlay import draw_hud
 
             frame = draw_hud(frame, spec.hud, hud="hud" in self.layers, legend="legend" in self.layers)
+        env = self.world.environment if self.world is not None else None
+        if env is not None and "hud" in self.layers:
+            from .overlay import draw_sea_arrows
+
+            current = env.current(float(spec.t))[0]
+            speed, direction = env.wind(float(spec.t))
+            draw_sea_arrows(frame, (float(current[0]), float(current[1])), speed, direction,
+                            top_down=self.camera_name == "top")
         return frame
 
     # --- user geoms --------------------------------------------------------------------------
@@ -337,8 +474,29 @@ class FrameRenderer:
             p0[:2], p1[:2] = pts[i], pts[i + 1]
             mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_LINE, width_px, p0, p1)
 
+    def _add_obstacle_outlines(self, spec: FrameSpec, z: float, w: float) -> None:
+        """The inflated safety boundary of every obstacle (dashed in the figures; a line loop here), and
+        the outline of any obstacle the render model does not contain (e.g. ``usv-mj render`` of a log)."""
+        from usv_mj.obstacles.compose import OBSTACLE_COLORS
+        from usv_mj.obstacles.display import boundary_points
+
+        world = self.world
+        t = float(spec.t)
+        for i, o in enumerate(world.obstacles):
+            infl = world.inflation[i] if world.inflation is not None and i < len(world.inflation) else math.nan
+            if math.isfinite(infl) and infl > 0:
+                pts = self._boundaries.get(i) if not o.moving else None
+                if pts is None:
+                    pts = boundary_points(o, float(infl), t, n=48)
+                    if not o.moving:
+                        self._boundaries[i] = pts
+                self._polyline(pts, z + 0.008, w, SAFETY_LINE_RGBA)
+            if not self._obstacle_in_model(i):
+                outline = np.asarray(o.shape(t).exterior.coords)
+                self._polyline(outline, z + 0.008, 1.5 * w, OBSTACLE_COLORS["moving" if o.moving else o.kind])
+
     def _add_decor(self, spec: FrameSpec) -> None:
-        z = self.z_water + 0.01
+        z = self.decor_z + 0.01
         w = max(1.0, 3.0 * self.height / 720.0)
         if "path" in self.layers:
             self._polyline(spec.path, z + 0.002, w, PATH_RGBA)
@@ -356,6 +514,8 @@ class FrameRenderer:
                 if fill is not None:
                     fill.size[:] = (hx, hy, 0.002)
                     fill.pos[:] = (cx, cy, z)
+        if self.world is not None and self.world.obstacles:
+            self._add_obstacle_outlines(spec, z, w)
 
     def close(self) -> None:
         if self.renderer is not None:

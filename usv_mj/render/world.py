@@ -1,0 +1,116 @@
+"""What the video shows beyond the ship: the sea (issue 7) and the obstacles (issue 8) of the run.
+
+The planner (parent process) reads them from the record's metadata into a small picklable
+:class:`RenderWorld` that rides on every :class:`~usv_mj.render.planner.FrameSpec`; each rendering
+process resolves it once (:class:`ResolvedWorld`: the seeded :class:`usv_mj.sea.Environment`, the
+obstacle specs and their inflation) and keeps it while the same world comes in.
+
+- Sea: ``record.metadata["scenario"]["sea"]`` (the settings the plant ran with) and the ship (its
+  rigid mass sets the equivalent draft of SEA.md §2, which the elevation does not use but the
+  Environment's constructor needs). The Environment is a pure function of (t, eta, nu) with every
+  random draw made from the seeds (SEA.md §0), so the renderer's waves are the plant's.
+- Obstacles: ``record.metadata["scenario"]["obstacles"]`` (the scenario's tables, keys of issue 8)
+  and the per-obstacle ``inflation_m`` of ``record.metadata["obstacles"]["per_obstacle"]`` (the
+  :class:`~usv_mj.obstacles.sink.ObstacleLog` summary) for the safety boundary.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+SEA_NODES = 201          # hfield nodes per side (SEA.md §6)
+SEA_BASE_EXTENT = 20.0   # m, the hfield's side at the closest zoom (SEA.md §6: 201 x 201 over 20 m)
+
+
+@dataclass(frozen=True)
+class RenderWorld:
+    """Picklable description of the sea and obstacles of a run (JSON text: cheap to compare)."""
+
+    sea: str = ""            # JSON of the scenario's "sea" table ("" = calm)
+    ship: str = ""           # JSON of the scenario's "ship" table
+    duration: float = 0.0    # s, the run's duration (the environment's horizon)
+    obstacles: str = ""      # JSON list of the scenario's obstacle tables ("" = none)
+    inflation: tuple = ()    # m per obstacle (NaN: no boundary drawn)
+
+    @property
+    def empty(self) -> bool:
+        return not self.sea and not self.obstacles
+
+
+def render_world(record) -> RenderWorld | None:
+    """The :class:`RenderWorld` of a record (None when its sea is calm and it has no obstacles)."""
+    md = getattr(record, "metadata", None) or {}
+    sc = md.get("scenario")
+    if not isinstance(sc, dict):
+        return None
+    sea_json = ""
+    sea = sc.get("sea")
+    if isinstance(sea, dict):
+        try:
+            from usv_mj.sea.settings import SeaSettings
+
+            if not SeaSettings.from_table(sea, "record.metadata['scenario']['sea']").calm:
+                sea_json = json.dumps(sea, sort_keys=True)
+        except (ValueError, TypeError) as exc:
+            warnings.warn(f"render: the record's sea settings cannot be read ({exc}); the video shows calm water",
+                          RuntimeWarning, stacklevel=2)
+    obstacles = sc.get("obstacles") or []
+    inflation = ()
+    if obstacles:
+        per = ((md.get("obstacles") or {}).get("per_obstacle") or [])
+        vals = [p.get("inflation_m") if isinstance(p, dict) else None for p in per]
+        inflation = tuple(float(v) if isinstance(v, (int, float)) and math.isfinite(v) else math.nan
+                          for v in (vals + [None] * len(obstacles))[:len(obstacles)])
+    world = RenderWorld(sea=sea_json, ship=json.dumps(sc.get("ship") or {}, sort_keys=True),
+                        duration=float(sc.get("duration") or md.get("duration_s") or 0.0),
+                        obstacles=json.dumps(obstacles, sort_keys=True) if obstacles else "", inflation=inflation)
+    return None if world.empty else world
+
+
+def _ship(table: dict):
+    from usv_mj.ship import ShipParams
+
+    fields = ShipParams.__dataclass_fields__
+    kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in table.items() if k in fields}
+    return ShipParams(**kw)
+
+
+class ResolvedWorld:
+    """A :class:`RenderWorld` made usable in a rendering process: ``environment`` (or None),
+    ``obstacles`` (ObstacleSpec tuple), ``inflation`` (array per obstacle, NaN = none)."""
+
+    def __init__(self, world: RenderWorld):
+        self.world = world
+        self.environment = None
+        if world.sea:
+            from usv_mj.sea import Environment
+            from usv_mj.sea.settings import SeaSettings
+
+            settings = SeaSettings.from_table(json.loads(world.sea), "render world")
+            try:
+                ship = _ship(json.loads(world.ship)) if world.ship else None
+            except (TypeError, ValueError):
+                ship = None
+            self.environment = Environment(settings, ship=ship, t_max=max(world.duration, 1.0) + 1.0)
+        self.obstacles = ()
+        if world.obstacles:
+            from usv_mj.obstacles.spec import from_tables
+
+            self.obstacles = from_tables(json.loads(world.obstacles), "render world")
+        self.inflation = np.array(world.inflation, dtype=float) if world.inflation else None
+        self.any_moving = any(o.moving for o in self.obstacles)
+
+
+def sea_extent(half_width: float, half_height: float) -> float:
+    """Side [m] of the hfield for a top view that shows +-half_width x +-half_height: the base 20 m
+    doubled until it covers the view (so the wave field fills the picture; 201 nodes always)."""
+    need = 2.0 * max(half_width, half_height) * 1.05
+    extent = SEA_BASE_EXTENT
+    while extent < need and extent < 640.0:
+        extent *= 2.0
+    return extent
