@@ -17,10 +17,10 @@ import time
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+import mujoco
+import numpy as np
 
-from usv_mj import envs  # noqa: E402
+from usv_mj import envs
 
 
 def _env_steps(env, n, action, policy=None):

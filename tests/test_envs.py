@@ -13,7 +13,7 @@ from usv_mj import envs
 from usv_mj.plants.mujoco_plant import MuJoCoPlant
 from usv_mj.simulation import simulate
 
-SHORT = dict(duration=0.5)  # 50 control steps of 0.01 s: conformance tests end episodes too
+SHORT = {"duration": 0.5}  # 50 control steps of 0.01 s: conformance tests end episodes too
 
 
 def _rollout(env, policy, max_steps=None):
@@ -176,7 +176,7 @@ def test_ppc_trajectory_equals_simulate_on_the_mujoco_plant():
     fresh MuJoCoPlant (quantizer on): the environment is the plant, not a copy."""
     env = envs.load("track", seed=0, duration=5.0, max_surge_force=1e6, max_yaw_moment=1e6)
     try:
-        states, _, ts = _rollout(env, envs.PPCPolicy(env))
+        states, _, _ = _rollout(env, envs.PPCPolicy(env))
         sc = env.task.scenario.with_overrides({"initial": {"eta": [float(v) for v in states[0, :3]],
                                                             "nu": [0.0, 0.0, 0.0]}})
         record = simulate(sc, plant_kind="mujoco", duration=5.0, reference=env.task.reference)

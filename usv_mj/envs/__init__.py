@@ -65,8 +65,18 @@ WAVES_SEA = {"preset": "moderate",
              "wind": {"speed": 5.0, "direction_deg": 90.0, "gust_sigma": 1.0, "gust_time_constant": 2.0, "seed": 2}}
 HARBOUR_FUNNEL = {"rho_xy": [3.0, 0.5], "rate": 0.2}  # as examples/scenarios/harbour_gap.toml
 
-__all__ = ["ALL_TASKS", "load", "gym_env", "PPCPolicy", "RandomPolicy", "USVEnvironment", "TrackTask",
-           "HarbourTask", "USVPhysics", "episode_record"]
+__all__ = [
+    "ALL_TASKS",
+    "HarbourTask",
+    "PPCPolicy",
+    "RandomPolicy",
+    "TrackTask",
+    "USVEnvironment",
+    "USVPhysics",
+    "episode_record",
+    "gym_env",
+    "load",
+]
 
 
 class USVEnvironment(control.Environment):
@@ -161,7 +171,7 @@ def load(task: str, seed=None, **options) -> USVEnvironment:
             raise NotImplementedError(f"usv_mj.envs.load({task!r}): the MuJoCo plant does not take a sea state yet "
                                       "(MuJoCoPlant has no 'environment' argument)")
         environment = make_environment(scenario, duration + max(preview) + 1.0)
-    n_steps = int(round(duration / cp))
+    n_steps = round(duration / cp)
     time_limit = n_steps * cp
     if task in ("track", "track_waves"):
         if options:

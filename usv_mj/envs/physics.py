@@ -52,7 +52,7 @@ class USVPhysics(dm_mujoco.Physics):
     plant: MuJoCoPlant
 
     @classmethod
-    def from_plant(cls, plant: MuJoCoPlant) -> "USVPhysics":
+    def from_plant(cls, plant: MuJoCoPlant) -> USVPhysics:
         if plant.data.model._address != plant.model._address:  # pragma: no cover - bindings invariant
             raise RuntimeError("USVPhysics: the plant's data does not belong to its model")
         obj = cls.__new__(cls)
@@ -136,8 +136,13 @@ class HarbourEnvPlant(MuJoCoPlant):
 
     def __init__(self, ship, disturbance, obstacles=(), control_period: float = 1e-3, substeps: int = 1,
                  contact=None, ray_angles=(), environment=None):
-        from usv_mj.obstacles.compose import (HULL_COLLISION_GEOMS, ContactParams, compose_scene, export_scene,
-                                              obstacle_geom_name)
+        from usv_mj.obstacles.compose import (
+            HULL_COLLISION_GEOMS,
+            ContactParams,
+            compose_scene,
+            export_scene,
+            obstacle_geom_name,
+        )
 
         contact = contact or ContactParams()
         self.obstacles = tuple(obstacles)
@@ -160,7 +165,7 @@ class HarbourEnvPlant(MuJoCoPlant):
         kwargs = {} if environment is None else {"environment": environment}
         super().__init__(ship, disturbance, control_period, substeps, model_path=self.model_xml_path, **kwargs)
         m = self.model
-        gid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)  # noqa: E731
+        gid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)
         self.hull_geoms = np.array([gid(n) for n, *_ in HULL_COLLISION_GEOMS], dtype=np.int64)
         self.obstacle_geoms = np.array([gid(obstacle_geom_name(o)) for o in self.obstacles], dtype=np.int64)
         self.obstacle_mocap = np.full(len(self.obstacles), -1, dtype=np.int64)

@@ -44,9 +44,9 @@ from __future__ import annotations
 
 import collections
 import math
+import warnings
 
 import numpy as np
-import warnings
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.obstacles.compose)
