@@ -167,6 +167,26 @@ def top_view(points: np.ndarray, aspect: float, min_half_height: float = MIN_HAL
     return TopView(float(cx - ox), float(cy - oy), float(h))
 
 
+NEAR_OBSTACLE_M = 8.0   # m: an obstacle whose outline is this close to the hull is kept in the top view
+
+
+def _bounding_radius(o: dict) -> float:
+    if o.get("kind") == "box":
+        return 0.5 * math.hypot(*o.get("size", (0.0, 0.0)))
+    return float(o.get("radius", 0.0))
+
+
+def _obstacles_near(table: np.ndarray, t: float, x: float, y: float) -> list:
+    """Bounding-box corners of the obstacles (rows: cx, cy, vx, vy, r at t = 0) within NEAR_OBSTACLE_M of (x, y)."""
+    cx, cy = table[:, 0] + table[:, 2] * t, table[:, 1] + table[:, 3] * t
+    r = table[:, 4]
+    near = np.hypot(cx - x, cy - y) - r < NEAR_OBSTACLE_M
+    out = []
+    for i in np.flatnonzero(near):
+        out += [(cx[i] - r[i], cy[i] - r[i]), (cx[i] + r[i], cy[i] + r[i])]
+    return out
+
+
 def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, width: int = 1280, height: int = 720,
                 trail_s: float | None = None, ahead_s: float | None = None, segments: int = 48,
                 camera: str = "top", max_frames: int | None = None, rows=None) -> Plan:
@@ -222,6 +242,12 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     from .world import render_world
 
     world = render_world(record)
+    obstacle_table = None
+    if world is not None and world.obstacles:
+        import json
+
+        obstacle_table = np.array([(*o["center"], *o["velocity"], _bounding_radius(o))
+                                   for o in json.loads(world.obstacles)], float).reshape(-1, 5)
 
     frames = []
     for j, (k, tf) in enumerate(zip(rows, times)):
@@ -251,6 +277,8 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
             pts.append(ref[:2])
             if math.isfinite(fh[0]) and math.isfinite(fh[1]):
                 pts += [(fc[0] - fh[0], fc[1] - fh[1]), (fc[0] + fh[0], fc[1] + fh[1])]
+        if obstacle_table is not None:                # obstacles close to the hull stay in the picture
+            pts += _obstacles_near(obstacle_table, float(t[k]), float(x[k]), float(y[k]))
         view = top_view(np.array(pts, float), aspect)
         hud = {"t": float(t[k]), "t_end": t1, "speedup": played, "title": title, "camera": camera,
                "e": tuple(float(e[i][k]) for i in range(3)), "rho": tuple(float(rho[i][k]) for i in range(3)),

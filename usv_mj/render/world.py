@@ -80,6 +80,14 @@ def _ship(table: dict):
     return ShipParams(**kw)
 
 
+def _obstacle(table: dict):
+    """An ObstacleSpec from a scenario's obstacle table as ``Scenario.to_dict`` writes it (every field)."""
+    from usv_mj.obstacles.spec import ObstacleSpec
+
+    fields = ObstacleSpec.__dataclass_fields__
+    return ObstacleSpec(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in table.items() if k in fields})
+
+
 class ResolvedWorld:
     """A :class:`RenderWorld` made usable in a rendering process: ``environment`` (or None),
     ``obstacles`` (ObstacleSpec tuple), ``inflation`` (array per obstacle, NaN = none)."""
@@ -99,9 +107,7 @@ class ResolvedWorld:
             self.environment = Environment(settings, ship=ship, t_max=max(world.duration, 1.0) + 1.0)
         self.obstacles = ()
         if world.obstacles:
-            from usv_mj.obstacles.spec import from_tables
-
-            self.obstacles = from_tables(json.loads(world.obstacles), "render world")
+            self.obstacles = tuple(_obstacle(t) for t in json.loads(world.obstacles))
         self.inflation = np.array(world.inflation, dtype=float) if world.inflation else None
         self.any_moving = any(o.moving for o in self.obstacles)
 

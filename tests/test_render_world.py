@@ -1,0 +1,122 @@
+"""The sea and the obstacles in the video (issues 7 and 8; usv_mj.render.world, FrameRenderer.update_sea).
+
+References: the plant's own Environment (``usv_mj.simulation.make_environment`` of the scenario,
+built independently of the renderer's copy) evaluated at the hfield node, and MuJoCo's own ray cast
+(``mj_ray``) onto the hfield geom, which reads the geometry as MuJoCo holds it; the obstacles'
+constant velocity (centre = center + velocity t) for the mocap bodies.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from usv_mj import load_scenario
+from usv_mj.record import RunRecord
+from usv_mj.render import gl_backend
+from usv_mj.render.planner import TopView, plan_frames
+from usv_mj.simulation import make_environment
+
+SEA = {"preset": "moderate", "current": {"speed": 0.3, "direction_deg": 30.0},
+       "wind": {"speed": 5.0, "direction_deg": 90.0, "gust_sigma": 1.0}}
+
+
+def _gl_or_skip():
+    try:
+        backend = gl_backend.select_backend()
+    except gl_backend.GLUnavailableError as exc:  # pragma: no cover - CI installs Mesa
+        pytest.skip(str(exc))
+    here = gl_backend.in_process_backend()
+    if here is not None and here != backend:  # pragma: no cover - mujoco imported with another backend
+        pytest.skip(f"mujoco already runs with {here}, not {backend}")
+    return backend
+
+
+def _record(scenario, poses, times):
+    poses = np.asarray(poses, float)
+    return RunRecord.from_arrays({"t": np.asarray(times, float), "x": poses[:, 0], "y": poses[:, 1],
+                                  "psi": poses[:, 2]}, metadata={"scenario": scenario.to_dict()})
+
+
+def test_hfield_node_under_the_hull_is_the_plants_elevation():
+    _gl_or_skip()
+    import mujoco
+
+    from usv_mj.render.replay import FrameRenderer
+    from usv_mj.render.world import SEA_NODES
+
+    sc = load_scenario(preset="paper", overrides={"duration": 20.0, "sea": SEA})
+    rec = _record(sc, [(3.13, -2.27, 0.4), (-7.91, 4.06, -1.0)], [7.3, 12.05])
+    plan = plan_frames(rec, rows=[0, 1], width=320, height=240)
+    env = make_environment(sc)
+    r = FrameRenderer(320, 240)
+    try:
+        for spec in plan.frames:
+            frame = r.render(spec)
+            assert frame.std() > 5.0
+            nx, ny, nz = r.sea_node_under_hull()
+            cell = 2.0 * r.model.hfield_size[r.sea_hfield, 0] / (SEA_NODES - 1)
+            assert abs(nx - spec.pose[0]) <= cell / 2 + 1e-9 and abs(ny - spec.pose[1]) <= cell / 2 + 1e-9
+            want = env.elevation(nx, ny, spec.t)
+            assert abs(want) > 1e-3                              # a real wave, not the calm level
+            assert nz == pytest.approx(want, abs=1e-5)
+            # MuJoCo's own reading of the hfield: a ray straight down onto the node
+            groups = np.array([1, 0, 0, 0, 0, 0], np.uint8)
+            geomid = np.array([-1], np.int32)
+            dist = mujoco.mj_ray(r.model, r.data, np.array([nx, ny, 5.0]), np.array([0.0, 0.0, -1.0]), groups, 1,
+                                 -1, geomid)
+            assert geomid[0] == r.sea_geom
+            assert 5.0 - dist == pytest.approx(want, abs=1e-5)
+    finally:
+        r.close()
+
+
+def test_a_sea_frame_shows_moving_waves_and_differs_from_calm_water():
+    _gl_or_skip()
+    from usv_mj.render import render_frames
+
+    sea = load_scenario(preset="paper", overrides={"duration": 20.0, "sea": SEA})
+    calm = load_scenario(preset="paper", overrides={"duration": 20.0})
+    poses, times = [(0.0, 0.0, 0.3)] * 2, [6.0, 6.5]
+    view = TopView(0.0, 0.0, 8.0)
+    f_sea = render_frames(_record(sea, poses, times), rows=[0, 1], width=320, height=240, layers=(), views=view)
+    (f_calm,) = render_frames(_record(calm, poses, times), rows=[0], width=320, height=240, layers=(), views=view)
+    diff = np.abs(f_sea[0].astype(int) - f_calm.astype(int)).sum(axis=2) > 20
+    assert diff.mean() > 0.3                                    # the water is not the calm plane
+    moved = np.abs(f_sea[0].astype(int) - f_sea[1].astype(int)).sum(axis=2) > 10
+    assert moved.mean() > 0.1                                   # the waves move between t = 6 and 6.5 s
+    # the hull is still drawn on top of the water: its silhouette differs from an empty sea there
+    (empty,) = render_frames(_record(sea, [(1e3, 1e3, 0.0)] * 2, times), rows=[0], width=320, height=240,
+                             layers=(), views=view)
+    hull = np.abs(f_sea[0].astype(int) - empty.astype(int)).sum(axis=2) > 60
+    rows, cols = np.nonzero(hull[60:180, 100:220])
+    assert len(rows) > 30
+
+
+def test_moving_obstacles_follow_their_velocity_in_the_video():
+    _gl_or_skip()
+    from usv_mj.obstacles.compose import compose_scene, export_scene, obstacle_geom_name
+    from usv_mj.render.replay import FrameRenderer
+
+    sc = load_scenario(preset="paper", overrides={"duration": 20.0, "obstacles": [
+        {"kind": "circle", "center": [6.0, 3.0], "radius": 0.8, "name": "buoy"},
+        {"kind": "box", "center": [2.0, -6.0], "size": [3.0, 1.2], "velocity": [0.5, 0.25], "name": "boat"}]})
+    rec = _record(sc, [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)], [0.0, 4.0])
+    plan = plan_frames(rec, rows=[0, 1], width=320, height=240)
+    for spec in plan.frames:    # the buoy (6, 3), r = 0.8, is within 8 m of the hull: the top view shows it
+        v = spec.view
+        assert abs(6.0 - v.cx) + 0.8 < v.half_height * 320 / 240 and abs(3.0 - v.cy) + 0.8 < v.half_height
+    r = FrameRenderer(320, 240, model_path=export_scene(compose_scene(sc.obstacles)))
+    try:
+        boat = sc.obstacles[1]
+        mocap = r.model.body_mocapid[r.model.body(f"{obstacle_geom_name(boat)}_body").id]
+        frames = []
+        for spec in plan.frames:
+            frames.append(r.render(spec))
+            want = (2.0 + 0.5 * spec.t, -6.0 + 0.25 * spec.t)
+            np.testing.assert_allclose(r.data.mocap_pos[mocap, :2], want, rtol=0, atol=1e-12)
+        assert not math.isnan(frames[1].mean())
+    finally:
+        r.close()
