@@ -1,13 +1,12 @@
-"""``usv-mj env TASK --policy ppc|random --episodes N``: roll out a policy, print returns, video of episode 1.
+"""Roll out a policy in a USV dm_control task: returns per episode, and a video of the first one.
 
-Wiring (in usv_mj/cli.py)::
+Tasks: ``track`` (the paper's reference from a randomised start), ``track_waves`` (the same in the
+moderate sea with current and wind), ``harbor`` (reach a goal through a randomised harbour without
+contact). Policies: ``ppc`` (the paper's adaptive PPC law on the environment's observations) and
+``random`` (uniform actions within the thrust bounds). Observations, rewards and termination:
+``pydoc usv_mj.envs.tasks``.
 
-    from usv_mj.envs import cli as env_cli
-    p = sub.add_parser("env", help="roll out a policy in a dm_control task")
-    env_cli.add_arguments(p)
-    ... return env_cli.run_command(args)
-
-Exit codes: 0 done, 2 bad options (unknown task/option, scenario error), 1 other failures.
+Exit codes: 0 done, 2 bad options, 1 other failures (a task the MuJoCo plant cannot run yet, say).
 """
 
 from __future__ import annotations
