@@ -10,6 +10,7 @@
     usv-mj render RUN.mcap             the video again, at another size, speed or camera
     usv-mj sweep SWEEP.toml            many runs on a Dask cluster (local by default)
     usv-mj capability --load ...       the environment capability polar of the controller
+    usv-mj env track --policy ppc      the USV as a dm_control task: roll out a policy, print returns, video
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
@@ -185,6 +186,8 @@ _EXTERNAL = {
               "Monte-Carlo sweep of many runs on a Dask cluster (local by default)"),
     "capability": ("usv_mj.sweep", "add_capability_arguments", "capability_command",
                    "environment capability polar: the largest load at which the funnel holds"),
+    "env": ("usv_mj.envs.cli", "add_arguments", "run_command",
+            "roll out a policy (ppc, random) in a dm_control task (track, track_waves, harbor): returns and a video"),
 }
 
 
