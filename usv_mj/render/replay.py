@@ -255,6 +255,7 @@ class FrameRenderer:
         self._planes = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE
                         and m.geom_bodyid[g] == 0]
         self._plane_z = m.geom_pos[self._planes, 2].copy()
+        self._plane_alpha = m.geom_rgba[self._planes, 3].copy()
         self.world = None            # ResolvedWorld or None
         self._world_key = None
         self._sea_dirty = False
@@ -312,11 +313,14 @@ class FrameRenderer:
             m.geom_pos[self.sea_geom, 2] = self.z_water - a      # geom z = -A
             m.geom_rgba[self.sea_geom, 3] = 1.0
             m.geom_pos[self._planes, 2] = self._plane_z - a - 0.02   # the flat sea beyond, under the troughs
+            if self.camera_name == "top":   # the hfield fills the top view: drawing the plane too costs a fill
+                m.geom_rgba[self._planes, 3] = 0.0
             self.decor_z = self.z_water + a                      # lines and funnel above the crests
         else:
             if self.sea_geom >= 0:
                 m.geom_rgba[self.sea_geom, 3] = 0.0
             m.geom_pos[self._planes, 2] = self._plane_z
+            m.geom_rgba[self._planes, 3] = self._plane_alpha
             self.decor_z = self.z_water
 
     def update_sea(self, spec: FrameSpec) -> None:
