@@ -324,9 +324,11 @@ class FrameRenderer:
             self.decor_z = self.z_water
 
     def update_sea(self, spec: FrameSpec) -> None:
-        """SEA.md §6: re-centre the hfield on the hull in whole cells (``geom_pos``), size it to the view
-        and fill ``hfield_data`` with the elevation at the simulated time ``spec.t`` of the drawn state.
-        The upload to the GL context happens in :meth:`render_scene`."""
+        """SEA.md §6: re-centre the hfield in whole cells (``geom_pos``; on the top view's centre, which
+        always holds the hull, else on the hull), size it to the view and fill ``hfield_data`` with the
+        elevation at the simulated time ``spec.t`` of the drawn state. Whole cells: the nodes sit on
+        the fixed world lattice of the cell size, so the waves do not swim as the camera moves. The
+        upload to the GL context happens in :meth:`render_scene`."""
         from .world import SEA_BASE_EXTENT, SEA_NODES, sea_extent
 
         env = self.world.environment
@@ -334,8 +336,8 @@ class FrameRenderer:
         x, y = spec.pose[0], spec.pose[1]
         if self.camera_name == "top":
             view = spec.view or TopView(x, y, 12.0)
-            half_w = view.half_height * self.width / self.height
-            extent = sea_extent(abs(view.cx - x) + half_w, abs(view.cy - y) + view.half_height)
+            extent = sea_extent(view.half_height * self.width / self.height, view.half_height)
+            x, y = view.cx, view.cy
         else:
             extent = 8.0 * SEA_BASE_EXTENT
         half = extent / 2.0

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 SEA_NODES = 101          # hfield nodes per side: SEA.md §6 suggests ~201; 101 measured 2x faster a frame (upload)
-SEA_BASE_EXTENT = 20.0   # m, the hfield's side at the closest zoom (SEA.md §6: 201 x 201 over 20 m)
+SEA_BASE_EXTENT = 20.0   # m, the hfield's smallest side (SEA.md §6: about 201 x 201 nodes over 20 m)
+SEA_EXTENT_STEP = 5.0    # m, the hfield's side is a multiple of this
 
 
 @dataclass(frozen=True)
@@ -113,10 +114,9 @@ class ResolvedWorld:
 
 
 def sea_extent(half_width: float, half_height: float) -> float:
-    """Side [m] of the hfield for a top view that shows +-half_width x +-half_height: the base 20 m
-    doubled until it covers the view (so the wave field fills the picture; 201 nodes always)."""
+    """Side [m] of the square hfield that covers a view of +-half_width x +-half_height around its
+    centre: the larger side plus 5 %, rounded up to a multiple of SEA_EXTENT_STEP (so the cell size,
+    and with it the sampled points, changes only now and then while the camera zooms), at least
+    SEA_BASE_EXTENT (101 nodes: cells of 0.2 m at the closest zoom, 0.5 m for a 46 m wide view)."""
     need = 2.0 * max(half_width, half_height) * 1.05
-    extent = SEA_BASE_EXTENT
-    while extent < need and extent < 640.0:
-        extent *= 2.0
-    return extent
+    return max(SEA_BASE_EXTENT, SEA_EXTENT_STEP * math.ceil(need / SEA_EXTENT_STEP))
