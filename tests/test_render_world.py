@@ -8,7 +8,12 @@ constant velocity (centre = center + velocity t) for the mocap bodies.
 
 from __future__ import annotations
 
-import math
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,19 +24,29 @@ from usv_mj.render import gl_backend
 from usv_mj.render.planner import TopView, plan_frames
 from usv_mj.simulation import make_environment
 
+ROOT = Path(__file__).resolve().parents[1]
 SEA = {"preset": "moderate", "current": {"speed": 0.3, "direction_deg": 30.0},
        "wind": {"speed": 5.0, "direction_deg": 90.0, "gust_sigma": 1.0}}
 
 
 def _gl_or_skip():
     try:
-        backend = gl_backend.select_backend()
+        return gl_backend.select_backend()
     except gl_backend.GLUnavailableError as exc:  # pragma: no cover - CI installs Mesa
         pytest.skip(str(exc))
-    here = gl_backend.in_process_backend()
-    if here is not None and here != backend:  # pragma: no cover - mujoco imported with another backend
-        pytest.skip(f"mujoco already runs with {here}, not {backend}")
-    return backend
+
+
+def _in_fresh_process(code: str) -> dict:
+    """Run ``code`` (which prints one JSON object last) in a new interpreter whose mujoco is bound to the
+    selected GL backend (this process may have imported mujoco with another one)."""
+    backend = _gl_or_skip()
+    env = {**os.environ, **gl_backend.backend_environment(backend)}
+    if backend == "glfw":  # pragma: no cover
+        env.pop("PYOPENGL_PLATFORM", None)
+    proc = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, env=env,
+                          cwd=str(ROOT), timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 def _record(scenario, poses, times):
@@ -41,36 +56,50 @@ def _record(scenario, poses, times):
 
 
 def test_hfield_node_under_the_hull_is_the_plants_elevation():
-    _gl_or_skip()
-    import mujoco
-
-    from usv_mj.render.replay import FrameRenderer
-    from usv_mj.render.world import SEA_NODES
-
-    sc = load_scenario(preset="paper", overrides={"duration": 20.0, "sea": SEA})
-    rec = _record(sc, [(3.13, -2.27, 0.4), (-7.91, 4.06, -1.0)], [7.3, 12.05])
-    plan = plan_frames(rec, rows=[0, 1], width=320, height=240)
-    env = make_environment(sc)
-    r = FrameRenderer(320, 240)
-    try:
+    out = _in_fresh_process("""
+        import json
+        from usv_mj.render.gl_backend import select_backend
+        select_backend(None)
+        import mujoco, numpy as np
+        from usv_mj import load_scenario
+        from usv_mj.record import RunRecord
+        from usv_mj.render.planner import plan_frames
+        from usv_mj.render.replay import FrameRenderer
+        from usv_mj.render.world import SEA_NODES
+        sea = %r
+        sc = load_scenario(preset="paper", overrides={"duration": 20.0, "sea": sea})
+        rec = RunRecord.from_arrays({"t": np.array([7.3, 12.05]), "x": np.array([3.13, -7.91]),
+                                     "y": np.array([-2.27, 4.06]), "psi": np.array([0.4, -1.0])},
+                                    metadata={"scenario": sc.to_dict()})
+        plan = plan_frames(rec, rows=[0, 1], width=320, height=240)
+        r = FrameRenderer(320, 240)
+        rows = []
         for spec in plan.frames:
             frame = r.render(spec)
-            assert frame.std() > 5.0
             nx, ny, nz = r.sea_node_under_hull()
             cell = 2.0 * r.model.hfield_size[r.sea_hfield, 0] / (SEA_NODES - 1)
-            assert abs(nx - spec.pose[0]) <= cell / 2 + 1e-9 and abs(ny - spec.pose[1]) <= cell / 2 + 1e-9
-            want = env.elevation(nx, ny, spec.t)
-            assert abs(want) > 1e-3                              # a real wave, not the calm level
-            assert nz == pytest.approx(want, abs=1e-5)
-            # MuJoCo's own reading of the hfield: a ray straight down onto the node
-            groups = np.array([1, 0, 0, 0, 0, 0], np.uint8)
             geomid = np.array([-1], np.int32)
-            dist = mujoco.mj_ray(r.model, r.data, np.array([nx, ny, 5.0]), np.array([0.0, 0.0, -1.0]), groups, 1,
-                                 -1, geomid)
-            assert geomid[0] == r.sea_geom
-            assert 5.0 - dist == pytest.approx(want, abs=1e-5)
-    finally:
+            dist = mujoco.mj_ray(r.model, r.data, np.array([nx, ny, 5.0]), np.array([0.0, 0.0, -1.0]),
+                                 np.array([1, 0, 0, 0, 0, 0], np.uint8), 1, -1, geomid)
+            rows.append({"t": spec.t, "pose": list(spec.pose), "node": [nx, ny, nz], "cell": cell,
+                         "ray_z": 5.0 - dist, "ray_geom": int(geomid[0]), "sea_geom": r.sea_geom,
+                         "std": float(frame.std())})
         r.close()
+        print(json.dumps({"rows": rows}))
+    """ % (SEA,))
+    sc = load_scenario(preset="paper", overrides={"duration": 20.0, "sea": SEA})
+    env = make_environment(sc)            # the plant's environment, built here independently
+    assert len(out["rows"]) == 2
+    for row in out["rows"]:
+        nx, ny, nz = row["node"]
+        assert row["std"] > 5.0
+        assert abs(nx - row["pose"][0]) <= row["cell"] / 2 + 1e-9 and abs(ny - row["pose"][1]) <= row["cell"] / 2 + 1e-9
+        want = env.elevation(nx, ny, row["t"])
+        assert abs(want) > 1e-3                              # a real wave, not the calm level
+        assert nz == pytest.approx(want, abs=1e-5)
+        # MuJoCo's own reading of the hfield: a ray straight down onto the node
+        assert row["ray_geom"] == row["sea_geom"]
+        assert row["ray_z"] == pytest.approx(want, abs=1e-5)
 
 
 def test_a_sea_frame_shows_moving_waves_and_differs_from_calm_water():
@@ -96,27 +125,39 @@ def test_a_sea_frame_shows_moving_waves_and_differs_from_calm_water():
 
 
 def test_moving_obstacles_follow_their_velocity_in_the_video():
-    _gl_or_skip()
-    from usv_mj.obstacles.compose import compose_scene, export_scene, obstacle_geom_name
-    from usv_mj.render.replay import FrameRenderer
-
-    sc = load_scenario(preset="paper", overrides={"duration": 20.0, "obstacles": [
-        {"kind": "circle", "center": [6.0, 3.0], "radius": 0.8, "name": "buoy"},
-        {"kind": "box", "center": [2.0, -6.0], "size": [3.0, 1.2], "velocity": [0.5, 0.25], "name": "boat"}]})
+    obstacles = [{"kind": "circle", "center": [6.0, 3.0], "radius": 0.8, "name": "buoy"},
+                 {"kind": "box", "center": [2.0, -6.0], "size": [3.0, 1.2], "velocity": [0.5, 0.25], "name": "boat"}]
+    sc = load_scenario(preset="paper", overrides={"duration": 20.0, "obstacles": obstacles})
     rec = _record(sc, [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)], [0.0, 4.0])
     plan = plan_frames(rec, rows=[0, 1], width=320, height=240)
     for spec in plan.frames:    # the buoy (6, 3), r = 0.8, is within 8 m of the hull: the top view shows it
         v = spec.view
         assert abs(6.0 - v.cx) + 0.8 < v.half_height * 320 / 240 and abs(3.0 - v.cy) + 0.8 < v.half_height
-    r = FrameRenderer(320, 240, model_path=export_scene(compose_scene(sc.obstacles)))
-    try:
-        boat = sc.obstacles[1]
-        mocap = r.model.body_mocapid[r.model.body(f"{obstacle_geom_name(boat)}_body").id]
-        frames = []
+    out = _in_fresh_process("""
+        import json
+        from usv_mj.render.gl_backend import select_backend
+        select_backend(None)
+        import numpy as np
+        from usv_mj import load_scenario
+        from usv_mj.record import RunRecord
+        from usv_mj.obstacles.compose import compose_scene, export_scene, obstacle_geom_name
+        from usv_mj.render.planner import plan_frames
+        from usv_mj.render.replay import FrameRenderer
+        sc = load_scenario(preset="paper", overrides={"duration": 20.0, "obstacles": %r})
+        rec = RunRecord.from_arrays({"t": np.array([0.0, 4.0]), "x": np.array([0.0, 1.0]), "y": np.zeros(2),
+                                     "psi": np.zeros(2)}, metadata={"scenario": sc.to_dict()})
+        plan = plan_frames(rec, rows=[0, 1], width=320, height=240)
+        r = FrameRenderer(320, 240, model_path=export_scene(compose_scene(sc.obstacles)))
+        mocap = r.model.body_mocapid[r.model.body(obstacle_geom_name(sc.obstacles[1]) + "_body").id]
+        rows = []
         for spec in plan.frames:
-            frames.append(r.render(spec))
-            want = (2.0 + 0.5 * spec.t, -6.0 + 0.25 * spec.t)
-            np.testing.assert_allclose(r.data.mocap_pos[mocap, :2], want, rtol=0, atol=1e-12)
-        assert not math.isnan(frames[1].mean())
-    finally:
+            frame = r.render(spec)
+            rows.append({"t": spec.t, "mocap": r.data.mocap_pos[mocap, :2].tolist(), "std": float(frame.std())})
         r.close()
+        print(json.dumps({"rows": rows}))
+    """ % (obstacles,))
+    assert [row["t"] for row in out["rows"]] == [0.0, 4.0]
+    for row in out["rows"]:
+        want = (2.0 + 0.5 * row["t"], -6.0 + 0.25 * row["t"])
+        np.testing.assert_allclose(row["mocap"], want, rtol=0, atol=1e-12)
+        assert row["std"] > 5.0
