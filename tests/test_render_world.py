@@ -161,3 +161,26 @@ def test_moving_obstacles_follow_their_velocity_in_the_video():
         want = (2.0 + 0.5 * row["t"], -6.0 + 0.25 * row["t"])
         np.testing.assert_allclose(row["mocap"], want, rtol=0, atol=1e-12)
         assert row["std"] > 5.0
+
+
+def test_figure_and_scene_take_obstacles_without_a_boundary():
+    """Moving obstacles have no static-plan inflation (None in the summary): nothing drawn, no error."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from usv_mj.obstacles.display import draw_obstacles, scene_entities
+    from usv_mj.obstacles.spec import ObstacleSpec
+
+    obstacles = (ObstacleSpec("circle", (6.0, 3.0), 0.8, name="buoy"),
+                 ObstacleSpec("box", (2.0, -6.0), 0.0, (3.0, 1.2), 0.0, (0.5, 0.25), name="boat"))
+    fig, ax = plt.subplots()
+    try:
+        draw_obstacles(ax, obstacles, inflation=[1.5, None])
+        assert len([ln for ln in ax.lines if ln.get_linestyle() == "--"]) == 1
+    finally:
+        plt.close(fig)
+    entities = scene_entities(obstacles, 2.0, {"sec": 2, "nsec": 0}, [float("nan"), None])
+    assert [len(e["lines"]) for e in entities] == [0, 0]
+    assert entities[1]["cubes"][0]["pose"]["position"]["x"] == pytest.approx(3.0)   # 2 + 0.5 x 2 s

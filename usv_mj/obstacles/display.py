@@ -23,6 +23,15 @@ import numpy as np
 from .compose import OBSTACLE_COLORS, OBSTACLE_HALF_HEIGHT
 
 
+def inflation_of(inflation, i: int) -> float:
+    """The safety-boundary distance [m] of obstacle i from a per-obstacle list (None, NaN or a missing
+    entry: 0, nothing drawn; e.g. moving obstacles, whose boundary the static plan does not give)."""
+    if inflation is None or i >= len(inflation) or inflation[i] is None:
+        return 0.0
+    v = float(inflation[i])
+    return v if math.isfinite(v) else 0.0
+
+
 def boundary_points(obstacle, inflation: float, t: float = 0.0, n: int = 64) -> np.ndarray:
     """Closed outline [m] of the obstacle grown by ``inflation`` at time t, shape (k, 2)."""
     grown = obstacle.shape(t).buffer(inflation, quad_segs=max(n // 4, 2))
@@ -38,8 +47,9 @@ def draw_obstacles(ax, obstacles, inflation=None, t: float = 0.0, label: bool = 
         outline = np.asarray(o.shape(t).exterior.coords)
         ax.add_patch(PolygonPatch(outline, closed=True, facecolor=color[:3], edgecolor="k", linewidth=0.6,
                                   alpha=0.85, zorder=3))
-        if inflation is not None and i < len(inflation) and np.isfinite(inflation[i]) and inflation[i] > 0:
-            b = boundary_points(o, float(inflation[i]), t)
+        grow = inflation_of(inflation, i)
+        if grow > 0:
+            b = boundary_points(o, grow, t)
             ax.plot(b[:, 0], b[:, 1], "--", color=(0.85, 0.65, 0.0), linewidth=0.8, zorder=2,
                     label="inflated boundary" if label and i == 0 else None)
         if label:
@@ -70,8 +80,9 @@ def scene_entities(obstacles, t: float, stamp: dict, inflation=None) -> list[dic
             d = 2 * o.radius
             cylinders.append({"pose": _pose(cx, cy, 0.0), "size": {"x": d, "y": d, "z": 2 * OBSTACLE_HALF_HEIGHT},
                               "bottom_scale": 1.0, "top_scale": 1.0, "color": color})
-        if inflation is not None and i < len(inflation) and np.isfinite(inflation[i]) and inflation[i] > 0:
-            pts = boundary_points(o, float(inflation[i]), t)[:-1]
+        grow = inflation_of(inflation, i)
+        if grow > 0:
+            pts = boundary_points(o, grow, t)[:-1]
             lines.append({"type": 1, "pose": _pose(0.0, 0.0, 0.0), "thickness": 0.05, "scale_invariant": False,
                           "points": [{"x": float(px), "y": float(py), "z": 0.02} for px, py in pts],
                           "color": _color((1.0, 0.8, 0.1, 0.9)), "colors": [], "indices": []})
