@@ -211,7 +211,7 @@ def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
     diag[D_W_U_NORM] = math.sqrt(nu_acc)
     diag[D_W_V_NORM] = math.sqrt(nv_acc)
     diag[D_W_R_NORM] = math.sqrt(nr_acc)
-    diag[D_S2] = s2_new
+    diag[D_S2] = s2v  # the s2 this step's law used, like every other field of the row
     diag[D_S2_CLAMPED] = clamped
     return tau_u, tau_r
 

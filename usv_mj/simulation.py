@@ -290,7 +290,7 @@ def detect_events(record: RunRecord, lo: int, hi: int) -> list[Event]:
     clamp = data[lo:hi, COL["s2_clamped"]] > 0.5
     prev = bool(lo > 0 and data[lo - 1, COL["s2_clamped"]] > 0.5)
     for i in np.flatnonzero(clamp & ~np.concatenate(([prev], clamp[:-1]))):
-        events.append(Event(float(t[i]), "s2_clamp", f"s2 = tanh(gamma_2) reached its clamp "
+        events.append(Event(float(t[i]), "s2_clamp", f"s2 = tanh(gamma_2) was clamped at its limit after "
                             f"({data[lo + i, COL['s2']]:.9f})", {"s2": float(data[lo + i, COL["s2"]])}))
     return events
 
