@@ -5,8 +5,10 @@
 - :func:`scene_entities`: ``foxglove.SceneEntity`` dicts (the layout of
   :func:`usv_mj.runlog.writer._scene`): a cube per box, a cylinder per circle, a LINE_LOOP per
   inflated boundary, in frame "world", for a ``foxglove.SceneUpdate`` on ``P/scene/obstacles``.
-- :func:`obstacles_message`: the ``/usv/obstacles`` message of one logged row (the obstacles'
-  centres, clearance and contact force); see :meth:`usv_mj.obstacles.sink.ObstacleLog.frame`.
+- :func:`obstacles_message`: everything about the obstacles at one logged row as plain data
+  (:meth:`usv_mj.obstacles.sink.ObstacleLog.frame`). The ``/usv/obstacles`` MCAP topic itself is
+  laid out in bulk by :mod:`usv_mj.runlog.extra_topics` (t; per obstacle name, clearance_m,
+  normal_force_N, center {x, y}; the fixed shapes go in the run's metadata).
 
 The MuJoCo video needs nothing from here: the composed model (:func:`usv_mj.obstacles.compose.compose_scene`)
 already contains the obstacle geoms (group 0), moving ones as mocap bodies (place them per frame
