@@ -80,6 +80,37 @@ def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | Non
             "max_heading_rad": float(dpsi), "ok": bool(dpos < 0.01 and dpsi < 0.01)}
 
 
+class _VideoJob:
+    """render_run in a thread (it only coordinates the worker processes); result() re-raises."""
+
+    def __init__(self, fn):
+        import threading
+
+        self._value, self._error = None, None
+        self._thread = threading.Thread(target=self._run, args=(fn,), name="usv-mj-video", daemon=True)
+        self._thread.start()
+
+    def _run(self, fn):
+        try:
+            self._value = fn()
+        except BaseException as exc:  # handed to the caller in result()
+            self._error = exc
+
+    def result(self):
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+
+def _start_video(pool, record: RunRecord, path: Path, render_opts: dict) -> _VideoJob | None:
+    if len(record) < 2:
+        return None
+    from .render import render_run
+
+    return _VideoJob(lambda: render_run(record, path, progress=False, pool=pool, **render_opts))
+
+
 def _simulate(scenario: Scenario, plant_kind: str, controller_kind: str | None, sinks, progress) -> RunRecord:
     """One closed-loop run; scenarios with obstacles go through the obstacle runner (clearance,
     contacts and guidance as loop hooks)."""
@@ -174,6 +205,9 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
             record = _simulate(scenario, plant_kind, None, sink_main, cb)
         finally:
             close()
+        # The video of the main run is drawn by the render workers while this process simulates the
+        # baseline and the half-step check and draws the figures (the job then uses both cores).
+        video_job = _start_video(pool, record, out / "video.mp4", render_opts) if pool is not None else None
         base_rec = None
         if run_baseline and record.status != "interrupted":
             cb, close = progress_bar(scenario.duration, "PI baseline", progress, dt)
@@ -181,31 +215,27 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
                 base_rec = _simulate(scenario, plant_kind, "pi", sink_base, cb)
             finally:
                 close()
-        render_stats = None
-        if pool is not None and len(record) > 1:
-            from .render import render_run
-
-            render_stats = render_run(record, out / "video.mp4", progress=progress, pool=pool, **render_opts)
+        summary = summarize(record)
+        base_summary = summarize(base_rec) if base_rec is not None else None
+        check = step_size_check(scenario, record, plant_kind) if step_check and record.status == "completed" else None
+        summary_out = dict(summary)
+        if base_summary:
+            summary_out["baseline"] = {k: base_summary[k] for k in (
+                "status", "errors_at", "max_abs_error_after_20s", "funnel_violations", "first_violation_s",
+                "quantizer_switches")}
+        if check:
+            summary_out["step_check"] = check
+        files["figures"] = draw_figures(record, out / "figures", base_rec, obstacles=scenario.obstacles)
+        extra_sections = []
+        if not scenario.sea.calm:
+            extra_sections.append(_sea_outputs(scenario, record, summary, summary_out, out, plant_kind, files))
+        files["report"] = write_report(out / "report.md", summary, base_summary, check, extra_sections)
+        render_stats = video_job.result() if video_job is not None else None
+        if render_stats is not None:
             files["video"] = out / "video.mp4"
             files["still"] = Path(render_stats["png"])
-    summary = summarize(record)
-    base_summary = summarize(base_rec) if base_rec is not None else None
-    check = step_size_check(scenario, record, plant_kind) if step_check and record.status == "completed" else None
-    summary_out = dict(summary)
-    if base_summary:
-        summary_out["baseline"] = {k: base_summary[k] for k in (
-            "status", "errors_at", "max_abs_error_after_20s", "funnel_violations", "first_violation_s",
-            "quantizer_switches")}
-    if check:
-        summary_out["step_check"] = check
-    files["figures"] = draw_figures(record, out / "figures", base_rec, obstacles=scenario.obstacles)
-    extra_sections = []
-    if not scenario.sea.calm:
-        extra_sections.append(_sea_outputs(scenario, record, summary, summary_out, out, plant_kind, files))
-    files["report"] = write_report(out / "report.md", summary, base_summary, check, extra_sections)
-    if render_stats is not None:
-        summary_out["render"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in render_stats.items()
-                                 if isinstance(v, (int, float, str, Path))}
+            summary_out["render"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in render_stats.items()
+                                     if isinstance(v, (int, float, str, Path))}
     files["summary"] = out / "summary.json"
     _write_json(files["summary"], summary_out)
     return JobResult(out, record, summary_out, base_rec, base_summary, check, files, render_stats)
