@@ -5,4 +5,4 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-exec usv-mj run "$@"
+exec "${PYTHON:-python3}" -m usv_mj.cli run "$@"

@@ -5,4 +5,4 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 export MPLBACKEND=Agg
-exec python3 -m pytest "$@"
+exec "${PYTHON:-python3}" -m pytest "$@"
