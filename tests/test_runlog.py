@@ -434,7 +434,7 @@ def test_inspect_command(logged, tmp_path, capsys):
     path, main, _ = logged
     code, out, _ = _inspect(path, capsys)
     assert code == 0
-    assert "complete" in out and f"/usv/state" in out and str(len(main)) in out
+    assert "complete" in out and "/usv/state" in out and str(len(main)) in out
     assert "run main" in out and "status completed" in out and "run baseline" in out
     code, out, _ = _inspect(path, capsys, "--json")
     assert code == 0 and json.loads(out)["topics"]["/usv/state"]["count"] == len(main)

@@ -6,7 +6,6 @@ The Dask tests start real clusters (a LocalCluster, and a `dask scheduler` + `da
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import socket
@@ -20,7 +19,7 @@ import pytest
 
 from usv_mj import load_scenario, simulate, summarize
 from usv_mj.sweep import SweepError, add_arguments, load_sweep, parse_path, plan_sweep, run_command
-from usv_mj.sweep.capability import DirectionResult, run_capability, search_capability
+from usv_mj.sweep.capability import run_capability, search_capability
 from usv_mj.sweep.report import wilson_interval
 from usv_mj.sweep.runner import TIMING_COLUMNS, read_results, run_sweep
 from usv_mj.sweep.spec import TEST_HOOKS_ENV
@@ -184,7 +183,7 @@ def _free_port():
 
 def test_local_default_and_two_worker_cluster_give_identical_rows(tmp_path):
     plan = load_sweep(_write(tmp_path, SMALL))
-    local = run_sweep(plan, tmp_path / "local", progress=False, echo=None)  # LocalCluster, all cores
+    run_sweep(plan, tmp_path / "local", progress=False, echo=None)  # LocalCluster, all cores
     port = _free_port()
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     address = f"tcp://127.0.0.1:{port}"
@@ -200,7 +199,7 @@ def test_local_default_and_two_worker_cluster_give_identical_rows(tmp_path):
 
         with Client(address, timeout="30s") as client:
             client.wait_for_workers(2, timeout=60)
-        remote = run_sweep(plan, tmp_path / "remote", scheduler=address, progress=False, echo=None)
+        run_sweep(plan, tmp_path / "remote", scheduler=address, progress=False, echo=None)
     finally:
         for p in reversed(procs):
             os.killpg(p.pid, signal.SIGTERM)

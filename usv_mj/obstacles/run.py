@@ -24,7 +24,7 @@ from usv_mj.simulation import make_controller, simulate
 
 from .clearance import GeometricClearance, make_clearance_monitor
 from .compose import HULL_RADIUS, ContactParams, HarbourPlant
-from .planner import Guidance, GuidedReference, Plan, SafetyEnvelope, plan_reference
+from .planner import Guidance, Plan, SafetyEnvelope, plan_reference
 from .sink import ObstacleLog
 from .spec import ObstacleScenario
 

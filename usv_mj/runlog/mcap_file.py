@@ -61,7 +61,6 @@ def encode_row_messages(text, special, n_rows, log_time, seq0, topic_start, keys
     ``closing`` ('}'). ``offsets[i, j]`` receives the record offset of row i, topic j. Returns the
     number of bytes written. Rows are laid out row-major, so log times do not decrease.
     """
-    n_fields = topic_start[-1]
     n_topics = channel_ids.shape[0]
     pos = 0
     p = 1                                             # after '['

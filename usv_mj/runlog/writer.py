@@ -35,7 +35,6 @@ does not kill the file with the run. A killed process leaves a file without summ
 from __future__ import annotations
 
 import atexit
-import json
 import math
 import mimetypes
 import multiprocessing
