@@ -380,16 +380,6 @@ def test_capability_disturbance_bracket_checked_by_direct_runs(tmp_path, client)
     assert (tmp_path / "cap" / "capability.png").stat().st_size > 10_000
 
 
-def _sea_known() -> bool:
-    from usv_mj.scenario import ScenarioError
-
-    try:
-        load_scenario(preset="paper", overrides={"sea": {"current": {"speed": 0.1, "direction_deg": 0.0}}})
-    except ScenarioError:
-        return False
-    return True
-
-
 def test_capability_sea_loads_exit_2_until_the_scenario_has_them(tmp_path, capsys):
     import argparse
 
@@ -400,16 +390,9 @@ def test_capability_sea_loads_exit_2_until_the_scenario_has_them(tmp_path, capsy
     rc = capability_command(parser.parse_args(["--load", "disturbance", "--min", "1", "--max", "0.5",
                                                "--out", str(tmp_path / "c")]))
     assert rc == 2 and "need 0 <= --min < --max" in capsys.readouterr().err
-    if _sea_known():
-        pytest.skip("the scenario accepts the sea-state keys: --load current is a real search now")
-    rc = capability_command(parser.parse_args(["--load", "current", "--out", str(tmp_path / "c")]))
-    assert rc == 2
-    assert "only --load disturbance works" in capsys.readouterr().err
 
 
 def test_capability_current_per_direction_checked_by_direct_runs(tmp_path, client):
-    if not _sea_known():
-        pytest.skip("the scenario format has no [sea.current] in this checkout")
     results = run_capability("current", duration=10.0, plant="analytic", step=90.0, load_max=10.0, tol=0.25,
                              out=tmp_path / "cur", client=client, progress=False, echo=None)
     assert [r.direction_deg for r in results] == [0.0, 90.0, 180.0, 270.0]

@@ -306,14 +306,7 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
     probe = {load.path: hi}
     if load.direction_path:
         probe[load.direction_path] = 0.0
-    try:
-        apply_values(scenario, probe, source)
-    except SweepError as exc:
-        if load.direction_path and "unknown key 'sea'" in str(exc):
-            raise SweepError(f"--load {load.name} needs the sea-state keys ([sea.{load.path.split('.')[1]}] of the "
-                             f"sea-state issue) in the scenario format, and this checkout's usv_mj.scenario does not "
-                             f"accept them yet; only --load disturbance works until that lands") from None
-        raise
+    apply_values(scenario, probe, source)  # a bad base scenario or range stops here with its message
     directions = [None] if load.direction_path is None else [
         round(i * step, 9) for i in range(int(math.floor(360.0 / step + 1e-9)))]
     try:
