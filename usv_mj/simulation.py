@@ -196,8 +196,6 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
                 record.status = "diverged"
                 record.stop_reason = record.events[-1].message
                 break
-        else:  # pragma: no cover
-            pass
         if record.status == "running":
             record.status = "completed"
     except KeyboardInterrupt:
