@@ -540,3 +540,25 @@ def test_standard_library_json_fallback_round_trips(tmp_path, scenario, monkeypa
     assert got.events[0].values == {"v": None, "w": 2.5}
     with open(path, "rb") as f:
         assert sum(1 for _ in make_reader(f, validate_crcs=True).iter_messages(topics=["/usv/state"])) == 1200
+
+
+def test_template_time_stamps_are_the_log_time_in_integer_seconds_and_nanoseconds():
+    """The bulk layout writes a Foxglove time {sec, nsec} from each message's log time: every digit
+    count, the second boundary and the largest u64-safe stamps, parsed back by the json module."""
+    from usv_mj.runlog.mcap_file import MESSAGE_HEADER, template_layout
+
+    layout = template_layout(3, {"stamp": {"sec": "$sec", "nsec": "$nsec"}, "v": "$v"}, ("$sec", "$nsec", "$v"))
+    ns = np.array([0, 1, 9, 10, 999_999_999, 1_000_000_000, 1_999_999_999, 12_345_678_901, 2**62 + 12345],
+                  np.int64)
+    block = np.zeros((len(ns), 3))
+    block[:, 2] = np.arange(len(ns)) * 0.1
+    records, offsets = layout.encode(block, ns, np.arange(100, 100 + len(ns)))
+    for i, t in enumerate(ns):
+        start = int(offsets[i, 0])
+        length = int.from_bytes(records[start + 1:start + 9].tobytes(), "little")
+        seq = int.from_bytes(records[start + 11:start + 15].tobytes(), "little")
+        msg = json.loads(records[start + MESSAGE_HEADER:start + 9 + length].tobytes())
+        assert msg == {"stamp": {"sec": int(t) // 10**9, "nsec": int(t) % 10**9}, "v": i * 0.1}
+        assert seq == 100 + i
+    with pytest.raises(ValueError, match="exactly once"):
+        template_layout(1, {"a": "$x", "b": "$x"}, ("$x",))

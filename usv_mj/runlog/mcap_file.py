@@ -49,14 +49,30 @@ def _put_u64(out, pos, value):
 
 
 @njit(cache=True)
-def encode_row_messages(text, special, n_rows, log_time, seq0, topic_start, keys, key_start, closing, channel_ids,
+def _put_uint(out, pos, value):
+    """Decimal digits of a non-negative integer at out[pos:]; returns the position after them."""
+    n = 1
+    probe = value
+    while probe >= 10:
+        probe //= 10
+        n += 1
+    for i in range(n - 1, -1, -1):
+        out[pos + i] = 48 + value % 10
+        value //= 10
+    return pos + n
+
+
+@njit(cache=True)
+def encode_row_messages(text, special, n_rows, log_time, seq, topic_start, keys, key_start, closing, channel_ids,
                         inf_tok, ninf_tok, out, offsets):
     """Lay out MCAP message records for ``n_rows`` rows x len(channel_ids) topics into ``out``.
 
     ``text``: the orjson dump (uint8) of the (n_rows, n_fields) float64 block whose columns are the
     topics' fields one topic after the other, flattened row-major: "[v,v,...]", so the tokens come in
     the order they are written. ``special``: int8 per value, 1 = +inf, 2 = -inf (written 1e999 /
-    -1e999), 0 = orjson's token. Topic j has fields ``topic_start[j]:topic_start[j+1]``; field q is
+    -1e999), 3 / 4 = the row's log time in whole seconds / the nanoseconds past them (integers, for
+    Foxglove time stamps; the value's own token is skipped), 0 = orjson's token. ``seq[i]``: the
+    sequence number of row i's messages. Topic j has fields ``topic_start[j]:topic_start[j+1]``; field q is
     preceded by ``keys[key_start[q]:key_start[q+1]]`` ('{"t":' or ',"x":'), a message ends with
     ``closing`` ('}'). ``offsets[i, j]`` receives the record offset of row i, topic j. Returns the
     number of bytes written. Rows are laid out row-major, so log times do not decrease.
@@ -67,7 +83,7 @@ def encode_row_messages(text, special, n_rows, log_time, seq0, topic_start, keys
     v = 0
     for i in range(n_rows):
         lt = log_time[i]
-        seq = seq0 + i
+        sq = seq[i]
         for j in range(n_topics):
             start = pos
             out[pos] = 5
@@ -76,7 +92,7 @@ def encode_row_messages(text, special, n_rows, log_time, seq0, topic_start, keys
             out[pos] = ch & 0xFF
             out[pos + 1] = (ch >> 8) & 0xFF
             for b in range(4):
-                out[pos + 2 + b] = (seq >> (8 * b)) & 0xFF
+                out[pos + 2 + b] = (sq >> (8 * b)) & 0xFF
             _put_u64(out, pos + 6, lt)
             _put_u64(out, pos + 14, lt)
             pos += 22
@@ -95,10 +111,15 @@ def encode_row_messages(text, special, n_rows, log_time, seq0, topic_start, keys
                 else:
                     while text[p] != 44 and text[p] != 93:
                         p += 1
-                    tok = inf_tok if s == 1 else ninf_tok
-                    for b in range(tok.shape[0]):
-                        out[pos] = tok[b]
-                        pos += 1
+                    if s == 3:
+                        pos = _put_uint(out, pos, lt // 1_000_000_000)
+                    elif s == 4:
+                        pos = _put_uint(out, pos, lt % 1_000_000_000)
+                    else:
+                        tok = inf_tok if s == 1 else ninf_tok
+                        for b in range(tok.shape[0]):
+                            out[pos] = tok[b]
+                            pos += 1
                 p += 1
                 v += 1
             for b in range(closing.shape[0]):
@@ -131,8 +152,13 @@ class RowLayout:
         self.closing = np.frombuffer(b"}", np.uint8)
         self.bytes_per_row = len(topics) * (MESSAGE_HEADER + 1) + len(keys) + len(cols) * MAX_TOKEN
 
-    def encode(self, block: np.ndarray, log_time: np.ndarray, seq0: int) -> tuple[np.ndarray, np.ndarray]:
-        """Message records (uint8 array) and record offsets (rows x topics) for a float64 block."""
+    time_holes = np.zeros(0, np.int64)    # columns written as log-time seconds (3) / nanoseconds (4)
+    time_codes = np.zeros(0, np.int8)
+
+    def encode(self, block: np.ndarray, log_time: np.ndarray, seq) -> tuple[np.ndarray, np.ndarray]:
+        """Message records (uint8 array) and record offsets (rows x topics) for a float64 block.
+
+        ``seq``: the first row's sequence number (the rows count up from it) or one per row."""
         n = block.shape[0]
         flat = np.ascontiguousarray(np.asarray(block, dtype=np.float64)[:, self.topic_cols]).reshape(-1)
         text = np.frombuffer(json_codec.dumps_floats(flat), np.uint8)
@@ -140,9 +166,12 @@ class RowLayout:
         inf = np.isinf(flat)
         if inf.any():
             special[inf] = np.where(flat[inf] > 0, 1, 2)
+        if self.time_holes.size:
+            special.reshape(n, -1)[:, self.time_holes] = self.time_codes
+        seq = (np.arange(n, dtype=np.int64) + int(seq)) if np.ndim(seq) == 0 else np.asarray(seq, np.int64)
         out = np.empty(n * self.bytes_per_row + 16, np.uint8)
         offsets = np.empty((n, len(self.channel_ids)), np.int64)
-        size = encode_row_messages(text, special, n, log_time.astype(np.int64), int(seq0), self.topic_start,
+        size = encode_row_messages(text, special, n, log_time.astype(np.int64), seq, self.topic_start,
                                    self.keys, self.key_start, self.closing, self.channel_ids, _INF, _NINF, out,
                                    offsets)
         return out[:size], offsets
@@ -157,8 +186,14 @@ class TemplateLayout(RowLayout):
     conventions (shortest round-trip decimal, null = NaN, +-1e999 = +-inf) as the row topics.
     """
 
-    def __init__(self, channel_id: int, pieces: list[bytes], closing: bytes):
+    def __init__(self, channel_id: int, pieces: list[bytes], closing: bytes, sec_hole: int | None = None,
+                 nsec_hole: int | None = None):
+        """``sec_hole`` / ``nsec_hole``: the values written as the message's log time in whole seconds /
+        the nanoseconds past them (integers, as a Foxglove ``time`` wants; their block column is ignored)."""
         self.n_cols = len(pieces)
+        holes = [(q, code) for q, code in ((sec_hole, 3), (nsec_hole, 4)) if q is not None]
+        self.time_holes = np.array([q for q, _ in holes], np.int64)
+        self.time_codes = np.array([c for _, c in holes], np.int8)
         self.channel_ids = np.array([channel_id], np.int64)
         self.topic_cols = np.arange(len(pieces), dtype=np.int64)
         self.topic_start = np.array([0, len(pieces)], np.int64)
@@ -167,6 +202,24 @@ class TemplateLayout(RowLayout):
         self.key_start = np.concatenate([[0], np.cumsum([len(p) for p in pieces])]).astype(np.int64)
         self.closing = np.frombuffer(closing, np.uint8)
         self.bytes_per_row = MESSAGE_HEADER + len(closing) + len(keys) + len(pieces) * MAX_TOKEN
+
+
+def template_layout(channel_id: int, example: dict, holes: tuple[str, ...]) -> TemplateLayout:
+    """The :class:`TemplateLayout` of messages shaped like ``example``, whose variable values are the
+    strings ``holes`` (each once in the JSON text, in this order; "$name" keeps them apart from real
+    strings). The holes "$sec" and "$nsec" become the log-time stamp (see ``sec_hole``). The block
+    handed to ``encode`` has one column per hole, in the order of ``holes``."""
+    text = json_codec.dumps(example)
+    pieces, sec_hole, nsec_hole = [], None, None
+    for q, name in enumerate(holes):
+        token = json_codec.dumps(name)
+        head, found, text = text.partition(token)
+        if not found or token in text:
+            raise ValueError(f"hole {name!r} must appear exactly once in the template, after the holes before it")
+        pieces.append(head)
+        sec_hole = q if name == "$sec" else sec_hole
+        nsec_hole = q if name == "$nsec" else nsec_hole
+    return TemplateLayout(channel_id, pieces, text, sec_hole, nsec_hole)
 
 
 def message_record(channel_id: int, log_time: int, data: bytes, sequence: int = 0) -> bytes:

@@ -7,11 +7,12 @@ Usage (what the main job does)::
         base = simulate(scenario, controller_kind="pi", sinks=[writer.sink("baseline")])
 
 The simulation loop hands the sink a block of rows every ``block`` steps (``rows(record, lo, hi)``).
-The sink copies the block (and the events added since the last call) and passes it on; by default
-to a background process (``multiprocessing`` spawn context, fed through a bounded queue) that
-formats the JSON, lays out the MCAP chunks, compresses them (zstd) and writes them, so the second
-core does the logging while the loop runs. Memory stays bounded: at most ``queue_blocks`` blocks
-wait in the queue, and the file is written chunk by chunk (``rows_per_chunk`` rows per chunk).
+The sink copies the block into a slot of a shared-memory ring (one memcpy, no pickling) and sends
+the slot number, with the events added since the last call, to a background process
+(``multiprocessing`` spawn context) that formats the JSON, lays out the MCAP chunks, compresses them
+(zstd), writes them and frees the slot; so the second core does the logging while the loop runs.
+Memory stays bounded: the ring has ``queue_blocks`` slots of ``SLOT_ROWS`` rows (the loop waits when
+all are full), and the file is written chunk by chunk (``rows_per_chunk`` rows per chunk).
 
 What is in the file (topics: :mod:`usv_mj.runlog.topics`):
 
@@ -48,6 +49,7 @@ import time
 import traceback
 import warnings
 import weakref
+from multiprocessing import shared_memory
 from datetime import datetime, timezone
 from importlib import metadata as importlib_metadata
 from pathlib import Path
@@ -56,13 +58,14 @@ import numpy as np
 
 from ..record import COL, COLUMNS, RunRecord
 from . import json_codec
-from .mcap_file import ChunkBuffer, McapFileWriter, RowLayout
+from .mcap_file import ChunkBuffer, McapFileWriter, RowLayout, TemplateLayout, template_layout
 from .extra_topics import (ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME, OBSTACLES_SCHEMA, OBSTACLES_SCHEMA_NAME,
                            environment_block, environment_layout, obstacle_layout)
 from .topics import (EVENT_SCHEMA, FRAME_PERIOD, FRAME_TRANSFORM_SCHEMA, HULL_SIZE, PATH_SAMPLE, ROW_TOPICS,
                      SCENE_UPDATE_SCHEMA, SCHEMA_VERSION, SLOW_PERIOD, frame_for, prefix_for, row_topic_schema)
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
+SLOT_ROWS = 2048       # rows per slot of the shared-memory ring (simulate's default block is 2000)
 
 
 class RunLogError(RuntimeError):
@@ -152,6 +155,9 @@ class RunLogFile:
                                          ("hull", "scene/hull", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)):
             chans[key] = self.mcap.register_channel(f"{p}/{topic}", "json", self._schema(schema, data), {"run": run})
         extra = self._extra_topics(run, p, info)
+        extra.update(tf_hull=frame_layout(chans["tf_hull"], frame_for(run)),
+                     tf_ref=frame_layout(chans["tf_ref"], frame_for(run) + "_reference"),
+                     funnel=funnel_layout(chans["funnel"]))
         dt = float(info["control_period_s"])
         self.runs[run] = {**extra,
             "layout": RowLayout(COLUMNS, row_topics), "chans": chans, "dt": dt,
@@ -243,25 +249,38 @@ class RunLogFile:
             buf.add_message(ch, _ns(e["t"]), json_codec.dumps(e), e["seq"])
 
     def _foxglove(self, st, buf, sub, k0, log_time):
-        decim, slow, ch = st["decim"], st["slow"], st["chans"]
+        """Foxglove messages of the rows ``sub`` (record rows k0...): the hull and reference frames and
+        the funnel every FRAME_PERIOD (laid out in bulk from templates), the path, hull shape and
+        obstacles as single messages. Rows whose values are not finite get no message."""
+        decim, slow, ch, c = st["decim"], st["slow"], st["chans"], COL
         k = np.arange(k0, k0 + sub.shape[0])
-        c = COL
-        for i in np.flatnonzero(k % decim == 0):
+        pick = np.flatnonzero(k % decim == 0)
+        if pick.size:
+            rows, ks, ns = sub[pick], k[pick], log_time[pick]
+            x, y, psi = rows[:, c["x"]], rows[:, c["y"]], rows[:, c["psi"]]
+            xd, yd, psid = rows[:, c["x_d"]], rows[:, c["y_d"]], rows[:, c["psi_d"]]
+            r1, r2 = rows[:, c["rho1"]], rows[:, c["rho2"]]
+            zero = np.zeros_like(x)
+            hull_ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(psi)
+            ref_ok = np.isfinite(xd) & np.isfinite(yd) & np.isfinite(psid)
+            funnel_ok = ref_ok & np.isfinite(r1) & np.isfinite(r2)
+            with np.errstate(invalid="ignore"):
+                for layout, ok, cols in (
+                        (st["tf_hull"], hull_ok, (zero, zero, x, y, np.sin(psi / 2), np.cos(psi / 2))),
+                        (st["tf_ref"], ref_ok, (zero, zero, xd, yd, np.sin(psid / 2), np.cos(psid / 2))),
+                        (st["funnel"], funnel_ok, (zero, zero, xd - r1, yd - r2, xd + r1, yd - r2,
+                                                   xd + r1, yd + r2, xd - r1, yd + r2))):
+                    if ok.any():
+                        block = np.stack(cols, axis=1)[ok]
+                        records, offsets = layout.encode(block, ns[ok], ks[ok])
+                        buf.add_rows(records, offsets, ns[ok], layout.channel_ids)
+        for i in pick:
+            if not (k[i] % slow == 0 or (st["obs_scene"] is not None and st["any_moving"])):
+                continue
             row = sub[i]
             ns = int(log_time[i])
             stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
-            x, y, psi = row[c["x"]], row[c["y"]], row[c["psi"]]
-            if math.isfinite(x) and math.isfinite(y) and math.isfinite(psi):
-                buf.add_message(ch["tf_hull"], ns, _frame(stamp, st["frame"], x, y, psi), int(k[i]))
-            xd, yd, psid = row[c["x_d"]], row[c["y_d"]], row[c["psi_d"]]
-            if math.isfinite(xd) and math.isfinite(yd) and math.isfinite(psid):
-                buf.add_message(ch["tf_ref"], ns, _frame(stamp, st["frame"] + "_reference", xd, yd, psid), int(k[i]))
-                r1, r2 = row[c["rho1"]], row[c["rho2"]]
-                if math.isfinite(r1) and math.isfinite(r2):
-                    pts = [(xd - r1, yd - r2), (xd + r1, yd - r2), (xd + r1, yd + r2), (xd - r1, yd + r2)]
-                    buf.add_message(ch["funnel"], ns, _scene(stamp, "world", "funnel", lines=[
-                        _line(1, pts, (1.0, 0.55, 0.0, 1.0), 0.05)]), int(k[i]))
-            if st["obs_scene"] is not None and (k[i] % slow == 0 or st["any_moving"]):
+            if st["obs_scene"] is not None:
                 from ..obstacles.display import scene_entities
 
                 obstacles = st["obstacles"] if k[i] % slow == 0 else [o for o in st["obstacles"] if o.moving]
@@ -281,6 +300,25 @@ class RunLogFile:
                              "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
                     "size": {"x": HULL_SIZE[0], "y": HULL_SIZE[1], "z": HULL_SIZE[2]},
                     "color": {"r": 0.9, "g": 0.9, "b": 0.95, "a": 1.0}}]), int(k[i]))
+
+
+_STAMP_HOLES = {"sec": "$sec", "nsec": "$nsec"}
+
+
+def frame_layout(channel_id: int, child: str) -> TemplateLayout:
+    """``foxglove.FrameTransform`` world -> ``child`` in the plane; block columns: (sec, nsec: ignored),
+    x, y [m], the quaternion's z = sin(psi/2) and w = cos(psi/2)."""
+    return template_layout(channel_id, _frame(_STAMP_HOLES, child, "$x", "$y", "$qz", "$qw"),
+                           ("$sec", "$nsec", "$x", "$y", "$qz", "$qw"))
+
+
+def funnel_layout(channel_id: int) -> TemplateLayout:
+    """``foxglove.SceneUpdate`` of the funnel rectangle (LINE_LOOP, world frame); block columns:
+    (sec, nsec: ignored), then x, y of its 4 corners [m]."""
+    holes = [(f"$x{i}", f"$y{i}") for i in range(4)]
+    return template_layout(channel_id, _scene(_STAMP_HOLES, "world", "funnel", lines=[
+        _line(1, holes, (1.0, 0.55, 0.0, 1.0), 0.05)], encode=False),
+        ("$sec", "$nsec") + tuple(h for pair in holes for h in pair))
 
 
 def obstacle_table(obstacles, inflation=None) -> list:
@@ -314,33 +352,38 @@ def _ns(t) -> int:
     return int(round(t * 1e9)) if math.isfinite(t) and t > 0 else 0
 
 
-def _frame(stamp, child, x, y, psi) -> bytes:
-    return json_codec.dumps({"timestamp": stamp, "parent_frame_id": "world", "child_frame_id": child,
-                         "translation": {"x": float(x), "y": float(y), "z": 0.0},
-                         "rotation": {"x": 0.0, "y": 0.0, "z": math.sin(psi / 2), "w": math.cos(psi / 2)}})
+def _frame(stamp, child, x, y, qz, qw) -> dict:
+    return {"timestamp": stamp, "parent_frame_id": "world", "child_frame_id": child,
+            "translation": {"x": x, "y": y, "z": 0.0}, "rotation": {"x": 0.0, "y": 0.0, "z": qz, "w": qw}}
 
 
 def _line(kind, pts, rgba, thickness):
     return {"type": kind, "pose": {"position": {"x": 0.0, "y": 0.0, "z": 0.0},
                                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
             "thickness": thickness, "scale_invariant": False,
-            "points": [{"x": float(px), "y": float(py), "z": 0.0} for px, py in pts],
+            "points": [{"x": px, "y": py, "z": 0.0} for px, py in pts],
             "color": dict(zip("rgba", rgba)), "colors": [], "indices": []}
 
 
-def _scene(stamp, frame_id, entity_id, frame_locked=False, lines=(), cubes=()) -> bytes:
+def _scene(stamp, frame_id, entity_id, frame_locked=False, lines=(), cubes=(), encode=True):
     entity = {"timestamp": stamp, "frame_id": frame_id, "id": entity_id, "lifetime": {"sec": 0, "nsec": 0},
               "frame_locked": frame_locked, "metadata": [], "arrows": [], "cubes": list(cubes), "spheres": [],
               "cylinders": [], "lines": list(lines), "triangles": [], "texts": [], "models": []}
-    return json_codec.dumps({"deletions": [], "entities": [entity]})
+    message = {"deletions": [], "entities": [entity]}
+    return json_codec.dumps(message) if encode else message
 
 
 def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_level, environment, commands, reply,
-                 parent_pid):
-    """The background writer: consume commands until "close" (or until the parent process is gone)."""
+                 parent_pid, ring_name, ring_shape, free_slots):
+    """The background writer: consume commands until "close" (or until the parent process is gone).
+
+    A "rows" command names its block as ("slot", i, n): rows 0..n of slot i of the shared ring,
+    handed back (``free_slots.release()``) once the command is done with it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C stops the run, not the file
     error = None
     log = None
+    ring_shm = shared_memory.SharedMemory(name=ring_name)
+    ring = np.ndarray(ring_shape, dtype=np.float64, buffer=ring_shm.buf)
     try:
         log = RunLogFile(path, file_metadata, attachments, rows_per_chunk, compression_level, environment)
     except BaseException:
@@ -353,12 +396,24 @@ def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_l
                 cmd = ("close",)
             else:
                 continue
+        slot = cmd[3][1] if cmd[0] == "rows" else None
         if error is None:
             try:
+                if slot is not None:
+                    cmd = cmd[:3] + (ring[slot, :cmd[3][2]],) + cmd[4:]
                 log.handle(cmd)
             except BaseException:
                 error = traceback.format_exc()
+        if slot is not None:
+            cmd = None                  # no view of the slot outlives its release
+            free_slots.release()
+            continue
         if cmd[0] == "close":
+            del ring
+            try:
+                ring_shm.close()
+            except BufferError:         # a view still alive: the mapping goes with the process
+                pass
             if log is not None and not log.mcap.finished:
                 try:
                     log.mcap.finish()       # leave a valid file with everything written before the error
@@ -370,7 +425,13 @@ def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_l
                 reply.send(("error", error, stats) if error else ("ok", None, stats))
             except (OSError, EOFError):
                 pass
-            return
+            # the file is closed and the parent has its answer: skip the interpreter's teardown
+            # (about 0.25 s of unloading numba and numpy that the parent's close() would wait for)
+            reply.close()
+            for stream in (sys.stdout, sys.stderr):
+                if stream is not None:
+                    stream.flush()
+            os._exit(0)
 
 
 # --- the simulation side ------------------------------------------------------------------------
@@ -428,9 +489,16 @@ class RunLogWriter:
         self._background = background
         if background:
             ctx = multiprocessing.get_context("spawn")
-            self._queue = ctx.Queue(maxsize=max(1, queue_blocks))
+            slots = max(1, int(queue_blocks))
+            shape = (slots, SLOT_ROWS, len(COLUMNS))
+            self._ring_shm = shared_memory.SharedMemory(create=True, size=int(np.prod(shape)) * 8)
+            self._ring = np.ndarray(shape, dtype=np.float64, buffer=self._ring_shm.buf)
+            self._next_slot = 0
+            self._free_slots = ctx.Semaphore(slots)
+            self._queue = ctx.Queue()   # commands only (blocks go through the ring): bounded by the slots
             self._reply, child_reply = ctx.Pipe(duplex=False)
-            self._proc = ctx.Process(target=_worker_main, args=(*args, self._queue, child_reply, os.getpid()),
+            self._proc = ctx.Process(target=_worker_main, args=(*args, self._queue, child_reply, os.getpid(),
+                                                                self._ring_shm.name, shape, self._free_slots),
                                      name="usv_mj-runlog", daemon=True)
             self._proc.start()
             child_reply.close()
@@ -455,6 +523,25 @@ class RunLogWriter:
                 if not self._proc.is_alive():
                     raise RunLogError(f"the background writer of {self.path} stopped (exit code "
                                       f"{self._proc.exitcode})") from None
+
+    def _send_rows(self, run: str, lo: int, block: np.ndarray, events: list, obstacles):
+        """Send rows lo.. of ``block`` (the record's own array: copied here) through the ring."""
+        if not self._background:
+            self._send(("rows", run, lo, np.array(block, dtype=np.float64, copy=True), events, obstacles))
+            return
+        n = block.shape[0]
+        for a in range(0, n, SLOT_ROWS):
+            m = min(SLOT_ROWS, n - a)
+            while not self._free_slots.acquire(timeout=0.5):
+                if not self._proc.is_alive():
+                    raise RunLogError(f"the background writer of {self.path} stopped (exit code "
+                                      f"{self._proc.exitcode})")
+            slot = self._next_slot
+            self._next_slot = (slot + 1) % self._ring.shape[0]
+            self._ring[slot, :m] = block[a:a + m]
+            last = a + SLOT_ROWS >= n
+            self._send(("rows", run, lo + a, ("slot", slot, m), events if last else [],
+                        None if obstacles is None else obstacles[a:a + m]))
 
     def sink(self, run: str = "main") -> "RunLogSink":
         """The RunSink (start/rows/finish) that logs one simulated run under the run's topic prefix."""
@@ -496,6 +583,9 @@ class RunLogWriter:
             # for the queue's feeder thread to deliver it (that would hang when the worker died)
             self._queue.cancel_join_thread()
             self._queue.close()
+            self._ring = None
+            self._ring_shm.close()
+            self._ring_shm.unlink()
             self.stats = dict(status[2])
             if status[0] == "error":
                 error = status[1]
@@ -583,7 +673,7 @@ class RunLogSink:
             return
         if lo != self._rows:
             raise RunLogError(f"run {self.run!r}: rows {lo}..{hi} do not follow row {self._rows}")
-        block = np.array(record.data[lo:hi], dtype=np.float64, copy=True)
+        block = record.data[lo:hi]
         events = self._new_events(record)
         self._rows = hi
         if self.broken:
@@ -601,7 +691,7 @@ class RunLogSink:
                 clear[:have], force[:have], xy[:have] = (log.clearance[lo:lo + have], log.normal_force[lo:lo + have],
                                                          log.obstacle_xy[lo:lo + have])
                 obs = obstacle_block(block[:, COL["t"]], clear, force, xy)
-            self.writer._send(("rows", self.run, lo, block, events, obs))
+            self.writer._send_rows(self.run, lo, block, events, obs)
         except RunLogError as exc:
             # the log is lost from here on, the run is not: keep simulating, fail at close()
             self.broken = True
