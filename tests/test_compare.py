@@ -49,6 +49,19 @@ def test_compare_tolerances_and_funnels(short_compare):
     assert result["passed"] is True
 
 
+def test_compare_in_a_sea_checks_the_hull_adrift_and_the_driven_hull(tmp_path, capsys):
+    """In a sea compare adds the unpowered hull (calm tolerance) beside the sensitivity check."""
+    scenario = load_scenario(preset="paper", overrides={"duration": 4.0, "sea": {"preset": "moderate",
+                                                        "current": {"speed": 0.3}, "wind": {"speed": 5.0}}})
+    result = compare.compare_plants(scenario, str(tmp_path), progress=False)
+    ad = result["open_loop"]["adrift"]
+    assert set(result["checks"]) >= {"open_loop_adrift_position_below_1e-6_m",
+                                     "open_loop_difference_within_sea_sensitivity"}
+    assert ad["max_position_m"] < 1e-9 and ad["path_length_m"] > 0.1
+    assert result["checks"]["open_loop_adrift_position_below_1e-6_m"] is True
+    assert result["scenario"]["sea"]["waves"]["hs"] == 0.2
+
+
 def test_convergence_at_rk4_order(short_compare):
     _, result = short_compare
     ol = result["open_loop"]
