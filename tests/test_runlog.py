@@ -562,3 +562,24 @@ def test_template_time_stamps_are_the_log_time_in_integer_seconds_and_nanosecond
         assert seq == 100 + i
     with pytest.raises(ValueError, match="exactly once"):
         template_layout(1, {"a": "$x", "b": "$x"}, ("$x",))
+
+
+def test_no_shared_memory_falls_back_to_writing_in_process(tmp_path, scenario, monkeypatch):
+    """Where /dev/shm cannot hold the ring, the writer says so and writes the same file itself."""
+    from multiprocessing import shared_memory
+
+    def refuse(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(shared_memory, "SharedMemory", refuse)
+    rec = _handmade_record(3000, seed=9)
+    rec.n_rows = 3000
+    with pytest.warns(RuntimeWarning, match="no shared memory"):
+        writer = RunLogWriter(tmp_path / "fallback.mcap", scenario)
+    assert writer._background is False
+    with writer:
+        sink = writer.sink("main")
+        sink.start(rec)
+        sink.rows(rec, 0, 3000)
+        sink.finish(rec)
+    assert_same_rows(read_run(tmp_path / "fallback.mcap").record, rec, 3000)

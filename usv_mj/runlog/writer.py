@@ -486,12 +486,19 @@ class RunLogWriter:
                 raise TypeError(f"attachment {name!r} must be bytes or str, got {type(data).__name__}")
             att.append((str(name), mimetypes.guess_type(str(name))[0] or "application/octet-stream", bytes(data)))
         args = (str(self.path), file_metadata, att, rows_per_chunk, compression_level, environment)
+        slots = max(1, int(queue_blocks))
+        shape = (slots, SLOT_ROWS, len(COLUMNS))
+        if background:
+            try:
+                self._ring_shm = shared_memory.SharedMemory(create=True, size=int(np.prod(shape)) * 8)
+            except OSError as exc:      # e.g. a container with a tiny /dev/shm: same file, slower loop
+                warnings.warn(f"run log {self.path}: no shared memory for the background writer "
+                              f"({np.prod(shape) * 8 / 1e6:.0f} MB: {exc}); writing in this process",
+                              RuntimeWarning, stacklevel=2)
+                background = False
         self._background = background
         if background:
             ctx = multiprocessing.get_context("spawn")
-            slots = max(1, int(queue_blocks))
-            shape = (slots, SLOT_ROWS, len(COLUMNS))
-            self._ring_shm = shared_memory.SharedMemory(create=True, size=int(np.prod(shape)) * 8)
             self._ring = np.ndarray(shape, dtype=np.float64, buffer=self._ring_shm.buf)
             self._next_slot = 0
             self._free_slots = ctx.Semaphore(slots)
