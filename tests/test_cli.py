@@ -65,3 +65,14 @@ def test_set_override_and_presets_listing(tmp_path, capsys):
     assert "paper" in listed and "paper-printed" in listed and "harsh" in listed
     proc = run_cli(["run", "--set", "disturbance.scale=-1", "--no-video", "--out", "x"], tmp_path)
     assert proc.returncode == 2 and "disturbance.scale" in proc.stderr
+
+
+def test_closed_pipe_ends_the_command_quietly():
+    """`usv-mj presets paper | head -0`: the reader is gone before the first line; exit 141 as a
+    Unix tool killed by SIGPIPE would, with no traceback."""
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "presets", "paper"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()                     # before the interpreter has even started writing
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141, err
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
