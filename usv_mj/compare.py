@@ -39,7 +39,7 @@ of its start to metres within 300 s (growth near 0.13 /s, measured with the anal
 itself). Two integrators of the same ODE that differ in the last bits (here: RK4 in (eta, nu) and in
 (q, q_dot)) then drift apart the same way, so the 1e-6 m over 300 s of calm water cannot hold for
 any pair of distinct integrators under these inputs (nor under one-signed ones: 8e-5 m from a
-1e-12 m nudge). The unpowered hull is not sensitive (the nudge stays near 1e-11 m over 300 s), so
+1e-12 m nudge). The unpowered hull is not sensitive (the nudge stays at about 5e-12 m over 300 s), so
 in a sea the calm-water tolerance is checked on it: ``adrift`` (:func:`compare_adrift`, tau = 0, all
 loads on, SEA.md §7 check 13's motion) must keep the plants within 1e-6 m over the whole run
 (``open_loop_adrift_position_below_1e-6_m``). Under the rich inputs
