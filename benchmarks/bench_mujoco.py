@@ -261,8 +261,8 @@ def fused_paper_loop(scenario, environment=None):
     """
     from numba import njit
 
-    from controllers.hysteresis_quantizer import quantize_step
-    from controllers.ppc import ppc_law
+    from usv_mj.controllers.hysteresis_quantizer import quantize_step
+    from usv_mj.controllers.ppc import ppc_law
     from usv_mj.plants import mujoco_callback as mcb
     from usv_mj.plants.mujoco_plant import MuJoCoPlant
     from usv_mj.simulation import make_controller, make_quantizers, make_reference, simulate

@@ -1,6 +1,6 @@
 """Controllers for usv_mj: the paper's adaptive PPC law, the PI baseline and the hysteresis quantizer.
 
-Every controller follows :class:`controllers.base.Controller`; the quantizer is the actuator channel
+Every controller follows :class:`usv_mj.controllers.base.Controller`; the quantizer is the actuator channel
 that the simulation loop applies to any controller's output.
 """
 

@@ -23,5 +23,5 @@ if ! "$PYTHON" -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then
   exit 1
 fi
 echo "setup: installing usv_mj and its Python dependencies"
-"$PYTHON" -m pip install --disable-pip-version-check -q -e ".[test]" 2>&1 | grep -v "Running pip as the 'root' user" || true
+"$PYTHON" -m pip install --disable-pip-version-check -q -e ".[test,gym,hpc]" 2>&1 | grep -v "Running pip as the 'root' user" || true
 "$PYTHON" -c "import usv_mj, mujoco; print(f'setup: usv_mj {usv_mj.__version__} with mujoco {mujoco.__version__} ready')"

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
+from usv_mj.controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
 
 
 def run(q, inputs):

@@ -3,8 +3,8 @@
 Rows are control steps k = 0..n at t_k = k dt. Columns (units as in :mod:`usv_mj.ship`):
 
 - ``t``; the state ``x, y, psi, u, v, r`` (psi unwrapped);
-- the reference ``x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d`` (:data:`controllers.base.REF_FIELDS`);
-- the controller diagnostics :data:`controllers.base.DIAG_FIELDS` (e1..e3, rho, z, e*, psi_a, ...);
+- the reference ``x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d`` (:data:`usv_mj.controllers.base.REF_FIELDS`);
+- the controller diagnostics :data:`usv_mj.controllers.base.DIAG_FIELDS` (e1..e3, rho, z, e*, psi_a, ...);
 - ``tau_u, tau_r`` (the law's output), ``q_tau_u, q_tau_r`` (what the plant received), ``k_u, k_r``
   (the quantizers' signed level indices).
 
@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.base import DIAG_FIELDS, REF_FIELDS
+from usv_mj.controllers.base import DIAG_FIELDS, REF_FIELDS
 
 STATE_FIELDS = ("x", "y", "psi", "u", "v", "r")
 CONTROL_FIELDS = ("tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r")

@@ -27,8 +27,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from controllers.pi_baseline import PIGains
-from controllers.ppc import PPCGains
+from usv_mj.controllers.pi_baseline import PIGains
+from usv_mj.controllers.ppc import PPCGains
 
 from .sea.settings import SeaSettings, SeaSettingsError, sea_preset_table
 from .ship import PaperDisturbance, ShipParams
@@ -182,7 +182,7 @@ class BaselineSpec:
     Attributes
     ----------
     enabled: also run the PI baseline on the same plant and scenario.
-    gains: :class:`controllers.pi_baseline.PIGains` (flat keys in the TOML section).
+    gains: :class:`usv_mj.controllers.pi_baseline.PIGains` (flat keys in the TOML section).
     """
 
     enabled: bool = True

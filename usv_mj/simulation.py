@@ -1,7 +1,7 @@
 """The closed loop: reference -> controller -> quantizer -> plant, one control period at a time.
 
 The loop knows the plant and the controller only through their interfaces
-(:mod:`usv_mj.plants.base`, :mod:`controllers.base`). Each step it records one row of the
+(:mod:`usv_mj.plants.base`, :mod:`usv_mj.controllers.base`). Each step it records one row of the
 :class:`~usv_mj.record.RunRecord`; every ``block`` rows it hands the new rows to the sinks (the MCAP
 writer, say), so that a long run streams out with bounded memory in the writers.
 
@@ -18,10 +18,10 @@ from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
-from controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
-from controllers.performance_funnel import PerformanceFunnel
-from controllers.pi_baseline import PIController
-from controllers.ppc import PPCController
+from usv_mj.controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
+from usv_mj.controllers.performance_funnel import PerformanceFunnel
+from usv_mj.controllers.pi_baseline import PIController
+from usv_mj.controllers.ppc import PPCController
 
 from .plants.analytic import AnalyticPlant
 from .record import COL, SL_DIAG, SL_REF, SL_STATE, Event, RunRecord

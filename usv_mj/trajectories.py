@@ -2,7 +2,7 @@
 
 Every reference is a unicycle-like path: position (x_d, y_d), heading psi_d along the path, yaw rate
 r_d = psi_d_dot and surge speed u_d (v_d = 0). ``reference.evaluate(t)`` returns the vector of
-:data:`controllers.base.REF_FIELDS` = (x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d) in m, rad, m/s,
+:data:`usv_mj.controllers.base.REF_FIELDS` = (x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d) in m, rad, m/s,
 rad/s; the returned array is the reference's own buffer (copy it to keep it).
 
 A new trajectory is a new subclass of :class:`Reference` registered in :data:`TRAJECTORIES`.
@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from controllers.base import REF_FIELDS
+from usv_mj.controllers.base import REF_FIELDS
 
 
 class Reference:

@@ -54,9 +54,9 @@ with warnings.catch_warnings():
     from dm_control.utils import rewards
 from dm_env import specs
 
-from controllers.hysteresis_quantizer import quantize_step
-from controllers.performance_funnel import funnel_bound
-from controllers.tracking_errors import wrap
+from usv_mj.controllers.hysteresis_quantizer import quantize_step
+from usv_mj.controllers.performance_funnel import funnel_bound
+from usv_mj.controllers.tracking_errors import wrap
 from usv_mj.simulation import make_funnels, make_quantizers, make_reference
 
 DEFAULT_PREVIEW = (0.5, 1.0, 2.0, 4.0)

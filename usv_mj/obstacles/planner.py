@@ -58,7 +58,7 @@ import networkx as nx
 import numpy as np
 import shapely
 
-from controllers.performance_funnel import PerformanceFunnel
+from usv_mj.controllers.performance_funnel import PerformanceFunnel
 from usv_mj.record import Event
 from usv_mj.scenario import ScenarioError
 from usv_mj.trajectories import Reference

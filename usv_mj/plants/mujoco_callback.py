@@ -59,7 +59,9 @@ from usv_mj.sea.dynamics import sea_force
 from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
 from usv_mj.ship import N_DIST_PARAMS, N_SHIP_PARAMS, hydrodynamic_force
 
-MODELS_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "models")
+from usv_mj.assets import models_dir
+
+MODELS_DIR = str(models_dir())  # the installed usv_mj.models (the checkout's models/)
 
 # --- d.userdata layout --------------------------------------------------------------------------
 MAGIC = 6.0221e23 + 1.0e9 * math.pi  # "this mjData belongs to a usv_mj plant"

@@ -46,7 +46,9 @@ from .planner import (FUNNEL_BAD_RGBA, FUNNEL_FILL_ALPHA, FUNNEL_OK_RGBA, GHOST_
                       TRAIL_RGBA, FrameSpec, TopView)
 
 SAFETY_LINE_RGBA = (1.0, 0.8, 0.1, 0.9)   # inflated safety boundary (as the Foxglove scene's)
-REPO_MODELS = Path(__file__).resolve().parents[2] / "models"
+from usv_mj.assets import models_dir
+
+REPO_MODELS = models_dir()
 DEFAULT_SCENE = REPO_MODELS / "scene.xml"
 
 #: A small stand-in scene with the same contract as models/scene.xml (hull on joints x, y, yaw;

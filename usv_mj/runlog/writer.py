@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from ..record import COL, COLUMNS, RunRecord
+from ..assets import model_files
 from . import json_codec
 from .mcap_file import ChunkBuffer, McapFileWriter, RowLayout, TemplateLayout, template_layout
 from .extra_topics import (ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME, OBSTACLES_SCHEMA, OBSTACLES_SCHEMA_NAME,
@@ -101,13 +102,6 @@ def git_commit(root: Path = PROJECT_ROOT) -> tuple[str, bool | None]:
         return "unknown", None
 
 
-def model_files(root: Path = PROJECT_ROOT) -> list[Path]:
-    """The project's MuJoCo model XML files (``models/*.xml``, ``usv_mj/models/*.xml``, ``usv_mj/plants/*.xml``)."""
-    found = []
-    for folder in (root / "models", root / "usv_mj" / "models", root / "usv_mj" / "plants"):
-        if folder.is_dir():
-            found += sorted(folder.glob("*.xml"))
-    return found
 
 
 # --- the file side (runs in the worker process, or in-process with background=False) -----------
