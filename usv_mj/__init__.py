@@ -11,9 +11,38 @@ The names below are imported on first use, so that ``usv_mj.ship`` (the physics,
 controllers use) can be imported without the rest of the package.
 """
 
+import sys
 from importlib import import_module
+from importlib.machinery import PathFinder
+from pathlib import Path
 
 __version__ = "0.1.0"
+
+
+class _CheckoutFinder:
+    """In a checkout, ``controllers/`` and ``models/`` sit beside ``usv_mj/`` (the repository's
+    layout) and are the subpackages ``usv_mj.controllers`` and ``usv_mj.models`` of an installed
+    wheel (``package-dir`` in pyproject.toml). This finder gives a checkout the same names, so that
+    a clone or a worktree runs its own files whether or not (and wherever) it is installed."""
+
+    def __init__(self, root: Path):
+        self.root = str(root)
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname not in ("usv_mj.controllers", "usv_mj.models"):
+            return None
+        from importlib.util import spec_from_file_location
+
+        found = PathFinder.find_spec(fullname.rsplit(".", 1)[1], [self.root])
+        if found is None:
+            return None
+        return spec_from_file_location(fullname, found.origin,
+                                       submodule_search_locations=found.submodule_search_locations)
+
+
+_ROOT = Path(__file__).resolve().parent.parent
+if not (Path(__file__).resolve().parent / "controllers").is_dir() and (_ROOT / "controllers" / "__init__.py").is_file():
+    sys.meta_path.insert(0, _CheckoutFinder(_ROOT))
 
 _API = {
     "RunRecord": "usv_mj.record",
