@@ -118,7 +118,7 @@ def main():
               f"  ({plant.data.ncon} contact(s) active, {ncon} at the start)")
     # the whole closed loop (PPC, quantizers, recording): open water against the harbour runner
     from usv_mj.obstacles import ObstacleScenario, run_obstacle_scenario
-    from usv_mj.obstacles.spec import GuidanceSpec
+    from usv_mj.obstacle_tables import GuidanceSpec
     from usv_mj.simulation import simulate
 
     loop = sc.with_overrides({"duration": args.loop_seconds, "plant": {"kind": "mujoco"},

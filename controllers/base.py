@@ -6,8 +6,16 @@ A controller is any object with
 - ``__call__(t, state, reference) -> (tau_u, tau_r, diagnostics)``: the continuous control law at
   time ``t`` [s] for the plant state ``state = (x, y, psi, u, v, r)`` and the reference vector
   (layout ``REF_*`` below); it returns the surge force tau_u [N], the yaw moment tau_r [N m] before
-  quantization and a float64 diagnostics vector (layout ``DIAG_FIELDS``). The vector is the
-  controller's own buffer, overwritten on the next call: copy it to keep it.
+  quantization and a float64 diagnostics vector laid out as the controller's own
+  ``diagnostic_fields``. The vector is the controller's own buffer, overwritten on the next call:
+  copy it to keep it;
+- ``diagnostic_fields``: the names of that vector, which become the run record's columns after the
+  core every run has (time, state, reference, forces). A controller that tracks inside a funnel
+  declares :data:`FUNNEL_FIELDS` among them, and the outputs then show funnel errors and
+  violations; ``diagnostic_events`` (optional) maps a 0/1 field to the event kind its episodes
+  are logged as (the PPC law's ``{"s2_clamped": "s2_clamp"}``);
+- ``from_scenario(gains, scenario)`` (a classmethod) when it is registered in
+  :data:`usv_mj.registry.CONTROLLERS` with its typed gains dataclass.
 
 The loop quantizes the outputs (the quantizer is the actuator channel, shared by every controller)
 and holds them over the control period. Controllers import no plant, no MuJoCo and not the loop.
@@ -23,7 +31,11 @@ import numpy as np
 REF_FIELDS = ("x_d", "y_d", "psi_d", "x_d_dot", "y_d_dot", "r_d", "u_d")
 REF_X, REF_Y, REF_PSI, REF_XDOT, REF_YDOT, REF_R, REF_U = range(len(REF_FIELDS))
 
-# Diagnostics vector: tracking errors in the funnel (Eqs. 8-15), then the adaptive states (Eqs. 19, 29, 37).
+# The funnel block (Eqs. 9, 14): a controller that tracks in a funnel declares these among its diagnostics.
+FUNNEL_FIELDS = ("e1", "e2", "e3", "rho1", "rho2", "rho3", "z1", "z2", "z3")
+
+# The PPC law's diagnostics vector: tracking errors in the funnel (Eqs. 8-15), then the adaptive
+# states (Eqs. 19, 29, 37). Its first 13 entries (TRACKING_FIELDS) are what tracking_errors fills.
 DIAG_FIELDS = (
     "e1", "e2", "e3",            # Eq. 14: x_bar - x_bar_d [m], y_bar - y_bar_d [m], wrap(psi - psi_a) [rad]
     "rho1", "rho2", "rho3",      # Eq. 9 bounds
@@ -37,6 +49,7 @@ DIAG_FIELDS = (
     "s2_clamped",                # 1 when s2 hit its clamp this step
 )
 DIAG = {name: i for i, name in enumerate(DIAG_FIELDS)}
+TRACKING_FIELDS = DIAG_FIELDS[:13]
 N_DIAG = len(DIAG_FIELDS)
 
 # Integer indices of the diagnostics vector, for numba kernels (which cannot read the dict).
@@ -71,6 +84,7 @@ class Controller(Protocol):
     """The controller interface (see the module docstring)."""
 
     name: str
+    diagnostic_fields: tuple[str, ...]
 
     def reset(self) -> None: ...
 

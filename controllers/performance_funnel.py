@@ -64,3 +64,10 @@ def error_transform(z):
     elif z < -Z_LIMIT:
         z = -Z_LIMIT
     return math.log((1.0 + z) / (1.0 - z))
+
+
+def funnels_of(scenario) -> tuple[PerformanceFunnel, PerformanceFunnel]:
+    """The funnels of a scenario's ``[funnel]`` table: (rho_1 = rho_2 for e1, e2 [m], rho_3 for e3 [rad])."""
+    f = scenario.funnel
+    return (PerformanceFunnel(f.rho_xy[0], f.rho_xy[1], f.rate), PerformanceFunnel(f.rho_psi[0], f.rho_psi[1], f.rate))
+

@@ -23,11 +23,15 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from usv_mj.registry import CONTROLLERS
 from usv_mj.ship import ShipParams
 
-from .base import D_E3, D_R_E, D_U_E, N_DIAG, REF_PSI, REF_R, REF_U
-from .performance_funnel import PerformanceFunnel
+from .base import D_E3, REF_PSI, REF_R, REF_U, TRACKING_FIELDS
+from .performance_funnel import PerformanceFunnel, funnels_of
 from .tracking_errors import tracking_errors
+
+
+N_TRACK = len(TRACKING_FIELDS)  # the PI law's own fields follow the tracking errors
 
 
 @dataclass(frozen=True)
@@ -88,15 +92,25 @@ def pi_law(t, x, ref, eps, g, funnel, integ, dt, diag):
     tau_r = -(kp_r * e3 + ki_r * integ[1]) - kd_r * (x[5] - ref[REF_R])
     integ[0] = min(max(integ[0] + dt * e_u, -lim_u), lim_u)
     integ[1] = min(max(integ[1] + dt * e3, -lim_r), lim_r)
-    diag[D_U_E] = -e_u
-    diag[D_R_E] = x[5] - ref[REF_R]
+    diag[N_TRACK] = -e_u
+    diag[N_TRACK + 1] = x[5] - ref[REF_R]
+    diag[N_TRACK + 2] = integ[0]
+    diag[N_TRACK + 3] = integ[1]
     return tau_u, tau_r
 
 
+@CONTROLLERS.register("pi", gains=PIGains)
 class PIController:
     """The PI baseline of SPEC §6 behind the controller interface (see the module docstring)."""
 
     name = "pi"
+    diagnostic_fields = TRACKING_FIELDS + ("u_e", "r_e", "integral_u", "integral_r")
+
+    @classmethod
+    def from_scenario(cls, gains: PIGains, scenario) -> "PIController":
+        """The baseline for ``scenario``: its nominal ship, funnels (for the errors) and control period."""
+        fxy, fpsi = funnels_of(scenario)
+        return cls(gains, scenario.ship, fxy, fpsi, scenario.control_period)
 
     def __init__(self, gains: PIGains, nominal: ShipParams, funnel_xy: PerformanceFunnel,
                  funnel_psi: PerformanceFunnel, control_period: float):
@@ -109,7 +123,7 @@ class PIController:
                                  funnel_psi.rho_0, funnel_psi.rho_inf, funnel_psi.rate])
         self.dt = float(control_period)
         self._integ = np.zeros(2)
-        self._diag = np.zeros(N_DIAG)
+        self._diag = np.zeros(len(self.diagnostic_fields))
 
     def reset(self) -> None:
         self._integ[:] = 0.0

@@ -31,10 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from usv_mj.registry import CONTROLLERS
 from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, ShipParams, nominal_terms
 
-from .base import D_ALPHA_R, D_ALPHA_U, D_ALPHA_V, D_E1S, D_E2S, D_E3S, D_R_E, D_S2, D_S2_CLAMPED, D_U_E, D_V_E, D_W_R_NORM, D_W_U_NORM, D_W_V_NORM, N_DIAG, REF_PSI, REF_R, REF_XDOT, REF_YDOT
-from .performance_funnel import PerformanceFunnel
+from .base import D_ALPHA_R, D_ALPHA_U, D_ALPHA_V, D_E1S, D_E2S, D_E3S, D_R_E, D_S2, D_S2_CLAMPED, D_U_E, D_V_E, D_W_R_NORM, D_W_U_NORM, D_W_V_NORM, DIAG_FIELDS, N_DIAG, REF_PSI, REF_R, REF_XDOT, REF_YDOT
+from .performance_funnel import PerformanceFunnel, funnels_of
 from .rbf_network import node_centres, rbf_activations
 from .tracking_errors import tracking_errors
 
@@ -216,6 +217,7 @@ def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
     return tau_u, tau_r
 
 
+@CONTROLLERS.register("ppc", gains=PPCGains)
 class PPCController:
     """The paper's adaptive PPC tracking controller (SPEC §3) behind the controller interface.
 
@@ -234,6 +236,15 @@ class PPCController:
     """
 
     name = "ppc"
+    diagnostic_fields = DIAG_FIELDS
+    diagnostic_events = {"s2_clamped": "s2_clamp"}
+
+    @classmethod
+    def from_scenario(cls, gains: PPCGains, scenario) -> "PPCController":
+        """The law for ``scenario``: its nominal ship, funnels, quantizer deltas and control period."""
+        fxy, fpsi = funnels_of(scenario)
+        return cls(gains, scenario.ship, fxy, fpsi, scenario.quantizer.delta_u, scenario.quantizer.delta_r,
+                   scenario.control_period)
 
     def __init__(self, gains: PPCGains, nominal: ShipParams, funnel_xy: PerformanceFunnel,
                  funnel_psi: PerformanceFunnel, delta_u: float, delta_r: float, control_period: float):

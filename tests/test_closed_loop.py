@@ -68,6 +68,7 @@ def test_pi_baseline_runs_through_the_same_loop():
 def test_a_controller_that_raises_is_recorded_and_reraised():
     class Broken:
         name = "broken"
+        diagnostic_fields = ("n",)
 
         def reset(self):
             self.n = 0
@@ -76,7 +77,7 @@ def test_a_controller_that_raises_is_recorded_and_reraised():
             self.n += 1
             if self.n > 50:
                 raise RuntimeError("boom")
-            return 0.0, 0.0, np.zeros(24)
+            return 0.0, 0.0, np.array([float(self.n)])
 
     scenario = load_scenario(preset="paper", overrides={"plant": {"kind": "analytic"}, "duration": 1.0})
 

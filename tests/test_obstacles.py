@@ -18,16 +18,27 @@ import numpy as np
 import pytest
 import shapely
 
+from usv_mj.obstacle_tables import from_tables
 from usv_mj.obstacles import (HULL_RADIUS, GeometricClearance, HarbourPlant, MuJoCoClearance, PlanningError,
-                              SafetyEnvelope, compose_scene, from_tables, load_obstacle_scenario, make_plan,
-                              run_obstacle_scenario)
+                              SafetyEnvelope, compose_scene, make_plan)
 from usv_mj.obstacles.planner import obstacle_distances
-from usv_mj.scenario import ScenarioError
+from usv_mj.scenario import ScenarioError, load_scenario
 from usv_mj.ship import PaperDisturbance, ShipParams, hydrodynamic_force
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "examples" / "scenarios"
 SHIP = ShipParams()
 CALM = PaperDisturbance(scale=0.0)
+
+
+def _run_through_build(scenario, **kwargs):
+    """A run of an obstacle scenario through usv_mj.build / simulate: the record and its statics."""
+    from types import SimpleNamespace
+
+    from usv_mj.simulation import simulate
+
+    record = simulate(scenario, **kwargs)
+    return SimpleNamespace(record=record, log=record.statics.obstacle_log, plan=record.statics.plan,
+                           guidance=record.statics.guidance)
 
 
 # --- specs --------------------------------------------------------------------------------------
@@ -54,17 +65,17 @@ def test_bad_guidance_names_its_key(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text('preset = "paper"\n[guidance]\nmargin_m = -1.0\n')
     with pytest.raises(ScenarioError, match=r"guidance\.margin_m"):
-        load_obstacle_scenario(path)
+        load_scenario(path)
     path.write_text('preset = "paper"\n[guidance]\navoid = 1\n')
     with pytest.raises(ScenarioError, match=r"guidance\.avoid"):
-        load_obstacle_scenario(path)
+        load_scenario(path)
 
 
 def test_example_scenarios_load():
     for name in ("harbour_gap", "ramming_pier", "crossing_boat", "head_on_boat"):
-        osc = load_obstacle_scenario(SCENARIOS / f"{name}.toml")
-        assert osc.obstacles and osc.scenario.plant.kind == "mujoco"
-    crossing = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml")
+        osc = load_scenario(SCENARIOS / f"{name}.toml")
+        assert osc.obstacles and osc.plant.kind == "mujoco"
+    crossing = load_scenario(SCENARIOS / "crossing_boat.toml")
     assert crossing.obstacles[0].moving and crossing.obstacles[0].center_at(10.0) == (20.0, -11.5)
 
 
@@ -209,9 +220,9 @@ def _exact_distances(obstacles, positions):
 
 
 def test_harbour_plan_keeps_clear_and_is_a_smooth_unicycle_reference():
-    osc = load_obstacle_scenario(SCENARIOS / "harbour_gap.toml")
+    osc = load_scenario(SCENARIOS / "harbour_gap.toml")
     plan = make_plan(osc)
-    sc = osc.scenario
+    sc = osc
     t = np.arange(0.0, sc.duration, 0.05)
     ref = plan.reference.sample(t)
     dist = _exact_distances(osc.obstacles, ref[:, :2])
@@ -244,7 +255,7 @@ def test_harbour_plan_keeps_clear_and_is_a_smooth_unicycle_reference():
 
 def test_paper_funnel_closes_the_harbour():
     """rho_0 = 18 m: G(0) = 26.6 m, so the start itself lies inside the inflated piers."""
-    osc = load_obstacle_scenario(SCENARIOS / "harbour_gap.toml", overrides={"funnel": {"rho_xy": [18.0, 2.0],
+    osc = load_scenario(SCENARIOS / "harbour_gap.toml", overrides={"funnel": {"rho_xy": [18.0, 2.0],
                                                                                           "rate": 0.05}})
     with pytest.raises(PlanningError, match="inside an inflated obstacle"):
         make_plan(osc)
@@ -258,13 +269,13 @@ def _reference_distance_slack(run, osc):
     t = r["t"]
     pos = np.c_[r["x_d"], r["y_d"]]
     dist = obstacle_distances(osc.obstacles, pos, t)
-    envelope = SafetyEnvelope.from_scenario(osc.scenario, osc.guidance.margin_m)
+    envelope = SafetyEnvelope.from_scenario(osc, osc.guidance.margin_m)
     return dist, envelope
 
 
 def test_harbour_closed_loop_keeps_clear_on_mujoco():
-    osc = load_obstacle_scenario(SCENARIOS / "harbour_gap.toml")
-    run = run_obstacle_scenario(osc)
+    osc = load_scenario(SCENARIOS / "harbour_gap.toml")
+    run = _run_through_build(osc)
     r = run.record
     summary = run.log.summary()
     assert r.status == "completed"
@@ -282,8 +293,8 @@ def test_harbour_closed_loop_keeps_clear_on_mujoco():
 
 
 def test_ramming_a_pier_is_stopped_by_contact_and_stays_finite():
-    osc = load_obstacle_scenario(SCENARIOS / "ramming_pier.toml")
-    run = run_obstacle_scenario(osc)
+    osc = load_scenario(SCENARIOS / "ramming_pier.toml")
+    run = _run_through_build(osc)
     r = run.record
     assert r.status in ("completed", "diverged")        # a recorded stop at worst, never an exception
     contacts = [e for e in r.events if e.kind == "contact"]
@@ -299,8 +310,8 @@ def test_ramming_a_pier_is_stopped_by_contact_and_stays_finite():
 
 
 def test_ramming_on_the_analytic_plant_records_a_collision_and_says_so():
-    osc = load_obstacle_scenario(SCENARIOS / "ramming_pier.toml", overrides={"duration": 32.0})
-    run = run_obstacle_scenario(osc, plant_kind="analytic")
+    osc = load_scenario(SCENARIOS / "ramming_pier.toml", overrides={"duration": 32.0})
+    run = _run_through_build(osc, plant_kind="analytic")
     kinds = [e.kind for e in run.record.events]
     assert "collision" in kinds and kinds.count("note") == 1
     assert run.log.summary()["contact_physics"] is False
@@ -308,15 +319,15 @@ def test_ramming_on_the_analytic_plant_records_a_collision_and_says_so():
 
 
 def test_crossing_boat_is_avoided_by_retiming_with_replan_events():
-    osc = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml")
+    osc = load_scenario(SCENARIOS / "crossing_boat.toml")
     # without re-timing the straight reference would come within less than the required distance
     plan = make_plan(osc)
-    t = np.arange(0.0, osc.scenario.duration, 0.1)
+    t = np.arange(0.0, osc.duration, 0.1)
     nominal = plan.reference.positions(t)
-    envelope = SafetyEnvelope.from_scenario(osc.scenario, osc.guidance.margin_m)
+    envelope = SafetyEnvelope.from_scenario(osc, osc.guidance.margin_m)
     nominal_dist = obstacle_distances(osc.obstacles, nominal, t)[:, 0]
     assert np.min(nominal_dist - envelope.required(t)) < -1.0
-    run = run_obstacle_scenario(osc)
+    run = _run_through_build(osc)
     r = run.record
     replans = [e for e in r.events if e.kind == "replan"]
     assert replans and replans[0].values["obstacle"] == "crossing_boat"
@@ -326,14 +337,14 @@ def test_crossing_boat_is_avoided_by_retiming_with_replan_events():
     summary = run.log.summary()
     assert summary["contacts"] == 0 and summary["min_clearance_m"] >= osc.guidance.margin_m
     # smooth re-timing: u_d continuous with |u_d_dot| <= max_accel
-    du = np.diff(r["u_d"]) / osc.scenario.control_period
+    du = np.diff(r["u_d"]) / osc.control_period
     assert np.max(np.abs(du)) <= osc.guidance.max_accel + 1e-9
 
 
 def test_start_inside_an_obstacle_is_a_scenario_error():
-    osc = load_obstacle_scenario(SCENARIOS / "ramming_pier.toml", overrides={"initial": {"eta": [19.0, 0.0, 0.0]}})
+    osc = load_scenario(SCENARIOS / "ramming_pier.toml", overrides={"initial": {"eta": [19.0, 0.0, 0.0]}})
     with pytest.raises(ScenarioError, match=r"initial\.eta .* inside obstacles\[0\] \(pier"):
-        run_obstacle_scenario(osc, duration=1.0)
+        _run_through_build(osc, duration=1.0)
 
 
 def _guidance_for(osc, **changes):
@@ -343,14 +354,14 @@ def _guidance_for(osc, **changes):
 
     osc = replace(osc, guidance=replace(osc.guidance, **changes))
     plan = make_plan(osc)
-    guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.scenario.trajectory.speed)
+    guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.trajectory.speed)
     return osc, plan, guidance
 
 
 def test_guidance_detects_the_crossing_boat_within_its_horizon_and_retimes_smoothly():
     """With a 15 s horizon the conflict (the boat crosses x = 20 m at about 33 s) is seen only on
     the way: the re-timing happens mid-run, and the reference it leaves keeps G(t) + margin."""
-    osc, plan, guidance = _guidance_for(load_obstacle_scenario(SCENARIOS / "crossing_boat.toml"), horizon=15.0)
+    osc, plan, guidance = _guidance_for(load_scenario(SCENARIOS / "crossing_boat.toml"), horizon=15.0)
     times = np.arange(0.0, 60.0, 0.01)
     ref = np.empty((len(times), 7))
     for k, t in enumerate(times):           # what the loop does: update, then evaluate
@@ -367,14 +378,14 @@ def test_guidance_detects_the_crossing_boat_within_its_horizon_and_retimes_smoot
 def test_head_on_boat_gets_a_starboard_detour_that_keeps_clear():
     """A boat coming along the path cannot be waited out: the guidance shifts the path to starboard
     (time-aware check over the horizon), continuing from the current heading and curvature."""
-    osc = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml", overrides={
+    osc = load_scenario(SCENARIOS / "crossing_boat.toml", overrides={
         "duration": 80.0,
         "obstacles": [{"kind": "box", "center": [40.0, 0.0], "size": [4.0, 1.6], "velocity": [-0.5, 0.0],
                        "name": "head_on"}]})
     from usv_mj.obstacles import Guidance
 
     plan = make_plan(osc)
-    guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.scenario.trajectory.speed,
+    guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.trajectory.speed,
                         goal=plan.polyline[-1])
     dt = 0.01
     times = np.arange(0.0, 80.0, dt)
@@ -399,13 +410,13 @@ def test_head_on_boat_gets_a_starboard_detour_that_keeps_clear():
 
 def test_an_obstacle_that_cannot_be_avoided_is_reported():
     """A 200 m wide barge sweeping down the path: neither re-timing nor a detour helps."""
-    osc = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml", overrides={
+    osc = load_scenario(SCENARIOS / "crossing_boat.toml", overrides={
         "obstacles": [{"kind": "box", "center": [30.0, 0.0], "size": [4.0, 200.0], "velocity": [-0.5, 0.0],
                        "name": "barge"}]})
     from usv_mj.obstacles import Guidance
 
     plan = make_plan(osc)
-    guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.scenario.trajectory.speed,
+    guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.trajectory.speed,
                         goal=plan.polyline[-1])
     assert guidance.update(0.0) is False
     assert [e.kind for e in guidance.events] == ["guidance_conflict"]

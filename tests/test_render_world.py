@@ -171,7 +171,7 @@ def test_figure_and_scene_take_obstacles_without_a_boundary():
     import matplotlib.pyplot as plt
 
     from usv_mj.obstacles.display import draw_obstacles, scene_entities
-    from usv_mj.obstacles.spec import ObstacleSpec
+    from usv_mj.obstacle_tables import ObstacleSpec
 
     obstacles = (ObstacleSpec("circle", (6.0, 3.0), 0.8, name="buoy"),
                  ObstacleSpec("box", (2.0, -6.0), 0.0, (3.0, 1.2), 0.0, (0.5, 0.25), name="boat"))

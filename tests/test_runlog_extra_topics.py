@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario
-from usv_mj.obstacles import load_obstacle_scenario, run_obstacle_scenario
 from usv_mj.record import COL
 from usv_mj.runlog import RunLogWriter, read_run
 from usv_mj.runlog.reader import load_topic
@@ -24,11 +23,22 @@ from usv_mj.simulation import make_environment, simulate
 SCENARIOS = Path(__file__).resolve().parent.parent / "examples" / "scenarios"
 
 
+def _run_through_build(scenario, **kwargs):
+    """A run of an obstacle scenario through usv_mj.build / simulate: the record and its statics."""
+    from types import SimpleNamespace
+
+    from usv_mj.simulation import simulate
+
+    record = simulate(scenario, **kwargs)
+    return SimpleNamespace(record=record, log=record.statics.obstacle_log, plan=record.statics.plan,
+                           guidance=record.statics.guidance)
+
+
 def test_obstacle_run_logs_clearance_force_and_centres_per_step(tmp_path):
-    osc = load_obstacle_scenario(SCENARIOS / "crossing_boat.toml", overrides={"duration": 2.0})
+    osc = load_scenario(SCENARIOS / "crossing_boat.toml", overrides={"duration": 2.0})
     path = tmp_path / "obs.mcap"
-    with RunLogWriter(path, osc.scenario) as writer:
-        run = run_obstacle_scenario(osc, plant_kind="analytic", sinks=[writer.sink("main")])
+    with RunLogWriter(path, osc) as writer:
+        run = _run_through_build(osc, plant_kind="analytic", sinks=[writer.sink("main")])
     rec, olog = run.record, run.log
     n = rec.n_rows
     log = read_run(path)

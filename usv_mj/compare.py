@@ -66,7 +66,7 @@ import time
 
 import numpy as np
 
-from .plants.analytic import AnalyticPlant
+from .build import make_environment, make_plant
 from .scenario import Scenario
 
 SWITCH_GRID_S = 0.2            # inputs change only at multiples of this time [s]
@@ -170,20 +170,15 @@ def _say(progress: bool, text: str) -> None:
 
 def sea_environment(scenario: Scenario):
     """The scenario's :class:`usv_mj.sea.Environment`, or None in calm water (both plants get it)."""
-    from .simulation import make_environment
-
     return make_environment(scenario)
 
 
 def _mujoco_plant(scenario: Scenario, dt: float, environment=None, substeps: int | None = None):
-    from .plants.mujoco_plant import MuJoCoPlant
-
-    return MuJoCoPlant(scenario.ship, scenario.disturbance, dt,
-                       scenario.plant.substeps if substeps is None else substeps, environment=environment)
+    return make_plant(scenario, "mujoco", environment, control_period=dt, substeps=substeps)
 
 
-def _analytic_plant(scenario: Scenario, dt: float, environment=None, substeps: int = 1) -> AnalyticPlant:
-    return AnalyticPlant(scenario.ship, scenario.disturbance, dt, substeps, environment=environment)
+def _analytic_plant(scenario: Scenario, dt: float, environment=None, substeps: int = 1):
+    return make_plant(scenario, "analytic", environment, control_period=dt, substeps=substeps)
 
 
 def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, dict]:

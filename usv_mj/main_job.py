@@ -112,19 +112,7 @@ def _start_video(pool, record: RunRecord, path: Path, render_opts: dict) -> _Vid
 
 
 def _simulate(scenario: Scenario, plant_kind: str, controller_kind: str | None, sinks, progress) -> RunRecord:
-    """One closed-loop run; scenarios with obstacles go through the obstacle runner (clearance,
-    contacts and guidance as loop hooks)."""
-    if scenario.obstacles:
-        from .obstacles.run import run_obstacle_scenario
-        from .obstacles.spec import ObstacleScenario
-        from .simulation import make_controller
-
-        osc = ObstacleScenario(scenario, scenario.obstacles, scenario.guidance)
-        run = run_obstacle_scenario(osc, plant_kind=plant_kind, sinks=sinks, progress=progress,
-                                    controller=make_controller(scenario, controller_kind))
-        if run.log.note:
-            run.record.metadata["note"] = run.log.note
-        return run.record
+    """One closed-loop run through :func:`usv_mj.build` (obstacles, sea and guidance included)."""
     return simulate(scenario, plant_kind=plant_kind, controller_kind=controller_kind, sinks=sinks, progress=progress)
 
 
@@ -132,9 +120,8 @@ def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_o
                  plant_kind: str, files: dict) -> str:
     """Issue 7: the sea's figures and summary fields, and the same scenario in calm water beside it."""
     from .sea_figures import draw_sea_figures, sea_summary
-    from .simulation import make_environment
 
-    env = make_environment(scenario, scenario.duration)  # pure in (t, eta, nu): the sea the plant saw
+    env = record.statics.environment  # the sea the plant saw (from the build, not rebuilt)
     summary_out.update(sea_summary(record, env))
     files["sea_figures"] = draw_sea_figures(record, env, out / "figures")
     calm = scenario.with_overrides({"sea": {}, "baseline": {"enabled": False}})
@@ -176,7 +163,7 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     out.mkdir(parents=True, exist_ok=True)
     plant_kind = plant_kind or scenario.plant.kind
     run_baseline = scenario.baseline.enabled if baseline is None else baseline
-    run_baseline = run_baseline and scenario.controller.kind != "pi"
+    run_baseline = run_baseline and scenario.controller.kind != scenario.baseline.kind
     dt = scenario.control_period
     files: dict = {}
     render_opts = dict(render_options or {})
@@ -210,9 +197,9 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         video_job = _start_video(pool, record, out / "video.mp4", render_opts) if pool is not None else None
         base_rec = None
         if run_baseline and record.status != "interrupted":
-            cb, close = progress_bar(scenario.duration, "PI baseline", progress, dt)
+            cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", progress, dt)
             try:
-                base_rec = _simulate(scenario, plant_kind, "pi", sink_base, cb)
+                base_rec = _simulate(scenario, plant_kind, scenario.baseline.kind, sink_base, cb)
             finally:
                 close()
         summary = summarize(record)

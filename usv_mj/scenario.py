@@ -27,20 +27,15 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from usv_mj.controllers.pi_baseline import PIGains
-from usv_mj.controllers.ppc import PPCGains
-
-from .sea.settings import SeaSettings, SeaSettingsError, sea_preset_table
+from .actuators import ActuatorSpec
+from .errors import ScenarioError, SeaSettingsError
+from .obstacle_tables import GuidanceSpec, from_tables, guidance_from_table
+from .registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES
+from .sea.settings import SeaSettings, sea_preset_table
 from .ship import PaperDisturbance, ShipParams
 from .toml_values import coerce, read_toml
 
-PLANT_KINDS = ("mujoco", "analytic")
-CONTROLLER_KINDS = ("ppc", "pi")
-TRAJECTORY_KINDS = ("paper", "line", "circle", "waypoints")
-
-
-class ScenarioError(ValueError):
-    """A scenario value, key or file is wrong; the message names the key and the source."""
+__all__ = ["Scenario", "ScenarioError", "load_scenario", "from_dict", "preset_names"]
 
 
 @dataclass(frozen=True)
@@ -76,8 +71,8 @@ class TrajectorySpec:
     turn_radius: float = 5.0
 
     def __post_init__(self) -> None:
-        if self.kind not in TRAJECTORY_KINDS:
-            raise ValueError(f"kind must be one of {TRAJECTORY_KINDS}, got {self.kind!r}")
+        if self.kind not in TRAJECTORIES:
+            raise ValueError(f"kind must be one of {', '.join(TRAJECTORIES.kinds())}, got {self.kind!r}")
         if not (math.isfinite(self.speed) and self.speed > 0):
             raise ValueError(f"speed must be > 0 m/s, got {self.speed!r}")
         if not self.radius > 0:
@@ -152,41 +147,45 @@ class PlantSpec:
     substeps: int = 1
 
     def __post_init__(self) -> None:
-        if self.kind not in PLANT_KINDS:
-            raise ValueError(f"kind must be one of {PLANT_KINDS}, got {self.kind!r}")
+        if self.kind not in PLANTS:
+            raise ValueError(f"kind must be one of {', '.join(PLANTS.kinds())}, got {self.kind!r}")
         if self.substeps < 1:
             raise ValueError(f"substeps must be >= 1, got {self.substeps!r}")
 
 
+def _default_gains(kind: str):
+    return CONTROLLERS.get(kind).gains()
+
+
 @dataclass(frozen=True)
 class ControllerSpec:
-    """Which controller drives the ship; the PPC gains (SPEC §3) sit beside ``kind``.
+    """Which controller drives the ship; its gains sit beside ``kind`` in ``[controller]``.
 
     Attributes
     ----------
-    kind: "ppc" (the paper's law) or "pi" (the baseline, gains in ``[baseline]``).
+    kind: a registered controller (:data:`usv_mj.registry.CONTROLLERS`): "ppc" (the paper's law),
+        "pi" (the baseline), or one registered by the user.
+    gains: the chosen controller's own gains dataclass (PPC: :class:`usv_mj.controllers.ppc.PPCGains`).
     """
 
     kind: str = "ppc"
-    gains: PPCGains = field(default_factory=PPCGains)
-
-    def __post_init__(self) -> None:
-        if self.kind not in CONTROLLER_KINDS:
-            raise ValueError(f"kind must be one of {CONTROLLER_KINDS}, got {self.kind!r}")
+    gains: Any = field(default_factory=lambda: _default_gains("ppc"))
 
 
 @dataclass(frozen=True)
 class BaselineSpec:
-    """The PI baseline (SPEC §6) run beside the main controller for the figures.
+    """The comparison controller (the PI baseline of docs/model.md) run beside the main one for the figures.
 
     Attributes
     ----------
-    enabled: also run the PI baseline on the same plant and scenario.
-    gains: :class:`usv_mj.controllers.pi_baseline.PIGains` (flat keys in the TOML section).
+    enabled: also run the baseline on the same plant and scenario.
+    kind: a registered controller ("pi" by default).
+    gains: that controller's gains dataclass (flat keys in the TOML section).
     """
 
     enabled: bool = True
-    gains: PIGains = field(default_factory=PIGains)
+    kind: str = "pi"
+    gains: Any = field(default_factory=lambda: _default_gains("pi"))
 
 
 @dataclass(frozen=True)
@@ -213,14 +212,6 @@ class LimitsSpec:
                 raise ValueError(f"{f.name} must be > 0, got {value!r}")
 
 
-def _default_guidance():
-    from .obstacles.spec import (
-        GuidanceSpec,  # imported late: obstacles.spec imports this module
-    )
-
-    return GuidanceSpec()
-
-
 @dataclass(frozen=True)
 class Scenario:
     """A complete, validated run description. Build it with :func:`load_scenario` or :func:`from_dict`."""
@@ -238,9 +229,10 @@ class Scenario:
     controller: ControllerSpec = field(default_factory=ControllerSpec)
     baseline: BaselineSpec = field(default_factory=BaselineSpec)
     limits: LimitsSpec = field(default_factory=LimitsSpec)
+    actuators: ActuatorSpec = field(default_factory=ActuatorSpec)
     sea: SeaSettings = field(default_factory=SeaSettings)
-    obstacles: tuple = ()  # ObstacleSpec per [[obstacles]] table (usv_mj.obstacles.spec)
-    guidance: Any = field(default_factory=_default_guidance)  # GuidanceSpec of [guidance]
+    obstacles: tuple = ()  # ObstacleSpec per [[obstacles]] table (usv_mj.obstacle_tables)
+    guidance: GuidanceSpec = field(default_factory=GuidanceSpec)  # [guidance]
     source: str = field(default="", compare=False)
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -333,9 +325,9 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
 
 
 _SECTIONS = {
-    "initial": InitialState, "trajectory": TrajectorySpec, "disturbance": PaperDisturbance,
+    "initial": InitialState, "trajectory": TrajectorySpec,
     "ship": ShipParams, "quantizer": QuantizerSpec, "funnel": FunnelSpec, "plant": PlantSpec,
-    "limits": LimitsSpec,
+    "limits": LimitsSpec, "actuators": ActuatorSpec,
 }
 
 
@@ -352,27 +344,56 @@ def _build_scenario(data: dict, source: str) -> Scenario:
     for key, cls in _SECTIONS.items():
         if key in data:
             top[key] = _build(cls, data[key], source, key)
-    ctrl = dict(data.get("controller", {}))
-    if not isinstance(data.get("controller", {}), dict):
-        raise ScenarioError(f"{source}: [controller] must be a table")
-    kind = ctrl.pop("kind", "ppc")
-    gains = _build(PPCGains, ctrl, source, "controller", extra_known={"kind"})
-    top["controller"] = _construct(ControllerSpec, {"kind": kind, "gains": gains}, source, "controller")
-    base = dict(data.get("baseline", {}))
+    if "disturbance" in data:
+        top["disturbance"] = _build_disturbance(data["disturbance"], source)
+    top["controller"] = _controller_spec(data.get("controller", {}), source, "controller", "ppc")
+    base = data.get("baseline", {})
+    if not isinstance(base, dict):
+        raise ScenarioError(f"{source}: [baseline] must be a table, got {base!r}")
+    base = dict(base)
     enabled = base.pop("enabled", True)
     if not isinstance(enabled, bool):
         raise ScenarioError(f"{source}: baseline.enabled must be true or false, got {enabled!r}")
-    pi_gains = _build(PIGains, base, source, "baseline", extra_known={"enabled"})
-    top["baseline"] = BaselineSpec(enabled=enabled, gains=pi_gains)
+    spec = _controller_spec(base, source, "baseline", "pi")
+    top["baseline"] = BaselineSpec(enabled=enabled, kind=spec.kind, gains=spec.gains)
     if "sea" in data:
         top["sea"] = _build_sea(data["sea"], source)
     if "obstacles" in data or "guidance" in data:
-        from .obstacles.spec import from_tables, guidance_from_table
-
         top["obstacles"] = from_tables(data.get("obstacles"), source)
         top["guidance"] = guidance_from_table(data.get("guidance"), source)
     scenario = _construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
+
+
+def _controller_spec(table: Any, source: str, section: str, default_kind: str) -> ControllerSpec:
+    """``[controller]`` / ``[baseline]``: ``kind`` names a registered controller, whose own gains
+    dataclass validates every other key of the table (the error lists that controller's keys)."""
+    if not isinstance(table, dict):
+        raise ScenarioError(f"{source}: [{section}] must be a table, got {table!r}")
+    table = dict(table)
+    kind = table.pop("kind", default_kind)
+    if not isinstance(kind, str):
+        raise ScenarioError(f"{source}: {section}.kind must be a string, got {kind!r}")
+    entry = CONTROLLERS.get(kind, f"{source}: {section}.kind")
+    gains_cls = entry.info.get("gains")
+    if gains_cls is None:
+        if table:
+            raise ScenarioError(f"{source}: controller {kind!r} takes no gains, got {', '.join(sorted(table))}")
+        return ControllerSpec(kind=kind, gains=None)
+    extra = {"kind", "enabled"} if section == "baseline" else {"kind"}
+    gains = _build(gains_cls, table, source, section, extra_known=extra)
+    return ControllerSpec(kind=kind, gains=gains)
+
+
+def _build_disturbance(table: Any, source: str):
+    """``[disturbance]``: ``kind`` (default "paper") names a registered disturbance, whose
+    parameter dataclass validates the other keys."""
+    if not isinstance(table, dict):
+        raise ScenarioError(f"{source}: [disturbance] must be a table, got {table!r}")
+    table = dict(table)
+    kind = table.pop("kind", "paper")
+    cls = DISTURBANCES.get(kind, f"{source}: disturbance.kind").obj
+    return _build(cls, table, source, "disturbance", extra_known={"kind"})
 
 
 def _build_sea(table, source: str) -> SeaSettings:

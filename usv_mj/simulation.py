@@ -1,13 +1,14 @@
-"""The closed loop: reference -> controller -> quantizer -> plant, one control period at a time.
+"""The closed loop: reference -> controller -> quantizer -> actuators -> plant, one control period at a time.
 
-The loop knows the plant and the controller only through their interfaces
-(:mod:`usv_mj.plants.base`, :mod:`usv_mj.controllers.base`). Each step it records one row of the
-:class:`~usv_mj.record.RunRecord`; every ``block`` rows it hands the new rows to the sinks (the MCAP
-writer, say), so that a long run streams out with bounded memory in the writers.
+The loop knows its parts only through their interfaces (:mod:`usv_mj.plants.base`,
+:mod:`usv_mj.controllers.base`), and gets them from :func:`usv_mj.build` (or from a caller that
+built them). Each step it records one row of the :class:`~usv_mj.record.RunRecord` (the core
+columns, then the controller's declared diagnostics); every ``block`` rows it hands the new rows
+to the sinks (the MCAP writer, say), so that a long run streams out with bounded memory.
 
 A run stops early, with a recorded event and a status, on divergence (a non-finite or out-of-limit
-state or force), on an exception in the plant or controller, or on Ctrl-C; the rows up to the stop
-stay valid and the sinks are always finished.
+state or force, :class:`usv_mj.scenario.LimitsSpec`), on an exception in a part, or on Ctrl-C;
+the rows up to the stop stay valid and the sinks are always finished.
 """
 
 from __future__ import annotations
@@ -18,15 +19,10 @@ from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
-from usv_mj.controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
-from usv_mj.controllers.performance_funnel import PerformanceFunnel
-from usv_mj.controllers.pi_baseline import PIController
-from usv_mj.controllers.ppc import PPCController
-
-from .plants.analytic import AnalyticPlant
-from .record import COL, SL_DIAG, SL_REF, SL_STATE, Event, RunRecord
+from .build import Parts, build, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
+from .record import COL, SL_REF, SL_STATE, Event, RunRecord
 from .scenario import Scenario
-from .trajectories import CircleReference, LineReference, PaperReference, WaypointReference
+from .trajectories import make_reference as _make_reference
 
 
 class RunSink(Protocol):
@@ -39,103 +35,57 @@ class RunSink(Protocol):
     def finish(self, record: RunRecord) -> None: ...
 
 
-class DivergenceError(RuntimeError):
-    """The state or the control left its limits (see :class:`usv_mj.scenario.LimitsSpec`)."""
+def make_reference(scenario: Scenario, duration: float | None = None):
+    """The scenario's reference trajectory over ``duration`` [s] (default: the scenario's)."""
+    return _make_reference(scenario.trajectory, scenario.duration if duration is None else duration)
 
 
-# --- building the pieces from a scenario ---------------------------------------------------------
+def state_limit_exceeded(x, ex: float, ey: float, limits) -> bool:
+    """True when the state left :class:`usv_mj.scenario.LimitsSpec` (or is not finite): the one check
+    of divergence, used by the loop and by the dm_control tasks."""
+    return not (abs(x[3]) < limits.max_speed and abs(x[4]) < limits.max_speed
+                and abs(x[5]) < limits.max_yaw_rate and abs(ex) + abs(ey) < limits.max_distance
+                and math.isfinite(x[2]))
 
 
-def make_reference(scenario: Scenario):
-    spec = scenario.trajectory
-    if spec.kind == "paper":
-        return PaperReference(duration=scenario.duration, speed=spec.speed)
-    if spec.kind == "line":
-        return LineReference(spec.start, spec.heading_deg, spec.speed)
-    if spec.kind == "circle":
-        return CircleReference(spec.center, spec.radius, spec.speed, spec.start_angle_deg, spec.clockwise)
-    return WaypointReference(spec.points, spec.speed, spec.turn_radius)
-
-
-def make_funnels(scenario: Scenario) -> tuple[PerformanceFunnel, PerformanceFunnel]:
-    f = scenario.funnel
-    return (PerformanceFunnel(f.rho_xy[0], f.rho_xy[1], f.rate), PerformanceFunnel(f.rho_psi[0], f.rho_psi[1], f.rate))
-
-
-def make_controller(scenario: Scenario, kind: str | None = None):
-    kind = kind or scenario.controller.kind
-    fxy, fpsi = make_funnels(scenario)
-    if kind == "ppc":
-        return PPCController(scenario.controller.gains, scenario.ship, fxy, fpsi, scenario.quantizer.delta_u,
-                             scenario.quantizer.delta_r, scenario.control_period)
-    if kind == "pi":
-        return PIController(scenario.baseline.gains, scenario.ship, fxy, fpsi, scenario.control_period)
-    raise ValueError(f"unknown controller kind {kind!r}")
-
-
-def make_quantizers(scenario: Scenario) -> tuple[HysteresisQuantizer, HysteresisQuantizer]:
-    q = scenario.quantizer
-    return (HysteresisQuantizer(QuantizerParams(q.delta_u, q.u_min_u), q.enabled),
-            HysteresisQuantizer(QuantizerParams(q.delta_r, q.u_min_r), q.enabled))
-
-
-def make_environment(scenario: Scenario, duration: float | None = None):
-    """The scenario's sea (waves, current, wind; SEA.md) or None when it is calm."""
-    if scenario.sea.calm:
-        return None
-    from .sea import Environment
-
-    return Environment(scenario.sea, ship=scenario.ship, t_max=(duration or scenario.duration) + 1.0)
-
-
-def make_plant(scenario: Scenario, kind: str | None = None, environment=None):
-    kind = kind or scenario.plant.kind
-    if environment is None:
-        environment = make_environment(scenario)
-    if kind == "analytic":
-        return AnalyticPlant(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
-                             environment=environment)
-    if kind == "mujoco":
-        from .plants.mujoco_plant import MuJoCoPlant
-
-        return MuJoCoPlant(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
-                           environment=environment)
-    raise ValueError(f"unknown plant kind {kind!r}")
-
-
-# --- the loop ------------------------------------------------------------------------------------
-
-
-def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str | None = None,
+def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_kind: str | None = None,
              controller_kind: str | None = None, sinks: Iterable[RunSink] = (), block: int = 2000,
              progress: Callable[[int], None] | None = None, duration: float | None = None,
              reference=None, hooks: Iterable[Callable] = ()) -> RunRecord:
-    """Run ``scenario`` in closed loop and return its :class:`RunRecord`.
+    """Run in closed loop and return the :class:`RunRecord`.
 
-    ``plant``, ``controller`` and ``reference`` default to the scenario's; pass your own to run
-    anything that follows the interfaces. ``hooks`` are called as ``hook(t, k, plant)`` at every
-    control step before the reference is evaluated (the obstacles' clearance and guidance, say).
-    ``progress(n)`` is called with the number of new steps every block. Plants built here are
-    closed here.
+    ``scenario`` is a :class:`Scenario` (built here with :func:`usv_mj.build`, with ``plant_kind``,
+    ``controller_kind``, ``duration`` and any ready-made ``plant`` / ``controller`` / ``reference``)
+    or the :class:`Parts` of an earlier build. ``hooks`` are called as ``hook(t, k, plant)`` at
+    every control step before the reference is evaluated, after the build's own. ``progress(n)``
+    is called with the number of new steps every block. A plant the build made is closed here.
+    The record's ``statics`` are the build's (the sea the plant saw, the obstacles, the plan).
     """
-    duration = scenario.duration if duration is None else float(duration)
+    if isinstance(scenario, Parts):
+        parts = scenario
+    else:
+        parts = build(scenario, plant_kind=plant_kind, controller_kind=controller_kind, duration=duration,
+                      plant=plant, controller=controller, reference=reference)
+    try:
+        return _run(parts, list(parts.sinks) + list(sinks), block, progress, tuple(parts.hooks) + tuple(hooks))
+    finally:
+        parts.close()
+
+
+def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRecord:
+    scenario, plant, controller, reference = parts.scenario, parts.plant, parts.controller, parts.reference
+    duration = parts.duration
     dt = scenario.control_period
     n = int(round(duration / dt))
-    own_plant = plant is None
-    plant = plant if plant is not None else make_plant(scenario, plant_kind)
-    controller = controller if controller is not None else make_controller(scenario, controller_kind)
-    if reference is None:
-        reference = make_reference(scenario) if duration <= scenario.duration else make_reference(
-            scenario.with_overrides({"duration": duration}))
-    hooks = tuple(hooks)
-    quant_u, quant_r = make_quantizers(scenario)
+    quant_u, quant_r = parts.quantizers
     limits = scenario.limits
+    fields = tuple(getattr(controller, "diagnostic_fields", ()))
     record = RunRecord(n + 1, metadata={
         "preset": scenario.preset, "plant": plant.name, "controller": controller.name,
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
-        "scenario": scenario.to_dict(),
-    })
-    sinks = list(sinks)
+        "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata,
+    }, diagnostic_fields=fields, diagnostic_events=getattr(controller, "diagnostic_events", None))
+    record.statics = parts.statics
     for sink in sinks:
         sink.start(record)
     plant.reset(scenario.initial.eta, scenario.initial.nu, 0.0)
@@ -143,8 +93,10 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
     quant_u.reset()
     quant_r.reset()
     data = record.data
+    sl_diag = slice(len(COL), len(COL) + len(fields))
     c_t = COL["t"]
-    c_tau_u, c_tau_r, c_q_u, c_q_r, c_k_u, c_k_r = (COL[c] for c in ("tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r"))
+    c_tau_u, c_tau_r, c_q_u, c_q_r, c_k_u, c_k_r, c_f_u, c_f_r, c_s_u, c_s_r = (COL[c] for c in (
+        "tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r", "f_u", "f_r", "sat_u", "sat_r"))
     flushed = 0
     wall0 = time.perf_counter()
     k = 0
@@ -158,23 +110,28 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
             tau_u, tau_r, diag = controller(t, x, ref)
             if not (abs(tau_u) < limits.max_force and abs(tau_r) < limits.max_force):
                 _stop_diverged(record, t, f"control force out of limits or not finite: tau_u = {tau_u!r}, "
-                               f"tau_r = {tau_r!r}", {"tau_u": float(tau_u), "tau_r": float(tau_r)}, data, k,
-                               x, ref, diag)
+                               f"tau_r = {tau_r!r}", {"tau_u": _json_number(tau_u), "tau_r": _json_number(tau_r)},
+                               data, k, x, ref, diag, sl_diag)
                 k += 1
                 break
             q_u = quant_u.step(tau_u)
             q_r = quant_r.step(tau_r)
+            f_u, f_r = q_u, q_r
             row = data[k]
             row[c_t] = t
             row[SL_STATE] = x
             row[SL_REF] = ref
-            row[SL_DIAG] = diag
+            row[sl_diag] = diag
             row[c_tau_u] = tau_u  # scalar stores: cheaper than building an array per step
             row[c_tau_r] = tau_r
             row[c_q_u] = q_u
             row[c_q_r] = q_r
             row[c_k_u] = quant_u.k
             row[c_k_r] = quant_r.k
+            row[c_f_u] = f_u
+            row[c_f_r] = f_r
+            row[c_s_u] = 0.0
+            row[c_s_r] = 0.0
             k += 1
             record.n_rows = k
             if k - flushed >= block:
@@ -182,17 +139,15 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
                 flushed = k
             if k > n:
                 break
-            plant.step(q_u, q_r)
+            plant.step(f_u, f_r)
             x = plant.state
             ex, ey = x[0] - ref[0], x[1] - ref[1]
-            if not (abs(x[3]) < limits.max_speed and abs(x[4]) < limits.max_speed
-                    and abs(x[5]) < limits.max_yaw_rate and abs(ex) + abs(ey) < limits.max_distance
-                    and math.isfinite(x[2])):
+            if state_limit_exceeded(x, ex, ey, limits):
                 t_next = k * dt
                 record.events.append(Event(t_next, "divergence",
                     f"state left its limits at t = {t_next:.3f} s: {_which_limit(x, ex, ey, limits)}; "
                     f"(x, y, psi, u, v, r) = ({', '.join(f'{v:.4g}' for v in x)})",
-                    {"state": [float(v) for v in x]}))
+                    {"state": [_json_number(v) for v in x]}))
                 record.status = "diverged"
                 record.stop_reason = record.events[-1].message
                 break
@@ -206,10 +161,16 @@ def simulate(scenario: Scenario, plant=None, controller=None, *, plant_kind: str
         record.status = "failed"
         record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}"
         record.events.append(Event(k * dt, "failed", record.stop_reason))
-        _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r, own_plant, plant)
+        _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r)
         raise
-    _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r, own_plant, plant)
+    _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r)
     return record
+
+
+def _json_number(v) -> float | None:
+    """A float for an event's values, None where it is not finite (the log stores null)."""
+    v = float(v)
+    return v if math.isfinite(v) else None
 
 
 def _which_limit(x, ex, ey, limits) -> str:
@@ -227,12 +188,12 @@ def _which_limit(x, ex, ey, limits) -> str:
     return "heading psi is not finite"
 
 
-def _stop_diverged(record, t, message, values, data, k, x, ref, diag):
+def _stop_diverged(record, t, message, values, data, k, x, ref, diag, sl_diag):
     row = data[k]
     row[COL["t"]] = t
     row[SL_STATE] = x
     row[SL_REF] = ref
-    row[SL_DIAG] = diag
+    row[sl_diag] = diag
     record.n_rows = k + 1
     record.events.append(Event(t, "divergence", message, values))
     record.status = "diverged"
@@ -248,7 +209,7 @@ def _flush(record, sinks, lo, hi, progress):
             progress(hi - lo)
 
 
-def _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r, own_plant, plant):
+def _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r):
     _flush(record, sinks, flushed, record.n_rows, progress)
     record.events.sort(key=lambda e: e.t)
     wall = time.perf_counter() - wall0
@@ -258,38 +219,45 @@ def _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r, own_plant
         "realtime_factor": sim_t / wall if wall > 0 else float("inf"),
         "quantizer_switches": {"u": quant_u.switches, "r": quant_r.switches},
     })
-    if own_plant:
-        plant.close()
     for sink in sinks:
         sink.finish(record)
 
 
 def detect_events(record: RunRecord, lo: int, hi: int) -> list[Event]:
-    """Funnel-violation and s2-clamp episodes that start in rows [lo, hi) (vectorised)."""
+    """Episodes that start in rows [lo, hi) (vectorised): funnel violations and recoveries when the
+    controller declared the funnel block, and the episodes of its declared 0/1 event fields (the
+    PPC law's s2 clamps)."""
     events = []
     data = record.data
+    col = record.col
     t = data[lo:hi, COL["t"]]
-    for axis in (1, 2, 3):
-        z = data[lo:hi, COL[f"z{axis}"]]
-        bad = ~(np.abs(z) < 1.0)
-        prev = bool(lo > 0 and not abs(data[lo - 1, COL[f"z{axis}"]]) < 1.0)
-        starts = np.flatnonzero(bad & ~np.concatenate(([prev], bad[:-1])))
-        ends = np.flatnonzero(~bad & np.concatenate(([prev], bad[:-1])))
-        for i in starts:
-            e = data[lo + i, COL[f"e{axis}"]]
-            rho = data[lo + i, COL[f"rho{axis}"]]
-            events.append(Event(float(t[i]), "funnel_violation",
-                                f"e{axis} = {e:.4g} left the funnel |e{axis}| < rho{axis} = {rho:.4g} "
-                                f"(z{axis} = {z[i]:.4g})", {"axis": axis, "e": float(e), "rho": float(rho),
-                                                             "z": float(z[i])}))
-        for i in ends:
-            events.append(Event(float(t[i]), "funnel_recovered", f"e{axis} is back inside its funnel",
-                                {"axis": axis}))
-    clamp = data[lo:hi, COL["s2_clamped"]] > 0.5
-    prev = bool(lo > 0 and data[lo - 1, COL["s2_clamped"]] > 0.5)
-    for i in np.flatnonzero(clamp & ~np.concatenate(([prev], clamp[:-1]))):
-        events.append(Event(float(t[i]), "s2_clamp", f"s2 = tanh(gamma_2) was clamped at its limit after "
-                            f"({data[lo + i, COL['s2']]:.9f})", {"s2": float(data[lo + i, COL["s2"]])}))
+    if record.has_funnel:
+        for axis in (1, 2, 3):
+            cz = col[f"z{axis}"]
+            z = data[lo:hi, cz]
+            bad = ~(np.abs(z) < 1.0)
+            prev = bool(lo > 0 and not abs(data[lo - 1, cz]) < 1.0)
+            starts = np.flatnonzero(bad & ~np.concatenate(([prev], bad[:-1])))
+            ends = np.flatnonzero(~bad & np.concatenate(([prev], bad[:-1])))
+            for i in starts:
+                e = data[lo + i, col[f"e{axis}"]]
+                rho = data[lo + i, col[f"rho{axis}"]]
+                events.append(Event(float(t[i]), "funnel_violation",
+                                    f"e{axis} = {e:.4g} left the funnel |e{axis}| < rho{axis} = {rho:.4g} "
+                                    f"(z{axis} = {z[i]:.4g})", {"axis": axis, "e": _json_number(e),
+                                                                 "rho": _json_number(rho), "z": _json_number(z[i])}))
+            for i in ends:
+                events.append(Event(float(t[i]), "funnel_recovered", f"e{axis} is back inside its funnel",
+                                    {"axis": axis}))
+    for name, kind in record.diagnostic_events.items():
+        c = col[name]
+        flag = data[lo:hi, c] > 0.5
+        prev = bool(lo > 0 and data[lo - 1, c] > 0.5)
+        for i in np.flatnonzero(flag & ~np.concatenate(([prev], flag[:-1]))):
+            values = {"field": name}
+            message = f"{name} was set (a {kind} episode starts)"
+            if kind == "s2_clamp" and "s2" in col:  # the PPC law's clamp names the value it held
+                values["s2"] = _json_number(data[lo + i, col["s2"]])
+                message = f"s2 = tanh(gamma_2) was clamped at its limit after ({data[lo + i, col['s2']]:.9f})"
+            events.append(Event(float(t[i]), kind, message, values))
     return events
-
-

@@ -38,9 +38,14 @@ def summarize(record: RunRecord) -> dict:
             errors_at[f"{tc:g}"] = {a: None for a in ("x", "y", "psi")}
     after = t > 20.0
     max_after = {a: (_finite(np.max(np.abs(err[a][after]))) if after.any() else None) for a in ("x", "y", "psi")}
-    z = np.stack([record["z1"], record["z2"], record["z3"]])
-    viol = np.any(~(np.abs(z) < 1.0), axis=0)
-    first = _finite(t[np.argmax(viol)]) if viol.any() else None
+    if record.has_funnel:  # the controller declared the funnel block (e, rho, z)
+        z = np.stack([record["z1"], record["z2"], record["z3"]])
+        viol = np.any(~(np.abs(z) < 1.0), axis=0)
+        violations, first = int(viol.sum()), (_finite(t[np.argmax(viol)]) if viol.any() else None)
+    else:
+        violations, first = None, None
+    clamps = int(np.sum(record["s2_clamped"] > 0.5)) if "s2_clamped" in record else None
+    saturated = {ch: (float(np.mean(record[f"sat_{ch}"] > 0.5)) if len(t) else 0.0) for ch in ("u", "r")}
     return {
         "preset": meta.get("preset"),
         "plant": meta.get("plant"),
@@ -52,9 +57,11 @@ def summarize(record: RunRecord) -> dict:
         "control_period_s": dt,
         "errors_at": errors_at,
         "max_abs_error_after_20s": max_after,
-        "funnel_violations": int(viol.sum()),
+        "funnel_violations": violations,
         "first_violation_s": first,
-        "s2_clamps": int(np.sum(record["s2_clamped"] > 0.5)),
+        "s2_clamps": clamps,
+        "saturated_fraction": saturated,
+        "diagnostic_fields": list(record.diagnostic_fields),
         "quantizer_switches": meta.get("quantizer_switches", {"u": None, "r": None}),
         "wall_time_s": meta.get("wall_time_s"),
         "realtime_factor": meta.get("realtime_factor"),

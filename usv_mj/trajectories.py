@@ -5,7 +5,8 @@ r_d = psi_d_dot and surge speed u_d (v_d = 0). ``reference.evaluate(t)`` returns
 :data:`usv_mj.controllers.base.REF_FIELDS` = (x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d) in m, rad, m/s,
 rad/s; the returned array is the reference's own buffer (copy it to keep it).
 
-A new trajectory is a new subclass of :class:`Reference` registered in :data:`TRAJECTORIES`.
+A new trajectory is a new subclass of :class:`Reference` with a ``from_spec(spec, duration)``
+classmethod, registered with ``@TRAJECTORIES.register(kind)`` (:mod:`usv_mj.registry`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 from numba import njit
 
 from usv_mj.controllers.base import REF_FIELDS
+from usv_mj.registry import TRAJECTORIES
 
 
 class Reference:
@@ -236,4 +238,16 @@ class WaypointReference(Reference):
                 sign * self.speed / radius, self.speed)
 
 
-TRAJECTORIES = {cls.kind: cls for cls in (PaperReference, LineReference, CircleReference, WaypointReference)}
+
+# --- registration: the scenario's [trajectory] kinds (TrajectorySpec carries every kind's keys) ----
+
+TRAJECTORIES.register("paper")(lambda spec, duration: PaperReference(duration=duration, speed=spec.speed))
+TRAJECTORIES.register("line")(lambda spec, duration: LineReference(spec.start, spec.heading_deg, spec.speed))
+TRAJECTORIES.register("circle")(lambda spec, duration: CircleReference(
+    spec.center, spec.radius, spec.speed, spec.start_angle_deg, spec.clockwise))
+TRAJECTORIES.register("waypoints")(lambda spec, duration: WaypointReference(spec.points, spec.speed, spec.turn_radius))
+
+
+def make_reference(spec, duration: float) -> Reference:
+    """The reference that ``spec`` (a scenario's ``TrajectorySpec``) names, valid over ``duration`` [s]."""
+    return TRAJECTORIES.get(spec.kind, "trajectory.kind").obj(spec, duration)

@@ -35,7 +35,7 @@ class HarbourLayout:
 
 
 def draw_obstacles(rng: np.random.RandomState, goal_distance: float):
-    from usv_mj.obstacles.spec import ObstacleSpec
+    from usv_mj.obstacle_tables import ObstacleSpec
 
     out = []
     gx = rng.uniform(10.0, 16.0)
@@ -65,7 +65,7 @@ def harbour_layout(rng: np.random.RandomState, scenario, guidance, duration: flo
     """Draw layouts from ``rng`` until the guidance plans a verified reference (module docstring).
 
     ``scenario`` gives the funnel, eps and speed (``trajectory.speed``); ``guidance`` a
-    :class:`usv_mj.obstacles.spec.GuidanceSpec`; ``duration`` [s] the verification horizon.
+    :class:`usv_mj.obstacle_tables.GuidanceSpec`; ``duration`` [s] the verification horizon.
     """
     from usv_mj.obstacles.planner import PlanningError, SafetyEnvelope, plan_reference
 

@@ -1,7 +1,6 @@
 """Obstacles with real contact physics and guidance that keeps clear (issue 8).
 
-- :mod:`.spec`: ``[[obstacles]]`` / ``[guidance]`` tables -> :class:`ObstacleSpec`, :class:`GuidanceSpec`;
-  :func:`load_obstacle_scenario`.
+- the ``[[obstacles]]`` / ``[guidance]`` tables are the scenario's (:mod:`usv_mj.obstacle_tables`).
 - :mod:`.compose`: the harbour model composed with dm_control.mjcf, :class:`HarbourPlant`.
 - :mod:`.clearance`: per-step signed distances and contacts (:class:`MuJoCoClearance`,
   :class:`GeometricClearance`).
@@ -9,9 +8,9 @@
   :class:`GuidedReference`, :class:`Guidance` (re-timing / detours for moving obstacles), :class:`SafetyEnvelope`.
 - :mod:`.sink`: :class:`ObstacleLog` (RunSink; clearance per step, events, summary).
 - :mod:`.display`: obstacles for figures, Foxglove scenes and the ``/usv/obstacles`` topic.
-- :mod:`.run`: :func:`run_obstacle_scenario`.
+- :mod:`.hooks`: :func:`make_plan`, :class:`ObstacleHook` (assembled into a run by :func:`usv_mj.build`).
 
-Names are imported lazily, so ``usv_mj.obstacles.spec`` (used by scenario loading) does not pull in
+Names are imported lazily, so that importing the package does not pull in
 MuJoCo, dm_control, shapely or networkx.
 """
 
@@ -25,10 +24,8 @@ _WHERE = {
     "export_scene": "compose", "hull_footprint": "compose", "place_moving_obstacles": "compose",
     "Guidance": "planner", "GuidedReference": "planner", "Plan": "planner", "PlanningError": "planner",
     "SafetyEnvelope": "planner", "plan_reference": "planner",
-    "ObstacleRun": "run", "ObstacleHook": "run", "make_plan": "run", "run_obstacle_scenario": "run",
+    "ObstacleHook": "hooks", "make_plan": "hooks",
     "ObstacleLog": "sink",
-    "GuidanceSpec": "spec", "ObstacleScenario": "spec", "ObstacleSpec": "spec", "from_tables": "spec",
-    "guidance_from_table": "spec", "load_obstacle_scenario": "spec",
     "draw_obstacles": "display", "scene_entities": "display", "obstacles_message": "display",
 }
 

@@ -240,7 +240,7 @@ def _penetration(a, b) -> float:
 class GeometricClearance:
     """Clearance from the geometry for plants without contact physics (module docstring).
 
-    ``obstacles``: the :class:`~usv_mj.obstacles.spec.ObstacleSpec` tuple; moving obstacles are
+    ``obstacles``: the :class:`~usv_mj.obstacle_tables.ObstacleSpec` tuple; moving obstacles are
     placed at ``center + velocity t``.
     """
 

@@ -64,7 +64,7 @@ from usv_mj.scenario import ScenarioError
 from usv_mj.trajectories import Reference
 
 from .compose import HULL_RADIUS
-from .spec import GuidanceSpec, ObstacleSpec
+from usv_mj.obstacle_tables import GuidanceSpec, ObstacleSpec
 
 SQRT2 = math.sqrt(2.0)
 MAX_ITERATIONS = 12

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from usv_mj.registry import PLANTS
 from usv_mj.ship import PaperDisturbance, ShipParams, state_derivative
 
 from .base import PlantBase
@@ -27,6 +28,7 @@ def rk4_advance(p, dp, t, x, tau_u, tau_r, h, n):
     return x
 
 
+@PLANTS.register("analytic")
 class AnalyticPlant(PlantBase):
     """RK4 integration of M nu_dot + C nu + D nu = tau + d(t) + Delta, eta_dot = J nu (SPEC §1).
 
@@ -88,3 +90,11 @@ class AnalyticPlant(PlantBase):
     @property
     def state(self) -> np.ndarray:
         return self._x
+
+    @classmethod
+    def from_scenario(cls, scenario, environment=None, obstacles=(), contact=None, safety_radii=None):
+        """The analytic plant of ``scenario`` in ``environment`` (obstacles are seen by geometry only:
+        the clearance hooks measure them; this plant has no contact forces)."""
+        return cls(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
+                   environment=environment)
+

@@ -30,6 +30,7 @@ import weakref
 import mujoco
 import numpy as np
 
+from usv_mj.registry import PLANTS
 from usv_mj.ship import PaperDisturbance, RigidBodySplit, ShipParams
 
 from . import mujoco_callback as mcb
@@ -106,6 +107,7 @@ def installed_callback() -> str | None:
     return REGISTRY.installed
 
 
+@PLANTS.register("mujoco")
 class MuJoCoPlant(PlantBase):
     """The ship of SPEC §1 integrated by MuJoCo (RK4) with a hydrodynamic passive-force callback.
 
@@ -386,6 +388,20 @@ class MuJoCoPlant(PlantBase):
         qa = self.data.qacc
         u, v, r = x[3], x[4], x[5]
         return np.array((c * qa[0] + s * qa[1] + r * v, -s * qa[0] + c * qa[1] - r * u, qa[2]))
+
+    @classmethod
+    def from_scenario(cls, scenario, environment=None, obstacles=(), contact=None, safety_radii=None):
+        """The MuJoCo plant of ``scenario``: the hull of ``models/usv.xml`` in open water, or the scene
+        composed from the hull and ``obstacles`` (with its contact model) when there are any; the
+        sea ``environment`` acts on the hull in both."""
+        if obstacles:
+            from usv_mj.obstacles.compose import ContactParams, HarbourPlant
+
+            return HarbourPlant(scenario.ship, scenario.disturbance, obstacles, scenario.control_period,
+                                scenario.plant.substeps, contact or ContactParams(), safety_radii,
+                                environment=environment)
+        return cls(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
+                   environment=environment)
 
     def close(self) -> None:
         """Unmark the mjData and remove the global callback if this was the last plant."""

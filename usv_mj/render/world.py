@@ -83,7 +83,7 @@ def _ship(table: dict):
 
 def _obstacle(table: dict):
     """An ObstacleSpec from a scenario's obstacle table as ``Scenario.to_dict`` writes it (every field)."""
-    from usv_mj.obstacles.spec import ObstacleSpec
+    from usv_mj.obstacle_tables import ObstacleSpec
 
     fields = ObstacleSpec.__dataclass_fields__
     return ObstacleSpec(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in table.items() if k in fields})

@@ -30,8 +30,7 @@ from usv_mj.toml_values import coerce
 DRIFT_MODES = ("newman", "mean", "off")
 
 
-class SeaSettingsError(ValueError):
-    """A sea setting is wrong; the message names the key (``sea.waves.hs``) and the source."""
+from usv_mj.errors import SeaSettingsError  # noqa: E402  (one error family: a ScenarioError)
 
 
 def _finite(section: str, name: str, value: float) -> None:

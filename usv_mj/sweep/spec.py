@@ -83,8 +83,7 @@ _NAME = r"[A-Za-z_][A-Za-z0-9_]*"
 _PART = re.compile(rf"({_NAME})((?:\[\d+\])*)")
 
 
-class SweepError(ValueError):
-    """A sweep file is wrong: the message names the file, the path or key and the bad value."""
+from usv_mj.errors import SweepError  # noqa: E402  (one error family: a ScenarioError)
 
 
 # --- paths ----------------------------------------------------------------------------------------

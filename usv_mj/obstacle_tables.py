@@ -19,8 +19,8 @@ The other ``[guidance]`` keys (``max_yaw_rate``, ``max_yaw_accel``, ...) are thi
 documented in :class:`GuidanceSpec`. Every value is validated with a :class:`usv_mj.scenario.ScenarioError`
 that names its key, e.g. ``obstacles[2].radius``.
 
-Until :class:`usv_mj.scenario.Scenario` carries these tables itself, :func:`load_obstacle_scenario`
-takes them out of the TOML and hands the rest to :func:`usv_mj.scenario.load_scenario`.
+A leaf of the scenario (it imports only the error family): the obstacle features
+(:mod:`usv_mj.obstacles`) import these types, never the other way round.
 """
 
 from __future__ import annotations
@@ -28,10 +28,9 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-from usv_mj.scenario import Scenario, ScenarioError, load_scenario
+from usv_mj.errors import ScenarioError
 
 OBSTACLE_KINDS = ("circle", "box")
 
@@ -228,20 +227,3 @@ def guidance_from_table(table: Any, source: str = "<guidance>") -> GuidanceSpec:
         return GuidanceSpec(**kwargs)
     except ValueError as exc:
         raise ScenarioError(f"{source}: guidance.{exc}") from None
-
-
-@dataclass(frozen=True)
-class ObstacleScenario:
-    """A validated scenario with its obstacles and guidance."""
-
-    scenario: Scenario
-    obstacles: tuple[ObstacleSpec, ...] = ()
-    guidance: GuidanceSpec = GuidanceSpec()
-
-
-def load_obstacle_scenario(path: str | Path | None = None, preset: str | None = None,
-                           overrides: dict | None = None) -> ObstacleScenario:
-    """:func:`usv_mj.scenario.load_scenario` (which reads ``[[obstacles]]`` and ``[guidance]``),
-    with the obstacles and guidance at hand."""
-    scenario = load_scenario(path, preset=preset, overrides=overrides)
-    return ObstacleScenario(scenario, scenario.obstacles, scenario.guidance)

@@ -1,0 +1,238 @@
+"""One build: a scenario in, every running part of a run out (the one place that constructs a plant).
+
+::
+
+    from usv_mj import build, load_scenario, simulate
+    parts = build(load_scenario("examples/scenarios/harbour_gap.toml", overrides={"sea": {"preset": "moderate"}}))
+    record = simulate(parts)          # the plant is closed when the run ends
+
+:func:`build` turns a :class:`~usv_mj.scenario.Scenario` into :class:`Parts`:
+
+- the **plant**, by ``[plant] kind`` from :data:`usv_mj.registry.PLANTS`: the analytic plant, or
+  the MuJoCo plant on ``models/usv.xml`` alone or composed with the scenario's obstacles (with the
+  contact model); both take the scenario's sea as their environment and its d(t) and Delta;
+- the **controller**, by kind from :data:`usv_mj.registry.CONTROLLERS` with its own gains
+  (``[controller]``, or ``[baseline]`` for the baseline's kind);
+- the **reference**, by ``[trajectory] kind`` from :data:`usv_mj.registry.TRAJECTORIES`, or
+  planned around the obstacles when ``[guidance] avoid``;
+- the **quantizers** (the actuator channel, one per input);
+- the **hooks** the loop calls before every step (clearance, contacts, online guidance) and the
+  **sinks** that collect their results (the obstacle log);
+- the **statics** the outputs need and must not rebuild: the sea the plant saw, the obstacles, the
+  planned path.
+
+Every command (``run``, ``compare``, ``render``, ``plot``, ``sweep``, ``capability``, ``env``) and
+every dm_control task goes through here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import ScenarioError
+from .registry import CONTROLLERS, PLANTS
+from .scenario import Scenario
+from .trajectories import make_reference
+
+REFERENCE_MARGIN_S = 1.0  # the sea and the reference are made a little past the run's end
+
+
+@dataclass
+class Statics:
+    """What a run's outputs need besides its rows (plain data; no live plant).
+
+    Attributes
+    ----------
+    environment: the :class:`usv_mj.sea.Environment` the plant saw (None in calm water).
+    obstacles: the scenario's :class:`~usv_mj.obstacle_tables.ObstacleSpec` tuple.
+    plan: the guidance's :class:`~usv_mj.obstacles.planner.Plan` (None without ``avoid``).
+    obstacle_log: the :class:`~usv_mj.obstacles.sink.ObstacleLog` (clearance per step), or None.
+    guidance: the online guidance of moving obstacles, or None.
+    reference: the reference the run tracked (a pure function of t; sampled for drawn paths).
+    """
+
+    environment: Any = None
+    obstacles: tuple = ()
+    plan: Any = None
+    obstacle_log: Any = None
+    guidance: Any = None
+    reference: Any = None
+
+
+@dataclass
+class Parts:
+    """Everything :func:`usv_mj.simulate` needs for one run (see the module docstring)."""
+
+    scenario: Scenario
+    duration: float
+    plant: Any
+    controller: Any
+    reference: Any
+    quantizers: tuple
+    hooks: tuple = ()
+    sinks: tuple = ()
+    statics: Statics = field(default_factory=Statics)
+    metadata: dict = field(default_factory=dict)
+    own_plant: bool = True
+
+    def close(self) -> None:
+        """Release the plant (a MuJoCo callback, a composed model file) if this build made it."""
+        if self.own_plant and self.plant is not None:
+            self.plant.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def make_environment(scenario: Scenario, duration: float | None = None):
+    """The scenario's sea (waves, current, wind; docs/sea.md), or None when it is calm."""
+    if scenario.sea.calm:
+        return None
+    from .sea import Environment
+
+    return Environment(scenario.sea, ship=scenario.ship,
+                       t_max=(scenario.duration if duration is None else duration) + REFERENCE_MARGIN_S)
+
+
+def make_plant(scenario: Scenario, kind: str | None = None, environment="scenario", *, control_period: float | None = None,
+               substeps: int | None = None, contact=None, safety_radii=None):
+    """The plant ``kind`` (default ``[plant] kind``) of ``scenario`` from :data:`usv_mj.registry.PLANTS`,
+    in the scenario's sea (or ``environment``: an Environment, or None for calm water), with the
+    scenario's obstacles in its scene; ``control_period`` [s] / ``substeps`` override the scenario's
+    (the convergence studies of ``usv-mj compare``). The caller closes it."""
+    if control_period is not None or substeps is not None:
+        over = {}
+        if control_period is not None:
+            over["control_period"] = float(control_period)
+        if substeps is not None:
+            over["plant"] = {"substeps": int(substeps)}
+        scenario = scenario.with_overrides(over)
+    env = make_environment(scenario) if environment == "scenario" else environment
+    return PLANTS.get(kind or scenario.plant.kind, "plant.kind").obj.from_scenario(
+        scenario, environment=env, obstacles=tuple(scenario.obstacles), contact=contact, safety_radii=safety_radii)
+
+
+def make_controller(scenario: Scenario, kind: str | None = None):
+    """The controller ``kind`` (default ``[controller] kind``) with its gains from the scenario:
+    ``[controller]``'s when it is that kind, ``[baseline]``'s when it is the baseline's, its
+    defaults otherwise."""
+    kind = kind or scenario.controller.kind
+    entry = CONTROLLERS.get(kind, "controller")
+    if kind == scenario.controller.kind:
+        gains = scenario.controller.gains
+    elif kind == scenario.baseline.kind:
+        gains = scenario.baseline.gains
+    else:
+        gains = entry.gains() if entry.info.get("gains") else None
+    return entry.obj.from_scenario(gains, scenario)
+
+
+def make_quantizers(scenario: Scenario):
+    """The hysteresis quantizers of the surge and yaw channels (Eq. 3), from ``[quantizer]``."""
+    from .controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
+
+    q = scenario.quantizer
+    return (HysteresisQuantizer(QuantizerParams(q.delta_u, q.u_min_u), q.enabled),
+            HysteresisQuantizer(QuantizerParams(q.delta_r, q.u_min_r), q.enabled))
+
+
+def check_start_clear(scenario: Scenario) -> None:
+    """ScenarioError if the start pose puts the hull inside an obstacle (checked before anything runs)."""
+    if not scenario.obstacles:
+        return
+    from .obstacles.clearance import GeometricClearance
+
+    clearance = GeometricClearance(scenario.obstacles, exact_within=math.inf).update(
+        0.0, np.r_[scenario.initial.eta, 0, 0, 0])
+    for i in np.flatnonzero(clearance <= 0.0):
+        raise ScenarioError(f"{scenario.source}: initial.eta = {list(scenario.initial.eta)} puts the hull inside "
+                            f"obstacles[{i}] ({scenario.obstacles[i].name}, clearance {clearance[i]:.3f} m)")
+
+
+def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind: str | None = None,
+          duration: float | None = None, plant=None, controller=None, reference=None, environment="scenario",
+          contact=None, show_safety: bool = True) -> Parts:
+    """The running parts of ``scenario`` (module docstring).
+
+    ``plant_kind`` / ``controller_kind`` choose other registered kinds than the scenario's (the
+    baseline run, the other plant of a comparison); ``duration`` [s] another horizon. ``plant``,
+    ``controller`` and ``reference`` hand in ready-made parts instead (a plant handed in is not
+    closed by :meth:`Parts.close`). ``environment`` overrides the scenario's sea (None: calm).
+    ``contact`` is the MuJoCo contact model (:class:`usv_mj.obstacles.compose.ContactParams`).
+    """
+    duration = scenario.duration if duration is None else float(duration)
+    if not (math.isfinite(duration) and duration > 0):
+        raise ScenarioError(f"{scenario.source}: duration must be > 0 s, got {duration!r}")
+    check_start_clear(scenario)
+    env = make_environment(scenario, duration) if environment == "scenario" else environment
+    statics = Statics(environment=env, obstacles=tuple(scenario.obstacles))
+    metadata: dict = {}
+    plan = None
+    if scenario.obstacles and scenario.guidance.avoid and reference is None:
+        from .obstacles.hooks import make_plan
+
+        plan = make_plan(scenario, duration)
+        statics.plan = plan
+    own_plant = plant is None
+    if plant is None:
+        kind = plant_kind or scenario.plant.kind
+        inflation = plan.safety_radius if plan is not None else None
+        safety = np.nan_to_num(inflation, nan=0.0) if (show_safety and inflation is not None) else None
+        plant = make_plant(scenario, kind, env, contact=contact, safety_radii=safety)
+    try:
+        controller = controller if controller is not None else make_controller(scenario, controller_kind)
+        if reference is None:
+            reference = plan.reference if plan is not None else make_reference(scenario.trajectory, duration)
+        hooks, sinks = (), ()
+        if scenario.obstacles:
+            hooks, sinks, metadata = _obstacle_parts(scenario, plant, plan, duration, statics, contact)
+            reference = statics.guidance.reference if statics.guidance is not None else reference
+        statics.reference = reference
+    except BaseException:
+        if own_plant:
+            plant.close()
+        raise
+    return Parts(scenario, duration, plant, controller, reference, make_quantizers(scenario), hooks, sinks,
+                 statics, metadata, own_plant)
+
+
+def _obstacle_parts(scenario, plant, plan, duration, statics, contact):
+    """The clearance monitor, the obstacle log and the online guidance as one loop hook and a sink."""
+    from .obstacles.clearance import make_clearance_monitor
+    from .obstacles.compose import HULL_RADIUS, ContactParams
+    from .obstacles.hooks import ObstacleHook
+    from .obstacles.planner import Guidance
+    from .obstacles.sink import ObstacleLog
+
+    obstacles = statics.obstacles
+    monitor = make_clearance_monitor(plant, obstacles)
+    n_rows = int(round(duration / scenario.control_period)) + 1
+    inflation = plan.safety_radius if plan is not None else None
+    log = ObstacleLog(obstacles, n_rows, scenario.guidance.margin_m, scenario.control_period, monitor.note, inflation)
+    guidance = None
+    if plan is not None and any(o.moving for o in obstacles):
+        guidance = Guidance(plan.reference, obstacles, plan.envelope, scenario.guidance, scenario.trajectory.speed,
+                            log, goal=plan.polyline[-1])
+    if plan is not None:
+        for event in plan.events:
+            log.add_event(event)
+    statics.obstacle_log, statics.guidance = log, guidance
+    is_mujoco = hasattr(plant, "obstacle_geoms")
+    metadata = {"guidance": {
+        "avoid": scenario.guidance.avoid, "margin_m": scenario.guidance.margin_m,
+        "plan_verified": None if plan is None else plan.verified,
+        "plan_iterations": None if plan is None else plan.iterations,
+        "hull_radius_m": HULL_RADIUS, "eps_m": scenario.ship.eps,
+        "contact": dataclasses.asdict(contact or ContactParams()) if is_mujoco else None}}
+    if monitor.note:
+        metadata["note"] = monitor.note
+    return (ObstacleHook(plant, monitor, log, guidance),), (log,), metadata

@@ -1,0 +1,12 @@
+"""The disturbances a scenario's ``[disturbance] kind`` can name (:data:`usv_mj.registry.DISTURBANCES`).
+
+A disturbance is a parameter dataclass whose ``as_array()`` packs it for the plants' kernels
+(:func:`usv_mj.ship.disturbance_force`). The paper's d(t) of Eq. 46 is the one built in.
+"""
+
+from __future__ import annotations
+
+from .registry import DISTURBANCES
+from .ship import PaperDisturbance
+
+DISTURBANCES.register("paper", doc="the paper's d(t), Eq. 46, times `scale`")(PaperDisturbance)

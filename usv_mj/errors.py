@@ -1,0 +1,30 @@
+"""The error family of usv_mj (a leaf module: imports nothing of the package).
+
+Every bad input (a scenario file, a sea table, an obstacle, a sweep file, a command-line value)
+raises a :class:`ScenarioError`, whose message is one line that starts with the file or flag and
+names the key: ``my.toml: quantizer.delta_u must be in (0, 1), got 1.5``. The command line turns
+it into exit code 2 with no output written. Subclasses say which part of the input was wrong, so a
+caller may catch the family or one member.
+"""
+
+from __future__ import annotations
+
+
+class UsvMjError(Exception):
+    """Base of every error that usv_mj raises on purpose (never a bug)."""
+
+
+class ScenarioError(UsvMjError, ValueError):
+    """A scenario value, key or file is wrong; the message names the key and the source."""
+
+
+class SeaSettingsError(ScenarioError):
+    """A ``[sea]`` value is wrong (waves, current, wind)."""
+
+
+class SweepError(ScenarioError):
+    """A sweep file (its base scenario, a varied path, a distribution) is wrong."""
+
+
+class UnknownKindError(ScenarioError):
+    """A ``kind`` names no registered plant, controller, trajectory or disturbance."""
