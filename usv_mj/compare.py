@@ -66,7 +66,7 @@ import time
 
 import numpy as np
 
-from .build import make_environment, make_plant
+from .builder import make_environment, make_plant
 from .scenario import Scenario
 
 SWITCH_GRID_S = 0.2            # inputs change only at multiples of this time [s]

@@ -49,14 +49,16 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     s = _stride(len(record))
     t = record["t"][::s]
     paths = []
-    label = f"PPC ({record.metadata.get('plant', '?')} plant)"
+    name = str(record.metadata.get("controller", "run")).upper()
+    label = f"{name} ({record.metadata.get('plant', '?')} plant)"
+    base_name = f"{str(baseline.metadata.get('controller', 'baseline')).upper()}" if baseline is not None else ""
 
     fig, ax = plt.subplots(figsize=(8, 5))
     ax.plot(record["x_d"][::s], record["y_d"][::s], "k--", lw=1.2, label="reference")
     ax.plot(record["x"][::s], record["y"][::s], "C0", lw=1.5, label=label)
     if baseline is not None and len(baseline):
         sb = _stride(len(baseline))
-        ax.plot(baseline["x"][::sb], baseline["y"][::sb], "C3", lw=1.0, alpha=0.8, label="PI baseline")
+        ax.plot(baseline["x"][::sb], baseline["y"][::sb], "C3", lw=1.0, alpha=0.8, label=f"{base_name} baseline")
     ax.plot(record["x"][0], record["y"][0], "o", color="C0", label="start")
     if obstacles:
         from .obstacles.display import draw_obstacles
@@ -73,23 +75,27 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     paths.append(out / "fig1_trajectory.png")
     _save(fig, paths[-1])
 
-    for axis, name, unit, fname in ((1, "x", "m", "fig2_error_x.png"), (2, "y", "m", "fig3_error_y.png"),
-                                     (3, "psi", "rad", "fig4_error_psi.png")):
+    for axis, name_, unit, fname in ((1, "x", "m", "fig2_error_x.png"), (2, "y", "m", "fig3_error_y.png"),
+                                      (3, "psi", "rad", "fig4_error_psi.png")):
+        if not record.has_funnel:  # a controller without a funnel: the plain pose errors
+            paths.append(_pose_error_figure(record, baseline, axis, name_, unit, out / fname, s))
+            continue
         fig, ax = plt.subplots(figsize=(8, 4))
         rho = record[f"rho{axis}"][::s]
         ax.fill_between(t, -rho, rho, color="0.85", label=f"funnel ±rho{axis}")
         ax.plot(t, rho, color="0.4", lw=0.8)
         ax.plot(t, -rho, color="0.4", lw=0.8)
-        ax.plot(t, record[f"e{axis}"][::s], "C0", lw=1.3, label=f"e{axis}, PPC")
-        if baseline is not None and len(baseline):
+        ax.plot(t, record[f"e{axis}"][::s], "C0", lw=1.3, label=f"e{axis}, {name}")
+        if baseline is not None and len(baseline) and baseline.has_funnel:
             sb = _stride(len(baseline))
-            ax.plot(baseline["t"][::sb], baseline[f"e{axis}"][::sb], "C3", lw=1.0, alpha=0.85, label=f"e{axis}, PI")
+            ax.plot(baseline["t"][::sb], baseline[f"e{axis}"][::sb], "C3", lw=1.0, alpha=0.85,
+                    label=f"e{axis}, {base_name}")
         ax.set_xlabel("t [s]")
-        what = {"x": "e1 = x̄ - x̄_d", "y": "e2 = ȳ - ȳ_d", "psi": "e3 = ψ - ψ_a"}[name]
+        what = {"x": "e1 = x̄ - x̄_d", "y": "e2 = ȳ - ȳ_d", "psi": "e3 = ψ - ψ_a"}[name_]
         ax.set_ylabel(f"{what} [{unit}]")
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right")
-        ax.set_title(f"Fig. {axis + 1}: tracking error of {name} in the prescribed-performance funnel")
+        ax.set_title(f"Fig. {axis + 1}: tracking error of {name_} in the prescribed-performance funnel")
         paths.append(out / fname)
         _save(fig, paths[-1])
 
@@ -113,17 +119,48 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         paths.append(out / fname)
         _save(fig, paths[-1])
 
+    weights = ("w_u_norm", "w_v_norm", "w_r_norm")
     fig, ax = plt.subplots(figsize=(8, 4))
-    for col, lab in (("w_u_norm", "|W_u|"), ("w_v_norm", "|W_v|"), ("w_r_norm", "|W_r|")):
-        ax.plot(t, record[col][::s], lw=1.2, label=lab)
+    if all(c in record for c in weights):
+        for col, lab in zip(weights, ("|W_u|", "|W_v|", "|W_r|")):
+            ax.plot(t, record[col][::s], lw=1.2, label=lab)
+        ax.set_ylabel("weight norm")
+        ax.set_title("Fig. 7: neural network weight norms")
+    else:  # another controller: its own declared diagnostics (beyond the funnel block)
+        from .controllers.base import FUNNEL_FIELDS
+
+        own = [c for c in record.diagnostic_fields if c not in FUNNEL_FIELDS][:8]
+        for col in own:
+            ax.plot(t, record[col][::s], lw=1.0, label=col)
+        ax.set_ylabel("value")
+        ax.set_title(f"Fig. 7: diagnostics declared by the {name} controller"
+                     + ("" if own else " (none)"))
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("weight norm")
     ax.grid(alpha=0.3)
-    ax.legend(loc="best")
-    ax.set_title("Fig. 7: neural network weight norms")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="best")
     paths.append(out / "fig7_weights.png")
     _save(fig, paths[-1])
     return paths
+
+
+def _pose_error_figure(record, baseline, axis, name, unit, path, s):
+    """The pose error (x - x_d, y - y_d, wrap(psi - psi_d)) of a run whose controller has no funnel."""
+    from .summary import pose_errors
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    err = pose_errors(record)[name]
+    ax.plot(record["t"][::s], err[::s], "C0", lw=1.3, label=f"{name} - {name}_d")
+    if baseline is not None and len(baseline):
+        sb = _stride(len(baseline))
+        ax.plot(baseline["t"][::sb], pose_errors(baseline)[name][::sb], "C3", lw=1.0, alpha=0.85, label="baseline")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(f"[{unit}]")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right")
+    ax.set_title(f"Fig. {axis + 1}: pose error in {name} (the controller declares no funnel)")
+    _save(fig, path)
+    return path
 
 
 def readme_figure(record: RunRecord, path, baseline: RunRecord | None = None) -> Path:

@@ -33,6 +33,10 @@ from typing import Any
 from usv_mj.errors import ScenarioError
 
 OBSTACLE_KINDS = ("circle", "box")
+#: how obstacles look, the same in the MuJoCo scene, the figures and the Foxglove scene (RGBA)
+OBSTACLE_COLORS = {"circle": (0.90, 0.35, 0.10, 1.0), "box": (0.45, 0.33, 0.22, 1.0),
+                   "moving": (0.75, 0.75, 0.78, 1.0)}
+OBSTACLE_HALF_HEIGHT = 1.0  # m: obstacles span z in [-1, 1]
 
 
 @dataclass(frozen=True)

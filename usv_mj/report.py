@@ -32,7 +32,12 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
                      f"{summary['stop_reason']}")
     lines.append("")
     viol = summary["funnel_violations"]
-    if viol == 0:
+    name = str(summary.get("controller") or "run").upper()
+    bname = str((baseline_summary or {}).get("controller") or "baseline").upper()
+    if viol is None:
+        lines.append(f"The {name} controller declares no prescribed-performance funnel: the errors below are "
+                     "pose errors only.")
+    elif viol == 0:
         lines.append("The tracking errors stayed inside all three prescribed-performance funnels "
                      "(0 control steps with |z_i| >= 1).")
     else:
@@ -42,7 +47,7 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
               "Errors are x - x_d, y - y_d and wrap(psi - psi_d), as in the paper's tables. The paper's "
               "numbers do not fit its own start pose (eta0 = (2, -3, 0): they imply that the error grows "
               "from 3.6 m to 8.3 m in 5 s, SPEC §5), so they are shown, not matched.", "",
-              "| error | t | this run (PPC) | PI baseline | paper Table 1 | paper Table 2 (ref. [26]) |",
+              f"| error | t | this run ({name}) | {bname} baseline | paper Table 1 | paper Table 2 (ref. [26]) |",
               "|---|---|---|---|---|---|"]
     for axis in ("x", "y", "psi"):
         for i, tc in enumerate(("5", "10", "20")):
@@ -54,7 +59,7 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     lines += ["", f"Largest error after 20 s: |x| {_fmt(m['x'])} m, |y| {_fmt(m['y'])} m, "
                   f"|psi| {_fmt(m['psi'])} rad.", ""]
     lines += ["## Funnel, adaptation and quantizer", "",
-              "| quantity | PPC | PI baseline |", "|---|---|---|"]
+              f"| quantity | {name} | {bname} baseline |", "|---|---|---|"]
 
     def both(key, fmt=str):
         b = baseline_summary.get(key) if baseline_summary else None
@@ -70,7 +75,8 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     if baseline_summary:
         lines += ["", "The PI baseline (SPEC §6: surge-speed PI on the along-track error, heading PI with "
                   "yaw-rate damping on the same psi_a) runs through the same quantizer on the same plant. "
-                  + ("It stayed inside the funnel." if baseline_summary["funnel_violations"] == 0 else
+                  + ("" if baseline_summary["funnel_violations"] is None else
+                     "It stayed inside the funnel." if baseline_summary["funnel_violations"] == 0 else
                      f"It left the funnel first at t = {_fmt(baseline_summary['first_violation_s'])} s "
                      f"({baseline_summary['funnel_violations']} control steps outside).")]
     if step_check:

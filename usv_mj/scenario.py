@@ -319,7 +319,14 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
     name = data.get("preset", "paper")
     if not isinstance(name, str):
         raise ScenarioError(f"{source}: preset must be a string, got {name!r}")
-    merged = _merge(_read_preset(name), {k: v for k, v in data.items() if k != "preset"})
+    base = _read_preset(name)
+    for section, default in (("controller", "ppc"), ("baseline", "pi")):
+        # another controller kind than the preset's: the preset's gains belong to its own kind
+        over = data.get(section)
+        if isinstance(over, dict) and isinstance(base.get(section), dict) and "kind" in over \
+                and over["kind"] != base[section].get("kind", default):
+            base[section] = {k: v for k, v in base[section].items() if k == "enabled"}
+    merged = _merge(base, {k: v for k, v in data.items() if k != "preset"})
     merged["preset"] = name
     return _build_scenario(merged, source)
 

@@ -19,7 +19,7 @@ from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
-from .build import Parts, build, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
+from .builder import Parts, build, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from .record import COL, SL_REF, SL_STATE, Event, RunRecord
 from .scenario import Scenario
 from .trajectories import make_reference as _make_reference

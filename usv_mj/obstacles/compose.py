@@ -45,7 +45,7 @@ from usv_mj.plants.mujoco_callback import MODELS_DIR
 from usv_mj.plants.mujoco_plant import MuJoCoPlant
 from usv_mj.ship import PaperDisturbance, RigidBodySplit, ShipParams
 
-from usv_mj.obstacle_tables import ObstacleSpec
+from usv_mj.obstacle_tables import OBSTACLE_COLORS, OBSTACLE_HALF_HEIGHT, ObstacleSpec
 
 SCENE_PATH = os.path.join(MODELS_DIR, "scene.xml")
 
@@ -56,7 +56,6 @@ HULL_COLLISION_GEOMS = (
     ("hull_collision_bow", "ellipsoid", (0.58, 0.38, 0.15), (0.42, 0.0, 0.03)),
 )
 
-OBSTACLE_HALF_HEIGHT = 1.0  # m: obstacles span z in [-1, 1]
 HULL_CONTYPE, HULL_CONAFFINITY = 1, 2
 OBSTACLE_CONTYPE, OBSTACLE_CONAFFINITY = 2, 1
 
@@ -121,8 +120,6 @@ class ContactParams:
             raise ValueError(f"ContactParams.condim must be 1, 3, 4 or 6, got {self.condim!r}")
 
 
-OBSTACLE_COLORS = {"circle": (0.90, 0.35, 0.10, 1.0), "box": (0.45, 0.33, 0.22, 1.0),
-                   "moving": (0.75, 0.75, 0.78, 1.0)}
 SAFETY_COLOR = (0.22, 0.47, 0.60, 1.0)  # opaque tint just above the water: overlapping pieces do not show
 
 

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from .compose import OBSTACLE_COLORS, OBSTACLE_HALF_HEIGHT
+from usv_mj.obstacle_tables import OBSTACLE_COLORS, OBSTACLE_HALF_HEIGHT
 
 
 def inflation_of(inflation, i: int) -> float:

@@ -485,7 +485,7 @@ class FrameRenderer:
     def _add_obstacle_outlines(self, spec: FrameSpec, z: float, w: float) -> None:
         """The inflated safety boundary of every obstacle (dashed in the figures; a line loop here), and
         the outline of any obstacle the render model does not contain (e.g. ``usv-mj render`` of a log)."""
-        from usv_mj.obstacles.compose import OBSTACLE_COLORS
+        from usv_mj.obstacle_tables import OBSTACLE_COLORS
         from usv_mj.obstacles.display import boundary_points
 
         world = self.world
