@@ -30,7 +30,7 @@ from typing import Any
 from usv_mj.controllers.pi_baseline import PIGains
 from usv_mj.controllers.ppc import PPCGains
 
-from .sea.settings import SeaSettings, SeaSettingsError, sea_preset_table
+from .sea.settings import SeaSettings, SeaSettingsError, merge_sea_tables, sea_preset_table
 from .ship import PaperDisturbance, ShipParams
 from .toml_values import coerce, read_toml
 
@@ -376,15 +376,15 @@ def _build_scenario(data: dict, source: str) -> Scenario:
 
 
 def _build_sea(table, source: str) -> SeaSettings:
-    """``[sea]``: the fixed keys of issue 7 (SEA.md); ``preset = "moderate"`` names a sea preset
-    whose tables sit under the scenario's own ``[sea.*]`` keys."""
+    """``[sea]`` (docs/sea.md); ``preset = "moderate"`` names a sea preset whose tables sit under the
+    scenario's own ``[sea.*]`` keys (a direction of the scenario replaces the preset's, any spelling)."""
     try:
         if isinstance(table, dict) and "preset" in table:
             table = dict(table)
             name = table.pop("preset")
             if not isinstance(name, str):
                 raise ScenarioError(f"{source}: sea.preset must be a string, got {name!r}")
-            table = _merge(sea_preset_table(name), table)
+            table = merge_sea_tables(sea_preset_table(name), table)
         return SeaSettings.from_table(table, source)
     except SeaSettingsError as exc:
         msg = str(exc)
