@@ -1,4 +1,4 @@
-"""Obstacles with real contact physics and guidance that keeps clear (issue 8).
+"""Obstacles with real contact physics and guidance that keeps clear.
 
 - :mod:`.spec`: ``[[obstacles]]`` / ``[guidance]`` tables -> :class:`ObstacleSpec`, :class:`GuidanceSpec`;
   :func:`load_obstacle_scenario`.

@@ -1,4 +1,4 @@
-"""Running a scenario with obstacles through the standard loop (issue 8).
+"""Running a scenario with obstacles through the standard loop.
 
 :func:`run_obstacle_scenario` builds the plant (a :class:`~usv_mj.obstacles.compose.HarbourPlant`
 for ``plant = "mujoco"``, the analytic plant otherwise), the clearance monitor, the

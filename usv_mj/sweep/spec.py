@@ -1,4 +1,4 @@
-"""Sweep files: a base scenario and what varies, sampled once on the client and validated (issue 10).
+"""Sweep files: a base scenario and what varies, sampled once on the client and validated.
 
 A sweep file is TOML::
 
@@ -17,13 +17,13 @@ A sweep file is TOML::
 
 Paths
 -----
-A path is a dotted key into the scenario table of SPEC §7, with ``[i]`` for one element of a list
+A path is a dotted key into the scenario table of docs/model.md §7, with ``[i]`` for one element of a list
 (``initial.eta[2]``, ``trajectory.points[1][0]``). Every key of the scenario format can vary:
 ``duration``, ``control_period``; ``initial.eta[0..2]`` (x m, y m, psi rad), ``initial.nu[0..2]``
 (u m/s, v m/s, r rad/s); ``trajectory.kind|speed|heading_deg|radius|start[i]|center[i]|...``;
-``disturbance.scale`` (s of SPEC §1) and ``disturbance.amplitudes[i]``...; ``ship.<parameter>``;
+``disturbance.scale`` (s of docs/model.md §1) and ``disturbance.amplitudes[i]``...; ``ship.<parameter>``;
 ``quantizer.enabled|delta_u|u_min_u|delta_r|u_min_r``; ``funnel.rho_xy[0|1]``, ``funnel.rho_psi[0|1]``,
-``funnel.rate``; ``plant.kind|substeps``; ``controller.kind`` and every PPC gain by its SPEC §3
+``funnel.rate``; ``plant.kind|substeps``; ``controller.kind`` and every PPC gain by its docs/model.md §3
 name (``controller.k1``, ``controller.gamma_u``, ...); ``baseline.<PI gain>``; ``limits.*``; and the
 sea state's ``sea.waves.hs|tp|gamma|from_deg|seed``, ``sea.current.speed|toward_deg|sigma``,
 ``sea.wind.speed|from_deg|gust_sigma`` (docs/sea.md; the old ``direction_deg`` still works). A path
