@@ -1,4 +1,4 @@
-"""Cost of MCAP logging (issue 5): the paper run with and without the run-log sink.
+"""Cost of MCAP logging: the paper run with and without the run-log sink.
 
 Prints, per plant (analytic; mujoco when usv_mj/plants/mujoco_plant.py exists): the loop's wall time
 without logging, with logging (loop, then closing the file), the overhead in % of the bare run

@@ -1,4 +1,4 @@
-"""Benchmark of the MuJoCo plant and of the closed loop on it (issue 3).
+"""Benchmark of the MuJoCo plant and of the closed loop on it.
 
     python benchmarks/bench_mujoco.py [--duration 30] [--repeat 3]
 
@@ -13,7 +13,7 @@ reported in CPU time and in wall time, the realtime factor from both):
 - the PPC controller call (PPCController.__call__) and the reference evaluation;
 - the whole closed loop: ``simulate`` on the ``paper`` preset for ``--duration`` seconds, on both
   plants, with the realtime factor and the projection to the 300 s paper run;
-- the sea (issue 7, SEA.md §6; :func:`sea_section`, alone with ``--sea-only``): the force kernel
+- the sea (docs/sea.md §6; :func:`sea_section`, alone with ``--sea-only``): the force kernel
   (``hydrodynamic_force`` against ``sea_force`` with 128 wave components, current and wind), the
   plant step (4 RK4 stages, so 4 kernel calls) calm / ``moderate`` waves / waves + current + wind on
   both plants, and ``simulate`` of the paper preset in the ``moderate`` sea on both plants with its
@@ -155,7 +155,7 @@ def main(argv=None) -> int:
 
 def sea_section(args) -> int:
     """The cost of the sea per step beside the calm step, on both plants, and the paper run in the
-    ``moderate`` sea (issue 7). Per-call figures: best of ``--repeat`` interleaved rounds, CPU time."""
+    ``moderate`` sea. Per-call figures: best of ``--repeat`` interleaved rounds, CPU time."""
     import mujoco
 
     from usv_mj.plants.analytic import AnalyticPlant
@@ -166,7 +166,7 @@ def sea_section(args) -> int:
     from usv_mj.ship import hydrodynamic_force
     from usv_mj.simulation import simulate
 
-    print(f"\n--- sea (issue 7) --- load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    print(f"\n--- sea --- load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     scenario = load_scenario(preset="paper")
     n, rep = args.n, args.repeat
     dt = scenario.control_period

@@ -1,4 +1,4 @@
-"""Benchmark: the cost of obstacles per control step against the open-water step (issue 8).
+"""Benchmark: the cost of obstacles per control step against the open-water step.
 
     python benchmarks/bench_obstacles.py [--counts 1 10 50] [--steps 5000]
 

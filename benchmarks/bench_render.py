@@ -1,4 +1,4 @@
-"""Render speed of the paper run's video (issue 4): frames per second at 1280x720, 1 and 2 workers.
+"""Render speed of the paper run's video: frames per second at 1280x720, 1 and 2 workers.
 
     python benchmarks/bench_render.py                 # 300 frames per configuration
     python benchmarks/bench_render.py --frames 900    # the whole 30 s video

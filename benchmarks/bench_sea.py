@@ -1,4 +1,4 @@
-"""Cost of the sea (SEA.md; issue 7): one load evaluation (128 components), one analytic RK4 step with
+"""Cost of the sea (docs/sea.md): one load evaluation (128 components), one analytic RK4 step with
 the sea against the calm step, one hfield frame, with the bare mujoco.mj_step as the yardstick.
 
 Run: python benchmarks/bench_sea.py   (plain script; prints figures; best of several repeats)

@@ -1,4 +1,4 @@
-"""Hysteresis input quantizer of the paper's Eq. 3, as the state machine of SPEC §2.
+"""Hysteresis input quantizer of the paper's Eq. 3, as the state machine of docs/model.md §2.
 
 The printed case table maps one input to different levels after a reversal inside a band and then
 chatters, so we implement the quantizer as a state machine on the signed level index ``k``:
@@ -9,7 +9,7 @@ chatters, so we implement the quantizer as a state machine on the signed level i
     down(n) = u_i / (1+delta) if n = 2i-1;  u_i                if n = 2i   (= L_n / (1 + delta))
 
 ``down(2i)`` is written as ``u_i`` rather than ``L_{2i}/(1+delta)`` so that the thresholds are exact in
-floating point (SPEC §2's worked example sits on them).
+floating point (docs/model.md §2's worked example sits on them).
 
 Lemma 1 holds for every input: |Q - tau| <= delta |tau| when |tau| >= u_min, |Q - tau| <= u_min below.
 """
@@ -98,7 +98,7 @@ class QuantizerParams:
         return (1.0 - self.delta) / (1.0 + self.delta)
 
     def level(self, n: int) -> float:
-        """Magnitude of the level with index n >= 0 (L_n of SPEC §2)."""
+        """Magnitude of the level with index n >= 0 (L_n of docs/model.md §2)."""
         return _level(self.delta, self.u_min, n)
 
 
@@ -120,7 +120,7 @@ class HysteresisQuantizer:
         self.switches = 0
 
     def reset(self) -> None:
-        """Back to level 0, as at t = 0 (SPEC §3 step 11)."""
+        """Back to level 0, as at t = 0 (docs/model.md §3 step 11)."""
         self.k = 0
         self.output = 0.0
         self.switches = 0

@@ -1,4 +1,4 @@
-"""A conventional PI tracker, the paper's comparison baseline (SPEC §6).
+"""A conventional PI tracker, the paper's comparison baseline (docs/model.md §6).
 
 - Surge: a PI loop on the surge speed, whose set-point corrects the along-track error:
   e_at = cos(psi_d) e1 + sin(psi_d) e2 (> 0 when the ship is ahead of the reference point),
@@ -101,7 +101,7 @@ def pi_law(t, x, ref, eps, g, funnel, integ, dt, diag):
 
 @CONTROLLERS.register("pi", gains=PIGains)
 class PIController:
-    """The PI baseline of SPEC §6 behind the controller interface (see the module docstring)."""
+    """The PI baseline of docs/model.md §6 behind the controller interface (see the module docstring)."""
 
     name = "pi"
     diagnostic_fields = TRACKING_FIELDS + ("u_e", "r_e", "integral_u", "integral_r")

@@ -1,6 +1,6 @@
-"""Adaptive prescribed-performance controller with RBF networks (paper Eqs. 14-37, SPEC §3).
+"""Adaptive prescribed-performance controller with RBF networks (paper Eqs. 14-37, docs/model.md §3).
 
-One evaluation at time t (SPEC §3, steps 1-11):
+One evaluation at time t (docs/model.md §3, steps 1-11):
 
 1. Reference and Do & Pan's point x_bar_d = x_d + eps cos psi_d (eps = m23/m22 of the nominal model).
 2-4. e1, e2, psi_a (Eq. 15 with chi = atan2(-e2, -e1)), e3, the funnel rho_i and e_i* (Eqs. 8-10, 14).
@@ -44,7 +44,7 @@ ALPHA_R_MODES = ("printed", "analytic")
 
 @dataclass(frozen=True)
 class PPCGains:
-    """Design parameters of the adaptive PPC law (SPEC §3; printed values unless noted).
+    """Design parameters of the adaptive PPC law (docs/model.md §3; printed values unless noted).
 
     Attributes
     ----------
@@ -55,7 +55,7 @@ class PPCGains:
     k1, k3:
         Velocity-loop gains of Eq. 34 [1/s]; printed 3 and 10 (k2 = 5 is used nowhere).
     a1:
-        Blend width of psi_a in Eq. 15 [m^2]; not printed (SPEC §5: 1).
+        Blend width of psi_a in Eq. 15 [m^2]; not printed (docs/model.md §5: 1).
     b1, b3:
         Smoothing constants of Eq. 37 (beta_1, beta_3); not printed (0.1).
     b2:
@@ -134,7 +134,7 @@ def _dot(a, b):
 
 @njit(cache=True)
 def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
-    """Evaluate SPEC §3 once, advance (W, s2) by ``dt``; returns (tau_u, tau_r).
+    """Evaluate docs/model.md §3 once, advance (W, s2) by ``dt``; returns (tau_u, tau_r).
 
     ``w`` is the 3 x n weight matrix (rows W_u, W_v, W_r), ``s2`` a 1-vector, ``s_buf`` 3 x n scratch.
     """
@@ -219,7 +219,7 @@ def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
 
 @CONTROLLERS.register("ppc", gains=PPCGains)
 class PPCController:
-    """The paper's adaptive PPC tracking controller (SPEC §3) behind the controller interface.
+    """The paper's adaptive PPC tracking controller (docs/model.md §3) behind the controller interface.
 
     Parameters
     ----------
@@ -267,7 +267,7 @@ class PPCController:
         return float(self._s2[0])
 
     def reset(self) -> None:
-        """W(0) = 0 and s2(0) = 0 (SPEC §3 step 11)."""
+        """W(0) = 0 and s2(0) = 0 (docs/model.md §3 step 11)."""
         self.weights[:] = 0.0
         self._s2[0] = 0.0
         self._diag[:] = 0.0

@@ -1,4 +1,4 @@
-"""Gaussian radial-basis-function network of the paper's Eqs. 11-12 (SPEC §3 step 7).
+"""Gaussian radial-basis-function network of the paper's Eqs. 11-12 (docs/model.md §3 step 7).
 
 S_j(Z) = exp(-|Z - c_j|^2 / sigma^2), with n nodes whose centres are c_j (1, ..., 1) for c_j evenly
 spaced on [-span, span] (39 nodes on [-16, 16] in the paper). The network output is W . S(Z).

@@ -1,4 +1,4 @@
-"""Tracking errors in Do & Pan's coordinates and their funnel transform (SPEC §3 steps 1-4).
+"""Tracking errors in Do & Pan's coordinates and their funnel transform (docs/model.md §3 steps 1-4).
 
 e1 = x_bar - x_bar_d, e2 = y_bar - y_bar_d (Eq. 14), H^2 = e1^2 + e2^2,
 chi = atan2(-e2, -e1) on the branch nearest psi_d (the printed tan^-1(-e2/-e1) loses the quadrant),

@@ -57,12 +57,12 @@ def _parse_set(items: list[str]) -> dict:
 
 def add_scenario_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default=None, help=f"base preset ({', '.join(preset_names())}); default paper")
-    p.add_argument("--scenario", metavar="FILE", help="a scenario TOML file (a preset plus overrides, SPEC §7)")
+    p.add_argument("--scenario", metavar="FILE", help="a scenario TOML file (a preset plus overrides; README, Scenarios)")
     p.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
                    help="override one scenario value by dotted key, e.g. --set disturbance.scale=1e-3")
     p.add_argument("--duration", type=float, help="simulated time [s] (default: the scenario's)")
     p.add_argument("--sea", metavar="NAME", help="a sea preset on top of the scenario (moderate, steady-current, "
-                   "breeze, varying-current): waves, current and wind of SEA.md")
+                   "breeze, varying-current): waves, current and wind of docs/sea.md; `usv-mj presets` lists them")
 
 
 def scenario_from_args(args):
@@ -82,7 +82,7 @@ def scenario_from_args(args):
 
 def _add_run(sub):
     p = sub.add_parser("run", formatter_class=_Formatter, help="run a scenario: video, figures, MCAP log, report",
-                       description="Run one scenario end to end. With no options: the paper scenario (SPEC §4-5) "
+                       description="Run one scenario end to end. With no options: the paper scenario (docs/model.md §4-5) "
                        "on the MuJoCo plant for 300 s, then the PI baseline, writing summary.json, report.md, "
                        "figures/, run.mcap, video.mp4 and final.png into --out.")
     add_scenario_arguments(p)
@@ -125,17 +125,25 @@ def _add_presets(sub):
     p = sub.add_parser("presets", formatter_class=_Formatter, help="list the presets or print one",
                        description="Presets are TOML data shipped with the package; a scenario file names one "
                        "with `preset = \"...\"` and overrides any key.")
-    p.add_argument("name", nargs="?", help="print this preset's TOML")
+    p.add_argument("name", nargs="?", help="print this preset's TOML (a scenario preset or a sea preset)")
     p.set_defaults(func=_presets_command)
 
 
 def _presets_command(args) -> int:
     from importlib import resources
 
+    from .sea.settings import describe_directions, sea_preset_names, sea_preset_table
+
     if args.name is None:
         for name in preset_names():
             first = (resources.files("usv_mj.presets") / f"{name}.toml").read_text().splitlines()[0]
             print(f"{name:15s} {first.lstrip('# ')}")
+        print("\nsea presets (--sea NAME; directions as in docs/sea.md: compass degrees clockwise from north):")
+        for name in sea_preset_names():
+            print(f"{name:15s} {describe_directions(sea_preset_table(name))}")
+        return EXIT_OK
+    if args.name in sea_preset_names():
+        print((resources.files("usv_mj.sea.presets") / f"{args.name}.toml").read_text())
         return EXIT_OK
     load_scenario(preset=args.name)  # validates the name with a helpful message
     print((resources.files("usv_mj.presets") / f"{args.name}.toml").read_text())

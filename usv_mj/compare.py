@@ -1,4 +1,4 @@
-"""``usv-mj compare``: the same scenario on the analytic and the MuJoCo plant (issue 3).
+"""``usv-mj compare``: the same scenario on the analytic and the MuJoCo plant.
 
 Two experiments, each reported in ``compare.json`` with the maximum differences between the plants
 (position [m], heading [rad], body velocities [m/s, rad/s]) and a convergence study:
@@ -21,7 +21,7 @@ dt = 5/8 ms, whose own error is 8^4 = 4096 times smaller than the finest study s
 ``max_position_m`` is the difference between the plants, and ``mujoco_vs_reference_m`` /
 ``analytic_vs_reference_m`` are each plant's error. The estimated order is the least-squares slope
 of log(error) against log(dt) (4 expected). The paper's damping has |u| u, |v| r, |r| v terms
-(SPEC §1) whose second derivatives jump where a velocity crosses zero; the rich inputs make u, v, r
+(docs/model.md §1) whose second derivatives jump where a velocity crosses zero; the rich inputs make u, v, r
 cross zero, which lowers RK4's order against the exact solution for both plants alike (about 1.8
 seen), while the plants' difference still shrinks as dt^4. The same study with one-signed inputs
 (``convergence_one_signed_inputs``; no zero crossing, reported) shows order 4 for each plant too. The closed-loop study runs the loop at 4, 2 and 1 ms
@@ -29,9 +29,9 @@ over min(duration, 30) s; there the controller's own discretization (explicit Eu
 quantizer) changes with dt, so no common reference exists and only the plants' difference at each
 dt is reported (it shrinks at RK4's order as long as both runs see the same quantizer switching).
 
-Sea state (SEA.md §6-7, issue 7): a scenario with a ``[sea]`` table (or ``--sea NAME``) runs both
+Sea state (docs/sea.md §6-7): a scenario with a ``[sea]`` table (or ``--sea NAME``) runs both
 plants in the same :class:`usv_mj.sea.Environment` (one per comparison; it is a pure function of
-(t, eta, nu), so sharing it is safe), and the same tolerances apply (SEA.md §7 check 14).
+(t, eta, nu), so sharing it is safe), and the same tolerances apply (docs/sea.md §7 check 14).
 
 In a sea the open-loop motion is sensitive to its initial conditions: a hull without control yawing
 in waves, wind and current (r up to about 1.7 rad/s with these inputs) amplifies a 1e-12 m offset
@@ -41,7 +41,7 @@ itself). Two integrators of the same ODE that differ in the last bits (here: RK4
 any pair of distinct integrators under these inputs (nor under one-signed ones: 8e-5 m from a
 1e-12 m nudge). The unpowered hull is not sensitive (the nudge stays at about 5e-12 m over 300 s), so
 in a sea the calm-water tolerance is checked on it: ``adrift`` (:func:`compare_adrift`, tau = 0, all
-loads on, SEA.md §7 check 13's motion) must keep the plants within 1e-6 m over the whole run
+loads on, docs/sea.md §7 check 13's motion) must keep the plants within 1e-6 m over the whole run
 (``open_loop_adrift_position_below_1e-6_m``). Under the rich inputs
 (``open_loop_difference_within_sea_sensitivity``): the analytic plant is run again from a start
 moved by SENSITIVITY_OFFSET_M = 1e-12 m in x (its ``sensitivity`` history); while that twin is
@@ -70,8 +70,8 @@ from .builder import make_environment, make_plant
 from .scenario import Scenario
 
 SWITCH_GRID_S = 0.2            # inputs change only at multiples of this time [s]
-OPEN_LOOP_TOLERANCE_M = 1e-6   # issue 3: 300 s open loop at 1 ms
-CLOSED_LOOP_TOLERANCE_M = 1e-3  # issue 3: 300 s closed loop, paper preset
+OPEN_LOOP_TOLERANCE_M = 1e-6   # 300 s open loop at 1 ms
+CLOSED_LOOP_TOLERANCE_M = 1e-3  # 300 s closed loop, paper preset
 OPEN_CONVERGENCE_DTS = (0.04, 0.02, 0.01, 0.005)
 OPEN_REFERENCE_DIVISOR = 8
 OPEN_CONVERGENCE_HORIZON_S = 20.0
@@ -104,7 +104,7 @@ def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: b
     ``one_signed``: surge in [100, 220] N and yaw in [5, 10] N m instead (no zero thrust, no
     square wave), so that u, v and r keep their signs after the start (checked: the result
     reports the zero crossings of the reference solution) and the |u|, |v|, |r| terms
-    of the damping (SPEC §1) stay smooth along the solution.
+    of the damping (docs/model.md §1) stay smooth along the solution.
     """
     g = _grid_steps(dt)
     n = int(round(duration / dt))
@@ -219,10 +219,10 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
     result["convergence_note"] = (
         "The plants' difference shrinks as dt^4 with either input. Against the fine-step reference each "
         "plant converges at order 4 only while u, v, r keep their signs (one-signed inputs): the paper's "
-        "damping has |u| u, |v| r, |r| v terms (SPEC §1), whose second derivatives jump at a zero crossing, "
+        "damping has |u| u, |v| r, |r| v terms (docs/model.md §1), whose second derivatives jump at a zero crossing, "
         "which lowers RK4's order for both plants alike with the rich inputs."
         + ("" if env is None else " In a sea with a varying current or wind gusts, those are linear "
-           "interpolations between grid nodes (SEA.md §4-5) whose kinks lower each plant's order against "
+           "interpolations between grid nodes (docs/sea.md §4-5) whose kinks lower each plant's order against "
            "the reference with any input (about 1.1 seen), again not the plants' difference; waves alone "
            "keep order 4 with one-signed inputs."))
     return result, {"t": np.arange(len(xa)) * dt, "analytic": xa, "mujoco": xm, "inputs": inputs}
@@ -230,7 +230,7 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
 
 def compare_adrift(scenario: Scenario, environment) -> dict:
     """The unpowered hull in the sea (tau = 0; the paper's d(t) and Delta stay on), for the scenario's
-    duration on both plants: SEA.md §7 check 13's open-loop motion with every load of ``environment``.
+    duration on both plants: docs/sea.md §7 check 13's open-loop motion with every load of ``environment``.
     Its motion is not sensitive to the start (the twin moved by SENSITIVITY_OFFSET_M is reported),
     so the calm-water tolerance applies as it stands: position difference < OPEN_LOOP_TOLERANCE_M.
     """
@@ -476,7 +476,7 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
 
     Returns the dict written to ``out_dir/compare.json``: ``open_loop`` and ``closed_loop``, each
     with ``max_position_m``, ``max_heading_rad``, ``max_velocity`` and ``convergence`` (a list of
-    {``dt``, ``max_position_m``, ...}), plus ``checks`` (the issue's tolerances) and ``passed``.
+    {``dt``, ``max_position_m``, ...}), plus ``checks`` (the tolerances: 1e-6 m open loop, 1e-3 m closed loop) and ``passed``.
     """
     if not isinstance(scenario, Scenario):
         raise TypeError(f"compare_plants: scenario must be a usv_mj.scenario.Scenario, got {type(scenario).__name__}")

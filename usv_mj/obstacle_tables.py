@@ -1,4 +1,4 @@
-"""Obstacles and guidance of a scenario: the ``[[obstacles]]`` and ``[guidance]`` tables (issue 8, SPEC §7).
+"""Obstacles and guidance of a scenario: the ``[[obstacles]]`` and ``[guidance]`` tables (docs/model.md §7).
 
 The keys ``kind``, ``center``, ``radius``, ``size``, ``yaw``, ``velocity`` (obstacles) and ``avoid``,
 ``margin_m`` (guidance) are fixed because other tools read them::
@@ -93,7 +93,7 @@ class ObstacleSpec:
 
 @dataclass(frozen=True)
 class GuidanceSpec:
-    """How the reference is planned around obstacles (issue 8).
+    """How the reference is planned around obstacles.
 
     Attributes
     ----------

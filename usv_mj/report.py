@@ -7,7 +7,7 @@ from pathlib import Path
 
 from .figures import FIGURES
 
-# SPEC §5: the paper's Table 1 (this controller) and Table 2 (the controller of its ref. [26]).
+# docs/model.md §5: the paper's Table 1 (this controller) and Table 2 (the controller of its ref. [26]).
 PAPER_TABLE_1 = {"x": (5.32, 3.10, 0.85), "y": (6.42, 4.58, 1.17), "psi": (0.84, 0.65, 0.42)}
 PAPER_TABLE_2 = {"x": (5.47, 3.77, 1.85), "y": (6.81, 5.23, 2.04), "psi": (0.92, 0.74, 0.51)}
 UNITS = {"x": "m", "y": "m", "psi": "rad"}
@@ -46,7 +46,7 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     lines += ["", "## Tracking errors beside the paper", "",
               "Errors are x - x_d, y - y_d and wrap(psi - psi_d), as in the paper's tables. The paper's "
               "numbers do not fit its own start pose (eta0 = (2, -3, 0): they imply that the error grows "
-              "from 3.6 m to 8.3 m in 5 s, SPEC §5), so they are shown, not matched.", "",
+              "from 3.6 m to 8.3 m in 5 s, docs/model.md §5), so they are shown, not matched.", "",
               f"| error | t | this run ({name}) | {bname} baseline | paper Table 1 | paper Table 2 (ref. [26]) |",
               "|---|---|---|---|---|---|"]
     for axis in ("x", "y", "psi"):
@@ -73,14 +73,14 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     lines.append(f"| quantizer output changes, surge | {qs['u']} | {qb['u'] if qb['u'] is not None else '—'} |")
     lines.append(f"| quantizer output changes, yaw | {qs['r']} | {qb['r'] if qb['r'] is not None else '—'} |")
     if baseline_summary:
-        lines += ["", "The PI baseline (SPEC §6: surge-speed PI on the along-track error, heading PI with "
+        lines += ["", "The PI baseline (docs/model.md §6: surge-speed PI on the along-track error, heading PI with "
                   "yaw-rate damping on the same psi_a) runs through the same quantizer on the same plant. "
                   + ("" if baseline_summary["funnel_violations"] is None else
                      "It stayed inside the funnel." if baseline_summary["funnel_violations"] == 0 else
                      f"It left the funnel first at t = {_fmt(baseline_summary['first_violation_s'])} s "
                      f"({baseline_summary['funnel_violations']} control steps outside).")]
     if step_check:
-        lines += ["", "## Step-size check (SPEC §5)", "",
+        lines += ["", "## Step-size check (docs/model.md §5)", "",
                   f"The first {step_check['duration_s']:.0f} s again at half the control period "
                   f"({step_check['dt_half']*1e3:g} ms) moved the errors at 5 / 10 / 20 s by at most "
                   f"{step_check['max_position_m']*100:.3f} cm in position and {step_check['max_heading_rad']:.2e} rad "

@@ -31,7 +31,7 @@ from .actuators import ActuatorSpec
 from .errors import ScenarioError, SeaSettingsError
 from .obstacle_tables import GuidanceSpec, from_tables, guidance_from_table
 from .registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES
-from .sea.settings import SeaSettings, sea_preset_table
+from .sea.settings import SeaSettings, merge_sea_tables, sea_preset_table
 from .ship import PaperDisturbance, ShipParams
 from .toml_values import coerce, read_toml
 
@@ -404,15 +404,15 @@ def _build_disturbance(table: Any, source: str):
 
 
 def _build_sea(table, source: str) -> SeaSettings:
-    """``[sea]``: the fixed keys of issue 7 (SEA.md); ``preset = "moderate"`` names a sea preset
-    whose tables sit under the scenario's own ``[sea.*]`` keys."""
+    """``[sea]`` (docs/sea.md); ``preset = "moderate"`` names a sea preset whose tables sit under the
+    scenario's own ``[sea.*]`` keys (a direction of the scenario replaces the preset's, any spelling)."""
     try:
         if isinstance(table, dict) and "preset" in table:
             table = dict(table)
             name = table.pop("preset")
             if not isinstance(name, str):
                 raise ScenarioError(f"{source}: sea.preset must be a string, got {name!r}")
-            table = _merge(sea_preset_table(name), table)
+            table = merge_sea_tables(sea_preset_table(name), table)
         return SeaSettings.from_table(table, source)
     except SeaSettingsError as exc:
         msg = str(exc)

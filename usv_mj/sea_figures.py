@@ -1,7 +1,7 @@
-"""Figures and summary fields of a run in a sea (issue 7; SEA.md §3, §7), from a finished run and its
+"""Figures and summary fields of a run in a sea (docs/sea.md §3, §7), from a finished run and its
 :class:`usv_mj.sea.Environment`.
 
-- :func:`spectrum_figure`: the spectrum the sampled components carry (a_j^2 / (2 dw) at w_j, SEA.md
+- :func:`spectrum_figure`: the spectrum the sampled components carry (a_j^2 / (2 dw) at w_j, docs/sea.md
   §3.2) against the target JONSWAP S(w) (§3.1), with Hs of both.
 - :func:`loads_figure`: the environment loads over the run, body frame, evaluated on the recorded
   state (``Environment.loads_record``; pure in (t, eta, nu), so these are the loads that acted):
@@ -63,11 +63,11 @@ def hull_elevation(record, env) -> tuple[np.ndarray, np.ndarray]:
 
 
 def sea_summary(record, env) -> dict:
-    """The summary.json fields of issue 7.
+    """The summary.json fields of a run in a sea.
 
     ``sea``: the settings as the nested ``[sea]`` dict (None without an environment);
     ``hs_at_hull_m``: 4 x the standard deviation of zeta at the hull position over the run [m]
-    (SEA.md §3.3 elevation with its start-up ramp, evaluated at every recorded row; 0 in calm water).
+    (docs/sea.md §3 elevation with its start-up ramp, evaluated at every recorded row; 0 in calm water).
     """
     if env is None:
         return {"sea": None, "hs_at_hull_m": 0.0}

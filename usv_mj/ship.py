@@ -1,15 +1,24 @@
 """The paper's 3-DOF ship: mass, Coriolis, damping, uncertainty and disturbance, written once.
 
-Every formula of the hull lives here (SPEC §1, paper Eqs. 1-2, 6-7 and 28). The analytic plant, the
+Every formula of the hull lives here (docs/model.md §1, paper Eqs. 1-2, 6-7 and 28). The analytic plant, the
 MuJoCo passive-force callback and the PPC controller's nominal model all call these functions, so a
 change of the physics is a change in this one file.
 
 Conventions
 -----------
-- ``eta = (x, y, psi)``: position (m) and heading (rad) in the earth frame (x north, y east in the
-  paper; here simply the world x/y plane with psi counter-clockwise from +x).
-- ``nu = (u, v, r)``: surge (m/s), sway (m/s) and yaw rate (rad/s) in the body frame.
+The README's Conventions: world x east, y north, z up; heading psi counter-clockwise from +x (east);
+body x forward, y to port, z up, so positive v is to port and positive r turns to port.
+
+- ``eta = (x, y, psi)``: position (m) and heading (rad) in the world frame.
+- ``nu = (u, v, r)``: surge (m/s), sway (m/s, positive to port) and yaw rate (rad/s, positive to port)
+  in the body frame.
 - Forces are body-frame generalized forces ``(X [N], Y [N], N [N m])``.
+
+The paper writes the same equations in the marine NED frame (x north, y east, z down, body y to
+starboard). The mirror y -> -y, psi -> -psi, v -> -v, r -> -r, tau_r -> -tau_r leaves M, C(nu) and
+D(nu) below unchanged (m23 and the |v|, |r| damping terms included), so the printed numbers are used
+as they stand; only Delta's even sway/yaw terms, d(t)'s sway/yaw components and the sense of the
+reference's turn are mirrored (README, Conventions; tests/test_conventions.py).
 
 The kernels are ``numba.njit`` functions over a packed ``float64`` parameter vector (see
 :meth:`ShipParams.as_array` and the ``P_*`` indices), so that a native callback can call them with no
@@ -41,13 +50,13 @@ N_DIST_PARAMS = 10
 
 @dataclass(frozen=True)
 class ShipParams:
-    """Total (rigid-body + added) mass and damping of the paper's ship (SPEC §1).
+    """Total (rigid-body + added) mass and damping of the paper's ship (docs/model.md §1).
 
     Attributes
     ----------
     m11, m22, m23, m33:
         Entries of the total mass matrix M [kg, kg, kg m, kg m^2]. m23 = m32 is not printed in the
-        paper; it is read off c13 = -m22 v - m23 r (SPEC §1).
+        paper; it is read off c13 = -m22 v - m23 r (docs/model.md §1).
     d11, d22, d23, d32, d33:
         Damping coefficients ``(c0, c1, c2)``: d11 = c0 + c1|u| + c2 u^2 and
         d_ij = c0 + c1|v| + c2|r| for the others [N s/m, N s^2/m^2, ...].
@@ -104,7 +113,7 @@ class RigidBodySplit:
     """How the total mass of :class:`ShipParams` is split between rigid body and added mass.
 
     MuJoCo carries the rigid body (mass, COM offset, yaw inertia); the passive-force callback carries
-    only the added mass M_A and the hydrodynamic forces. The default split (SPEC §1) puts everything
+    only the added mass M_A and the hydrodynamic forces. The default split (docs/model.md §1) puts everything
     that can be rigid into the rigid body: m = m11 (X_udot = 0), x_g = m23/m (Y_rdot = 0),
     I_z about the joint origin = m33 (N_rdot = 0), and the added mass a22 = m22 - m11 in sway.
     A different split must give the same motion; ``added_mass_fraction_surge`` moves part of m11
@@ -140,14 +149,14 @@ class RigidBodySplit:
 
 @dataclass(frozen=True)
 class PaperDisturbance:
-    """The paper's environmental disturbance d(t) (SPEC §1), scaled by ``scale``.
+    """The paper's environmental disturbance d(t) (docs/model.md §1), scaled by ``scale``.
 
     d(t) = scale * [A_1 (cos w_c1 t + sin w_s1 t), A_2 (...), A_3 (...)] in body-frame [N, N, N m].
 
     Attributes
     ----------
     scale:
-        s of SPEC §1 (dimensionless, >= 0): 1 is the paper as printed, 1e-4 the ``paper`` preset.
+        s of docs/model.md §1 (dimensionless, >= 0): 1 is the paper as printed, 1e-4 the ``paper`` preset.
     amplitudes:
         A_i [N, N, N m]; printed 1e4, 1e2, 1e5.
     cos_frequencies, sin_frequencies:
@@ -181,7 +190,7 @@ class PaperDisturbance:
 
 @njit(cache=True)
 def damping_coefficients(p, nu):
-    """d11, d22, d23, d32, d33 at the body velocity nu (SPEC §1 table)."""
+    """d11, d22, d23, d32, d33 at the body velocity nu (docs/model.md §1 table)."""
     au, av, ar = abs(nu[0]), abs(nu[1]), abs(nu[2])
     d11 = p[P_D11] + p[P_D11 + 1] * au + p[P_D11 + 2] * nu[0] * nu[0]
     d22 = p[P_D22] + p[P_D22 + 1] * av + p[P_D22 + 2] * ar
@@ -205,7 +214,7 @@ def mass_matrix(p):
 
 @njit(cache=True)
 def coriolis_matrix(p, nu):
-    """Total Coriolis-centripetal matrix C(nu) = C_RB + C_A (SPEC §1; c13 uses m22, not m11)."""
+    """Total Coriolis-centripetal matrix C(nu) = C_RB + C_A (docs/model.md §1; c13 uses m22, not m11)."""
     u, v, r = nu[0], nu[1], nu[2]
     c13 = -p[P_M22] * v - p[P_M23] * r
     c23 = p[P_M11] * u
@@ -219,7 +228,7 @@ def coriolis_matrix(p, nu):
 
 @njit(cache=True)
 def damping_matrix(p, nu):
-    """Nonlinear damping matrix D(nu) (SPEC §1) [N s/m ...]."""
+    """Nonlinear damping matrix D(nu) (docs/model.md §1) [N s/m ...]."""
     d11, d22, d23, d32, d33 = damping_coefficients(p, nu)
     out = np.zeros((3, 3))
     out[0, 0] = d11
@@ -316,7 +325,7 @@ def state_derivative(p, dp, t, x, tau_u, tau_r):
 
 @njit(cache=True)
 def nominal_terms(p, nu):
-    """phi_u, phi_v, phi_r of Eq. 28: the known part of the velocity dynamics (SPEC §1).
+    """phi_u, phi_v, phi_r of Eq. 28: the known part of the velocity dynamics (docs/model.md §1).
 
     phi_u = (m22 v r + m23 r^2 - d11 u)/m11, phi_v = -(m11 u r + d22 v + d23 r)/m22,
     phi_r = [(m11 m22 - m22^2) u v + (m11 - m22) m23 u r - m22 (d33 r + d32 v)

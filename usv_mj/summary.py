@@ -24,7 +24,7 @@ def pose_errors(record: RunRecord) -> dict:
 
 
 def summarize(record: RunRecord) -> dict:
-    """A plain dict with the fields of ``summary.json`` (issue 2); None where a value does not exist."""
+    """A plain dict with the fields of ``summary.json``; None where a value does not exist."""
     meta = record.metadata
     t = record["t"]
     err = pose_errors(record)
@@ -66,7 +66,7 @@ def summarize(record: RunRecord) -> dict:
         "wall_time_s": meta.get("wall_time_s"),
         "realtime_factor": meta.get("realtime_factor"),
         "events": len(record.events),
-        # obstacles (issue 8): None / 0 in open water
+        # obstacles: None / 0 in open water
         "min_clearance_m": (meta.get("obstacles") or {}).get("min_clearance_m"),
         "contacts": (meta.get("obstacles") or {}).get("contacts", 0),
         "obstacles": (meta.get("obstacles") or {}).get("per_obstacle"),

@@ -1,4 +1,4 @@
-"""Reference trajectories for the tracking controllers (SPEC §4 and scenario ``[trajectory]``).
+"""Reference trajectories for the tracking controllers (docs/model.md §4 and scenario ``[trajectory]``).
 
 Every reference is a unicycle-like path: position (x_d, y_d), heading psi_d along the path, yaw rate
 r_d = psi_d_dot and surge speed u_d (v_d = 0). ``reference.evaluate(t)`` returns the vector of
@@ -47,7 +47,7 @@ class Reference:
 
 @njit(cache=True)
 def paper_heading(t, u_d, t_turn, t_phase, amplitude, period):
-    """psi_d and r_d of SPEC §4: r_d = -A sin(pi (t - t_phase)/P) for t >= t_turn, 0 before.
+    """psi_d and r_d of docs/model.md §4: r_d = -A sin(pi (t - t_phase)/P) for t >= t_turn, 0 before.
 
     Closed form for t >= t_turn: psi_d = (A P/pi)[cos(pi (t - t_phase)/P) - cos(pi (t_turn - t_phase)/P)].
     """
@@ -88,7 +88,7 @@ def _paper_evaluate(tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, p
 
 
 class PaperReference(Reference):
-    """The paper's reference (SPEC §4): u_d = 0.6 m/s, straight until 110 s, then
+    """The paper's reference (docs/model.md §4): u_d = 0.6 m/s, straight until 110 s, then
     r_d = -0.006 sin(pi (t - 100)/500) (the jump of r_d at 110 s is as printed).
 
     x_d, y_d integrate u_d (cos psi_d, sin psi_d) from (0, 0): tabulated once with 8-point

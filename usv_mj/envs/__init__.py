@@ -1,4 +1,4 @@
-"""The USV as dm_control tasks, for learning and benchmarking controllers (issue 9).
+"""The USV as dm_control tasks, for learning and benchmarking controllers.
 
 Public API::
 
@@ -14,11 +14,12 @@ Public API::
 Tasks (:data:`ALL_TASKS`; the observation, action, reward and termination conventions are in
 :mod:`usv_mj.envs.tasks`):
 
-- ``track``: follow the paper's reference (SPEC §4) from a start drawn uniformly within
+- ``track``: follow the paper's reference (docs/model.md §4) from a start drawn uniformly within
   +-(3 m, 3 m, 0.5 rad) of its pose at t = 0, at rest; 30 s episodes, control period 0.01 s
   (10 RK4 steps of 1 ms), the paper preset's ship, disturbance, funnel and quantizer.
-- ``track_waves``: the same in the ``moderate`` sea (SEA.md §3.1: JONSWAP Hs 0.2 m, Tp 2 s) with a
-  0.3 m/s current (toward 30 deg) and a 5 m/s wind (from 90 deg, gusts sigma 1 m/s).
+- ``track_waves``: the same in the ``moderate`` sea (docs/sea.md §3: JONSWAP Hs 0.2 m, Tp 2 s, from
+  the west) with a 0.3 m/s current (setting toward compass 060, 30 deg counter-clockwise from +x) and a
+  5 m/s wind (from the south, blowing toward +y; gusts sigma 1 m/s).
 - ``harbor``: from the origin to a goal 40 m ahead through a randomised harbour (two piers with a
   gap, a buoy field; a new layout every episode) without contact; the observed reference is the
   guidance plan; 16 rangefinders fan around the hull; 90 s episodes.

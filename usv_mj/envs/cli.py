@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "track_waves: the same in the moderate sea with current and wind; harbor: reach a goal "
                         "through a randomised harbour without contact")
     parser.add_argument("--policy", choices=("ppc", "random"), default="ppc",
-                        help="ppc: the paper's controller (SPEC §3) on the observations; random: uniform actions")
+                        help="ppc: the paper's controller (docs/model.md §3) on the observations; random: uniform actions")
     parser.add_argument("--episodes", type=int, default=1, help="number of episodes (default 1)")
     parser.add_argument("--seed", type=int, default=0, help="environment (and random policy) seed (default 0)")
     parser.add_argument("--duration", type=float, default=None, help="episode length [s] (default 30, harbor 90)")

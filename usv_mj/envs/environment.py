@@ -22,8 +22,9 @@ from .physics import HarbourEnvPlant, USVPhysics
 from .tasks import DEFAULT_PREVIEW, HarbourTask, TrackTask
 
 WAVES_SEA = {"preset": "moderate",
-             "current": {"speed": 0.3, "direction_deg": 30.0, "sigma": 0.0, "time_constant": 120.0},
-             "wind": {"speed": 5.0, "direction_deg": 90.0, "gust_sigma": 1.0, "gust_time_constant": 2.0, "seed": 2}}
+             # compass directions (docs/sea.md): current setting toward 060, wind from the south (180)
+             "current": {"speed": 0.3, "toward_deg": 60.0, "sigma": 0.0, "time_constant": 120.0},
+             "wind": {"speed": 5.0, "from_deg": 180.0, "gust_sigma": 1.0, "gust_time_constant": 2.0, "seed": 2}}
 HARBOUR_FUNNEL = {"rho_xy": [3.0, 0.5], "rate": 0.2}  # as examples/scenarios/harbour_gap.toml
 
 

@@ -13,7 +13,7 @@ from usv_mj.simulation import make_controller
 
 
 class PPCPolicy:
-    """The adaptive PPC law (SPEC §3, Eqs. 14-37) run on the environment's observations.
+    """The adaptive PPC law (docs/model.md §3, Eqs. 14-37) run on the environment's observations.
 
     What it reads
     -------------

@@ -5,7 +5,7 @@ Conventions (all tasks)
 Action: ``thrust`` = (tau_u [N], tau_r [N m]), a ``specs.BoundedArray`` with bounds
 (+-``max_surge_force``, +-``max_yaw_moment``); values outside are clipped, non-finite ones raise
 ValueError. With ``quantize=True`` the clipped action goes through the hysteresis quantizer of Eq. 3
-(SPEC §2; the scenario's delta and u_min per channel), exactly as in :func:`usv_mj.simulation.simulate`.
+(docs/model.md §2; the scenario's delta and u_min per channel), exactly as in :func:`usv_mj.simulation.simulate`.
 The (quantized) thrust is held over the control period: ``n_sub_steps`` = ``plant.substeps`` RK4
 steps of the plant's time step.
 
@@ -71,7 +71,7 @@ def _tol_psi(e: float) -> float:
 
 
 class TrackTask(base.Task):
-    """Follow the scenario's reference (SPEC §4 for the paper preset) from a randomised start.
+    """Follow the scenario's reference (docs/model.md §4 for the paper preset) from a randomised start.
 
     The start pose is the reference's pose at t = 0 plus uniform offsets of at most
     ``start_offset`` = (dx [m], dy [m], dpsi [rad]), at rest. See the module docstring for the

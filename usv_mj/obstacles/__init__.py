@@ -1,4 +1,4 @@
-"""Obstacles with real contact physics and guidance that keeps clear (issue 8).
+"""Obstacles with real contact physics and guidance that keeps clear.
 
 - the ``[[obstacles]]`` / ``[guidance]`` tables are the scenario's (:mod:`usv_mj.obstacle_tables`).
 - :mod:`.compose`: the harbour model composed with dm_control.mjcf, :class:`HarbourPlant`.

@@ -1,4 +1,4 @@
-"""Clearance between the hull and every obstacle, and the contacts, once per control step (issue 8).
+"""Clearance between the hull and every obstacle, and the contacts, once per control step.
 
 Two monitors with one interface, ``update(t, plant_or_state) -> clearance`` (a float64 array, one
 signed distance [m] per obstacle, negative = penetration) plus the attributes ``normal_force`` [N]

@@ -1,4 +1,4 @@
-"""The harbour model, composed with ``dm_control.mjcf``: scene + hull + obstacles (issue 8).
+"""The harbour model, composed with ``dm_control.mjcf``: scene + hull + obstacles.
 
 :func:`compose_scene` parses ``models/scene.xml`` (which includes ``models/usv.xml``) with
 ``dm_control.mjcf`` and adds, in Python and never by pasting XML text,

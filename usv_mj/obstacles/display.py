@@ -1,4 +1,4 @@
-"""What the figures, the video and the MCAP log need to show obstacles (issue 8), as plain data.
+"""What the figures, the video and the MCAP log need to show obstacles, as plain data.
 
 - :func:`draw_obstacles`: matplotlib patches for the trajectory figure: each obstacle filled, its
   inflated safety boundary (obstacle grown by the plan's inflation) dashed.

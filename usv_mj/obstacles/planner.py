@@ -1,11 +1,11 @@
 """Guidance that keeps clear: a visibility-graph path around inflated obstacles, smoothed into a
-unicycle reference with bounded r_d and r_d_dot, and re-timed around moving obstacles (issue 8).
+unicycle reference with bounded r_d and r_d_dot, and re-timed around moving obstacles.
 
 The safety property (why the inflation is what it is)
 -----------------------------------------------------
 The PPC law keeps the tracking errors of the controlled point inside the funnel: |e1| < rho(t) and
 |e2| < rho(t) (Eqs. 8-10), where e = p_bar - p_bar_d, p_bar = p + eps h(psi), p_bar_d = p_d + eps
-h(psi_d), h(a) = (cos a, sin a) and eps = m23/m22 (SPEC §3, Do & Pan's offset). Each axis is
+h(psi_d), h(a) = (cos a, sin a) and eps = m23/m22 (docs/model.md §3, Do & Pan's offset). Each axis is
 bounded separately, so |p_bar - p_bar_d| < sqrt(2) rho(t). Every point q of the hull is within the
 hull radius R of the body origin p (:data:`usv_mj.obstacles.compose.HULL_RADIUS`). Hence
 
@@ -30,7 +30,7 @@ visibility graph over their vertices plus start and goal is searched with networ
 heuristic), and the polyline is smoothed by a virtual boat (pure pursuit with look-ahead L, the
 curvature rate-limited) into a path tabulated in arc length: x(s), y(s), psi(s), kappa(s), with
 |kappa| <= max_yaw_rate / u and |dkappa/ds| <= max_yaw_accel / u^2. The reference runs it at speed
-u: r_d = kappa u, psi_d = psi(s), x_d_dot = u cos psi_d (SPEC §4's unicycle-like model, v_d = 0).
+u: r_d = kappa u, psi_d = psi(s), x_d_dot = u cos psi_d (docs/model.md §4's unicycle-like model, v_d = 0).
 Where the verification finds an obstacle closer than G(t) + margin, that obstacle's inflation is
 raised by the deficit and the path is planned again (at most ``MAX_ITERATIONS`` times).
 
@@ -85,7 +85,7 @@ class SafetyEnvelope:
     Attributes
     ----------
     funnel: the position funnel rho_1 = rho_2 (Eq. 9) [m].
-    eps: m23/m22 [m] (SPEC §3).
+    eps: m23/m22 [m] (docs/model.md §3).
     hull_radius: [m].
     margin: required clearance on top [m].
     """

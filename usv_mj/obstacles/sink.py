@@ -1,4 +1,4 @@
-"""The obstacle log: clearance and contact force per control step, and the obstacle events (issue 8).
+"""The obstacle log: clearance and contact force per control step, and the obstacle events.
 
 :class:`ObstacleLog` is a :class:`usv_mj.simulation.RunSink` (``start``/``rows``/``finish``) that is
 also fed once per control step by :class:`usv_mj.obstacles.run.ObstacleStepper` with

@@ -1,4 +1,4 @@
-"""Off-screen rendering of finished runs to video (issue 4; SPEC §1 on headless rendering).
+"""Off-screen rendering of finished runs to video (the README's Two commands on headless rendering).
 
 Rendering replays a :class:`~usv_mj.record.RunRecord` (set the hull's qpos from x, y, psi,
 ``mj_forward``, draw), so a run can be rendered again at another size, speed or camera without

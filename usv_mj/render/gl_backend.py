@@ -4,7 +4,7 @@ MuJoCo's Python bindings bind their ``GLContext`` when ``mujoco`` is first impor
 ``MUJOCO_GL`` environment variable (``egl``, ``osmesa``, ``glfw``, ...), and PyOpenGL binds its
 platform from ``PYOPENGL_PLATFORM`` likewise. So the backend has to be chosen *before* a process
 imports mujoco. On the CPU-only machines this project targets both EGL and OSMesa run on Mesa's
-llvmpipe rasteriser (SPEC §1).
+llvmpipe rasteriser (docs/model.md §1).
 
 Rules (:func:`select_backend`):
 

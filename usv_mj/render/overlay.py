@@ -3,7 +3,7 @@
 What it shows (values of one record row, see :mod:`usv_mj.record`):
 
 - time t [s] of the run, its end, and the playback speed-up;
-- the tracking errors against their prescribed bounds (SPEC §3 steps 2-4, Eqs. 9, 14): one bar per
+- the tracking errors against their prescribed bounds (docs/model.md §3 steps 2-4, Eqs. 9, 14): one bar per
   axis spanning -rho_i..+rho_i with a marker at e_i, i.e. z_i = e_i / rho_i in [-1, 1]; green while
   |z_i| < 0.8, amber below 1, red at or beyond the funnel (|z_i| >= 1, a violation). e1, e2 in m,
   e3 in degrees;
@@ -227,7 +227,7 @@ def _arrow(draw, cx, cy, length, angle, colour, width):
 
 def draw_sea_arrows(frame: np.ndarray, current_xy, wind_speed: float, wind_direction: float, *,
                     top_down: bool = True) -> np.ndarray:
-    """The sea panel (left, under the heads-up panel) onto ``frame`` in place (issue 7).
+    """The sea panel (left, under the heads-up panel) onto ``frame`` in place.
 
     ``current_xy``: current velocity [m/s] in the world frame; ``wind_speed`` [m/s] and
     ``wind_direction`` [rad], the going-to direction in the world frame. In the top view (image right =

@@ -98,7 +98,7 @@ def frame_count(duration: float, fps: float, speedup: float) -> int:
 def do_pan_offset(record) -> float:
     """eps = m23/m22 [m] recovered from the record: e1 = (x - x_d) + eps (cos psi - cos psi_d), same for y.
 
-    A least-squares fit over the rows (SPEC §1 transformed coordinates); 0 when the rows do not
+    A least-squares fit over the rows (docs/model.md §1 transformed coordinates); 0 when the rows do not
     determine it (no heading error) or the errors are not Do & Pan's (fit residual not small).
     """
     try:

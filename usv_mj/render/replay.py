@@ -9,7 +9,7 @@ picture is completed with
   (``models/`` is not edited);
 - the *wake trail*: line segments through the hull's recent positions, fading with age;
 - the *reference path ahead*: line segments through the upcoming (x_d, y_d);
-- the *prescribed-performance funnel* (SPEC §3 step 4, Eq. 9): the rectangle |e1| < rho1, |e2| < rho2
+- the *prescribed-performance funnel* (docs/model.md §3 step 4, Eq. 9): the rectangle |e1| < rho1, |e2| < rho2
   around the reference point, drawn as a translucent slab with an outline, green while both errors
   are inside and red when one is not. The funnel is centred on the Do & Pan point
   x_bar_d = x_d + eps cos psi_d, y_bar_d = y_d + eps sin psi_d when eps = m23/m22 is known from the
@@ -23,7 +23,7 @@ Cameras: ``"top"`` is a free camera looking straight down (image right = world +
 water [m]) computed per frame by the planner to keep ship, reference and funnel in view; any other
 name is a camera of the model (``"chase"`` rides behind the hull, ``"overview"`` is fixed).
 
-Speed (SPEC §1: shadows and multisampling dominate on Mesa's software rasteriser): shadows and
+Speed (docs/model.md §1: shadows and multisampling dominate on Mesa's software rasteriser): shadows and
 reflections are off and multisampling is reduced unless asked for.
 
 This module imports mujoco: import it only in a process whose ``MUJOCO_GL`` is already chosen
@@ -156,7 +156,7 @@ def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720,
 
     ``samples``: multisampling of the off-screen buffer (0: none; 2 or MuJoCo's default 4 cost about
     2.5x the CPU time of a frame on Mesa's llvmpipe, measured 110 vs 40 ms at 1280x720).
-    ``sea``: add the wave surface of SEA.md §6, a hidden hfield geom (``SEA_GEOM``, contype =
+    ``sea``: add the wave surface of docs/sea.md §6, a hidden hfield geom (``SEA_GEOM``, contype =
     conaffinity = 0) of SEA_NODES x SEA_NODES nodes that :meth:`FrameRenderer.update_sea` shows,
     re-centres, fills and uploads per frame when the run had a sea.
     """
@@ -311,7 +311,7 @@ class FrameRenderer:
         env = self.world.environment if self.world is not None else None
         if env is not None and self.sea_geom >= 0:
             a = float(env.amplitude_bound)
-            m.hfield_size[self.sea_hfield, 2] = 2.0 * a          # SEA.md §6: size (r_x, r_y, 2A, base)
+            m.hfield_size[self.sea_hfield, 2] = 2.0 * a          # docs/sea.md §6: size (r_x, r_y, 2A, base)
             m.geom_pos[self.sea_geom, 2] = self.z_water - a      # geom z = -A
             m.geom_rgba[self.sea_geom, 3] = 1.0
             m.geom_pos[self._planes, 2] = self._plane_z - a - 0.02   # the flat sea beyond, under the troughs
@@ -326,7 +326,7 @@ class FrameRenderer:
             self.decor_z = self.z_water
 
     def update_sea(self, spec: FrameSpec) -> None:
-        """SEA.md §6: re-centre the hfield in whole cells (``geom_pos``; on the top view's centre, which
+        """docs/sea.md §6: re-centre the hfield in whole cells (``geom_pos``; on the top view's centre, which
         always holds the hull, else on the hull), size it to the view and fill ``hfield_data`` with the
         elevation at the simulated time ``spec.t`` of the drawn state. Whole cells: the nodes sit on
         the fixed world lattice of the cell size, so the waves do not swim as the camera moves. The

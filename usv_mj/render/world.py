@@ -1,4 +1,4 @@
-"""What the video shows beyond the ship: the sea (issue 7) and the obstacles (issue 8) of the run.
+"""What the video shows beyond the ship: the sea and the obstacles of the run.
 
 The planner (parent process) reads them from the record's metadata into a small picklable
 :class:`RenderWorld` that rides on every :class:`~usv_mj.render.planner.FrameSpec`; each rendering
@@ -6,10 +6,10 @@ process resolves it once (:class:`ResolvedWorld`: the seeded :class:`usv_mj.sea.
 obstacle specs and their inflation) and keeps it while the same world comes in.
 
 - Sea: ``record.metadata["scenario"]["sea"]`` (the settings the plant ran with) and the ship (its
-  rigid mass sets the equivalent draft of SEA.md §2, which the elevation does not use but the
+  rigid mass sets the equivalent draft of docs/sea.md §2, which the elevation does not use but the
   Environment's constructor needs). The Environment is a pure function of (t, eta, nu) with every
-  random draw made from the seeds (SEA.md §0), so the renderer's waves are the plant's.
-- Obstacles: ``record.metadata["scenario"]["obstacles"]`` (the scenario's tables, keys of issue 8)
+  random draw made from the seeds (docs/sea.md §0), so the renderer's waves are the plant's.
+- Obstacles: ``record.metadata["scenario"]["obstacles"]`` (the scenario's tables)
   and the per-obstacle ``inflation_m`` of ``record.metadata["obstacles"]["per_obstacle"]`` (the
   :class:`~usv_mj.obstacles.sink.ObstacleLog` summary) for the safety boundary.
 """
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-SEA_NODES = 101          # hfield nodes per side: SEA.md §6 suggests ~201; 101 measured 2x faster a frame (upload)
-SEA_BASE_EXTENT = 20.0   # m, the hfield's smallest side (SEA.md §6: about 201 x 201 nodes over 20 m)
+SEA_NODES = 101          # hfield nodes per side: docs/sea.md §6 suggests ~201; 101 measured 2x faster a frame (upload)
+SEA_BASE_EXTENT = 20.0   # m, the hfield's smallest side (docs/sea.md §6: about 201 x 201 nodes over 20 m)
 SEA_EXTENT_STEP = 5.0    # m, the hfield's side is a multiple of this
 
 

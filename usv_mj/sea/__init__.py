@@ -1,4 +1,4 @@
-"""Sea state for usv_mj: waves, current and wind as pure functions of (t, eta, nu) (SEA.md).
+"""Sea state for usv_mj: waves, current and wind as pure functions of (t, eta, nu) (docs/sea.md).
 
 Public API::
 

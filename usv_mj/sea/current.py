@@ -1,4 +1,4 @@
-"""Current (SEA.md §4) and the Ornstein-Uhlenbeck grids shared with the wind gusts.
+"""Current (docs/sea.md §4) and the Ornstein-Uhlenbeck grids shared with the wind gusts.
 
 v_c(t) = mean + [OU_x(t), OU_y(t)] in the earth frame (vector form, no angle wrapping). The OU
 processes live on a grid with linear interpolation; v_c_dot is the slope of that interpolant. A grid
@@ -16,7 +16,7 @@ from numba import njit
 
 from .layout import E_CURRENT_DT, E_CURRENT_ON, E_CURRENT_X, E_CURRENT_Y
 
-CURRENT_GRID_STEP = 1.0  # s (SEA.md §4)
+CURRENT_GRID_STEP = 1.0  # s (docs/sea.md §4)
 OU_CHUNK_POINTS = 4096
 
 
@@ -34,7 +34,7 @@ class OrnsteinUhlenbeckGrid:
     """Unit-variance OU samples on a grid (``dims`` independent axes), extended deterministically.
 
     x_{i+1} = phi x_i + sqrt(1 - phi^2) w_i, phi = exp(-step / time_constant), x_0 ~ N(0, 1)
-    (SEA.md §4). Multiply by sigma for the physical process.
+    (docs/sea.md §4). Multiply by sigma for the physical process.
     """
 
     def __init__(self, seed_sequence: np.random.SeedSequence, step: float, time_constant: float,
@@ -97,7 +97,7 @@ def grid_interpolate(grid, col, step, t):
 
 @njit(cache=True)
 def current_at(ep, current_grid, t):
-    """Current v_c (earth x, y) [m/s] and its time derivative [m/s^2] at time t (SEA.md §4)."""
+    """Current v_c (earth x, y) [m/s] and its time derivative [m/s^2] at time t (docs/sea.md §4)."""
     if ep[E_CURRENT_ON] == 0.0:
         return 0.0, 0.0, 0.0, 0.0
     dt = ep[E_CURRENT_DT]

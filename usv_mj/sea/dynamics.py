@@ -1,4 +1,4 @@
-"""The one physics function with the sea (SEA.md §1), over usv_mj.ship's kernels.
+"""The one physics function with the sea (docs/sea.md §1), over usv_mj.ship's kernels.
 
     nu_r     = nu - nu_c
     M nu_dot = M nu_c_dot + tau + tau_env + Delta(eta, nu) + d(t) - C(nu_r) nu_r - D(nu_r) nu_r
@@ -28,11 +28,11 @@ from .layout import (E_CURRENT_ON, E_WAVES_ON, E_WIND_ON, L_DRIFT, L_NU_C, L_NU_
 
 @njit(cache=True)
 def sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
-    """Everything on the hull but the thrust, body frame [N, N, N m] (SEA.md §1):
+    """Everything on the hull but the thrust, body frame [N, N, N m] (docs/sea.md §1):
 
     f = M nu_c_dot + tau_env + Delta(eta, nu) + d(t) - C(nu_r) nu_r - D(nu_r) nu_r.
 
-    For the MuJoCo callback (SEA.md §6): f_callback = -M_A nu_dot + f + C_RB(nu) nu.
+    For the MuJoCo callback (docs/sea.md §6): f_callback = -M_A nu_dot + f + C_RB(nu) nu.
     In a calm environment this is usv_mj.ship.hydrodynamic_force itself.
     """
     if ep[E_WAVES_ON] == 0.0 and ep[E_CURRENT_ON] == 0.0 and ep[E_WIND_ON] == 0.0:

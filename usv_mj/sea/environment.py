@@ -1,8 +1,8 @@
-"""The sea as pure functions of (t, eta, nu): :class:`Environment` and its packed kernel (SEA.md §1).
+"""The sea as pure functions of (t, eta, nu): :class:`Environment` and its packed kernel (docs/sea.md §1).
 
 All random numbers are drawn at construction: waves from ``SeedSequence(waves.seed).spawn(3)[0]``,
 current from ``SeedSequence(waves.seed).spawn(3)[2]`` and gusts from
-``SeedSequence(wind.seed).spawn(3)[1]`` (SEA.md §0: one stream each, so switching one load on never
+``SeedSequence(wind.seed).spawn(3)[1]`` (docs/sea.md §0: one stream each, so switching one load on never
 changes another; the current has no seed key of its own and rides on the wave seed's third stream).
 Nothing advances inside :func:`environment_loads`: RK4 stages, MuJoCo sub-steps and the renderer see
 identical fields at identical times.
@@ -29,7 +29,7 @@ from .waves import (WaveComponents, jonswap_spectrum, pack_waves, ramp_factor,
                     sample_wave_components, wave_loads)
 from .wind import BLENDERMANN_SPEED_BOAT, WIND_GRID_STEP, wind_load, wind_speed_at, wind_speed_record
 
-DEFAULT_RAMP_TIME = 2.0  # s, tau_ramp of SEA.md §3.3 (as VRX)
+DEFAULT_RAMP_TIME = 2.0  # s, tau_ramp of docs/sea.md §3 (as VRX)
 _DRIFT_CODES = {"off": lay.DRIFT_OFF, "mean": lay.DRIFT_MEAN, "newman": lay.DRIFT_NEWMAN}
 
 
@@ -43,7 +43,7 @@ class PackedEnvironment(NamedTuple):
 
 
 class EnvLoads(NamedTuple):
-    """Environment at one (t, eta, nu), body frame (SEA.md §1).
+    """Environment at one (t, eta, nu), body frame (docs/sea.md §1).
 
     nu_c: current [u_c, v_c, 0] [m/s]; nu_c_dot: [r v_cb, -r u_cb, 0] + R^T v_c_dot [m/s^2];
     tau_wind [N, N, N m]; tau_wave1 = s(t) x first-order wave load; tau_drift = s(t)^2 x drift
@@ -67,7 +67,7 @@ def environment_loads(ep, waves, current_grid, wind_grid, t, eta, nu):
     """The 15-vector of :mod:`usv_mj.sea.layout` (L_*): nu_c, nu_c_dot, tau_wind, s tau_wave1, s^2 tau_drift.
 
     nu_c = [R(psi)^T v_c(t); 0]; nu_c_dot = [r v_cb, -r u_cb, 0] + [R(psi)^T v_c_dot(t); 0];
-    tau_wind from absolute nu; waves from the hull position (SEA.md §1, §3-5). Pure in (t, eta, nu).
+    tau_wind from absolute nu; waves from the hull position (docs/sea.md §1, §3-5). Pure in (t, eta, nu).
     """
     out = np.zeros(lay.N_LOADS)
     psi = eta[2]
@@ -110,14 +110,14 @@ def environment_loads_record(ep, waves, current_grid, wind_grid, ts, etas, nus):
 
 
 class Environment:
-    """Waves, current and wind as pure functions (SEA.md §1 API).
+    """Waves, current and wind as pure functions (docs/sea.md §1 API).
 
     Parameters
     ----------
     settings:
         :class:`SeaSettings` (calm by default).
     hull:
-        :class:`HullGeometry` (SEA.md §2 defaults); its draft defaults to m_RB / (rho_w L B).
+        :class:`HullGeometry` (docs/sea.md §2 defaults); its draft defaults to m_RB / (rho_w L B).
     ship:
         The ship whose rigid mass sets the equivalent draft (default :class:`ShipParams`).
     t_max:
@@ -224,11 +224,11 @@ class Environment:
 
     @property
     def amplitude_bound(self) -> float:
-        """A = sum_j a_j [m]: |zeta| <= A everywhere (the hfield scale of SEA.md §6)."""
+        """A = sum_j a_j [m]: |zeta| <= A everywhere (the hfield scale of docs/sea.md §6)."""
         return float(np.sum(self.components.a))
 
     def ramp(self, t) -> np.ndarray | float:
-        """s(t) of SEA.md §3.3 (vectorised)."""
+        """s(t) of docs/sea.md §3 (vectorised)."""
         t = np.asarray(t, dtype=float)
         if self.ramp_time <= 0:
             return np.ones_like(t) if t.ndim else 1.0
@@ -288,7 +288,7 @@ class Environment:
     def elevation_grid(self, xs, ys, t: float, origin=(0.0, 0.0)) -> np.ndarray:
         """zeta on the grid (origin + (xs[i], ys[l])): array (len(ys), len(xs)), rows along +y [m].
 
-        SEA.md §6 fast path: zeta = Re[(E_y diag(a_j e^{i(w_j t + eps_j - k_j . origin)})) E_x^T],
+        docs/sea.md §6 fast path: zeta = Re[(E_y diag(a_j e^{i(w_j t + eps_j - k_j . origin)})) E_x^T],
         E_x[i, j] = exp(-i k_j cos(beta_j) xs[i]), E_y[l, j] = exp(-i k_j sin(beta_j) ys[l]): one
         complex matmul a frame (E_x, E_y are cached per (xs, ys)). Equals :meth:`elevation`.
         """
@@ -315,7 +315,7 @@ class Environment:
         return np.concatenate([left.real, -left.imag], axis=1) @ ex_stack
 
     def hfield_heights(self, xs, ys, t: float, origin=(0.0, 0.0)) -> np.ndarray:
-        """MuJoCo hfield data (SEA.md §6): (zeta + A) / (2 A), A = sum a_j (never clipped), float32,
+        """MuJoCo hfield data (docs/sea.md §6): (zeta + A) / (2 A), A = sum a_j (never clipped), float32,
         shape (len(ys), len(xs)) with rows along +y; 0.5 everywhere in calm water."""
         a_bound = self.amplitude_bound
         if a_bound <= 0:
@@ -343,7 +343,7 @@ class Environment:
         return wind_speed_record(self._ep, self._wind_grid, flat).reshape(ts.shape)
 
     def loads(self, t: float, eta, nu) -> EnvLoads:
-        """Environment at (t, eta, nu) (SEA.md §1), body frame; see :class:`EnvLoads`."""
+        """Environment at (t, eta, nu) (docs/sea.md §1), body frame; see :class:`EnvLoads`."""
         eta = np.ascontiguousarray(eta, dtype=float)
         nu = np.ascontiguousarray(nu, dtype=float)
         if eta.shape != (3,) or nu.shape != (3,):

@@ -8,7 +8,7 @@ An environment is four float64 arrays, :class:`usv_mj.sea.environment.PackedEnvi
 ``waves`` (C-contiguous, shape ``(N_WAVE_COLS, N)``; N = 0 in calm water)
     one column per wave component j, rows ``W_*``: a_j [m], w_j [rad/s], k_j [rad/m],
     cos beta_j, sin beta_j (going-to direction), eps_j [rad], c_j = c_dif rho g a_j (1 - e^{-k_j T})
-    [N/m^2], q_j = 1/2 rho g R^2(k_j T) [N/m^2] (drift factor, SEA.md §3.5).
+    [N/m^2], q_j = 1/2 rho g R^2(k_j T) [N/m^2] (drift factor, docs/sea.md §3).
 ``current_grid`` (C-contiguous, shape ``(n_c, 2)``)
     OU deviations of the current (earth x, y) [m/s] at t = i * ep[E_CURRENT_DT], i = 0..n_c-1.
 ``wind_grid`` (C-contiguous, shape ``(n_w, 1)``)

@@ -1,15 +1,27 @@
-"""Typed, validated settings of the sea state (SEA.md §2-5; the fixed scenario keys of issue 7).
+"""Typed, validated settings of the sea state (docs/sea.md).
 
-The scenario keys are fixed (other tools read them)::
+The scenario keys (other tools read them)::
 
-    [sea.waves]    hs, tp, gamma, direction_deg, spreading, components, drift, seed
-    [sea.current]  speed, direction_deg, sigma, time_constant
-    [sea.wind]     speed, direction_deg, gust_sigma, gust_time_constant, seed
+    [sea.waves]    hs, tp, gamma, from_deg, spreading, components, drift, seed
+    [sea.current]  speed, toward_deg, sigma, time_constant
+    [sea.wind]     speed, from_deg, gust_sigma, gust_time_constant, seed
 
-Every direction is a **going-to** angle in the earth frame, counter-clockwise from +x (SEA.md §0).
+Directions are written as marine users write them, with the meaning in the key: waves and wind by
+the direction they come **from**, the current by the direction it sets **toward**, both in compass
+degrees (clockwise from north = +y). :func:`going_to_deg` converts them, once, here, to the angle the
+kernels use: the direction the load travels toward, counter-clockwise from east (+x), in degrees.
+That internal angle is the ``direction_deg`` attribute of the settings classes (and of
+:meth:`SeaSettings.to_dict`, so a run's metadata rebuilds the sea bit for bit).
+
+``direction_deg`` is also still accepted as a key, a deprecated alias with its old meaning (going-to,
+counter-clockwise from +x); a table that gives it beside ``from_deg`` / ``toward_deg`` is refused.
+When a table sits over another one (the scenario's ``[sea.*]`` over a sea preset, a sweep's dotted
+path over its base), its direction replaces the lower one's whatever the spelling
+(:func:`merge_sea_tables`, :func:`replace_direction`).
+
 Every default is calm (hs = 0, no current, no wind), which reproduces the calm model bit for bit.
 
-:class:`HullGeometry` holds the box and windage of SEA.md §2; it is not a scenario key.
+:class:`HullGeometry` holds the hull box and windage (docs/sea.md); it is not a scenario key.
 
 Bad values raise :class:`SeaSettingsError` (a ``ValueError``) whose message names the key, e.g.
 ``preset moderate: sea.waves.hs must be >= 0 m, got -1.0``.
@@ -33,6 +45,97 @@ DRIFT_MODES = ("newman", "mean", "off")
 from usv_mj.errors import SeaSettingsError  # noqa: E402  (one error family: a ScenarioError)
 
 
+# --- directions: what a user types, and the angle the kernels use ----------------------------------
+
+#: The direction key of each ``[sea.*]`` table and what it means.
+DIRECTION_KEYS = {"waves": "from_deg", "current": "toward_deg", "wind": "from_deg"}
+#: The deprecated key: the internal going-to angle, counter-clockwise from +x (before docs/sea.md).
+DEPRECATED_DIRECTION_KEY = "direction_deg"
+_MEANING = {"from_deg": "coming from, compass degrees clockwise from north",
+            "toward_deg": "setting toward, compass degrees clockwise from north",
+            DEPRECATED_DIRECTION_KEY: "going toward, degrees counter-clockwise from east (+x); deprecated"}
+
+
+def going_to_deg(compass_deg: float, sense: str) -> float:
+    """The internal direction of a load [deg] from the compass direction a user writes.
+
+    ``compass_deg`` is measured clockwise from north (+y of the world frame): 0 north, 90 east,
+    180 south, 270 west. ``sense`` says what it names:
+
+    - ``"from"`` (waves, wind): where the load comes from; it travels toward the opposite direction,
+      so the internal angle is ``(270 - compass_deg) mod 360``;
+    - ``"toward"`` (current): where the load goes; the internal angle is ``(90 - compass_deg) mod 360``.
+
+    The result is the going-to angle that the kernels use, counter-clockwise from east (+x), in
+    [0, 360): wind from north (0) -> 270 (blows toward -y), waves from west (270) -> 0 (travel
+    toward +x), a current toward east (90) -> 0 (sets toward +x). This is the only place where a user's
+    direction is converted (docs/sea.md, "Directions").
+    """
+    if sense == "from":
+        return (270.0 - compass_deg) % 360.0
+    if sense == "toward":
+        return (90.0 - compass_deg) % 360.0
+    raise ValueError(f"sense must be 'from' or 'toward', got {sense!r}")
+
+
+def compass_deg(direction_deg: float, sense: str) -> float:
+    """The inverse of :func:`going_to_deg`: the compass direction (``"from"`` or ``"toward"``) of an
+    internal going-to angle ``direction_deg`` (counter-clockwise from +x) [deg], in [0, 360)."""
+    return going_to_deg(direction_deg, sense)  # both maps are their own inverse
+
+
+def direction_meaning(key: str) -> str:
+    """What a direction key of ``[sea.*]`` means, in words (for help texts and listings)."""
+    return _MEANING[key]
+
+
+def describe_directions(table: dict) -> str:
+    """One line naming every direction of a ``[sea]`` table with its meaning, e.g.
+    ``wind from_deg = 180 (coming from, compass degrees clockwise from north; toward 90 deg from +x)``."""
+    parts = []
+    for section, marine in DIRECTION_KEYS.items():
+        sub = table.get(section) if isinstance(table, dict) else None
+        if not isinstance(sub, dict):
+            continue
+        for key in (marine, DEPRECATED_DIRECTION_KEY):
+            if key in sub and isinstance(sub[key], (int, float)):
+                inner = sub[key] if key == DEPRECATED_DIRECTION_KEY else going_to_deg(sub[key], marine[:-4])
+                parts.append(f"{section} {key} = {sub[key]:g} ({direction_meaning(key)}; "
+                             f"toward {inner:g} deg counter-clockwise from +x)")
+    return "; ".join(parts)
+
+
+def _direction_keys(section: str) -> tuple[str, str]:
+    return DIRECTION_KEYS[section], DEPRECATED_DIRECTION_KEY
+
+
+def replace_direction(section: str, table: dict, key: str) -> dict:
+    """``table`` (one ``[sea.<section>]`` table) without the spellings of its direction other than
+    ``key``: to be called before ``key`` is set over it, so that the new direction replaces the old one
+    whatever its spelling (a sweep's ``sea.current.toward_deg`` over a base that wrote ``direction_deg``).
+    A key that is not a direction leaves the table as it is."""
+    if section not in DIRECTION_KEYS or key not in _direction_keys(section) or not isinstance(table, dict):
+        return table
+    return {k: v for k, v in table.items() if k == key or k not in _direction_keys(section)}
+
+
+def merge_sea_tables(base: dict, over: dict) -> dict:
+    """``over`` (a scenario's ``[sea]`` table) on top of ``base`` (a sea preset's), section by section,
+    key by key; a direction in ``over`` replaces the direction of ``base`` under any spelling."""
+    out = dict(base)
+    for section, value in over.items():
+        below = out.get(section)
+        if isinstance(value, dict) and isinstance(below, dict):
+            merged = dict(below)
+            for key, item in value.items():
+                merged = replace_direction(section, merged, key)
+                merged[key] = item
+            out[section] = merged
+        else:
+            out[section] = value
+    return out
+
+
 def _finite(section: str, name: str, value: float) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise SeaSettingsError(f"sea.{section}.{name} must be a finite number, got {value!r}")
@@ -40,7 +143,7 @@ def _finite(section: str, name: str, value: float) -> None:
 
 @dataclass(frozen=True)
 class WaveSettings:
-    """Irregular waves from a JONSWAP spectrum (SEA.md §3).
+    """Irregular waves from a JONSWAP spectrum (docs/sea.md, "Waves").
 
     Attributes
     ----------
@@ -51,7 +154,8 @@ class WaveSettings:
     gamma:
         JONSWAP peak enhancement [-], >= 1; 1 gives Pierson-Moskowitz.
     direction_deg:
-        Mean going-to direction of the waves in the earth frame [deg].
+        Mean direction the waves travel toward, counter-clockwise from east (+x) [deg]: the internal
+        angle. A scenario writes ``from_deg`` (compass, coming from); see :func:`going_to_deg`.
     spreading:
         True: cos^2 directional spreading (2/pi) cos^2(mu), |mu| <= pi/2; False: long-crested.
     components:
@@ -90,20 +194,26 @@ class WaveSettings:
             raise SeaSettingsError(f"sea.waves.seed must be an integer >= 0, got {self.seed!r}")
 
     @property
+    def from_deg(self) -> float:
+        """The direction as a scenario writes it: compass degrees, coming from [deg]."""
+        return compass_deg(self.direction_deg, "from")
+
+    @property
     def active(self) -> bool:
         return self.hs > 0
 
 
 @dataclass(frozen=True)
 class CurrentSettings:
-    """Uniform, irrotational current (SEA.md §4): mean plus an Ornstein-Uhlenbeck process per axis.
+    """Uniform, irrotational current (docs/sea.md, "Current"): mean plus an Ornstein-Uhlenbeck process per axis.
 
     Attributes
     ----------
     speed:
         Mean current speed [m/s], >= 0.
     direction_deg:
-        Going-to direction of the mean current in the earth frame [deg].
+        Direction the mean current sets toward, counter-clockwise from east (+x) [deg]: the internal
+        angle. A scenario writes ``toward_deg`` (compass); see :func:`going_to_deg`.
     sigma:
         Standard deviation of the slow variation per earth axis [m/s], >= 0 (0 = steady).
     time_constant:
@@ -126,20 +236,26 @@ class CurrentSettings:
             raise SeaSettingsError(f"sea.current.time_constant must be > 0 s, got {self.time_constant!r}")
 
     @property
+    def toward_deg(self) -> float:
+        """The direction as a scenario writes it: compass degrees, setting toward [deg]."""
+        return compass_deg(self.direction_deg, "toward")
+
+    @property
     def active(self) -> bool:
         return self.speed > 0 or self.sigma > 0
 
 
 @dataclass(frozen=True)
 class WindSettings:
-    """Wind with gusts (SEA.md §5): V_w(t) = max(0, speed + g(t)), g an OU process; constant direction.
+    """Wind with gusts (docs/sea.md, "Wind"): V_w(t) = max(0, speed + g(t)), g an OU process; constant direction.
 
     Attributes
     ----------
     speed:
         Mean wind speed [m/s], >= 0.
     direction_deg:
-        Going-to direction of the wind in the earth frame [deg] (air flows toward it).
+        Direction the air flows toward, counter-clockwise from east (+x) [deg]: the internal angle. A
+        scenario writes ``from_deg`` (compass, coming from); see :func:`going_to_deg`.
     gust_sigma:
         Standard deviation sigma_g of the gust process [m/s], >= 0.
     gust_time_constant:
@@ -166,6 +282,11 @@ class WindSettings:
                 f"sea.wind.gust_time_constant must be > 0 s, got {self.gust_time_constant!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise SeaSettingsError(f"sea.wind.seed must be an integer >= 0, got {self.seed!r}")
+
+    @property
+    def from_deg(self) -> float:
+        """The direction as a scenario writes it: compass degrees, coming from [deg]."""
+        return compass_deg(self.direction_deg, "from")
 
     @property
     def active(self) -> bool:
@@ -221,14 +342,26 @@ def _build_section(section: str, table: Any, source: str):
     if not isinstance(table, dict):
         raise SeaSettingsError(f"{source}: [sea.{section}] must be a table, got {table!r}")
     fields = {f.name: f for f in dataclasses.fields(cls)}
+    marine = DIRECTION_KEYS[section]
+    known = [marine if f == DEPRECATED_DIRECTION_KEY else f for f in fields]
+    given = [k for k in (marine, DEPRECATED_DIRECTION_KEY) if k in table]
+    if len(given) == 2:
+        raise SeaSettingsError(
+            f"{source}: [sea.{section}] gives both {marine} ({direction_meaning(marine)}) and the deprecated "
+            f"{DEPRECATED_DIRECTION_KEY} ({direction_meaning(DEPRECATED_DIRECTION_KEY).removesuffix('; deprecated')}); "
+            f"give only {marine}")
     defaults = cls()
     kwargs = {}
     for key, value in table.items():
         where = f"sea.{section}.{key}"
+        if key == marine:
+            value = _convert(source, where, value, 0.0)  # a finite number
+            kwargs[DEPRECATED_DIRECTION_KEY] = going_to_deg(value, marine.removesuffix("_deg"))
+            continue
         if key not in fields:
             raise SeaSettingsError(
-                f"{source}: unknown key {where!r}{_hint(key, fields)}; "
-                f"known keys of [sea.{section}]: {', '.join(fields)}")
+                f"{source}: unknown key {where!r}{_hint(key, known)}; "
+                f"known keys of [sea.{section}]: {', '.join(known)}")
         kwargs[key] = _convert(source, where, value, getattr(defaults, key))
     try:
         return cls(**kwargs)
@@ -265,12 +398,12 @@ def load_sea_preset(name: str) -> SeaSettings:
     return SeaSettings.from_table(sea_preset_table(name), source=f"sea preset {name}")
 
 
-# --- hull box and windage (SEA.md §2) ---------------------------------------------------------
+# --- hull box and windage (docs/sea.md) ----------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class HullGeometry:
-    """The box that feels the waves and the windage that feels the wind (SEA.md §2) [E].
+    """The box that feels the waves and the windage that feels the wind (docs/sea.md, "Hull").
 
     Attributes
     ----------

@@ -1,6 +1,6 @@
-"""Waves: JONSWAP spectrum, sampling, elevation, Froude-Krylov box load and drift (SEA.md §3).
+"""Waves: JONSWAP spectrum, sampling, elevation, Froude-Krylov box load and drift (docs/sea.md §3).
 
-Sign conventions (SEA.md §0): a component travels toward its going-to direction beta_j in the earth
+Sign conventions (docs/sea.md §0): a component travels toward its going-to direction beta_j in the earth
 frame, theta_j = w_j t - k_j (x cos beta_j + y sin beta_j) + eps_j, zeta = s(t) sum_j a_j cos theta_j.
 Loads are body-frame generalised forces (X [N], Y [N], N [N m]) about the body origin.
 """
@@ -16,11 +16,11 @@ from numba import njit
 from .layout import (DRIFT_MEAN, DRIFT_NEWMAN, E_BEAM, E_BOX_X, E_DRIFT_MODE, E_LENGTH,
                      N_WAVE_COLS, W_A, W_C, W_COSB, W_EPS, W_K, W_Q, W_SINB, W_W)
 
-FREQUENCY_RANGE = (0.5, 4.0)  # components cover w in [0.5, 4] w_p (SEA.md §3.2)
+FREQUENCY_RANGE = (0.5, 4.0)  # components cover w in [0.5, 4] w_p (docs/sea.md §3)
 
 
 def jonswap_spectrum(w, hs: float, tp: float, gamma: float) -> np.ndarray:
-    """JONSWAP wave spectrum S(w) [m^2 s/rad], DNV-RP-C205 form (MSS waveSpectrum type 7; SEA.md §3.1).
+    """JONSWAP wave spectrum S(w) [m^2 s/rad], DNV-RP-C205 form (MSS waveSpectrum type 7; docs/sea.md §3).
 
     S(w) = (1 - 0.287 ln gamma) (5/16) Hs^2 wp^4 w^-5 exp(-1.25 (wp/w)^4)
            gamma^exp(-(w - wp)^2 / (2 s^2 wp^2)),  s = 0.07 (w < wp) else 0.09, wp = 2 pi / tp.
@@ -62,7 +62,7 @@ def thin_barrier_reflection(kt):
     """R^2(kT): deep-water reflection coefficient of a thin vertical barrier of draft T (Ursell 1947).
 
     R^2 = pi^2 I1(kT)^2 / (pi^2 I1(kT)^2 + K1(kT)^2), computed with the exponentially scaled Bessel
-    functions so that it neither under- nor overflows (SEA.md §3.5) [T].
+    functions so that it neither under- nor overflows (docs/sea.md §3) [T].
     """
     from scipy.special import ive, kve
 
@@ -77,7 +77,7 @@ def thin_barrier_reflection(kt):
 
 @dataclass(frozen=True)
 class WaveComponents:
-    """The sampled sea: one entry per component (SEA.md §3.2).
+    """The sampled sea: one entry per component (docs/sea.md §3).
 
     a [m], w [rad/s], k [rad/m] (deep water k = w^2/g), beta [rad] (going-to, earth frame),
     eps [rad] (phase). ``dw`` is the bin width [rad/s] (0 for hand-made components).
@@ -119,7 +119,7 @@ class WaveComponents:
 
 def sample_wave_components(hs: float, tp: float, gamma: float, direction: float, spreading: bool,
                            n: int, rng: np.random.Generator, g: float = 9.81) -> WaveComponents:
-    """Draw the N components of SEA.md §3.2 from ``rng`` (all draws here, once).
+    """Draw the N components of docs/sea.md §3 from ``rng`` (all draws here, once).
 
     Equal bins over [0.5, 4] w_p, w_j uniform in bin j, a_j = sqrt(2 S(w_j) dw) scaled so that
     sum a_j^2 / 2 = Hs^2 / 16 exactly, eps_j uniform in [0, 2 pi), k_j = w_j^2 / g (deep water),
@@ -142,7 +142,7 @@ def sample_wave_components(hs: float, tp: float, gamma: float, direction: float,
     a = np.sqrt(2.0 * s * dw)
     total = np.sum(a * a) / 2.0
     target = hs * hs / 16.0
-    if total > 0:  # guard the 0/0 of the normalisation (SEA.md §0)
+    if total > 0:  # guard the 0/0 of the normalisation (docs/sea.md §0)
         a = a * math.sqrt(target / total)
     if spreading:
         mu = spreading_inverse_cdf((perm + u_dir) / n)
@@ -173,7 +173,7 @@ def pack_waves(comp: WaveComponents, draft: float, rho_water: float, g: float,
 
 @njit(cache=True)
 def ramp_factor(ramp_time, t):
-    """s(t) = 1 - exp(-t / tau_ramp) for t > 0 (0 before), 1 when tau_ramp = 0 (SEA.md §3.3)."""
+    """s(t) = 1 - exp(-t / tau_ramp) for t > 0 (0 before), 1 when tau_ramp = 0 (docs/sea.md §3)."""
     if ramp_time <= 0.0:
         return 1.0
     if t <= 0.0:
@@ -327,7 +327,7 @@ def _wave_terms(ep, waves, t, x, y, psi):
 
 @njit(cache=True)
 def wave_loads(ep, waves, t, x, y, psi):
-    """First-order Froude-Krylov box load and second-order drift, body frame, **no ramp** (SEA.md §3.4-3.5).
+    """First-order Froude-Krylov box load and second-order drift, body frame, **no ramp** (docs/sea.md §3).
 
     Returns (X1, Y1, N1, Xd, Yd, Nd) [N, N, N m]. The phase of each component is taken at the box
     centre (x, y) + R(psi) [x_b, 0]; beta_r = beta_j - psi; k_x = k cos beta_r, k_y = k sin beta_r;

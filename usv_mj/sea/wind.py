@@ -1,4 +1,4 @@
-"""Wind (SEA.md §5): OU gusts on a 0.05 s grid and Blendermann (1994) coefficients, "speed boat".
+"""Wind (docs/sea.md §5): OU gusts on a 0.05 s grid and Blendermann (1994) coefficients, "speed boat".
 
 Relative wind in Fossen's convention: u_w = V_w cos(beta_w - psi), v_w = V_w sin(beta_w - psi),
 u_rw = u - u_w, v_rw = v - v_w, gamma = -atan2(v_rw, u_rw) (0: air from the bow, +pi/2: air flowing
@@ -19,14 +19,14 @@ from .layout import (E_CDLAF_AHEAD, E_CDLAF_ASTERN, E_CDT, E_DELTA, E_FRONTAL_AR
                      E_LATERAL_CENTROID, E_LENGTH_OVERALL, E_RHO_AIR, E_WIND_COS, E_WIND_DT,
                      E_WIND_MEAN, E_WIND_ON, E_WIND_SIN)
 
-WIND_GRID_STEP = 0.05  # s (SEA.md §5)
+WIND_GRID_STEP = 0.05  # s (docs/sea.md §5)
 # Blendermann (1994) "speed boat" (MSS blendermann94.m): C_Dt, C_DlAF ahead / astern, delta
 BLENDERMANN_SPEED_BOAT = (0.90, 0.55, 0.60, 0.60)
 
 
 @njit(cache=True)
 def blendermann_coefficients(ep, gamma):
-    """(C_X, C_Y, C_N) at the angle of attack gamma [rad] (0: air from the bow), SEA.md §5.
+    """(C_X, C_Y, C_N) at the angle of attack gamma [rad] (0: air from the bow), docs/sea.md §5.
 
     g_a = |gamma|, sg = sign(sin gamma) (+1 at 0); C_Dl = C_DlAF A_Fw / A_Lw;
     den = 1 - delta/2 (1 - C_Dl/C_Dt) sin^2(2 g_a); C_X = -C_DlAF cos g_a / den;

@@ -1,10 +1,10 @@
-"""Monte-Carlo sweeps and capability plots on Dask (issue 10).
+"""Monte-Carlo sweeps and capability plots on Dask.
 
     usv-mj sweep SWEEP.toml --out DIR [--workers N | --scheduler ADDRESS | --jobqueue slurm --jobs N]
                  [--resume] [--keep-logs] [--max-runs N]
     usv-mj capability --load disturbance|current|wind|waves --out DIR [--base paper] [--duration S]
 
-A sweep file names a base and what varies, by dotted path into the scenario (SPEC §7)::
+A sweep file names a base and what varies, by dotted path into the scenario (docs/model.md §7)::
 
     base = "paper"                 # preset or scenario file
     duration = 60.0

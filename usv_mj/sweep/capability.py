@@ -1,11 +1,11 @@
-"""Environment capability of the tracking controller, in the style of DNV-ST-0111 (issue 10).
+"""Environment capability of the tracking controller, in the style of DNV-ST-0111.
 
 DNV-ST-0111 draws, for each direction of the environment relative to the vessel, the largest
 environment (wind speed, with the current and waves tied to it) in which a dynamic-positioning vessel
-still keeps its position. Here the vessel tracks a path, and "keeps" means the funnel of SPEC §2
+still keeps its position. Here the vessel tracks a path, and "keeps" means the funnel of docs/model.md §2
 holds over the whole run: the run finishes ``ok`` and no sample has |z_i| >= 1 (the sweep row's
 ``kept_funnel``). For each direction, every ``--step`` degrees relative to the path's heading at
-t = 0 (going-to directions, counter-clockwise, as SEA.md §0), the largest load that keeps the funnel
+t = 0 (going-to directions, counter-clockwise, as docs/sea.md §0), the largest load that keeps the funnel
 is found by bisection between ``--min`` and ``--max``.
 
 Search: each round, every direction whose bracket [holds, fails] is still wider than ``--tol``
@@ -17,14 +17,16 @@ is flagged "not monotone" and the lowest failure is kept (the conservative answe
 
 Loads
 -----
-- ``disturbance``: s of SPEC §1 (``disturbance.scale``). The paper's d(t) acts on fixed body-frame
+- ``disturbance``: s of docs/model.md §1 (``disturbance.scale``). The paper's d(t) acts on fixed body-frame
   axes (surge, sway, yaw) with fixed amplitudes: it has **no direction** to turn. So one search is
   done, on the scale alone, and the polar plot shows it as a circle; the table has one row marked
   "any direction". (Rotating the force would be a different disturbance than the paper's; we do not
   invent one.)
 - ``current`` (``sea.current.speed`` m/s), ``wind`` (``sea.wind.speed`` m/s), ``waves``
-  (``sea.waves.hs`` m), each with its ``direction_deg`` set to path heading + relative direction:
-  these need the sea-state keys of issue 7 in the scenario format (a checkout whose
+  (``sea.waves.hs`` m), each with its direction set to path heading + relative direction, written as
+  the going-to ``direction_deg`` (counter-clockwise from +x; it replaces the base's ``from_deg`` or
+  ``toward_deg``, docs/sea.md §0):
+  these need the sea-state keys (docs/sea.md) in the scenario format (a checkout whose
   :mod:`usv_mj.scenario` does not accept them stops with exit code 2 and says so), and a plant
   that takes the sea state. A load of 0 is calm whatever its direction: it is run once.
 
@@ -60,7 +62,7 @@ class LoadKind:
 
 LOADS = {
     "disturbance": LoadKind("disturbance", "disturbance.scale", None, "", "log", 1e-6, 1.0,
-                            "disturbance scale s (SPEC §1)"),
+                            "disturbance scale s (docs/model.md §1)"),
     "current": LoadKind("current", "sea.current.speed", "sea.current.direction_deg", "m/s", "linear", 0.0, 2.0,
                         "current speed [m/s]"),
     "wind": LoadKind("wind", "sea.wind.speed", "sea.wind.direction_deg", "m/s", "linear", 0.0, 30.0,
@@ -229,7 +231,7 @@ def draw_polar(results: list[DirectionResult], load: LoadKind, path: Path, title
             ax.plot(theta, np.full_like(theta, r.fails), color="tab:red", lw=1, ls="--",
                     label=f"funnel lost: s = {r.fails:.3g}")
         ax.set_rlim(0, (r.fails or value or 1.0) * 1.1)
-        ax.text(0.5, -0.16, "d(t) acts on fixed body axes (SPEC §1): no direction, drawn as a circle",
+        ax.text(0.5, -0.16, "d(t) acts on fixed body axes (docs/model.md §1): no direction, drawn as a circle",
                 transform=ax.transAxes, ha="center", va="top", fontsize=8)
     else:
         theta = np.radians([r.direction_deg for r in results] + [results[0].direction_deg])
@@ -350,7 +352,7 @@ def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows):
              f"runs of {scenario.duration:g} s. The funnel holds when a run finishes ok with every |z_i| < 1 "
              f"throughout. Search between {lo:g} and {hi:g}, to {tol:.0%} (see `usv_mj.sweep.capability`).", ""]
     if load.direction_path is None:
-        lines += ["The paper's d(t) acts on fixed body-frame axes (SPEC §1): it has no direction, so the "
+        lines += ["The paper's d(t) acts on fixed body-frame axes (docs/model.md §1): it has no direction, so the "
                   "search is on its scale alone and the polar plot draws one circle.", ""]
     else:
         lines += [f"Directions are going-to, relative to the path heading psi_d(0) = {heading:.1f} deg, "

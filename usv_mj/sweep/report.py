@@ -1,6 +1,6 @@
-"""``DIR/report.md`` of a sweep, with its figures (matplotlib, Agg backend) (issue 10).
+"""``DIR/report.md`` of a sweep, with its figures (matplotlib, Agg backend).
 
-- the rate of runs that kept the funnel (status ok and no sample with |z_i| >= 1, SPEC §2's funnel)
+- the rate of runs that kept the funnel (status ok and no sample with |z_i| >= 1, docs/model.md §2's funnel)
   with its Wilson 95 % score interval, overall and for each value of each grid axis;
 - histograms of the maximum errors after the sweep's transient (x, y [m], psi [rad]);
 - scatter plots of the worst position error after the transient against each varied value (runs that

@@ -1,4 +1,4 @@
-"""Running a sweep on Dask: one task per run, results streamed to ``DIR/results.parquet`` (issue 10).
+"""Running a sweep on Dask: one task per run, results streamed to ``DIR/results.parquet``.
 
 - :func:`run_one` is the task: it simulates one scenario and returns its summary row; it never
   raises for a run that fails (the row says ``failed`` and why).
@@ -12,7 +12,7 @@
   interrupted sweep keeps what it had and ``--resume`` runs only the missing ids.
 
 Row columns: ``run_id``; ``vary.<path>`` for each varied path; ``status`` (ok | diverged | failed)
-and ``reason``; ``kept_funnel`` (status ok and no funnel violation, SPEC's funnel |z_i| < 1);
+and ``reason``; ``kept_funnel`` (status ok and no funnel violation, the funnel of docs/model.md §3, |z_i| < 1);
 ``task_wall_time_s``; ``max_abs_error_after_transient.{x,y,psi}`` [m, m, rad] and
 ``max_position_error_after_transient`` [m] (hypot of the x, y errors) after the sweep's
 ``transient``; then every field of :func:`usv_mj.summary.summarize` flattened with dots

@@ -1,4 +1,4 @@
-"""Sweep files: a base scenario and what varies, sampled once on the client and validated (issue 10).
+"""Sweep files: a base scenario and what varies, sampled once on the client and validated.
 
 A sweep file is TOML::
 
@@ -17,16 +17,16 @@ A sweep file is TOML::
 
 Paths
 -----
-A path is a dotted key into the scenario table of SPEC §7, with ``[i]`` for one element of a list
+A path is a dotted key into the scenario table of docs/model.md §7, with ``[i]`` for one element of a list
 (``initial.eta[2]``, ``trajectory.points[1][0]``). Every key of the scenario format can vary:
 ``duration``, ``control_period``; ``initial.eta[0..2]`` (x m, y m, psi rad), ``initial.nu[0..2]``
 (u m/s, v m/s, r rad/s); ``trajectory.kind|speed|heading_deg|radius|start[i]|center[i]|...``;
-``disturbance.scale`` (s of SPEC §1) and ``disturbance.amplitudes[i]``...; ``ship.<parameter>``;
+``disturbance.scale`` (s of docs/model.md §1) and ``disturbance.amplitudes[i]``...; ``ship.<parameter>``;
 ``quantizer.enabled|delta_u|u_min_u|delta_r|u_min_r``; ``funnel.rho_xy[0|1]``, ``funnel.rho_psi[0|1]``,
-``funnel.rate``; ``plant.kind|substeps``; ``controller.kind`` and every PPC gain by its SPEC §3
+``funnel.rate``; ``plant.kind|substeps``; ``controller.kind`` and every PPC gain by its docs/model.md §3
 name (``controller.k1``, ``controller.gamma_u``, ...); ``baseline.<PI gain>``; ``limits.*``; and the
-sea state's ``sea.waves.hs|tp|gamma|direction_deg|seed``, ``sea.current.speed|direction_deg|sigma``,
-``sea.wind.speed|direction_deg|gust_sigma`` (SEA.md; on a plant that takes the sea state). A path
+sea state's ``sea.waves.hs|tp|gamma|from_deg|seed``, ``sea.current.speed|toward_deg|sigma``,
+``sea.wind.speed|from_deg|gust_sigma`` (docs/sea.md; the old ``direction_deg`` still works). A path
 the scenario does not know is rejected by :mod:`usv_mj.scenario` itself, with its message (and its
 "did you mean").
 
@@ -72,6 +72,7 @@ import numpy as np
 
 from ..scenario import Scenario, ScenarioError, from_dict, load_scenario, preset_names
 from ..toml_values import read_toml
+from ..sea.settings import replace_direction
 
 DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
 TOP_KEYS = ("base", "duration", "plant", "samples", "seed", "transient", "set", "vary", "name")
@@ -165,6 +166,10 @@ def set_path(data: dict, keys: tuple, value: Any, scenario: Scenario, path: str,
     else:
         if not isinstance(node, dict):
             raise SweepError(f"{source}: path {path!r}: {_join(keys[:-1])!r} is not a table")
+        if len(keys) == 3 and keys[0] == "sea":  # a direction replaces the base's, whatever its spelling
+            kept = replace_direction(keys[1], node, last)
+            for gone in set(node) - set(kept):
+                del node[gone]
         node[last] = value
 
 

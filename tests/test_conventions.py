@@ -1,0 +1,37 @@
+"""The README's Conventions: the paper's NED-style ship is the same ship in our ENU/FLU frame.
+
+The mirror S = diag(1, -1, -1) on (u, v, r) (and on the loads (X, Y, N)) leaves M, C(nu) and D(nu)
+of usv_mj/ship.py unchanged, m23 and the |v|, |r| damping terms included; the uncertainty Delta is
+not mirror-symmetric (its even sway and yaw terms flip), which the README states.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from usv_mj.ship import ShipParams, coriolis_matrix, damping_matrix, kinematics, mass_matrix, uncertainty_force
+
+S = np.diag([1.0, -1.0, -1.0])
+P = ShipParams().as_array()
+
+
+def test_mirror_leaves_mass_coriolis_and_damping_unchanged():
+    assert np.array_equal(S @ mass_matrix(P) @ S, mass_matrix(P))
+    rng = np.random.default_rng(3)
+    for nu in rng.normal(scale=1.5, size=(50, 3)):
+        assert np.allclose(S @ coriolis_matrix(P, S @ nu) @ S, coriolis_matrix(P, nu), rtol=0, atol=1e-12)
+        assert np.allclose(S @ damping_matrix(P, S @ nu) @ S, damping_matrix(P, nu), rtol=0, atol=1e-12)
+
+
+def test_mirror_leaves_the_kinematics_unchanged():
+    rng = np.random.default_rng(4)
+    for eta, nu in zip(rng.normal(size=(20, 3)), rng.normal(size=(20, 3))):
+        # (x, y, psi) -> (x, -y, -psi) is the same S on the pose
+        assert np.allclose(S @ kinematics(S @ eta, S @ nu), kinematics(eta, nu), atol=1e-12)
+
+
+def test_mirror_flips_the_even_sway_and_yaw_terms_of_delta():
+    eta, nu = np.zeros(3), np.array([0.6, 0.0, 0.2])   # v = 0: only the even terms 0.2 u^2, 0.15 r^2
+    d, d_mirror = uncertainty_force(P, eta, nu), S @ uncertainty_force(P, eta, S @ nu)
+    assert d[0] == d_mirror[0]
+    assert np.allclose(d_mirror[1:], -d[1:]) and np.all(d[1:] > 0)
