@@ -1,0 +1,67 @@
+"""The wheel runs: built from this checkout, installed (not editable) into a fresh virtual environment,
+run from a folder outside the tree. It must carry the models (usv_mj.models) and install no
+top-level package but usv_mj."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    base = tmp_path_factory.mktemp("wheel")
+    dist = base / "dist"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist),
+                    str(ROOT)], check=True, capture_output=True, timeout=600)
+    wheel = next(dist.glob("usv_mj-*.whl"))
+    venv = base / "venv"
+    # the dependencies come from this interpreter's site-packages; usv_mj itself only from the wheel
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True, timeout=300)
+    py = venv / "bin" / "python"
+    subprocess.run([str(py), "-m", "pip", "install", "--no-deps", "--force-reinstall", "-q", str(wheel)],
+                   check=True, capture_output=True, timeout=600)
+    outside = base / "elsewhere"
+    outside.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH",)}
+    env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    return wheel, py, outside, env
+
+
+def test_the_wheel_carries_the_models_and_no_generic_top_level_name(installed):
+    wheel = installed[0]
+    names = zipfile.ZipFile(wheel).namelist()
+    assert "usv_mj/models/usv.xml" in names and "usv_mj/models/scene.xml" in names
+    assert "usv_mj/controllers/ppc.py" in names
+    top = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
+    assert top == {"usv_mj"}, top
+    assert any(n.endswith(".dist-info/licenses/LICENSE") or n.endswith(".dist-info/LICENSE") for n in names)
+
+
+def test_the_installed_wheel_runs_mujoco_with_video_and_an_env(installed):
+    _, py, outside, env = installed
+    where = subprocess.run([str(py), "-c", "import usv_mj, usv_mj.assets as a; print(usv_mj.__file__); "
+                            "print(a.model_path())"], cwd=outside, env=env, capture_output=True, text=True,
+                           timeout=120, check=True).stdout.split()
+    assert all(str(ROOT) not in w for w in where), where  # not the checkout
+    out = outside / "run"
+    proc = subprocess.run([str(py), "-m", "usv_mj.cli", "run", "--plant", "mujoco", "--duration", "2",
+                           "--no-baseline", "--size", "160x96", "--out", str(out), "-q"],
+                          cwd=outside, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["plant"] == "mujoco" and summary["status"] == "completed"
+    assert (out / "video.mp4").stat().st_size > 1000 and (out / "run.mcap").stat().st_size > 1000
+    assert "stand-in" not in json.dumps(summary.get("render", {})).lower()
+    code = ("from usv_mj import envs; e = envs.load('track', seed=0); ts = e.reset(); "
+            "import numpy as np; ts = e.step(np.zeros(2)); print(ts.reward is not None)")
+    proc = subprocess.run([str(py), "-c", code], cwd=outside, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0 and proc.stdout.strip().endswith("True"), proc.stderr[-2000:]
