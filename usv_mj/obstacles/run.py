@@ -78,6 +78,15 @@ def make_plan(osc: ObstacleScenario, duration: float | None = None) -> Plan:
                           duration or sc.duration, sc.initial.eta[2])
 
 
+def check_start_clearance(sc, obstacles) -> None:
+    """ScenarioError when the start pose puts the hull inside one of ``obstacles`` (also checked by
+    :mod:`usv_mj.preflight` before a run creates anything)."""
+    start_clearance = GeometricClearance(obstacles, exact_within=math.inf).update(0.0, np.r_[sc.initial.eta, 0, 0, 0])
+    for i in np.flatnonzero(start_clearance <= 0.0):
+        raise ScenarioError(f"{sc.source}: initial.eta = {list(sc.initial.eta)} puts the hull inside obstacles[{i}] "
+                            f"({obstacles[i].name}, clearance {start_clearance[i]:.3f} m)")
+
+
 def run_obstacle_scenario(osc: ObstacleScenario, plant_kind: str | None = None, duration: float | None = None,
                           sinks=(), contact: ContactParams = ContactParams(), controller=None,
                           show_safety: bool = True, progress=None) -> ObstacleRun:
@@ -85,10 +94,7 @@ def run_obstacle_scenario(osc: ObstacleScenario, plant_kind: str | None = None, 
     sc = osc.scenario
     duration = sc.duration if duration is None else float(duration)
     kind = plant_kind or sc.plant.kind
-    start_clearance = GeometricClearance(osc.obstacles, exact_within=math.inf).update(0.0, np.r_[sc.initial.eta, 0, 0, 0])
-    for i in np.flatnonzero(start_clearance <= 0.0):
-        raise ScenarioError(f"{sc.source}: initial.eta = {list(sc.initial.eta)} puts the hull inside obstacles[{i}] "
-                            f"({osc.obstacles[i].name}, clearance {start_clearance[i]:.3f} m)")
+    check_start_clearance(sc, osc.obstacles)
     plan = make_plan(osc, duration) if osc.guidance.avoid else None
     inflation = plan.safety_radius if plan is not None else None
     if kind == "mujoco":
