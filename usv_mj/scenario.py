@@ -327,7 +327,12 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
     name = data.get("preset", "paper")
     if not isinstance(name, str):
         raise ScenarioError(f"{source}: preset must be a string, got {name!r}")
-    merged = _merge(_read_preset(name), {k: v for k, v in data.items() if k != "preset"})
+    try:
+        base = _read_preset(name)
+    except ScenarioError as exc:
+        msg = str(exc)
+        raise ScenarioError(msg if msg.startswith(source) else f"{source}: preset: {msg}") from None
+    merged = _merge(base, {k: v for k, v in data.items() if k != "preset"})
     merged["preset"] = name
     return _build_scenario(merged, source)
 
@@ -352,9 +357,10 @@ def _build_scenario(data: dict, source: str) -> Scenario:
     for key, cls in _SECTIONS.items():
         if key in data:
             top[key] = _build(cls, data[key], source, key)
+    for key in ("controller", "baseline", "sea", "guidance"):
+        if key in data and not isinstance(data[key], dict):
+            raise ScenarioError(f"{source}: [{key}] must be a table, got {data[key]!r}")
     ctrl = dict(data.get("controller", {}))
-    if not isinstance(data.get("controller", {}), dict):
-        raise ScenarioError(f"{source}: [controller] must be a table")
     kind = ctrl.pop("kind", "ppc")
     gains = _build(PPCGains, ctrl, source, "controller", extra_known={"kind"})
     top["controller"] = _construct(ControllerSpec, {"kind": kind, "gains": gains}, source, "controller")
