@@ -321,6 +321,8 @@ def _one_line(exc: BaseException) -> str:
         where = exc.filename or ""
         return f"{where}: {exc.strerror}" if where else exc.strerror
     text = str(exc).strip().splitlines()
+    if type(exc).__name__ in ("RunLogError", "RenderWorkerError") and text:
+        return text[-1]
     return f"{type(exc).__name__}: {text[-1] if text else ''}".rstrip(": ")
 
 
@@ -349,7 +351,7 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         except RunFailed as exc:
             exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
             exc.traceback = _relocate(exc.traceback, stage.path, out)
-            exc.args = (_relocate(str(exc), stage.path, out),)
+            exc.args = (str(exc).replace(str(stage.path), str(out)),)
             raise
         finally:
             with signals.deferred():
@@ -503,7 +505,7 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         stopped = f"stopped while {phase}: {fault}"
     close_all()
     if fault and not stopped:
-        stopped = f"the run log could not be written: {fault}"
+        stopped = fault
     try:
         if summary is None:
             summary = summarize(record)
@@ -528,8 +530,9 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         fault = fault or _one_line(exc)
         files.pop("summary", None)
     if fault:
-        raise RunFailed(f"{_relocate(fault, out, final_out)}; {stopped or 'the run could not be written'} "
-                        f"(what was written is in {final_out}/)", final_out, summary_out)
+        message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
+        raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),
+                        final_out, summary_out)
     return JobResult(out, record, summary_out, base_rec, base_summary, check, files, render_stats)
 
 
