@@ -516,12 +516,17 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
                 summary_out["baseline"] = {"status": "not run", "stop_reason": stopped}
             summary_out["job_stopped"] = stopped
             summary_out["missing_outputs"] = _missing(out, expected, log)
-            if "report.md" not in summary_out["missing_outputs"] or fault is None:
+            # the summary first: a second Ctrl-C while the report is written ends the job at once
+            files["summary"] = out / "summary.json"
+            _write_json(files["summary"], _relocate(summary_out, out, final_out))
+            try:
                 write_report(out / "report.md", summary, base_summary, check,
                              [f"## The job stopped early\n\n{stopped}. Missing outputs: "
-                              f"{', '.join(summary_out['missing_outputs']) or 'none'}."])
+                              f"{', '.join(m for m in summary_out['missing_outputs'] if m != 'report.md') or 'none'}."])
                 files["report"] = out / "report.md"
-                summary_out["missing_outputs"] = _missing(out, expected, log, summary_written=True)
+            except KeyboardInterrupt:
+                summary_out["job_stopped"] = f"{stopped}; interrupted again ({signals.last}) while writing the report"
+            summary_out["missing_outputs"] = _missing(out, expected, log)
         files["summary"] = out / "summary.json"
         _write_json(files["summary"], _relocate(summary_out, out, final_out))
     except KeyboardInterrupt:
