@@ -14,7 +14,8 @@
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
-message names the Debian packages to install; --no-video skips the video).
+message names the Debian packages to install; --no-video skips the video); 141 the output pipe closed.
+`usv-mj run` refuses an --out that already holds a run unless --overwrite (which replaces it whole).
 """
 
 from __future__ import annotations
