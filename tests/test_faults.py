@@ -195,6 +195,7 @@ def test_signal_during_the_run_is_recorded_everywhere(tmp_path, sig, name):
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 1, err
     assert "leaked" not in err and "Traceback" not in err, err
+    assert not (tmp_path / "out" / "traceback.txt").exists(), (tmp_path / "out" / "traceback.txt").read_text()
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["status"] == "interrupted" and name in summary["stop_reason"]
     assert name in (tmp_path / "out" / "report.md").read_text()

@@ -453,11 +453,15 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
             raise
         tb = traceback.format_exc()
         reason = _one_line(exc) if fault is None else fault
+        status = "failed"
+        if signals.received:
+            # a signal that landed inside compiled code can come out as another exception (SystemError)
+            status, reason = "interrupted", f"interrupted by {signals.last} ({reason})"
         missing = [name for name in expected if name not in ("summary.json", "report.md", "run.mcap")]
-        summary_fail = _failed_summary(scenario, plant_kind, "failed", reason, missing)
+        summary_fail = _failed_summary(scenario, plant_kind, status, reason, missing)
         summary_fail["traceback"] = "traceback.txt"
         _write_failure(out, summary_fail, tb)
-        raise RunFailed(f"the run failed: {reason} (traceback in {final_out}/traceback.txt)", final_out,
+        raise RunFailed(f"the run {status}: {reason} (traceback in {final_out}/traceback.txt)", final_out,
                         summary_fail, out / "traceback.txt") from None
     if record.status == "interrupted" and signals.last != "Ctrl-C":
         # the loop says Ctrl-C for every KeyboardInterrupt; say which signal it was
