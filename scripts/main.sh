@@ -5,4 +5,4 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-exec "${PYTHON:-python3}" -m usv_mj.cli run "$@"
+exec "${PYTHON:-python3}" -m usv_mj.cli run --overwrite "$@"   # a second main job replaces the first

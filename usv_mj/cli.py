@@ -14,7 +14,8 @@
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
-message names the Debian packages to install; --no-video skips the video).
+message names the Debian packages to install; --no-video skips the video); 141 the output pipe closed.
+`usv-mj run` refuses an --out that already holds a run unless --overwrite (which replaces it whole).
 """
 
 from __future__ import annotations
@@ -51,6 +52,8 @@ def _parse_set(items: list[str]) -> dict:
         parts = key.strip().split(".")
         for part in parts[:-1]:
             node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ScenarioError(f"--set {item!r}: {part} was set to a value above, not a table")
         node[parts[-1]] = parsed
     return out
 
@@ -73,6 +76,9 @@ def scenario_from_args(args):
     if args.duration is not None:
         overrides["duration"] = args.duration
     if getattr(args, "plant", None):
+        if not isinstance(overrides.get("plant", {}), dict):
+            raise ScenarioError(f"--set plant={overrides['plant']!r}: [plant] must be a table (with --plant "
+                                "give --set plant.kind=... or drop one of them)")
         overrides.setdefault("plant", {})["kind"] = args.plant
     return load_scenario(args.scenario, preset=args.preset, overrides=overrides)
 
@@ -91,6 +97,9 @@ def _add_run(sub):
     p.add_argument("--no-video", action="store_true", help="skip the video")
     p.add_argument("--no-baseline", action="store_true", help="skip the PI baseline run")
     p.add_argument("--no-log", action="store_true", help="skip the MCAP log")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an earlier run in --out (it is replaced whole); without it such a folder is refused")
+    p.add_argument("--debug", action="store_true", help="print the traceback of a crash (always in traceback.txt)")
     from .render import add_video_arguments
 
     add_video_arguments(p)
@@ -99,7 +108,7 @@ def _add_run(sub):
 
 
 def _run_command(args) -> int:
-    from .main_job import one_screen_summary, run_job
+    from .main_job import RunFailed, one_screen_summary, run_job
 
     from .render import video_options
 
@@ -109,13 +118,23 @@ def _run_command(args) -> int:
     except ValueError as exc:
         raise ScenarioError(str(exc)) from None
     name = Path(args.scenario).stem if args.scenario else scenario.preset
-    out = Path(args.out) if args.out else Path("renders") / name
+    out = Path(args.out) if args.out is not None else Path("renders") / name
+    if args.out is not None and args.out.strip() == "":
+        raise ScenarioError("--out '': an empty path; name the output folder")
     t0 = time.perf_counter()
-    result = run_job(scenario, out, baseline=False if args.no_baseline else None, video=not args.no_video,
-                     log=not args.no_log, progress=not args.quiet,
-                     render_options=render_options)
+    try:
+        result = run_job(scenario, out, baseline=False if args.no_baseline else None, video=not args.no_video,
+                         log=not args.no_log, progress=not args.quiet,
+                         render_options=render_options, overwrite=args.overwrite)
+    except RunFailed as exc:
+        if args.debug and exc.traceback is not None and Path(exc.traceback).is_file():
+            sys.stderr.write(Path(exc.traceback).read_text())
+        print(f"usv-mj run: {exc}", file=sys.stderr)
+        return EXIT_STOPPED
     print(one_screen_summary(result, time.perf_counter() - t0))
-    return EXIT_OK if result.summary["status"] == "completed" else EXIT_STOPPED
+    if result.summary["status"] != "completed" or result.summary.get("job_stopped"):
+        return EXIT_STOPPED
+    return EXIT_OK
 
 
 # --- presets and plot --------------------------------------------------------------------------
@@ -170,7 +189,13 @@ def _plot_command(args) -> int:
         path = path / "run.mcap"
     if not path.is_file():
         raise ScenarioError(f"{path}: no such run log")
-    log = read_run(path)
+    try:
+        log = read_run(path)
+        record = log.record
+    except (ValueError, KeyError, OSError) as exc:
+        raise ScenarioError(f"{path}: not a readable run log ({exc})") from None
+    if len(record) == 0:
+        raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot)")
     out = Path(args.out) if args.out else path.parent
     out.mkdir(parents=True, exist_ok=True)
     draw_figures(log.record, out / "figures", log.baseline)

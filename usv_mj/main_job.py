@@ -17,6 +17,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
+import shutil
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -151,24 +153,254 @@ def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_o
 
 def _write_json(path: Path, data: dict) -> None:
     tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
-    tmp.replace(path)
+    try:
+        tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+# --- endings: staging, signals, crashes (issue 15) ----------------------------------------------
+
+
+class RunFailed(RuntimeError):
+    """The run could not finish: the loop crashed, or an output could not be written (disk full, a
+    worker that did not start). ``str()`` is the one line to print; ``summary`` is what
+    ``summary.json`` in ``out_dir`` holds (when it could be written); ``traceback`` names the file
+    with the traceback, if any."""
+
+    def __init__(self, message: str, out_dir: Path, summary: dict | None = None, traceback: Path | None = None):
+        super().__init__(message)
+        self.out_dir, self.summary, self.traceback = out_dir, summary, traceback
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP during a run: handled as Ctrl-C (the loop records it as interrupted)."""
+
+
+class _Signals:
+    """While a job runs in the main thread: SIGTERM and SIGHUP raise :class:`Terminated` as Ctrl-C
+    raises KeyboardInterrupt; :meth:`deferred` holds every one of them back over a section that
+    must not be cut (closing the log, moving the outputs into place). Handlers restored on exit."""
+
+    NAMES = {"SIGINT": "Ctrl-C", "SIGTERM": "SIGTERM", "SIGHUP": "SIGHUP"}
+
+    def __init__(self):
+        import signal
+        import threading
+
+        self.signal = signal
+        self.active = threading.current_thread() is threading.main_thread()
+        self.received: list[str] = []     # every signal seen, in order
+        self._old = {}
+
+    def _raise(self, signum, frame):
+        name = self.NAMES.get(self.signal.Signals(signum).name, self.signal.Signals(signum).name)
+        self.received.append(name)
+        raise (KeyboardInterrupt if name == "Ctrl-C" else Terminated)(name)
+
+    def __enter__(self):
+        if self.active:
+            for sig in (self.signal.SIGINT, self.signal.SIGTERM, self.signal.SIGHUP):
+                self._old[sig] = self.signal.signal(sig, self._raise)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, handler in self._old.items():
+            self.signal.signal(sig, handler)
+        self._old = {}
+        return False
+
+    @property
+    def last(self) -> str:
+        return self.received[-1] if self.received else "Ctrl-C"
+
+    def deferred(self):
+        from contextlib import contextmanager
+
+        @contextmanager
+        def hold():
+            if not self._old:
+                yield
+                return
+            held = []
+            for sig in self._old:
+                self.signal.signal(sig, lambda signum, frame: held.append(signum))
+            try:
+                yield
+            finally:
+                for sig in self._old:
+                    self.signal.signal(sig, self._raise)
+                for signum in held:
+                    self.received.append(self.NAMES.get(self.signal.Signals(signum).name, "signal"))
+        return hold()
+
+
+class _Staging:
+    """A job writes into ``.<name>.staging-<pid>`` beside ``out`` and :meth:`commit` moves that folder
+    into place at the end, whatever the end: ``out`` then holds this run alone (an earlier run there
+    is replaced whole; :func:`usv_mj.preflight.check_out_dir` refuses one without ``overwrite``).
+    Staging folders of killed jobs (their process is gone) are removed first."""
+
+    def __init__(self, out: Path):
+        self.out = out
+        parent = out.parent
+        parent.mkdir(parents=True, exist_ok=True)
+        self._cleanup_killed(parent, out.name)
+        self.path = parent / f".{out.name}.staging-{os.getpid()}"
+        if self.path.exists():
+            shutil.rmtree(self.path)
+        self.path.mkdir()
+
+    @staticmethod
+    def _cleanup_killed(parent: Path, name: str) -> None:
+        for p in list(parent.glob(f".{name}.staging-*")) + list(parent.glob(f".{name}.old-*")):
+            try:
+                pid = int(p.name.rsplit("-", 1)[1])
+                os.kill(pid, 0)
+                continue                          # a job still running
+            except (ValueError, ProcessLookupError):
+                pass
+            except PermissionError:
+                continue
+            if p.name.startswith(f".{name}.old-") and not (parent / name).exists():
+                p.rename(parent / name)           # killed between the two renames of a commit
+            else:
+                shutil.rmtree(p, ignore_errors=True)
+
+    def commit(self) -> None:
+        """Drop temporary files, then put the staging folder in place of ``out`` (nothing written:
+        ``out`` stays as it was)."""
+        if not self.path.exists():
+            return
+        for tmp in list(self.path.rglob("*.tmp")) + list(self.path.rglob("*.segments.txt")):
+            tmp.unlink(missing_ok=True)
+        for tmp in self.path.glob(".render-*"):
+            shutil.rmtree(tmp, ignore_errors=True)
+        if not any(self.path.iterdir()):
+            self.path.rmdir()
+            return
+        old = None
+        if self.out.exists():
+            old = self.out.parent / f".{self.out.name}.old-{os.getpid()}"
+            self.out.rename(old)
+        self.path.rename(self.out)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+
+
+def _relocate(obj, stage: Path, out: Path):
+    """``obj`` with every path (or path string) under ``stage`` moved under ``out``."""
+    if isinstance(obj, dict):
+        return {k: _relocate(v, stage, out) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_relocate(v, stage, out) for v in obj]
+    if isinstance(obj, (Path, str)):
+        text = str(obj)
+        if text.startswith(str(stage)):
+            moved = str(out) + text[len(str(stage)):]
+            return Path(moved) if isinstance(obj, Path) else moved
+    return obj
+
+
+def _one_line(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        where = exc.filename or ""
+        return f"{where}: {exc.strerror}" if where else exc.strerror
+    text = str(exc).strip().splitlines()
+    if type(exc).__name__ in ("RunLogError", "RenderWorkerError") and text:
+        return text[-1]
+    return f"{type(exc).__name__}: {text[-1] if text else ''}".rstrip(": ")
 
 
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
             video: bool = True, log: bool = True, progress: bool = True, step_check: bool = True,
-            render_options: dict | None = None) -> JobResult:
-    """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring)."""
+            render_options: dict | None = None, overwrite: bool = False) -> JobResult:
+    """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
+
+    Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
+    ``out_dir`` as it was); ``out_dir`` holding an earlier run is refused unless ``overwrite``, and
+    then replaced whole. The outputs are written into a staging folder beside ``out_dir`` and moved
+    into place when the job ends, however it ends. Ctrl-C, SIGTERM and SIGHUP stop the job (the
+    summary says where and which outputs are missing); a crash or an output that cannot be written
+    raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place."""
+    from .preflight import check_run
+
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    render_opts = dict(render_options or {})
+    check_run(scenario, out, video=video, render_options=render_opts, overwrite=overwrite)
+    with _Signals() as signals:
+        stage = _Staging(out)
+        try:
+            result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
+                                 video=video, log=log, progress=progress, step_check=step_check,
+                                 render_opts=render_opts)
+        except RunFailed as exc:
+            exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
+            exc.traceback = _relocate(exc.traceback, stage.path, out)
+            exc.args = (str(exc).replace(str(stage.path), str(out)),)
+            raise
+        finally:
+            with signals.deferred():
+                stage.commit()
+    result.out_dir = out
+    result.files = _relocate(result.files, stage.path, out)
+    result.summary = _relocate(result.summary, stage.path, out)
+    result.render_stats = _relocate(result.render_stats, stage.path, out)
+    return result
+
+
+def _failed_summary(scenario: Scenario, plant_kind: str, status: str, reason: str, missing: list) -> dict:
+    return {"preset": scenario.preset, "plant": plant_kind, "controller": scenario.controller.kind,
+            "status": status, "stop_reason": reason, "missing_outputs": missing}
+
+
+def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
+    """Best effort (the disk may be full): summary.json, report.md and traceback.txt of a run that
+    has no record to summarize."""
+    try:
+        if tb:
+            (stage / "traceback.txt").write_text(tb)
+        _write_json(stage / "summary.json", summary)
+        (stage / "report.md").write_text(
+            f"# Run report\n\n**The run {summary['status']}:** {summary['stop_reason']}\n\n"
+            + (f"Missing outputs: {', '.join(summary['missing_outputs'])}.\n" if summary["missing_outputs"] else "")
+            + ("\nThe traceback is in `traceback.txt`.\n" if tb else ""))
+    except OSError:
+        pass
+
+
+def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
+                video, log, progress, step_check, render_opts) -> JobResult:
+    """The job itself, writing into the staging folder ``out``."""
+    import traceback
+
     plant_kind = plant_kind or scenario.plant.kind
     run_baseline = scenario.baseline.enabled if baseline is None else baseline
     run_baseline = run_baseline and scenario.controller.kind != scenario.baseline.kind
     dt = scenario.control_period
     files: dict = {}
-    render_opts = dict(render_options or {})
-    with ExitStack() as stack:
-        pool = None
+    expected = ["summary.json", "report.md", "figures"] + (["run.mcap"] if log else []) + \
+               (["video.mp4", "video.png"] if video else [])
+    stack = ExitStack()
+    writer = None
+    pool = None
+    stopped = None           # why the outputs after the simulation stopped (interrupt or fault)
+    fault = None             # an output that could not be written: one line
+    record = base_rec = check = None
+    summary = base_summary = summary_out = None
+    render_stats = None
+
+    def close_all():
+        """Close the log (then the render pool) whatever comes in between; the log error, if any."""
+        nonlocal fault
+        with signals.deferred():
+            try:
+                stack.close()
+            except Exception as exc:       # RunLogError (disk full, worker gone) or OSError
+                fault = fault or _one_line(exc)
+
+    try:
         if video:
             from .render import RenderWorkers
 
@@ -192,11 +424,46 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
             record = _simulate(scenario, plant_kind, None, sink_main, cb)
         finally:
             close()
+    except KeyboardInterrupt:
+        # outside the loop's own handler (setting up, or a second signal while it finished)
+        close_all()
+        reason = f"interrupted ({signals.last}) before the run could be summarized"
+        _write_failure(out, _failed_summary(scenario, plant_kind, "interrupted", reason,
+                                            [n for n in expected if n not in ("summary.json", "report.md", "run.mcap")]),
+                       None)
+        raise RunFailed(f"{reason}; outputs in {final_out}/", final_out, None) from None
+    except Exception as exc:
+        close_all()
+        from .render import GLUnavailableError
+
+        if isinstance(exc, GLUnavailableError):
+            raise
+        tb = traceback.format_exc()
+        reason = _one_line(exc) if fault is None else fault
+        status = "failed"
+        if signals.received:
+            # a signal that landed inside compiled code can come out as another exception (SystemError)
+            status, reason = "interrupted", f"interrupted by {signals.last} ({reason})"
+        missing = [name for name in expected if name not in ("summary.json", "report.md", "run.mcap")]
+        summary_fail = _failed_summary(scenario, plant_kind, status, reason, missing)
+        summary_fail["traceback"] = "traceback.txt"
+        _write_failure(out, summary_fail, tb)
+        raise RunFailed(f"the run {status}: {reason} (traceback in {final_out}/traceback.txt)", final_out,
+                        summary_fail, out / "traceback.txt") from None
+    if record.status == "interrupted" and signals.last != "Ctrl-C":
+        # the loop says Ctrl-C for every KeyboardInterrupt; say which signal it was
+        record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", signals.last)
+        if record.events and record.events[-1].kind == "interrupted":
+            record.events[-1] = dataclasses.replace(record.events[-1], message=record.stop_reason)
+
+    phase = "starting the video"
+    video_job = None
+    try:
         # The video of the main run is drawn by the render workers while this process simulates the
         # baseline and the half-step check and draws the figures (the job then uses both cores).
         video_job = _start_video(pool, record, out / "video.mp4", render_opts) if pool is not None else None
-        base_rec = None
         if run_baseline and record.status != "interrupted":
+            phase = f"running the {scenario.baseline.kind.upper()} baseline"
             cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", progress, dt)
             try:
                 base_rec = _simulate(scenario, plant_kind, scenario.baseline.kind, sink_base, cb)
@@ -204,28 +471,91 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
                 close()
         summary = summarize(record)
         base_summary = summarize(base_rec) if base_rec is not None else None
+        phase = "running the half-step check"
         check = step_size_check(scenario, record, plant_kind) if step_check and record.status == "completed" else None
-        summary_out = dict(summary)
-        if base_summary:
-            summary_out["baseline"] = {k: base_summary[k] for k in (
-                "status", "errors_at", "max_abs_error_after_20s", "funnel_violations", "first_violation_s",
-                "quantizer_switches")}
-        if check:
-            summary_out["step_check"] = check
+        summary_out = _summary_out(summary, base_summary, check)
+        phase = "drawing the figures"
         files["figures"] = draw_figures(record, out / "figures", base_rec, obstacles=scenario.obstacles)
         extra_sections = []
         if not scenario.sea.calm:
+            phase = "drawing the sea figures"
             extra_sections.append(_sea_outputs(scenario, record, summary, summary_out, out, plant_kind, files))
+        phase = "writing the report"
         files["report"] = write_report(out / "report.md", summary, base_summary, check, extra_sections)
+        phase = "rendering the video"
         render_stats = video_job.result() if video_job is not None else None
         if render_stats is not None:
             files["video"] = out / "video.mp4"
             files["still"] = Path(render_stats["png"])
             summary_out["render"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in render_stats.items()
                                      if isinstance(v, (int, float, str, Path))}
-    files["summary"] = out / "summary.json"
-    _write_json(files["summary"], summary_out)
+    except KeyboardInterrupt:
+        stopped = f"interrupted ({signals.last}) while {phase}"
+    except Exception as exc:   # an output that cannot be written (disk full, read-only) or a worker
+        fault = _one_line(exc)
+        stopped = f"stopped while {phase}: {fault}"
+    close_all()
+    if fault and not stopped:
+        stopped = fault
+    try:
+        if summary is None:
+            summary = summarize(record)
+        if summary_out is None:
+            summary_out = _summary_out(summary, base_summary, check)
+        if stopped:
+            if run_baseline and base_rec is None and record.status != "interrupted":
+                summary_out["baseline"] = {"status": "not run", "stop_reason": stopped}
+            summary_out["job_stopped"] = stopped
+            summary_out["missing_outputs"] = _missing(out, expected, log)
+            # the summary first: a second Ctrl-C while the report is written ends the job at once
+            files["summary"] = out / "summary.json"
+            _write_json(files["summary"], _relocate(summary_out, out, final_out))
+            try:
+                write_report(out / "report.md", summary, base_summary, check,
+                             [f"## The job stopped early\n\n{stopped}. Missing outputs: "
+                              f"{', '.join(m for m in summary_out['missing_outputs'] if m != 'report.md') or 'none'}."])
+                files["report"] = out / "report.md"
+            except KeyboardInterrupt:
+                summary_out["job_stopped"] = f"{stopped}; interrupted again ({signals.last}) while writing the report"
+            summary_out["missing_outputs"] = _missing(out, expected, log)
+        files["summary"] = out / "summary.json"
+        _write_json(files["summary"], _relocate(summary_out, out, final_out))
+    except KeyboardInterrupt:
+        stopped = stopped or f"interrupted ({signals.last}) while writing the summary"
+    except OSError as exc:
+        fault = fault or _one_line(exc)
+        files.pop("summary", None)
+    if fault:
+        message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
+        raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),
+                        final_out, summary_out)
     return JobResult(out, record, summary_out, base_rec, base_summary, check, files, render_stats)
+
+
+def _summary_out(summary: dict, base_summary: dict | None, check: dict | None) -> dict:
+    summary_out = dict(summary)
+    if base_summary:
+        summary_out["baseline"] = {k: base_summary[k] for k in (
+            "status", "errors_at", "max_abs_error_after_20s", "funnel_violations", "first_violation_s",
+            "quantizer_switches")}
+    if check:
+        summary_out["step_check"] = check
+    return summary_out
+
+
+def _missing(out: Path, expected: list, log: bool, summary_written: bool = True) -> list:
+    """The expected outputs that are not (all) in ``out``: figures/ counts when it has all 7 figures."""
+    missing = []
+    for name in expected:
+        p = out / name
+        if name == "summary.json" and summary_written:
+            continue
+        if name == "figures":
+            if len(list(p.glob("fig*.png"))) < 7:
+                missing.append("figures/")
+        elif not p.exists():
+            missing.append(name)
+    return missing
 
 
 def one_screen_summary(result: JobResult, wall_s: float) -> str:
@@ -256,6 +586,9 @@ def one_screen_summary(result: JobResult, wall_s: float) -> str:
         lines.append(f"  half-step check: errors moved {c['max_position_m']*100:.3f} cm, {c['max_heading_rad']:.1e} rad")
     if s.get("min_clearance_m") is not None:
         lines.append(f"  obstacles: min clearance {s['min_clearance_m']:.3f} m, contacts {s['contacts']}")
+    if s.get("job_stopped"):
+        lines.append(f"  job stopped early: {s['job_stopped']}; missing outputs: "
+                     f"{', '.join(s.get('missing_outputs') or []) or 'none'}")
     if result.record.metadata.get("note"):
         lines.append(f"  note: {result.record.metadata['note']}")
     if "render" in s:

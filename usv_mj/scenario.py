@@ -319,7 +319,11 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
     name = data.get("preset", "paper")
     if not isinstance(name, str):
         raise ScenarioError(f"{source}: preset must be a string, got {name!r}")
-    base = _read_preset(name)
+    try:
+        base = _read_preset(name)
+    except ScenarioError as exc:
+        msg = str(exc)
+        raise ScenarioError(msg if msg.startswith(source) else f"{source}: preset: {msg}") from None
     for section, default in (("controller", "ppc"), ("baseline", "pi")):
         # another controller kind than the preset's: the preset's gains belong to its own kind
         over = data.get(section)
@@ -351,6 +355,9 @@ def _build_scenario(data: dict, source: str) -> Scenario:
     for key, cls in _SECTIONS.items():
         if key in data:
             top[key] = _build(cls, data[key], source, key)
+    for key in ("controller", "baseline", "sea", "guidance"):
+        if key in data and not isinstance(data[key], dict):
+            raise ScenarioError(f"{source}: [{key}] must be a table, got {data[key]!r}")
     if "disturbance" in data:
         top["disturbance"] = _build_disturbance(data["disturbance"], source)
     top["controller"] = _controller_spec(data.get("controller", {}), source, "controller", "ppc")

@@ -150,6 +150,17 @@ SEA_RGBA = (0.16, 0.42, 0.62, 1.0)     # the wave surface (lit: crests and troug
 SEA_MAX_HALF = 320.0                  # m: compiled half-size of the hfield (bounds for MuJoCo's queries)
 
 
+def _names_of(m) -> list:
+    """"top" first, then the model's cameras, each once (the model has a camera named "top" too)."""
+    return list(dict.fromkeys(["top"] + [m.camera(i).name for i in range(m.ncam)]))
+
+
+def camera_names(model_path=None) -> list:
+    """The cameras a video can use with this render model: "top" (the free camera) and the model's."""
+    m, _ = build_replay_model(model_path, width=64, height=64, ghost=True)
+    return _names_of(m)
+
+
 def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720, ghost: bool = True,
                        samples: int = 0, sea: bool = True) -> tuple[mujoco.MjModel, str]:
     """Compile the scene with a mocap ``ghost`` hull added and an off-screen buffer of width x height.
@@ -245,7 +256,7 @@ class FrameRenderer:
         else:
             cid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, camera)
             if cid < 0:
-                names = ["top"] + [m.camera(i).name for i in range(m.ncam)]
+                names = _names_of(m)
                 raise ValueError(f"camera {camera!r} is not in the render model; choose one of {', '.join(names)}")
             self.camera = cid
             self.fovy = float(m.cam_fovy[cid])

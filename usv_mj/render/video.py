@@ -38,6 +38,28 @@ _worker_counter = None
 
 
 def _worker_init(env: dict, renderer_kwargs: dict, counter=None) -> None:
+    # A pool replaces a worker whose initializer raises, forever (issue 15): keep the worker alive and
+    # hand the reason to the first task instead, which fails the render with it.
+    global _worker_error
+    try:
+        _worker_init_renderer(env, renderer_kwargs, counter)
+    except Exception as exc:
+        _worker_error = f"a render worker could not start: {exc}"
+
+
+_worker_error = None
+
+
+class RenderWorkerError(RuntimeError):
+    """A render worker could not start (its GL context or scene); the message says why."""
+
+
+def _check_worker():
+    if _worker_error is not None:
+        raise RenderWorkerError(_worker_error)
+
+
+def _worker_init_renderer(env: dict, renderer_kwargs: dict, counter=None) -> None:
     os.environ.update(env)
     if env.get("MUJOCO_GL") == "glfw":
         os.environ.pop("PYOPENGL_PLATFORM", None)
@@ -63,6 +85,7 @@ def warmup_frame():
 
 
 def _worker_render(spec):
+    _check_worker()
     return _worker_renderer.render(spec)
 
 
@@ -98,6 +121,7 @@ def _encode_segment(frames, path, width, height, fps, encoder, png=None, tick=No
 def _worker_segment(task):
     """One contiguous block of the video, rendered and encoded by this worker: (index, frames written)."""
     index, specs, path, width, height, fps, encoder, png = task
+    _check_worker()
     frames = (_worker_renderer.render(s) for s in specs)
     return index, _encode_segment(frames, path, width, height, fps, encoder, png, _count_frame)
 
@@ -146,6 +170,18 @@ class _FrameSource:
                 self.pool.terminate()
             self.pool.join()
         return False
+
+
+def check_camera(camera: str, model=None) -> None:
+    """ValueError naming the cameras there are when ``camera`` is not "top" nor a camera of the render
+    model (compiled without GL, so it is cheap enough to check before anything starts)."""
+    if camera == "top":
+        return
+    from .replay import camera_names
+
+    names = camera_names(model)
+    if camera not in names:
+        raise ValueError(f"camera {camera!r} is not in the render model; choose one of {', '.join(names)}")
 
 
 def _check_size(width, height):
@@ -321,6 +357,7 @@ class RenderWorkers:
         from .gl_backend import backend_environment
 
         _check_size(width, height)
+        check_camera(camera, model)       # before any worker starts: a bad name fails every one of them
         self.backend = select_backend(gl)
         self.workers = _default_workers(1 << 30) if workers is None else max(1, int(workers))
         self.kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),

@@ -19,6 +19,8 @@ a file readable up to its last complete chunk (see :mod:`usv_mj.runlog.reader`).
 
 from __future__ import annotations
 
+import dataclasses
+import os
 import struct
 import zlib
 
@@ -288,7 +290,9 @@ class McapFileWriter:
     """Writes one MCAP file: data section as it comes, summary and footer on :meth:`finish`."""
 
     def __init__(self, path, profile: str = "", library: str = "usv_mj.runlog", compression_level: int = 1):
+        self.path = str(path)
         self._file = open(path, "wb")
+        self._good = None
         self._crc = 0
         self._compressor = zstandard.ZstdCompressor(level=compression_level)
         self.schemas: dict[int, Schema] = {}
@@ -300,8 +304,57 @@ class McapFileWriter:
                                 message_count=0, message_end_time=0, message_start_time=0, metadata_count=0,
                                 schema_count=0)
         self.finished = False
+        self.failed: OSError | None = None
         self._write(MAGIC)
         self._write_record(Header(profile=profile, library=library))
+        self._checkpoint()
+
+    # faults (issue 15): a write that fails (disk full) cuts the file back to its last complete
+    # record and closes it with a summary if there is room, so that it reads up to that record
+    def _checkpoint(self):
+        self._file.flush()
+        self._good = (self._file.tell(), self._crc, len(self.chunk_indexes), len(self.metadata_indexes),
+                      len(self.attachment_indexes), dataclasses.replace(
+                          self.stats, channel_message_counts=dict(self.stats.channel_message_counts)))
+
+    def _salvage(self, exc: OSError) -> None:
+        self.failed = exc
+        offset, crc, n_chunks, n_meta, n_att, stats = self._good
+        fd = os.dup(self._file.fileno())
+        try:
+            self._file.close()          # flushes what is buffered (fails again), then closes
+        except OSError:
+            pass
+        self._crc = crc
+        del self.chunk_indexes[n_chunks:], self.metadata_indexes[n_meta:], self.attachment_indexes[n_att:]
+        self.stats = stats
+        os.ftruncate(fd, offset)
+        self._file = os.fdopen(fd, "r+b")
+        self._file.seek(offset)
+        self.finished = False
+        try:
+            self._finish()
+        except OSError:                 # no room even for the summary: the data section alone
+            self.finished = True
+            try:
+                self._file.close()
+            except OSError:
+                pass
+            os.truncate(self.path, offset)
+
+    def _guard(self, fn, *args, **kwargs):
+        """``fn`` (a record writer); on OSError the file is salvaged and the error raised again."""
+        if self.failed is not None:
+            raise OSError(self.failed.errno, self.failed.strerror, self.path)
+        try:
+            value = fn(*args, **kwargs)
+            if not self.finished:
+                self._checkpoint()
+            return value
+        except OSError as exc:
+            if self.failed is None:
+                self._salvage(exc)
+            raise
 
     # low level
     def _write(self, data):
@@ -317,14 +370,20 @@ class McapFileWriter:
         return offset, len(data)
 
     # records
-    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+    def register_schema(self, *args, **kwargs):
+        return self._guard(self._register_schema, *args, **kwargs)
+
+    def _register_schema(self, name: str, encoding: str, data: bytes) -> int:
         sid = len(self.schemas) + 1
         self.schemas[sid] = Schema(id=sid, data=data, encoding=encoding, name=name)
         self.stats.schema_count += 1
         self._write_record(self.schemas[sid])
         return sid
 
-    def register_channel(self, topic: str, message_encoding: str, schema_id: int, metadata: dict | None = None) -> int:
+    def register_channel(self, *args, **kwargs):
+        return self._guard(self._register_channel, *args, **kwargs)
+
+    def _register_channel(self, topic: str, message_encoding: str, schema_id: int, metadata: dict | None = None) -> int:
         cid = len(self.channels) + 1
         self.channels[cid] = Channel(id=cid, topic=topic, message_encoding=message_encoding,
                                      metadata=dict(metadata or {}), schema_id=schema_id)
@@ -332,13 +391,19 @@ class McapFileWriter:
         self._write_record(self.channels[cid])
         return cid
 
-    def add_metadata(self, name: str, data: dict[str, str]):
+    def add_metadata(self, *args, **kwargs):
+        return self._guard(self._add_metadata, *args, **kwargs)
+
+    def _add_metadata(self, name: str, data: dict[str, str]):
         offset, length = self._write_record(Metadata(name=name, metadata=data))
         self.metadata_indexes.append(MetadataIndex(offset=offset, length=length, name=name))
         self.stats.metadata_count += 1
         self._file.flush()
 
-    def add_attachment(self, name: str, media_type: str, data: bytes, log_time: int = 0, create_time: int = 0):
+    def add_attachment(self, *args, **kwargs):
+        return self._guard(self._add_attachment, *args, **kwargs)
+
+    def _add_attachment(self, name: str, media_type: str, data: bytes, log_time: int = 0, create_time: int = 0):
         att = Attachment(create_time=create_time, log_time=log_time, name=name, media_type=media_type, data=data)
         offset, length = self._write_record(att)
         self.attachment_indexes.append(AttachmentIndex(offset=offset, length=length, log_time=log_time,
@@ -346,7 +411,10 @@ class McapFileWriter:
                                                        media_type=media_type))
         self.stats.attachment_count += 1
 
-    def write_chunk(self, buf: ChunkBuffer):
+    def write_chunk(self, *args, **kwargs):
+        return self._guard(self._write_chunk, *args, **kwargs)
+
+    def _write_chunk(self, buf: ChunkBuffer):
         """Compress and write one chunk, then its message indexes; flush to the OS."""
         if not len(buf):
             return
@@ -395,6 +463,11 @@ class McapFileWriter:
         self._file.flush()
 
     def finish(self):
+        if self.finished:
+            return
+        self._guard(self._finish)
+
+    def _finish(self):
         """Data end, summary (schemas, channels, statistics, chunk/attachment/metadata indexes), footer."""
         if self.finished:
             return

@@ -380,6 +380,8 @@ def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_l
     ring = np.ndarray(ring_shape, dtype=np.float64, buffer=ring_shm.buf)
     try:
         log = RunLogFile(path, file_metadata, attachments, rows_per_chunk, compression_level, environment)
+    except OSError as exc:
+        error = f"cannot write {path}: {exc.strerror or exc}"
     except BaseException:
         error = traceback.format_exc()
     while True:
@@ -396,6 +398,8 @@ def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_l
                 if slot is not None:
                     cmd = cmd[:3] + (ring[slot, :cmd[3][2]],) + cmd[4:]
                 log.handle(cmd)
+            except OSError as exc:      # disk full, read-only: one line naming the file (issue 15)
+                error = f"cannot write {path}: {exc.strerror or exc}; the log holds what was written before"
             except BaseException:
                 error = traceback.format_exc()
         if slot is not None:
@@ -598,6 +602,8 @@ class RunLogWriter:
                 error = traceback.format_exc()
         problems = self._errors + ([error] if error else [])
         if problems:
+            if len(problems) == 1 and "\n" not in problems[0].strip():
+                raise RunLogError(problems[0])      # one line (a fault such as a full disk)
             raise RunLogError(f"writing run log {self.path} failed:\n" + "\n".join(problems))
 
     def __enter__(self):

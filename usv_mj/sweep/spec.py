@@ -437,7 +437,7 @@ def _check_references(runs: list, source: str) -> None:
     """Build the reference path of every distinct (trajectory, duration) among ``runs``: the
     scenario format accepts some paths that :mod:`usv_mj.trajectories` refuses (a waypoint list of
     one point), and those must stop the sweep here, not fail every run on the workers."""
-    from ..simulation import make_reference
+    from ..preflight import reference_error   # the same check usv-mj run makes before it starts
 
     seen = set()
     for run in runs:
@@ -445,12 +445,11 @@ def _check_references(runs: list, source: str) -> None:
         if key in seen:
             continue
         seen.add(key)
-        try:
-            make_reference(run.scenario)
-        except ValueError as exc:
+        problem = reference_error(run.scenario)
+        if problem is not None:
             shown = ", ".join(f"{p} = {v!r}" for p, v in run.values.items()) or "the base"
             raise SweepError(f"{source}: the reference path of run {run.run_id} ({shown}) cannot be built: "
-                             f"{exc}") from None
+                             f"{problem}")
 
 
 def _fingerprint(plan: SweepPlan) -> str:
