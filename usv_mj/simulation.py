@@ -97,7 +97,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
     c_t = COL["t"]
     c_tau_u, c_tau_r, c_q_u, c_q_r, c_k_u, c_k_r, c_f_u, c_f_r, c_s_u, c_s_r = (COL[c] for c in (
         "tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r", "f_u", "f_r", "sat_u", "sat_r"))
-    flushed = 0
+    flush = _Flusher(record, sinks, progress)
     wall0 = time.perf_counter()
     k = 0
     try:
@@ -134,9 +134,8 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
             row[c_s_r] = 0.0
             k += 1
             record.n_rows = k
-            if k - flushed >= block:
-                _flush(record, sinks, flushed, k, progress)
-                flushed = k
+            if k - flush.mark >= block:
+                flush(k)
             if k > n:
                 break
             plant.step(f_u, f_r)
@@ -161,9 +160,9 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
         record.status = "failed"
         record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}"
         record.events.append(Event(k * dt, "failed", record.stop_reason))
-        _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r)
+        _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
         raise
-    _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r)
+    _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
     return record
 
 
@@ -200,17 +199,35 @@ def _stop_diverged(record, t, message, values, data, k, x, ref, diag, sl_diag):
     record.stop_reason = message
 
 
-def _flush(record, sinks, lo, hi, progress):
-    if hi > lo:
-        record.events.extend(detect_events(record, lo, hi))
-        for sink in sinks:
-            sink.rows(record, lo, hi)
-        if progress is not None:
-            progress(hi - lo)
+class _Flusher:
+    """Hands rows [.., hi) to the sinks, the event detector and the progress bar, each from where it
+    got to: an interrupt (Ctrl-C, SIGTERM) that lands inside one sink's ``rows`` never makes the
+    final flush send another sink the same rows twice, nor detect the same events twice."""
+
+    def __init__(self, record, sinks, progress):
+        self.record, self.sinks, self.progress = record, list(sinks), progress
+        self.sent = [0] * len(self.sinks)
+        self.events_to = 0
+        self.counted = 0
+        self.mark = 0
+
+    def __call__(self, hi: int) -> None:
+        self.mark = max(self.mark, hi)
+        if hi > self.events_to:
+            new = detect_events(self.record, self.events_to, hi)
+            self.events_to = hi
+            self.record.events.extend(new)
+        for i, sink in enumerate(self.sinks):
+            if hi > self.sent[i]:
+                sink.rows(self.record, self.sent[i], hi)
+                self.sent[i] = hi
+        if self.progress is not None and hi > self.counted:
+            n, self.counted = hi - self.counted, hi
+            self.progress(n)
 
 
-def _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r):
-    _flush(record, sinks, flushed, record.n_rows, progress)
+def _finish_run(record, sinks, flush, wall0, quant_u, quant_r):
+    flush(record.n_rows)
     record.events.sort(key=lambda e: e.t)
     wall = time.perf_counter() - wall0
     sim_t = record["t"][-1] if record.n_rows else 0.0
