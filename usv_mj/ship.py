@@ -337,13 +337,6 @@ def nominal_terms(p, nu):
     return phi_u, phi_v, phi_r
 
 
-@njit(cache=True)
-def transformed_position(p, x, y, psi):
-    """Do & Pan's point (x_bar, y_bar) = (x + eps cos psi, y + eps sin psi), eps = m23/m22 [m]."""
-    eps = p[P_M23] / p[P_M22]
-    return x + eps * math.cos(psi), y + eps * math.sin(psi)
-
-
 def kinetic_energy(ship: ShipParams, nu) -> float:
     """T = 1/2 nu^T M nu [J]."""
     nu = np.asarray(nu, dtype=float)

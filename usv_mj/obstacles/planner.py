@@ -355,11 +355,6 @@ class GuidedReference(Reference):
     def switch_path(self, t: float, path: PathTable) -> None:
         self.segments = self.segments_with(t, path)
 
-    def yaw_rate_bounds(self, times) -> tuple[float, float]:
-        """max |r_d| [rad/s] and max |r_d_dot| [rad/s^2] over ``times`` (finite differences)."""
-        r = np.array([self.pose(float(t))[3] for t in times])
-        return float(np.max(np.abs(r))), float(np.max(np.abs(np.diff(r) / np.diff(times))))
-
 
 # --- static planning ----------------------------------------------------------------------------
 
