@@ -9,10 +9,9 @@ from .hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
 from .performance_funnel import PerformanceFunnel, error_transform, funnel_bound
 from .pi_baseline import PIController, PIGains
 from .ppc import PPCController, PPCGains
-from .rbf_network import RBFNetwork
 
 __all__ = [
     "DIAG", "DIAG_FIELDS", "N_DIAG", "REF_FIELDS", "Controller", "HysteresisQuantizer", "QuantizerParams",
     "PerformanceFunnel", "error_transform", "funnel_bound", "PIController", "PIGains", "PPCController",
-    "PPCGains", "RBFNetwork",
+    "PPCGains",
 ]

@@ -115,7 +115,7 @@ class PIController:
     def __init__(self, gains: PIGains, nominal: ShipParams, funnel_xy: PerformanceFunnel,
                  funnel_psi: PerformanceFunnel, control_period: float):
         self.gains = gains
-        self._eps = nominal.m23 / nominal.m22
+        self._eps = nominal.eps
         self._g = np.array([gains.k_at, gains.kp_u, gains.ki_u, gains.kp_r, gains.ki_r, gains.kd_r,
                             gains.u_c_min, gains.u_c_max, gains.a1, gains.integral_limit_u,
                             gains.integral_limit_r])

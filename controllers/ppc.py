@@ -32,12 +32,12 @@ import numpy as np
 from numba import njit
 
 from usv_mj.registry import CONTROLLERS
-from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, ShipParams, nominal_terms
+from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, ShipParams, do_pan_offset, nominal_terms
 
-from .base import D_ALPHA_R, D_ALPHA_U, D_ALPHA_V, D_E1S, D_E2S, D_E3S, D_R_E, D_S2, D_S2_CLAMPED, D_U_E, D_V_E, D_W_R_NORM, D_W_U_NORM, D_W_V_NORM, DIAG_FIELDS, N_DIAG, REF_PSI, REF_R, REF_XDOT, REF_YDOT
+from .base import D_ALPHA_R, D_ALPHA_U, D_ALPHA_V, D_E1S, D_E2S, D_E3S, D_R_E, D_S2, D_S2_CLAMPED, D_U_E, D_V_E, D_W_R_NORM, D_W_U_NORM, D_W_V_NORM, DIAG_FIELDS, N_DIAG, REF_PSI, REF_R
 from .performance_funnel import PerformanceFunnel, funnels_of
 from .rbf_network import node_centres, rbf_activations
-from .tracking_errors import tracking_errors
+from .tracking_errors import offset_point_velocity, tracking_errors
 
 ALPHA_R_MODES = ("printed", "analytic")
 
@@ -142,14 +142,13 @@ def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
     gam_u, gam_v, gam_r, th_u, th_v, th_r = g[9], g[10], g[11], g[12], g[13], g[14]
     sig_u, sig_v, sig_r, analytic, s2_lim, delta_u, delta_r = g[15], g[16], g[17], g[18], g[19], g[20], g[21]
     m11, m22, m23, m33 = p[P_M11], p[P_M22], p[P_M23], p[P_M33]
-    eps = m23 / m22
+    eps = do_pan_offset(m22, m23)
     e1, e2, h2, chi, th, e1_dot, e2_dot = tracking_errors(eps, a1, t, x, ref, funnel, diag)
     e1s, e2s, e3s = diag[D_E1S], diag[D_E2S], diag[D_E3S]
     psi = x[2]
     c, s = math.cos(psi), math.sin(psi)
     psi_d = ref[REF_PSI]
-    xbd_dot = ref[REF_XDOT] - eps * math.sin(psi_d) * ref[REF_R]
-    ybd_dot = ref[REF_YDOT] + eps * math.cos(psi_d) * ref[REF_R]
+    xbd_dot, ybd_dot = offset_point_velocity(eps, ref)
     big_a = xbd_dot - l1 * e1s
     big_b = ybd_dot - l1 * e2s
     alpha_u = big_a * c + big_b * s

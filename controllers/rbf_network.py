@@ -34,19 +34,3 @@ def rbf_activations(z, centres, sigma, out):
         out[j] = math.exp(-acc * inv)
     return out
 
-
-class RBFNetwork:
-    """A network with fixed centres and width and an external weight vector (numpy convenience)."""
-
-    def __init__(self, n_nodes: int = 39, span: float = 16.0, width: float = 1.0):
-        if not (math.isfinite(width) and width > 0):
-            raise ValueError(f"rbf width must be > 0, got {width!r}")
-        self.centres = node_centres(n_nodes, span)
-        self.width = float(width)
-
-    def activations(self, z) -> np.ndarray:
-        z = np.asarray(z, dtype=float)
-        return rbf_activations(z, self.centres, self.width, np.empty(self.centres.shape[0]))
-
-    def __call__(self, weights, z) -> float:
-        return float(np.dot(weights, self.activations(z)))

@@ -12,6 +12,8 @@ import math
 
 from numba import njit
 
+from usv_mj.ship import wrap_angle
+
 from .base import D_E1, D_E1S, D_E2, D_E2S, D_E3, D_E3S, D_PSI_A, D_RHO1, D_RHO2, D_RHO3, D_Z1, D_Z2, D_Z3, REF_PSI, REF_R, REF_X, REF_XDOT, REF_Y, REF_YDOT
 from .performance_funnel import error_transform, funnel_bound
 
@@ -19,10 +21,17 @@ from .performance_funnel import error_transform, funnel_bound
 F_XY, F_PSI = 0, 3
 
 
+#: the angle wrap to [-pi, pi): usv_mj.ship.wrap_angle (this name kept for its importers)
+wrap = wrap_angle
+
+
 @njit(cache=True)
-def wrap(a):
-    """Angle wrapped to [-pi, pi)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+def offset_point_velocity(eps, ref):
+    """(x_bar_d_dot, y_bar_d_dot) of Do & Pan's reference point x_bar_d = x_d + eps cos psi_d,
+    y_bar_d = y_d + eps sin psi_d (Eq. 14) [m/s]: x_d_dot - eps sin psi_d r_d, y_d_dot + eps cos psi_d r_d."""
+    psi_d = ref[REF_PSI]
+    return (ref[REF_XDOT] - eps * math.sin(psi_d) * ref[REF_R],
+            ref[REF_YDOT] + eps * math.cos(psi_d) * ref[REF_R])
 
 
 @njit(cache=True)
@@ -40,10 +49,10 @@ def tracking_errors(eps, a1, t, x, ref, funnel, diag):
     e2 = x[1] + eps * s - (ref[REF_Y] + eps * sd)
     h2 = e1 * e1 + e2 * e2
     chi = math.atan2(-e2, -e1)
-    chi = psi_d + wrap(chi - psi_d)
+    chi = psi_d + wrap_angle(chi - psi_d)
     th = math.tanh(h2 / a1)
     psi_a = chi * th + psi_d * (1.0 - th)
-    e3 = wrap(psi - psi_a)
+    e3 = wrap_angle(psi - psi_a)
     rho_xy = funnel_bound(funnel[F_XY], funnel[F_XY + 1], funnel[F_XY + 2], t)
     rho_psi = funnel_bound(funnel[F_PSI], funnel[F_PSI + 1], funnel[F_PSI + 2], t)
     diag[D_E1] = e1
@@ -62,8 +71,7 @@ def tracking_errors(eps, a1, t, x, ref, funnel, diag):
     diag[D_PSI_A] = psi_a
     # Eq. 16: e_dot = J(psi) [u, v_bar, r] - [x_bar_d_dot, y_bar_d_dot, ...]
     v_bar = x[4] + eps * x[5]
-    xbd_dot = ref[REF_XDOT] - eps * sd * ref[REF_R]
-    ybd_dot = ref[REF_YDOT] + eps * cd * ref[REF_R]
+    xbd_dot, ybd_dot = offset_point_velocity(eps, ref)
     e1_dot = x[3] * c - v_bar * s - xbd_dot
     e2_dot = x[3] * s + v_bar * c - ybd_dot
     return e1, e2, h2, chi, th, e1_dot, e2_dot

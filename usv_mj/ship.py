@@ -31,7 +31,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, vectorize
 
 # --- packed parameter layout --------------------------------------------------------------------
 P_M11, P_M22, P_M23, P_M33 = 0, 1, 2, 3
@@ -92,8 +92,8 @@ class ShipParams:
 
     @property
     def eps(self) -> float:
-        """Do & Pan's offset of the controlled point, eps = m23/m22 [m]."""
-        return self.m23 / self.m22
+        """Do & Pan's offset of the controlled point, eps = m23/m22 [m] (:func:`do_pan_offset`)."""
+        return do_pan_offset(self.m22, self.m23)
 
     def as_array(self) -> np.ndarray:
         """Pack into the float64 vector that the kernels of this module take."""
@@ -189,6 +189,23 @@ class PaperDisturbance:
 
 
 @njit(cache=True)
+def do_pan_offset(m22, m23):
+    """Do & Pan's offset of the controlled point ahead of the origin, eps = m23/m22 [m] (docs/model.md §1).
+
+    The one definition: :attr:`ShipParams.eps`, the controllers' kernels (``eps`` from the nominal
+    model's packed vector) and the planner all take it from here."""
+    return m23 / m22
+
+
+@njit(cache=True)
+def coriolis_terms(p, nu):
+    """c13 = -m22 v - m23 r and c23 = m11 u of C(nu) = C_RB + C_A (docs/model.md §1; c13 uses m22, not m11).
+
+    C is skew-symmetric with only these two free entries: c31 = -c13, c32 = -c23."""
+    return -p[P_M22] * nu[1] - p[P_M23] * nu[2], p[P_M11] * nu[0]
+
+
+@njit(cache=True)
 def damping_coefficients(p, nu):
     """d11, d22, d23, d32, d33 at the body velocity nu (docs/model.md §1 table)."""
     au, av, ar = abs(nu[0]), abs(nu[1]), abs(nu[2])
@@ -214,10 +231,8 @@ def mass_matrix(p):
 
 @njit(cache=True)
 def coriolis_matrix(p, nu):
-    """Total Coriolis-centripetal matrix C(nu) = C_RB + C_A (docs/model.md §1; c13 uses m22, not m11)."""
-    u, v, r = nu[0], nu[1], nu[2]
-    c13 = -p[P_M22] * v - p[P_M23] * r
-    c23 = p[P_M11] * u
+    """Total Coriolis-centripetal matrix C(nu) = C_RB + C_A (docs/model.md §1) from :func:`coriolis_terms`."""
+    c13, c23 = coriolis_terms(p, nu)
     out = np.zeros((3, 3))
     out[0, 2] = c13
     out[1, 2] = c23
@@ -265,8 +280,7 @@ def coriolis_damping_force(p, nu):
     """C(nu) nu + D(nu) nu in the body frame, written out (no matrix products) for speed."""
     u, v, r = nu[0], nu[1], nu[2]
     d11, d22, d23, d32, d33 = damping_coefficients(p, nu)
-    c13 = -p[P_M22] * v - p[P_M23] * r
-    c23 = p[P_M11] * u
+    c13, c23 = coriolis_terms(p, nu)
     out = np.empty(3)
     out[0] = c13 * r + d11 * u
     out[1] = c23 * r + d22 * v + d23 * r
@@ -275,12 +289,22 @@ def coriolis_damping_force(p, nu):
 
 
 @njit(cache=True)
-def hydrodynamic_force(p, dp, t, eta, nu):
-    """Everything on the hull but the thrust: d(t) + Delta - C(nu) nu - D(nu) nu (Eq. 2), body frame."""
-    cd = coriolis_damping_force(p, nu)
+def hull_force(p, dp, t, eta, nu, nu_r):
+    """d(t) + Delta(eta, nu) - C(nu_r) nu_r - D(nu_r) nu_r, body frame [N, N, N m].
+
+    The one force of the hull: ``nu_r`` is the velocity relative to the water (docs/sea.md §1: it enters
+    the whole C and all damping), ``nu`` the absolute one (Delta). In calm water nu_r = nu
+    (:func:`hydrodynamic_force`); :func:`usv_mj.sea.sea_force` adds the sea's loads to it."""
+    cd = coriolis_damping_force(p, nu_r)
     dist = disturbance_force(dp, t)
     unc = uncertainty_force(p, eta, nu)
     return dist + unc - cd
+
+
+@njit(cache=True)
+def hydrodynamic_force(p, dp, t, eta, nu):
+    """Everything on the hull but the thrust: d(t) + Delta - C(nu) nu - D(nu) nu (Eq. 2), body frame."""
+    return hull_force(p, dp, t, eta, nu, nu)
 
 
 @njit(cache=True)
@@ -295,12 +319,17 @@ def solve_mass(p, f):
 
 
 @njit(cache=True)
-def body_acceleration(p, dp, t, eta, nu, tau_u, tau_r):
-    """nu_dot = M^-1 ([tau_u, 0, tau_r] + d(t) + Delta - C nu - D nu) (Eq. 2)."""
-    f = hydrodynamic_force(p, dp, t, eta, nu)
+def thrust_acceleration(p, f, tau_u, tau_r):
+    """nu_dot = M^-1 (f + [tau_u, 0, tau_r]) for the non-thrust force f (overwritten) [m/s^2, rad/s^2]."""
     f[0] += tau_u
     f[2] += tau_r
     return solve_mass(p, f)
+
+
+@njit(cache=True)
+def body_acceleration(p, dp, t, eta, nu, tau_u, tau_r):
+    """nu_dot = M^-1 ([tau_u, 0, tau_r] + d(t) + Delta - C nu - D nu) (Eq. 2)."""
+    return thrust_acceleration(p, hydrodynamic_force(p, dp, t, eta, nu), tau_u, tau_r)
 
 
 @njit(cache=True)
@@ -315,42 +344,34 @@ def kinematics(eta, nu):
 
 
 @njit(cache=True)
-def state_derivative(p, dp, t, x, tau_u, tau_r):
-    """d/dt of the 6-vector x = (eta, nu) under the thrust (tau_u, tau_r)."""
+def stack_derivative(x, nu_dot):
+    """d/dt of the 6-vector x = (eta, nu): (J(psi) nu, nu_dot)."""
     out = np.empty(6)
     out[:3] = kinematics(x[:3], x[3:])
-    out[3:] = body_acceleration(p, dp, t, x[:3], x[3:], tau_u, tau_r)
+    out[3:] = nu_dot
     return out
 
 
 @njit(cache=True)
-def nominal_terms(p, nu):
-    """phi_u, phi_v, phi_r of Eq. 28: the known part of the velocity dynamics (docs/model.md §1).
-
-    phi_u = (m22 v r + m23 r^2 - d11 u)/m11, phi_v = -(m11 u r + d22 v + d23 r)/m22,
-    phi_r = [(m11 m22 - m22^2) u v + (m11 - m22) m23 u r - m22 (d33 r + d32 v)
-             + m23 (d23 r + d22 v)] / (m22 m33 - m23^2).
-    """
-    u, v, r = nu[0], nu[1], nu[2]
-    m11, m22, m23, m33 = p[P_M11], p[P_M22], p[P_M23], p[P_M33]
-    d11, d22, d23, d32, d33 = damping_coefficients(p, nu)
-    delta_m = m22 * m33 - m23 * m23
-    phi_u = (m22 * v * r + m23 * r * r - d11 * u) / m11
-    phi_v = -(m11 * u * r + d22 * v + d23 * r) / m22
-    phi_r = (
-        (m11 * m22 - m22 * m22) * u * v
-        + (m11 - m22) * m23 * u * r
-        - m22 * (d33 * r + d32 * v)
-        + m23 * (d23 * r + d22 * v)
-    ) / delta_m
-    return phi_u, phi_v, phi_r
+def state_derivative(p, dp, t, x, tau_u, tau_r):
+    """d/dt of the 6-vector x = (eta, nu) under the thrust (tau_u, tau_r), calm water."""
+    return stack_derivative(x, body_acceleration(p, dp, t, x[:3], x[3:], tau_u, tau_r))
 
 
 @njit(cache=True)
-def transformed_position(p, x, y, psi):
-    """Do & Pan's point (x_bar, y_bar) = (x + eps cos psi, y + eps sin psi), eps = m23/m22 [m]."""
-    eps = p[P_M23] / p[P_M22]
-    return x + eps * math.cos(psi), y + eps * math.sin(psi)
+def nominal_terms(p, nu):
+    """phi_u, phi_v, phi_r of Eq. 28: the known part of the velocity dynamics (docs/model.md §1), in Do &
+    Pan's coordinates (u, v_bar = v + eps r, r), from the one C and D:
+
+    with f = -C(nu) nu - D(nu) nu and a = M^-1 f (no thrust, d or Delta),
+    phi_u = a_u = f_u/m11, phi_v = a_v + eps a_r = f_v/m22 (row 2 of M over m22), phi_r = a_r.
+    Written out these are the printed phi_u = (m22 v r + m23 r^2 - d11 u)/m11,
+    phi_v = -(m11 u r + d22 v + d23 r)/m22 and phi_r = [(m11 m22 - m22^2) u v + (m11 - m22) m23 u r
+    - m22 (d33 r + d32 v) + m23 (d23 r + d22 v)] / (m22 m33 - m23^2).
+    """
+    f = -coriolis_damping_force(p, nu)
+    a = solve_mass(p, f)
+    return a[0], f[1] / p[P_M22], a[2]
 
 
 def kinetic_energy(ship: ShipParams, nu) -> float:
@@ -359,7 +380,11 @@ def kinetic_energy(ship: ShipParams, nu) -> float:
     return 0.5 * float(nu @ ship.mass_matrix() @ nu)
 
 
+@vectorize(["float64(float64)"], cache=True)
 def wrap_angle(a):
-    """Wrap an angle (or array of angles) to [-pi, pi)."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+    """Wrap an angle (or array of angles) to [-pi, pi): the one angle wrap of usv_mj.
+
+    A numba ufunc: takes scalars, lists and arrays from Python and is callable from ``njit`` kernels
+    (the controllers' e3, the planner, the reference)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
 

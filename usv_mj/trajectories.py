@@ -19,6 +19,7 @@ from numba import njit
 
 from usv_mj.controllers.base import REF_FIELDS
 from usv_mj.registry import TRAJECTORIES
+from usv_mj.ship import wrap_angle
 
 
 class Reference:
@@ -199,7 +200,7 @@ class WaypointReference(Reference):
             end = pts[i + 1].copy()
             h = headings[i]
             if i + 1 < len(headings):
-                turn = (headings[i + 1] - h + math.pi) % (2 * math.pi) - math.pi
+                turn = float(wrap_angle(headings[i + 1] - h))
                 d = turn_radius * math.tan(abs(turn) / 2)
                 leg_in = np.linalg.norm(pts[i + 1] - cursor)
                 leg_out = np.linalg.norm(pts[i + 2] - pts[i + 1]) / 2

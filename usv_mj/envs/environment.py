@@ -171,7 +171,7 @@ def episode_record(env, steps, metadata=None):
     rho1 = rho2 = rho_xy(t), rho3 = rho_psi(t) and z_i = e_i / rho_i; the controller's own adaptive
     states are not known here (NaN).
     """
-    from usv_mj.controllers.tracking_errors import wrap
+    from usv_mj.ship import wrap_angle as wrap
     from usv_mj.record import COLUMNS, RunRecord
 
     n = len(steps)

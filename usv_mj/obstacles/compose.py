@@ -3,7 +3,8 @@
 :func:`compose_scene` parses ``models/scene.xml`` (which includes ``models/usv.xml``) with
 ``dm_control.mjcf`` and adds, in Python and never by pasting XML text,
 
-- collision geoms on the body "hull" that follow its shape (:data:`HULL_COLLISION_GEOMS`): the box
+- collision geoms on the body "hull" that follow its shape (:data:`HULL_COLLISION_GEOMS`, read from
+  ``usv.xml`` by :func:`hull_collision_geoms`, never restated): the box
   of the midship/stern section and the ellipsoid of the bow of ``usv.xml``'s visual hull, slightly
   taller; they have no mass (the plant sets the inertia from :mod:`usv_mj.ship`);
 - one geom per obstacle: a vertical cylinder ("circle") or box ("box") from z = -1 m to
@@ -49,12 +50,29 @@ from usv_mj.obstacle_tables import OBSTACLE_COLORS, OBSTACLE_HALF_HEIGHT, Obstac
 
 SCENE_PATH = os.path.join(MODELS_DIR, "scene.xml")
 
-# (name, type, size (MuJoCo half-sizes), pos) in the hull's body frame; follows usv.xml's visual
-# geoms "hull_mid" (box 0.70 x 0.38 at x = -0.28) and "hull_bow" (ellipsoid 0.58 x 0.38 at x = 0.42)
-HULL_COLLISION_GEOMS = (
-    ("hull_collision_mid", "box", (0.70, 0.38, 0.15), (-0.28, 0.0, 0.03)),
-    ("hull_collision_bow", "ellipsoid", (0.58, 0.38, 0.15), (0.42, 0.0, 0.03)),
-)
+HULL_PATH = os.path.join(MODELS_DIR, "usv.xml")
+
+# the collision geoms copy these visual geoms of usv.xml (the one source of the hull's shape): same
+# type, water-plane half-sizes and position; only the half-height is raised to COLLISION_HALF_HEIGHT
+HULL_SHAPE_GEOMS = (("hull_collision_mid", "hull_mid"), ("hull_collision_bow", "hull_bow"))
+COLLISION_HALF_HEIGHT = 0.15  # m: slightly taller than the visual hull (0.13 m)
+
+
+def hull_collision_geoms(model_path: str = HULL_PATH) -> tuple:
+    """(name, type, size (MuJoCo half-sizes), pos) in the hull's body frame for each collision geom,
+    read from the visual geoms "hull_mid" (box) and "hull_bow" (ellipsoid) of the model file."""
+    root = mjcf.from_path(model_path)
+    out = []
+    for name, visual in HULL_SHAPE_GEOMS:
+        g = root.find("geom", visual)
+        if g is None:
+            raise ValueError(f"hull_collision_geoms: no geom {visual!r} in {model_path}")
+        size = tuple(float(v) for v in g.size)
+        out.append((name, g.type, (size[0], size[1], COLLISION_HALF_HEIGHT), tuple(float(v) for v in g.pos)))
+    return tuple(out)
+
+
+HULL_COLLISION_GEOMS = hull_collision_geoms()
 
 HULL_CONTYPE, HULL_CONAFFINITY = 1, 2
 OBSTACLE_CONTYPE, OBSTACLE_CONAFFINITY = 2, 1

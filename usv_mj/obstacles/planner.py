@@ -61,6 +61,7 @@ import shapely
 from usv_mj.controllers.performance_funnel import PerformanceFunnel
 from usv_mj.record import Event
 from usv_mj.scenario import ScenarioError
+from usv_mj.ship import wrap_angle
 from usv_mj.trajectories import Reference
 
 from .compose import HULL_RADIUS
@@ -218,7 +219,7 @@ def smooth_polyline(points, psi0: float, kappa_max: float, dkappa_max: float, lo
             break
         target = point_at(s_proj + lookahead)
         alpha = math.atan2(target[1] - y, target[0] - x) - psi
-        alpha = (alpha + math.pi) % (2 * math.pi) - math.pi
+        alpha = float(wrap_angle(alpha))
         dist_t = math.hypot(target[0] - x, target[1] - y)
         k_cmd = 2.0 * math.sin(alpha) / max(dist_t, 1e-6)
         k_cmd = min(max(k_cmd, -kappa_max), kappa_max)
@@ -354,11 +355,6 @@ class GuidedReference(Reference):
 
     def switch_path(self, t: float, path: PathTable) -> None:
         self.segments = self.segments_with(t, path)
-
-    def yaw_rate_bounds(self, times) -> tuple[float, float]:
-        """max |r_d| [rad/s] and max |r_d_dot| [rad/s^2] over ``times`` (finite differences)."""
-        r = np.array([self.pose(float(t))[3] for t in times])
-        return float(np.max(np.abs(r))), float(np.max(np.abs(np.diff(r) / np.diff(times))))
 
 
 # --- static planning ----------------------------------------------------------------------------

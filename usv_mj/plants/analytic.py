@@ -2,30 +2,24 @@
 
 The thrust is held over each control period (zero-order hold); ``substeps`` RK4 steps of
 control_period/substeps each advance one period, with d(t) evaluated at the stage times.
+
+The RK4 step is :func:`usv_mj.sea.sea_rk4_advance`, the package's only one; calm water is its case
+with the sea's terms off (:func:`rk4_advance`, bit-identical to RK4 of usv_mj.ship.state_derivative).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from usv_mj.registry import PLANTS
-from usv_mj.ship import PaperDisturbance, ShipParams, state_derivative
+from usv_mj.sea.dynamics import calm_rk4_advance, sea_rk4_advance
+from usv_mj.ship import PaperDisturbance, ShipParams
 
 from .base import PlantBase
 
-
-@njit(cache=True)
-def rk4_advance(p, dp, t, x, tau_u, tau_r, h, n):
-    """``n`` classic RK4 steps of size ``h`` from (t, x) under constant thrust; returns the new x."""
-    for _ in range(n):
-        k1 = state_derivative(p, dp, t, x, tau_u, tau_r)
-        k2 = state_derivative(p, dp, t + 0.5 * h, x + 0.5 * h * k1, tau_u, tau_r)
-        k3 = state_derivative(p, dp, t + 0.5 * h, x + 0.5 * h * k2, tau_u, tau_r)
-        k4 = state_derivative(p, dp, t + h, x + h * k3, tau_u, tau_r)
-        x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        t = t + h
-    return x
+#: ``rk4_advance(p, dp, t, x, tau_u, tau_r, h, n)``: ``n`` classic RK4 steps of size ``h`` from
+#: (t, x) under constant thrust in calm water; returns the new x.
+rk4_advance = calm_rk4_advance
 
 
 @PLANTS.register("analytic")
@@ -74,8 +68,6 @@ class AnalyticPlant(PlantBase):
             self._x = rk4_advance(self._p, self._dp, self._t, self._x, float(tau_u), float(tau_r), self._h,
                                   self.substeps)
         else:
-            from usv_mj.sea import sea_rk4_advance
-
             self.environment.ensure_horizon(self._t + 2 * self.control_period)
             self._x = sea_rk4_advance(self._p, self._dp, *self.environment.packed, self._t, self._x,
                                       float(tau_u), float(tau_r), self._h, self.substeps)

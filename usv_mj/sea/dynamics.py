@@ -6,8 +6,12 @@
 
 nu_r enters the whole C (rigid body and added mass) and all damping; Delta (the paper's model
 uncertainty, Sec. 4), d(t), kinematics and wind use absolute nu. With a calm environment every output
-is bit-identical to :func:`usv_mj.ship.state_derivative` (the same operations in the same order, plus
-exact zeros).
+is bit-identical to :func:`usv_mj.ship.state_derivative`: calm is this same code with the sea's terms
+absent (:func:`sea_force` is then :func:`usv_mj.ship.hydrodynamic_force`).
+
+Written once: the hull's force is :func:`usv_mj.ship.hull_force` (with nu_r), the M^-1 solve and the
+eta_dot assembly are usv_mj.ship's, and :func:`sea_rk4_advance` is the only RK4 loop of the package
+(:func:`usv_mj.plants.analytic.rk4_advance` is its calm case, :func:`calm_rk4_advance`).
 
 Kernel arguments: ``p`` (ShipParams.as_array()), ``dp`` (PaperDisturbance.as_array()), then the four
 arrays of ``Environment.packed`` (``ep, waves, current_grid, wind_grid``; :mod:`usv_mj.sea.layout`).
@@ -18,12 +22,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from usv_mj.ship import (P_M11, P_M22, P_M23, P_M33, coriolis_damping_force, disturbance_force,
-                         hydrodynamic_force, kinematics, solve_mass, uncertainty_force)
+from usv_mj.ship import (P_M11, P_M22, P_M23, P_M33, hull_force, hydrodynamic_force, stack_derivative,
+                         state_derivative, thrust_acceleration)
 
 from .environment import environment_loads
 from .layout import (E_CURRENT_ON, E_WAVES_ON, E_WIND_ON, L_DRIFT, L_NU_C, L_NU_C_DOT, L_WAVE1,
-                     L_WIND)
+                     L_WIND, N_ENV_PARAMS, N_WAVE_COLS)
+
+
+@njit(cache=True)
+def is_calm(ep):
+    """True when the packed environment ``ep`` has no waves, current or wind (the sea's terms absent)."""
+    return ep[E_WAVES_ON] == 0.0 and ep[E_CURRENT_ON] == 0.0 and ep[E_WIND_ON] == 0.0
 
 
 @njit(cache=True)
@@ -35,16 +45,13 @@ def sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
     For the MuJoCo callback (docs/sea.md §6): f_callback = -M_A nu_dot + f + C_RB(nu) nu.
     In a calm environment this is usv_mj.ship.hydrodynamic_force itself.
     """
-    if ep[E_WAVES_ON] == 0.0 and ep[E_CURRENT_ON] == 0.0 and ep[E_WIND_ON] == 0.0:
+    if is_calm(ep):
         return hydrodynamic_force(p, dp, t, eta, nu)
     env = environment_loads(ep, waves, current_grid, wind_grid, t, eta, nu)
     nu_r = np.empty(3)
     for i in range(3):
         nu_r[i] = nu[i] - env[L_NU_C + i]
-    dist = disturbance_force(dp, t)
-    unc = uncertainty_force(p, eta, nu)
-    cd = coriolis_damping_force(p, nu_r)
-    f = dist + unc - cd  # the order of usv_mj.ship.hydrodynamic_force
+    f = hull_force(p, dp, t, eta, nu, nu_r)
     a0 = env[L_NU_C_DOT]
     a1 = env[L_NU_C_DOT + 1]
     a2 = env[L_NU_C_DOT + 2]
@@ -57,25 +64,22 @@ def sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
 @njit(cache=True)
 def sea_body_acceleration(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu, tau_u, tau_r):
     """nu_dot = M^-1 (sea_force + [tau_u, 0, tau_r]) [m/s^2, m/s^2, rad/s^2]."""
-    f = sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu)
-    f[0] += tau_u
-    f[2] += tau_r
-    return solve_mass(p, f)
+    return thrust_acceleration(p, sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu), tau_u, tau_r)
 
 
 @njit(cache=True)
 def sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r):
     """d/dt of x = (x, y, psi, u, v, r) with the sea; calm: equal to usv_mj.ship.state_derivative."""
-    out = np.empty(6)
-    out[:3] = kinematics(x[:3], x[3:])
-    out[3:] = sea_body_acceleration(p, dp, ep, waves, current_grid, wind_grid, t, x[:3], x[3:], tau_u, tau_r)
-    return out
+    if is_calm(ep):
+        return state_derivative(p, dp, t, x, tau_u, tau_r)  # calm: the sea's terms absent
+    return stack_derivative(x, sea_body_acceleration(p, dp, ep, waves, current_grid, wind_grid, t, x[:3], x[3:],
+                                                     tau_u, tau_r))
 
 
 @njit(cache=True)
 def sea_rk4_advance(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r, h, n):
     """``n`` classic RK4 steps of size ``h`` from (t, x) under constant thrust, the sea evaluated at
-    the stage times (the pattern of usv_mj.plants.analytic.rk4_advance); returns the new x."""
+    the stage times; returns the new x. The one RK4 step: calm water is :func:`calm_rk4_advance`."""
     for _ in range(n):
         k1 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r)
         k2 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t + 0.5 * h, x + 0.5 * h * k1,
@@ -86,6 +90,14 @@ def sea_rk4_advance(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_
         x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         t = t + h
     return x
+
+
+@njit(cache=True)
+def calm_rk4_advance(p, dp, t, x, tau_u, tau_r, h, n):
+    """:func:`sea_rk4_advance` in calm water (no waves, current or wind: every switch of ``ep`` off),
+    i.e. RK4 of :func:`usv_mj.ship.state_derivative`, bit for bit."""
+    return sea_rk4_advance(p, dp, np.zeros(N_ENV_PARAMS), np.zeros((N_WAVE_COLS, 0)), np.zeros((0, 2)),
+                           np.zeros((0, 1)), t, x, tau_u, tau_r, h, n)
 
 
 @njit(cache=True)

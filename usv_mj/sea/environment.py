@@ -219,8 +219,9 @@ class Environment:
     @property
     def calm(self) -> bool:
         """True when no load is on (the dynamics then equal usv_mj.ship's bit for bit)."""
-        ep = self._ep
-        return ep[lay.E_WAVES_ON] == 0 and ep[lay.E_CURRENT_ON] == 0 and ep[lay.E_WIND_ON] == 0
+        from .dynamics import is_calm  # the kernels' own test (dynamics imports this module)
+
+        return bool(is_calm(self._ep))
 
     @property
     def amplitude_bound(self) -> float:

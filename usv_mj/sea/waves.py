@@ -229,23 +229,6 @@ def spherical_j01_from(u, s, c):
     return (j0s if small else j0d), (j1s if small else j1d)
 
 
-@njit(cache=True)
-def spherical_j01(u):
-    """j0(u), j1(u) (libm; the series for |u| < 0.1)."""
-    return spherical_j01_from(u, math.sin(u), math.cos(u))
-
-
-@njit(cache=True)
-def wave_elevation_sum(waves, t, x, y):
-    """sum_j a_j cos(theta_j) at one point [m] (no ramp)."""
-    z = 0.0
-    for j in range(waves.shape[1]):
-        theta = (waves[W_W, j] * t - waves[W_K, j] * (x * waves[W_COSB, j] + y * waves[W_SINB, j])
-                 + waves[W_EPS, j])
-        z += waves[W_A, j] * math.cos(theta)
-    return z
-
-
 @njit(cache=True, fastmath=False)
 def _sincos_array(x, s_out, c_out):
     """s_out[i], c_out[i] = sin x[i], cos x[i] (a flat loop that LLVM vectorises)."""
