@@ -28,7 +28,7 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
         lines.append(f"The run completed {summary['simulated_s']:.1f} s of simulated time "
                      f"in {summary['wall_time_s']:.1f} s ({summary['realtime_factor']:.0f} times real time).")
     else:
-        lines.append(f"**The run stopped early ({status}) at t = {summary['simulated_s']:.3f} s:** "
+        lines.append(f"**The run stopped early ({status}) after {summary['simulated_s']:.3f} s of simulated time:** "
                      f"{summary['stop_reason']}")
     lines.append("")
     viol = summary["funnel_violations"]

@@ -152,9 +152,11 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
                 break
         if record.status == "running":
             record.status = "completed"
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # Ctrl-C, or a signal the caller raises as one (str: its name)
+        who = str(exc)
+        who = "the user (Ctrl-C)" if who in ("", "Ctrl-C") else who
         record.status = "interrupted"
-        record.stop_reason = f"interrupted by the user (Ctrl-C) at t = {k * dt:.3f} s"
+        record.stop_reason = f"interrupted by {who} at t = {k * dt:.3f} s"
         record.events.append(Event(k * dt, "interrupted", record.stop_reason))
     except Exception as exc:  # recorded, then re-raised after the sinks are finished
         record.status = "failed"
