@@ -19,7 +19,7 @@ from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
-from .build import Parts, build, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
+from .build import Parts, build, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from .record import COL, SL_REF, SL_STATE, Event, RunRecord
 from .scenario import Scenario
 from .trajectories import make_reference as _make_reference
@@ -78,6 +78,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
     dt = scenario.control_period
     n = int(round(duration / dt))
     quant_u, quant_r = parts.quantizers
+    actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario)
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
     record = RunRecord(n + 1, metadata={
@@ -92,6 +93,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
     controller.reset()
     quant_u.reset()
     quant_r.reset()
+    actuators.reset()
     data = record.data
     sl_diag = slice(len(COL), len(COL) + len(fields))
     c_t = COL["t"]
@@ -116,7 +118,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
                 break
             q_u = quant_u.step(tau_u)
             q_r = quant_r.step(tau_r)
-            f_u, f_r = q_u, q_r
+            f_u, f_r, s_u, s_r = actuators.apply(q_u, q_r)
             row = data[k]
             row[c_t] = t
             row[SL_STATE] = x
@@ -130,8 +132,8 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
             row[c_k_r] = quant_r.k
             row[c_f_u] = f_u
             row[c_f_r] = f_r
-            row[c_s_u] = 0.0
-            row[c_s_r] = 0.0
+            row[c_s_u] = s_u
+            row[c_s_r] = s_r
             k += 1
             record.n_rows = k
             if k - flushed >= block:
