@@ -227,7 +227,8 @@ def _finish(record, sinks, flushed, progress, wall0, quant_u, quant_r):
 
 def detect_events(record: RunRecord, lo: int, hi: int) -> list[Event]:
     """Episodes that start in rows [lo, hi) (vectorised): funnel violations and recoveries when the
-    controller declared the funnel block, and the episodes of its declared 0/1 event fields (the
+    controller declared the funnel block, actuator saturation per channel (start and end, from
+    sat_u / sat_r: "actuator_saturation" with values channel, state), and the episodes of its declared 0/1 event fields (the
     PPC law's s2 clamps)."""
     events = []
     data = record.data
@@ -251,6 +252,20 @@ def detect_events(record: RunRecord, lo: int, hi: int) -> list[Event]:
             for i in ends:
                 events.append(Event(float(t[i]), "funnel_recovered", f"e{axis} is back inside its funnel",
                                     {"axis": axis}))
+    for ch, what, unit in (("u", "surge force", "N"), ("r", "yaw moment", "N m")):  # the actuators' limits
+        cs = COL[f"sat_{ch}"]
+        flag = data[lo:hi, cs] > 0.5
+        prev = bool(lo > 0 and data[lo - 1, cs] > 0.5)
+        shifted = np.concatenate(([prev], flag[:-1]))
+        for i in np.flatnonzero(flag & ~shifted):
+            q, f = data[lo + i, COL[f"q_tau_{ch}"]], data[lo + i, COL[f"f_{ch}"]]
+            events.append(Event(float(t[i]), "actuator_saturation",
+                                f"the {what} command Q = {q:.4g} {unit} is cut to {f:.4g} {unit} by the actuators",
+                                {"channel": ch, "state": "start", "command": _json_number(q),
+                                 "applied": _json_number(f)}))
+        for i in np.flatnonzero(~flag & shifted):
+            events.append(Event(float(t[i]), "actuator_saturation", f"the {what} is back within the actuators' limits",
+                                {"channel": ch, "state": "end"}))
     for name, kind in record.diagnostic_events.items():
         c = col[name]
         flag = data[lo:hi, c] > 0.5
