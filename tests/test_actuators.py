@@ -222,3 +222,27 @@ def test_saturation_episodes_are_events_and_in_the_summary(limited_pair):
         assert len(ends) in (n_starts, n_starts - 1)
         assert s["saturated_fraction"][ch] == pytest.approx(flag.mean())
     assert s["actuators"]["kind"] == "twin" and "119.7" in s["actuators"]["description"]
+
+
+def test_report_says_unlimited_for_paper_and_gives_episodes_when_limited(tmp_path, limited_pair):
+    from usv_mj.report import write_report
+
+    paper = summarize(simulate(load_scenario(preset="paper", overrides={"duration": 1.0, "plant": {"kind": "analytic"}})))
+    text = write_report(tmp_path / "a.md", paper).read_text()
+    assert "**The actuators are unlimited**" in text
+    text = write_report(tmp_path / "b.md", summarize(limited_pair["analytic"])).read_text()
+    assert "Actuators: twin" in text and "| surge |" in text
+
+
+def test_video_bars_draw_the_limits():
+    from usv_mj.render.overlay import BAD, draw_hud
+
+    values = {"t": 1.0, "t_end": 10.0, "speedup": 1.0, "e": (0.1, 0.1, 0.1), "rho": (1.0, 1.0, 1.0),
+              "tau_u": 900.0, "q_tau_u": 900.0, "f_u": 239.4, "sat_u": 1.0, "tau_r": 5.0, "q_tau_r": 5.0,
+              "f_r": 5.0, "sat_r": 0.0, "tau_u_scale": 299.25, "tau_r_scale": 92.0,
+              "tau_u_limits": (-133.4, 239.4), "tau_r_limits": (-73.6, 73.6)}
+    with_limits = draw_hud(np.zeros((720, 1280, 3), np.uint8), values, legend=False)
+    without = draw_hud(np.zeros((720, 1280, 3), np.uint8), {**values, "tau_u_limits": None, "tau_r_limits": None,
+                                                            "sat_u": 0.0}, legend=False)
+    red = lambda img: int(np.sum(np.all(img == BAD, axis=-1)))  # noqa: E731
+    assert red(with_limits) > red(without)
