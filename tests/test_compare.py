@@ -112,3 +112,16 @@ def test_run_command_writes_and_rejects_bad_input(tmp_path, capsys):
         compare.run_command(parser.parse_args(["--preset", "no-such-preset"]))
     with pytest.raises(ScenarioError, match="disturbance"):
         compare.run_command(parser.parse_args(["--set", "disturbance.scale=-1"]))
+
+
+def test_compare_saturated_closed_loop_case(short_compare):
+    """issue 18: the closed loop again with saturating actuators (paper-limited's twin thrusters):
+    the plants agree at the closed-loop tolerance while the limits act, with identical saturation."""
+    _, result = short_compare
+    sat = result["closed_loop_saturated"]
+    assert result["checks"]["saturated_closed_loop_position_below_1e-3_m"]
+    assert result["checks"]["saturated_closed_loop_saturates"]
+    assert sat["max_position_m"] < compare.CLOSED_LOOP_TOLERANCE_M
+    assert sat["saturated_steps_differ"] == 0 and "twin" in sat["actuators"]
+    assert all(f["u"] > 0 for f in sat["saturated_fraction"].values())
+    assert result["open_loop"]["saturated_fraction"] == {"u": 0.0, "r": 0.0}  # paper: unlimited

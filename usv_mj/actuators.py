@@ -2,16 +2,53 @@
 
 The loop applies the channel in this order every control period: controller -> hysteresis
 quantizer (the transmitted command Q(tau)) -> actuators (the force the thrusters realize, what
-the plant receives). ``kind``:
+the plant receives, on either plant alike). ``kind``:
 
-- ``"unlimited"`` (the paper's presets: the paper has no thrust limits): the force is Q(tau);
-- ``"box"``: surge force in [-max_reverse_n, max_surge_n] [N], yaw moment in [-max_yaw_nm, max_yaw_nm] [N m];
+- ``"unlimited"`` (the paper's presets: the paper has no thrust limits): the force is Q(tau),
+  bit for bit;
+- ``"box"``: surge force in [-max_reverse_n, max_surge_n] [N], yaw moment in [-max_yaw_nm,
+  max_yaw_nm] [N m], each channel clipped on its own;
 - ``"twin"``: two fixed thrusters ``separation_m`` apart, each with its own forward and reverse
   limit; the generalized forces are allocated to them and saturated per thruster.
 
-``time_constant_s`` > 0 adds first-order thrust dynamics; ``surge_rate_n_s`` / ``yaw_rate_nm_s``
-limit how fast the realized force may change. The model is implemented in :mod:`usv_mj.actuators`
-(the same on both plants); on the MuJoCo plant the limits are also the actuators' ``ctrlrange``.
+Twin allocation (project convention: body x forward, y to port, z up, positive r turns to port).
+The port thruster T_p sits at y = +s/2, the starboard one T_s at y = -s/2, both pushing along +x;
+the moment about z of a force F_x at (x, y) is -y F_x, so::
+
+    tau_u = T_p + T_s
+    tau_r = (s/2) (T_s - T_p)          a stronger starboard thruster turns the hull to port
+    T_s = tau_u/2 + tau_r/s,  T_p = tau_u/2 - tau_r/s      (the inverse)
+
+with each T in [-thruster_reverse_n, thruster_forward_n] = [-R, F]. The reachable set is the
+parallelogram |tau_r| <= s (F + R)/2, 2(-R + |tau_r|/s) <= tau_u <= 2(F - |tau_r|/s). When a command
+lies outside it, ``priority`` says which channel wins:
+
+- ``"yaw"`` (default): tau_r is first clipped to +-s(F + R)/2, then tau_u to the surge range left at
+  that tau_r. Heading is what keeps the hull on the path and pointed against a current (the surge
+  loop of a path follower only sets the progress along it); a hull that loses yaw authority to
+  surge cannot turn back, one that loses surge slows down but keeps its course.
+- ``"surge"``: tau_u is first clipped to [-2R, 2F], then tau_r to the yaw range left at that tau_u.
+
+Dynamics, discretized exactly at the control period h (so they are the same on both plants):
+
+- ``time_constant_s`` = T > 0: first-order thrust, T f_dot = c - f, with c the saturated command
+  held over the period. With a = exp(-h/T), the thrust at the sample times is
+  f_{k+1} = c_k + (f_k - c_k) a, and the force the plant receives over [t_k, t_k + h) is its
+  average over the period, c_k + (f_k - c_k) (T/h)(1 - a): the held force then carries exactly
+  the impulse of the continuous lag (the plants hold their input over the period). f_0 = 0.
+- ``surge_rate_n_s`` / ``yaw_rate_nm_s``: the applied force changes by at most rate * h per period
+  (after the lag); on the twin hull the result is allocated again so that it stays reachable.
+
+``sat_u`` / ``sat_r`` are 1 in the periods where a limit (magnitude or rate) cut that channel's
+command, 0 otherwise (the lag alone does not set them).
+
+On the MuJoCo plant the same limits are also the motors' ``ctrlrange`` (``ctrllimited``) of
+``models/usv.xml``, set at load from :meth:`ActuatorSpec.generalized_limits` (twin: the range of
+each channel on its own; the coupling of the two channels through the thrusters is in this
+module, since the model has two generalized motors). The model applies the limits before MuJoCo
+sees the command, so MuJoCo's clamp never changes it; it shows a MuJoCo user the same vessel.
+MuJoCo's activation dynamics (``dyntype="filter"``) are not used for the lag: MuJoCo integrates
+them with its own step, not exactly at the control period, and the two plants would differ.
 """
 
 from __future__ import annotations
@@ -19,7 +56,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+from numba import njit
+from numba.extending import register_jitable
+
 ACTUATOR_KINDS = ("unlimited", "box", "twin")
+PRIORITIES = ("yaw", "surge")
 
 
 @dataclass(frozen=True)
@@ -38,6 +80,9 @@ class ActuatorSpec:
     time_constant_s: first-order thrust lag [s] (0: none).
     surge_rate_n_s: largest rate of change of the surge force [N/s] (inf: none).
     yaw_rate_nm_s: largest rate of change of the yaw moment [N m/s] (inf: none).
+    priority: twin: which channel wins when both cannot be met, "yaw" (default) or "surge".
+
+    In a scenario file a limit that is not given is none (TOML has no inf).
     """
 
     kind: str = "unlimited"
@@ -50,6 +95,7 @@ class ActuatorSpec:
     time_constant_s: float = 0.0
     surge_rate_n_s: float = math.inf
     yaw_rate_nm_s: float = math.inf
+    priority: str = "yaw"
 
     def __post_init__(self) -> None:
         if self.kind not in ACTUATOR_KINDS:
@@ -62,12 +108,33 @@ class ActuatorSpec:
         if not (isinstance(self.time_constant_s, (int, float)) and math.isfinite(self.time_constant_s)
                 and self.time_constant_s >= 0):
             raise ValueError(f"time_constant_s must be >= 0 s, got {self.time_constant_s!r}")
+        if self.priority not in PRIORITIES:
+            raise ValueError(f"priority must be one of {', '.join(PRIORITIES)}, got {self.priority!r}")
+        if self.kind == "twin" and not (math.isfinite(self.thruster_forward_n)
+                                        and math.isfinite(self.thruster_reverse_n)
+                                        and math.isfinite(self.separation_m)):
+            raise ValueError("kind = 'twin' needs finite thruster_forward_n, thruster_reverse_n and separation_m")
 
     @property
     def unlimited(self) -> bool:
         """True when nothing limits or delays the force (the paper's reading)."""
         return (self.kind == "unlimited" and self.time_constant_s == 0.0
                 and math.isinf(self.surge_rate_n_s) and math.isinf(self.yaw_rate_nm_s))
+
+    def describe(self) -> str:
+        """One line for reports: the kind and its limits."""
+        if self.unlimited:
+            return "unlimited (the paper's reading: the plant receives the quantized command Q(tau))"
+        lo_u, hi_u, lo_r, hi_r = self.generalized_limits()
+        parts = [f"{self.kind}: surge [{lo_u:g}, {hi_u:g}] N, yaw [{lo_r:g}, {hi_r:g}] N m"]
+        if self.kind == "twin":
+            parts.append(f"two thrusters {self.separation_m:g} m apart, each [-{self.thruster_reverse_n:g}, "
+                         f"{self.thruster_forward_n:g}] N, {self.priority} priority")
+        if self.time_constant_s > 0:
+            parts.append(f"thrust lag T = {self.time_constant_s:g} s")
+        if math.isfinite(self.surge_rate_n_s) or math.isfinite(self.yaw_rate_nm_s):
+            parts.append(f"rate limits {self.surge_rate_n_s:g} N/s, {self.yaw_rate_nm_s:g} N m/s")
+        return "; ".join(parts)
 
     def generalized_limits(self) -> tuple[float, float, float, float]:
         """(tau_u_min, tau_u_max, tau_r_min, tau_r_max) [N, N, N m, N m] the actuators can realize
@@ -78,3 +145,123 @@ class ActuatorSpec:
             f, r, half = self.thruster_forward_n, self.thruster_reverse_n, self.separation_m / 2
             return -2 * r, 2 * f, -half * (f + r), half * (f + r)
         return -math.inf, math.inf, -math.inf, math.inf
+
+
+# --- the model ------------------------------------------------------------------------------------
+# Plain float arithmetic on a parameter vector and a state vector: the kernel compiles with numba
+# unchanged (register_jitable: plain Python here, inlined into a numba.njit loop when it is compiled).
+
+K_UNLIMITED, K_BOX, K_TWIN = 0, 1, 2
+# parameter vector
+A_KIND, A_LO_U, A_HI_U, A_LO_R, A_HI_R, A_SEP, A_FWD, A_REV, A_YAW_FIRST, A_LAG_A, A_LAG_B, A_DU, A_DR = range(13)
+N_ACT_PARAMS = 13
+# state vector: lag thrust at the sample time (u, r), last applied force (u, r)
+S_LAG_U, S_LAG_R, S_F_U, S_F_R = range(4)
+N_ACT_STATE = 4
+
+
+@register_jitable
+def _clip(x, lo, hi):
+    return lo if x < lo else (hi if x > hi else x)
+
+
+@register_jitable
+def saturate(p, q_u, q_r):
+    """(c_u, c_r): the reachable generalized force nearest the command by the kind's rule."""
+    kind = p[A_KIND]
+    if kind == K_BOX:
+        return _clip(q_u, p[A_LO_U], p[A_HI_U]), _clip(q_r, p[A_LO_R], p[A_HI_R])
+    if kind == K_TWIN:
+        s, fwd, rev = p[A_SEP], p[A_FWD], p[A_REV]
+        if p[A_YAW_FIRST] > 0.5:
+            c_r = _clip(q_r, p[A_LO_R], p[A_HI_R])
+            a = abs(c_r) / s
+            c_u = _clip(q_u, 2.0 * (a - rev), 2.0 * (fwd - a))
+        else:
+            c_u = _clip(q_u, p[A_LO_U], p[A_HI_U])
+            m = s * min(fwd - 0.5 * c_u, 0.5 * c_u + rev)
+            c_r = _clip(q_r, -m, m)
+        return c_u, c_r
+    return q_u, q_r
+
+
+@register_jitable
+def actuator_step(p, state, q_u, q_r):
+    """One control period: (f_u, f_r, sat_u, sat_r) from the quantized command (q_u, q_r); updates
+    ``state`` (module docstring for the equations)."""
+    c_u, c_r = saturate(p, q_u, q_r)
+    sat_u = 1.0 if c_u != q_u else 0.0
+    sat_r = 1.0 if c_r != q_r else 0.0
+    a, b = p[A_LAG_A], p[A_LAG_B]
+    if a > 0.0:  # exact first-order lag: held force = the period's average
+        lu, lr = state[S_LAG_U], state[S_LAG_R]
+        f_u = c_u + (lu - c_u) * b
+        f_r = c_r + (lr - c_r) * b
+        state[S_LAG_U] = c_u + (lu - c_u) * a
+        state[S_LAG_R] = c_r + (lr - c_r) * a
+    else:
+        f_u, f_r = c_u, c_r
+    du, dr = p[A_DU], p[A_DR]
+    if du < math.inf or dr < math.inf:
+        pu, pr = state[S_F_U], state[S_F_R]
+        g_u = _clip(f_u, pu - du, pu + du)
+        g_r = _clip(f_r, pr - dr, pr + dr)
+        if g_u != f_u:
+            sat_u = 1.0
+        if g_r != f_r:
+            sat_r = 1.0
+        f_u, f_r = saturate(p, g_u, g_r) if p[A_KIND] == K_TWIN else (g_u, g_r)
+    state[S_F_U] = f_u
+    state[S_F_R] = f_r
+    return f_u, f_r, sat_u, sat_r
+
+
+@njit(cache=True)
+def _actuator_step_compiled(p, state, q_u, q_r):
+    return actuator_step(p, state, q_u, q_r)
+
+
+def pack(spec: ActuatorSpec, control_period: float) -> np.ndarray:
+    """The parameter vector of :func:`actuator_step` for ``spec`` at the control period h [s]."""
+    h = float(control_period)
+    if not (math.isfinite(h) and h > 0):
+        raise ValueError(f"control_period must be > 0 s, got {control_period!r}")
+    p = np.zeros(N_ACT_PARAMS)
+    p[A_KIND] = {"unlimited": K_UNLIMITED, "box": K_BOX, "twin": K_TWIN}[spec.kind]
+    p[A_LO_U], p[A_HI_U], p[A_LO_R], p[A_HI_R] = spec.generalized_limits()
+    p[A_SEP], p[A_FWD], p[A_REV] = spec.separation_m, spec.thruster_forward_n, spec.thruster_reverse_n
+    p[A_YAW_FIRST] = 1.0 if spec.priority == "yaw" else 0.0
+    if spec.time_constant_s > 0:
+        x = h / spec.time_constant_s
+        p[A_LAG_A] = math.exp(-x)
+        p[A_LAG_B] = -math.expm1(-x) / x  # (T/h)(1 - exp(-h/T)), accurate for small h/T
+    p[A_DU] = spec.surge_rate_n_s * h
+    p[A_DR] = spec.yaw_rate_nm_s * h
+    return p
+
+
+class Actuators:
+    """The actuator model of ``spec`` at ``control_period`` h [s]: :meth:`reset`, then
+    :meth:`apply` once per control period (module docstring)."""
+
+    def __init__(self, spec: ActuatorSpec = ActuatorSpec(), control_period: float = 1e-3):
+        self.spec = spec
+        self.control_period = float(control_period)
+        self.params = pack(spec, control_period)
+        self.state = np.zeros(N_ACT_STATE)
+        self.unlimited = spec.unlimited
+        self.limits = spec.generalized_limits()
+
+    @classmethod
+    def from_scenario(cls, scenario) -> "Actuators":
+        return cls(scenario.actuators, scenario.control_period)
+
+    def reset(self) -> None:
+        """Zero thrust, no history."""
+        self.state[:] = 0.0
+
+    def apply(self, q_u: float, q_r: float) -> tuple[float, float, float, float]:
+        """(f_u [N], f_r [N m], sat_u, sat_r) realized over the coming period from the command."""
+        if self.unlimited:
+            return q_u, q_r, 0.0, 0.0
+        return _actuator_step_compiled(self.params, self.state, float(q_u), float(q_r))

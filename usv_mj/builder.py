@@ -15,7 +15,9 @@
   (``[controller]``, or ``[baseline]`` for the baseline's kind);
 - the **reference**, by ``[trajectory] kind`` from :data:`usv_mj.registry.TRAJECTORIES`, or
   planned around the obstacles when ``[guidance] avoid``;
-- the **quantizers** (the actuator channel, one per input);
+- the **quantizers** (the actuator channel, one per input) and the **actuators**
+  (:class:`usv_mj.actuators.Actuators` from ``[actuators]``: what the thrusters realize of the
+  quantized command, the same on both plants);
 - the **hooks** the loop calls before every step (clearance, contacts, online guidance) and the
   **sinks** that collect their results (the obstacle log);
 - the **statics** the outputs need and must not rebuild: the sea the plant saw, the obstacles, the
@@ -74,6 +76,7 @@ class Parts:
     controller: Any
     reference: Any
     quantizers: tuple
+    actuators: Any = None
     hooks: tuple = ()
     sinks: tuple = ()
     statics: Statics = field(default_factory=Statics)
@@ -145,6 +148,13 @@ def make_quantizers(scenario: Scenario):
             HysteresisQuantizer(QuantizerParams(q.delta_r, q.u_min_r), q.enabled))
 
 
+def make_actuators(scenario: Scenario):
+    """The actuator model of ``[actuators]`` at the scenario's control period (:mod:`usv_mj.actuators`)."""
+    from .actuators import Actuators
+
+    return Actuators.from_scenario(scenario)
+
+
 def check_start_clear(scenario: Scenario) -> None:
     """ScenarioError if the start pose puts the hull inside an obstacle (checked before anything runs)."""
     if not scenario.obstacles:
@@ -201,8 +211,8 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
         if own_plant:
             plant.close()
         raise
-    return Parts(scenario, duration, plant, controller, reference, make_quantizers(scenario), hooks, sinks,
-                 statics, metadata, own_plant)
+    return Parts(scenario, duration, plant, controller, reference, make_quantizers(scenario),
+                 make_actuators(scenario), hooks, sinks, statics, metadata, own_plant)
 
 
 def _obstacle_parts(scenario, plant, plan, duration, statics, contact):

@@ -52,6 +52,11 @@ plants' difference up to then are reported beside the whole-run maximum; the con
 (order 4 in the plants' difference) shows that the difference is truncation, not another model.
 In calm water the check is as before (``open_loop_position_below_1e-6_m`` over the whole run).
 
+Actuators (issue 18): the open loop's inputs go through the scenario's actuator model
+(:func:`realized_inputs`; nothing changes when they are unlimited), and a **saturated closed loop**
+(:func:`compare_closed_loop_saturated`) runs the scenario again on both plants with actuators that
+saturate (its own, or those of the ``paper-limited`` preset), at the closed-loop tolerance.
+
 Outputs in ``out_dir``: ``compare.json``, ``open_loop.png``, ``closed_loop.png``,
 ``convergence.png``.
 """
@@ -125,6 +130,25 @@ def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: b
     return np.repeat(levels, g, axis=0)[:n]
 
 
+def realized_inputs(scenario: Scenario, inputs: np.ndarray, dt: float) -> tuple[np.ndarray, dict]:
+    """The forces the scenario's actuators (:mod:`usv_mj.actuators`) realize of ``inputs`` at ``dt``
+    (the same for both plants), and the fraction of steps saturated per channel. Unlimited: the
+    inputs themselves. (The convergence studies keep the raw inputs: a lag or rate limit discretized
+    at each dt would give each dt another signal.)"""
+    from .actuators import Actuators
+
+    act = Actuators(scenario.actuators, dt)
+    if act.unlimited:
+        return inputs, {"u": 0.0, "r": 0.0}
+    act.reset()
+    out = np.empty_like(inputs)
+    sat = np.zeros((len(inputs), 2))
+    for k in range(len(inputs)):
+        out[k, 0], out[k, 1], sat[k, 0], sat[k, 1] = act.apply(inputs[k, 0], inputs[k, 1])
+    frac = sat.mean(axis=0) if len(inputs) else np.zeros(2)
+    return out, {"u": float(frac[0]), "r": float(frac[1])}
+
+
 def run_open_loop(plant, inputs: np.ndarray, eta0, nu0) -> np.ndarray:
     """States after each step: row 0 is the initial state, row k+1 after input k; shape (n+1, 6)."""
     plant.reset(eta0, nu0, 0.0)
@@ -185,7 +209,7 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
     """Open-loop comparison and its convergence study; returns (result, histories for plots)."""
     dt = scenario.control_period
     eta0, nu0 = scenario.initial.eta, scenario.initial.nu
-    inputs = open_loop_inputs(scenario.duration, dt)
+    inputs, saturated = realized_inputs(scenario, open_loop_inputs(scenario.duration, dt), dt)
     env = sea_environment(scenario)
     _say(progress, f"open loop, {scenario.duration:g} s at dt = {dt * 1e3:g} ms on both plants"
          + ("" if env is None else " in the scenario's sea"))
@@ -199,7 +223,8 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
     wall["mujoco"] = time.perf_counter() - t0
     result = {"duration_s": scenario.duration, "control_period_s": dt, **state_differences(xm, xa),
               "inputs": "open_loop_inputs(seed=2024): surge -60..220 N, yaw -8..8 N m (+-3 N m square wave), "
-                        "held 0.2-3 s on a 0.2 s grid", "wall_time_s": wall}
+                        "held 0.2-3 s on a 0.2 s grid", "wall_time_s": wall,
+              "actuators": scenario.actuators.describe(), "saturated_fraction": saturated}
     if env is not None:
         _say(progress, f"open loop: the analytic plant from a start moved by {SENSITIVITY_OFFSET_M:g} m "
              "(the sea's sensitivity)")
@@ -352,6 +377,46 @@ def _funnel_check(record) -> tuple[bool, float]:
     return bool(record.status == "completed" and np.all(np.abs(z) < 1.0)), worst
 
 
+SATURATED_PRESET = "paper-limited"  # the actuators of the saturated closed-loop case
+
+
+def saturated_scenario(scenario: Scenario) -> Scenario:
+    """``scenario`` with actuators that saturate: its own when it has limits, else the ``[actuators]``
+    of the preset :data:`SATURATED_PRESET` (twin thrusters of a 2 m USV)."""
+    if not scenario.actuators.unlimited:
+        return scenario
+    from .scenario import load_scenario
+
+    table = load_scenario(preset=SATURATED_PRESET).to_dict()["actuators"]
+    table = {k: v for k, v in table.items() if not (isinstance(v, float) and math.isinf(v))}
+    return scenario.with_overrides({"actuators": table})
+
+
+def compare_closed_loop_saturated(scenario: Scenario, progress: bool = True) -> dict:
+    """The closed loop on both plants with the actuators of :func:`saturated_scenario` (no
+    convergence study): the plants' difference, the saturated fraction of each run (must be > 0 for
+    the case to mean anything) and the funnel check."""
+    sat = saturated_scenario(scenario)
+    _say(progress, f"closed loop with saturating actuators ({sat.actuators.describe()}), {sat.duration:g} s")
+    runs = _closed_loop_pair(sat)
+    xa, xm = _record_states(runs["analytic"]), _record_states(runs["mujoco"])
+    n = min(len(xa), len(xm))
+    result = {"duration_s": sat.duration, "actuators": sat.actuators.describe(), **state_differences(xm[:n], xa[:n])}
+    result["status"] = {k: r.status for k, r in runs.items()}
+    result["saturated_fraction"] = {k: {ch: float(np.mean(r[f"sat_{ch}"] > 0.5)) for ch in ("u", "r")}
+                                    for k, r in runs.items()}
+    result["saturated_steps_differ"] = int(np.sum(runs["analytic"]["sat_u"][:n] != runs["mujoco"]["sat_u"][:n])
+                                           + np.sum(runs["analytic"]["sat_r"][:n] != runs["mujoco"]["sat_r"][:n]))
+    result["max_applied_force_difference"] = float(max(
+        np.max(np.abs(runs["analytic"]["f_u"][:n] - runs["mujoco"]["f_u"][:n])),
+        np.max(np.abs(runs["analytic"]["f_r"][:n] - runs["mujoco"]["f_r"][:n]))))
+    inside, worst = {}, {}
+    for k, r in runs.items():
+        inside[k], worst[k] = _funnel_check(r)
+    result["inside_funnels"], result["max_abs_z"] = inside, worst
+    return result
+
+
 def compare_closed_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, dict]:
     """Closed-loop comparison (``simulate`` on both plants) and its convergence study."""
     _say(progress, f"closed loop, {scenario.duration:g} s of preset {scenario.preset!r} on both plants")
@@ -484,6 +549,7 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
     wall0 = time.perf_counter()
     open_loop, open_hist = compare_open_loop(scenario, progress)
     closed_loop, closed_hist = compare_closed_loop(scenario, progress)
+    saturated = compare_closed_loop_saturated(scenario, progress)
     if "within_sensitivity" in open_loop:  # a sea: the open loop is sensitive (module docstring)
         open_check = {"open_loop_adrift_position_below_1e-6_m":
                       open_loop["adrift"]["max_position_m"] < OPEN_LOOP_TOLERANCE_M,
@@ -494,6 +560,8 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
         **open_check,
         "closed_loop_position_below_1e-3_m": closed_loop["max_position_m"] < CLOSED_LOOP_TOLERANCE_M,
         "closed_loop_both_inside_funnels": all(closed_loop["inside_funnels"].values()),
+        "saturated_closed_loop_position_below_1e-3_m": saturated["max_position_m"] < CLOSED_LOOP_TOLERANCE_M,
+        "saturated_closed_loop_saturates": all(max(f.values()) > 0 for f in saturated["saturated_fraction"].values()),
     }
     result = {
         "scenario": {"preset": scenario.preset, "source": scenario.source, "duration_s": scenario.duration,
@@ -501,6 +569,7 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
                      "sea": None if scenario.sea.calm else scenario.sea.to_dict()},
         "open_loop": open_loop,
         "closed_loop": closed_loop,
+        "closed_loop_saturated": saturated,
         "checks": checks,
         "passed": all(checks.values()),
         "tolerance_note": "issue 3 asks for 1e-6 m (open loop) and 1e-3 m (closed loop) over 300 s at 1 ms",
@@ -572,6 +641,9 @@ def run_command(args) -> int:
     print(f"closed loop ({cl['duration_s']:g} s): max position {cl['max_position_m']:.3e} m, heading "
           f"{cl['max_heading_rad']:.3e} rad, velocity {cl['max_velocity']:.3e}; inside funnels "
           f"{cl['inside_funnels']}; order {_fmt(cl['convergence_order']['plants_difference'])}")
+    cs = result["closed_loop_saturated"]
+    print(f"closed loop saturated ({cs['actuators']}): max position {cs['max_position_m']:.3e} m; saturated "
+          f"fraction {cs['saturated_fraction']}")
     for check, ok in result["checks"].items():
         print(f"  {'ok  ' if ok else 'FAIL'} {check}")
     print(f"written to {out}/compare.json (+ open_loop.png, closed_loop.png, convergence.png)")

@@ -72,6 +72,24 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     qb = baseline_summary["quantizer_switches"] if baseline_summary else {"u": None, "r": None}
     lines.append(f"| quantizer output changes, surge | {qs['u']} | {qb['u'] if qb['u'] is not None else '—'} |")
     lines.append(f"| quantizer output changes, yaw | {qs['r']} | {qb['r'] if qb['r'] is not None else '—'} |")
+    lines += ["", "## Actuators", ""]
+    act = summary.get("actuators")
+    if act is None:
+        lines.append("The run's actuator table is not known.")
+    elif act["unlimited"]:
+        lines.append("**The actuators are unlimited** (as in the paper, which gives no thrust limits): the plant "
+                     "receives the quantized command Q(tau) whatever its size. The forces of this run say what the "
+                     "control law asks for, not what a hull of this size can deliver (preset `paper-limited` "
+                     "gives the hull twin thrusters).")
+    else:
+        sat, ep = summary["saturated_fraction"], summary.get("saturation_episodes", {"u": None, "r": None})
+        lg = summary.get("longest_saturation_s", {"u": None, "r": None})
+        lines += [f"Actuators: {act['description']}.", "",
+                  "| channel | time saturated | episodes | longest [s] |", "|---|---|---|---|",
+                  f"| surge | {sat['u'] * 100:.2f} % | {ep['u']} | {_fmt(lg['u'])} |",
+                  f"| yaw | {sat['r'] * 100:.2f} % | {ep['r']} | {_fmt(lg['r'])} |", "",
+                  "Saturated: a limit of the actuators (magnitude or rate) cut the quantized command in that "
+                  "control period; each episode is an `actuator_saturation` event (start and end) in the log."]
     if baseline_summary:
         lines += ["", "The PI baseline (docs/model.md §6: surge-speed PI on the along-track error, heading PI with "
                   "yaw-rate damping on the same psi_a) runs through the same quantizer on the same plant. "

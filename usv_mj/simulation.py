@@ -19,7 +19,7 @@ from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
-from .builder import Parts, build, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
+from .builder import Parts, build, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from .record import COL, SL_REF, SL_STATE, Event, RunRecord
 from .scenario import Scenario
 from .trajectories import make_reference as _make_reference
@@ -78,6 +78,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
     dt = scenario.control_period
     n = int(round(duration / dt))
     quant_u, quant_r = parts.quantizers
+    actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario)
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
     record = RunRecord(n + 1, metadata={
@@ -92,6 +93,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
     controller.reset()
     quant_u.reset()
     quant_r.reset()
+    actuators.reset()
     data = record.data
     sl_diag = slice(len(COL), len(COL) + len(fields))
     c_t = COL["t"]
@@ -116,7 +118,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
                 break
             q_u = quant_u.step(tau_u)
             q_r = quant_r.step(tau_r)
-            f_u, f_r = q_u, q_r
+            f_u, f_r, s_u, s_r = actuators.apply(q_u, q_r)
             row = data[k]
             row[c_t] = t
             row[SL_STATE] = x
@@ -130,8 +132,8 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
             row[c_k_r] = quant_r.k
             row[c_f_u] = f_u
             row[c_f_r] = f_r
-            row[c_s_u] = 0.0
-            row[c_s_r] = 0.0
+            row[c_s_u] = s_u
+            row[c_s_r] = s_r
             k += 1
             record.n_rows = k
             if k - flush.mark >= block:
@@ -244,7 +246,8 @@ def _finish_run(record, sinks, flush, wall0, quant_u, quant_r):
 
 def detect_events(record: RunRecord, lo: int, hi: int) -> list[Event]:
     """Episodes that start in rows [lo, hi) (vectorised): funnel violations and recoveries when the
-    controller declared the funnel block, and the episodes of its declared 0/1 event fields (the
+    controller declared the funnel block, actuator saturation per channel (start and end, from
+    sat_u / sat_r: "actuator_saturation" with values channel, state), and the episodes of its declared 0/1 event fields (the
     PPC law's s2 clamps)."""
     events = []
     data = record.data
@@ -268,6 +271,20 @@ def detect_events(record: RunRecord, lo: int, hi: int) -> list[Event]:
             for i in ends:
                 events.append(Event(float(t[i]), "funnel_recovered", f"e{axis} is back inside its funnel",
                                     {"axis": axis}))
+    for ch, what, unit in (("u", "surge force", "N"), ("r", "yaw moment", "N m")):  # the actuators' limits
+        cs = COL[f"sat_{ch}"]
+        flag = data[lo:hi, cs] > 0.5
+        prev = bool(lo > 0 and data[lo - 1, cs] > 0.5)
+        shifted = np.concatenate(([prev], flag[:-1]))
+        for i in np.flatnonzero(flag & ~shifted):
+            q, f = data[lo + i, COL[f"q_tau_{ch}"]], data[lo + i, COL[f"f_{ch}"]]
+            events.append(Event(float(t[i]), "actuator_saturation",
+                                f"the {what} command Q = {q:.4g} {unit} is cut to {f:.4g} {unit} by the actuators",
+                                {"channel": ch, "state": "start", "command": _json_number(q),
+                                 "applied": _json_number(f)}))
+        for i in np.flatnonzero(~flag & shifted):
+            events.append(Event(float(t[i]), "actuator_saturation", f"the {what} is back within the actuators' limits",
+                                {"channel": ch, "state": "end"}))
     for name, kind in record.diagnostic_events.items():
         c = col[name]
         flag = data[lo:hi, c] > 0.5

@@ -23,6 +23,19 @@ def pose_errors(record: RunRecord) -> dict:
             "psi": wrap_angle(record["psi"] - record["psi_d"])}
 
 
+def actuator_description(table) -> dict | None:
+    """The ``[actuators]`` of a run as the summary gives it: kind, the one-line description and the
+    generalized limits (None: open); None when the metadata has no scenario."""
+    if not table:
+        return None
+    from .actuators import ActuatorSpec
+
+    spec = ActuatorSpec(**table)
+    return {"kind": spec.kind, "unlimited": spec.unlimited, "description": spec.describe(),
+            "limits": dict(zip(("tau_u_min_n", "tau_u_max_n", "tau_r_min_nm", "tau_r_max_nm"),
+                               (_finite(v) for v in spec.generalized_limits())))}
+
+
 def summarize(record: RunRecord) -> dict:
     """A plain dict with the fields of ``summary.json``; None where a value does not exist."""
     meta = record.metadata
@@ -46,6 +59,16 @@ def summarize(record: RunRecord) -> dict:
         violations, first = None, None
     clamps = int(np.sum(record["s2_clamped"] > 0.5)) if "s2_clamped" in record else None
     saturated = {ch: (float(np.mean(record[f"sat_{ch}"] > 0.5)) if len(t) else 0.0) for ch in ("u", "r")}
+    episodes = {ch: 0 for ch in ("u", "r")}
+    longest = {ch: 0.0 for ch in ("u", "r")}
+    for ch in ("u", "r"):
+        flag = record[f"sat_{ch}"] > 0.5
+        if flag.any():
+            edges = np.diff(np.concatenate(([0], flag.astype(np.int8), [0])))
+            starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+            episodes[ch] = int(len(starts))
+            longest[ch] = float(np.max(ends - starts) * dt)
+    actuators = actuator_description((meta.get("scenario") or {}).get("actuators"))
     return {
         "preset": meta.get("preset"),
         "plant": meta.get("plant"),
@@ -61,6 +84,9 @@ def summarize(record: RunRecord) -> dict:
         "first_violation_s": first,
         "s2_clamps": clamps,
         "saturated_fraction": saturated,
+        "saturation_episodes": episodes,
+        "longest_saturation_s": longest,
+        "actuators": actuators,
         "diagnostic_fields": list(record.diagnostic_fields),
         "quantizer_switches": meta.get("quantizer_switches", {"u": None, "r": None}),
         "wall_time_s": meta.get("wall_time_s"),

@@ -248,7 +248,8 @@ class HarbourPlant(MuJoCoPlant):
 
     def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, obstacles=(), control_period: float = 1e-3,
                  substeps: int = 1, contact: ContactParams = ContactParams(), safety_radii=None,
-                 split: RigidBodySplit = RigidBodySplit(), callback: str = "native", environment=None):
+                 split: RigidBodySplit = RigidBodySplit(), callback: str = "native", environment=None,
+                 actuator_limits=None):
         self.obstacles = tuple(obstacles)
         self.contact = contact
         if contact.solref[0] < 2.0 * control_period / substeps:
@@ -257,7 +258,7 @@ class HarbourPlant(MuJoCoPlant):
         self._tmp = tempfile.TemporaryDirectory(prefix="usv_mj_harbour_")
         self.model_xml_path = export_scene(compose_scene(self.obstacles, contact, safety_radii), self._tmp.name)
         super().__init__(ship, disturbance, control_period, substeps, split, self.model_xml_path, callback,
-                         environment=environment)
+                         environment=environment, actuator_limits=actuator_limits)
         m = self.model
         gid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)  # noqa: E731
         self.hull_geoms = np.array([gid(n) for n, *_ in HULL_COLLISION_GEOMS], dtype=np.int64)

@@ -41,6 +41,7 @@ DEFAULT_MODEL = os.path.join(mcb.MODELS_DIR, "usv.xml")
 _BAD_WARNINGS = ((mujoco.mjtWarning.mjWARN_BADQPOS, "qpos"), (mujoco.mjtWarning.mjWARN_BADQVEL, "qvel"),
                  (mujoco.mjtWarning.mjWARN_BADQACC, "qacc"))
 _mj_step = mujoco.mj_step
+CTRL_OPEN = 1e10  # ctrlrange of a side without a limit [N, N m] (past limits.max_force's default)
 SEA_HORIZON_AHEAD_S = 120.0  # the environment's OU grids are kept this far ahead of the plant time [s]
 
 
@@ -102,6 +103,17 @@ def _release(plant_id, data_address, userdata):
     REGISTRY.remove(plant_id, data_address)
 
 
+def _check_actuator_limits(limits):
+    """None, or (tau_u_min, tau_u_max, tau_r_min, tau_r_max) with min < 0 < max (inf: open)."""
+    if limits is None:
+        return None
+    limits = tuple(float(v) for v in limits)
+    if len(limits) != 4 or not (limits[0] < 0 < limits[1] and limits[2] < 0 < limits[3]):
+        raise ValueError(f"MuJoCoPlant: actuator_limits must be (tau_u_min < 0 < tau_u_max, "
+                         f"tau_r_min < 0 < tau_r_max), got {limits!r}")
+    return limits
+
+
 def installed_callback() -> str | None:
     """Which passive callback usv_mj has installed: "native", "python" or None (none of ours)."""
     return REGISTRY.installed
@@ -140,6 +152,10 @@ class MuJoCoPlant(PlantBase):
         water. The plant keeps it and its packed arrays alive, extends its OU grids ahead of the
         plant time (:data:`SEA_HORIZON_AHEAD_S`) and re-writes the arrays' addresses into
         ``d.userdata`` when they grow. A calm environment is treated as None.
+    actuator_limits:
+        (tau_u_min, tau_u_max, tau_r_min, tau_r_max) [N, N, N m, N m] written into the motors'
+        ``ctrlrange`` (``ctrllimited``) at load, or None (the file's, unlimited); ``from_scenario``
+        passes ``[actuators]``'s :meth:`~usv_mj.actuators.ActuatorSpec.generalized_limits`.
 
     Attributes
     ----------
@@ -155,7 +171,8 @@ class MuJoCoPlant(PlantBase):
 
     def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, control_period: float = 1e-3,
                  substeps: int = 1, split: RigidBodySplit = RigidBodySplit(), model_path: str | None = None,
-                 callback: str = "native", native_step: bool = True, environment=None):
+                 callback: str = "native", native_step: bool = True, environment=None, actuator_limits=None):
+        self.actuator_limits = _check_actuator_limits(actuator_limits)
         if not (isinstance(control_period, (int, float)) and math.isfinite(control_period) and control_period > 0):
             raise ValueError(f"MuJoCoPlant: control_period must be a finite number > 0 s, got {control_period!r}")
         if int(substeps) != substeps or int(substeps) < 1:
@@ -198,6 +215,7 @@ class MuJoCoPlant(PlantBase):
         spec = mujoco.MjSpec.from_file(path)
         if spec.nuserdata < mcb.N_USERDATA:
             spec.nuserdata = mcb.N_USERDATA
+        self._set_ctrlrange(spec)
         model = spec.compile()
         where = f"in {path}"
         names = {
@@ -228,6 +246,22 @@ class MuJoCoPlant(PlantBase):
         self._hull = ids["body hull"]
         data = mujoco.MjData(model)
         return model, data
+
+    def _set_ctrlrange(self, spec) -> None:
+        """The motors' ``ctrlrange`` from the scenario's actuator limits (ctrllimited where a side is
+        finite; an open side is +-CTRL_OPEN). The loop's actuator model (usv_mj.actuators) has
+        already limited the command, so MuJoCo's clamp does not change it: the model file shows the
+        same vessel to a MuJoCo user (``spec.to_xml()``, ``model.actuator_ctrlrange``)."""
+        if self.actuator_limits is None:
+            return
+        lo_u, hi_u, lo_r, hi_r = self.actuator_limits
+        by_name = {a.name: a for a in spec.actuators}
+        for name, lo, hi in (("surge", lo_u, hi_u), ("yaw", lo_r, hi_r)):
+            act = by_name.get(name)
+            if act is None or (math.isinf(lo) and math.isinf(hi)):
+                continue
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrlrange = [max(lo, -CTRL_OPEN), min(hi, CTRL_OPEN)]
 
     def _set_parameters(self) -> None:
         """Write the rigid body (model) and the callback's parameters (d.userdata) from ship.py."""
@@ -394,14 +428,15 @@ class MuJoCoPlant(PlantBase):
         """The MuJoCo plant of ``scenario``: the hull of ``models/usv.xml`` in open water, or the scene
         composed from the hull and ``obstacles`` (with its contact model) when there are any; the
         sea ``environment`` acts on the hull in both."""
+        limits = scenario.actuators.generalized_limits()
         if obstacles:
             from usv_mj.obstacles.compose import ContactParams, HarbourPlant
 
             return HarbourPlant(scenario.ship, scenario.disturbance, obstacles, scenario.control_period,
                                 scenario.plant.substeps, contact or ContactParams(), safety_radii,
-                                environment=environment)
+                                environment=environment, actuator_limits=limits)
         return cls(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
-                   environment=environment)
+                   environment=environment, actuator_limits=limits)
 
     def close(self) -> None:
         """Unmark the mjData and remove the global callback if this was the last plant."""

@@ -7,9 +7,11 @@ What it shows (values of one record row, see :mod:`usv_mj.record`):
   axis spanning -rho_i..+rho_i with a marker at e_i, i.e. z_i = e_i / rho_i in [-1, 1]; green while
   |z_i| < 0.8, amber below 1, red at or beyond the funnel (|z_i| >= 1, a violation). e1, e2 in m,
   e3 in degrees;
-- the controls: the law's output tau (outline) and the quantized input Q(tau) the plant received
-  (filled bar), for surge tau_u [N] and yaw tau_r [N m], on a symmetric scale ``tau_*_scale`` fixed
-  for the whole video (the planner's 99th percentile of |tau|; a clipped bar ends in a triangle);
+- the controls: the law's output tau (outline), the quantized command Q(tau) (a thin marker) and
+  the force the actuators realized, which the plant received (filled bar; red while saturated),
+  for surge tau_u [N] and yaw tau_r [N m], on a symmetric scale ``tau_*_scale`` fixed for the whole
+  video (the planner's 99th percentile of |tau|, or 1.25 x the actuators' limit when they have one;
+  a clipped bar ends in a triangle); the actuators' limits ``tau_*_limits`` are red ticks;
 - a legend of the 3-D layers (wake trail, reference path ahead, ghost hull, funnel box).
 
 Only the two panel regions are converted to Pillow images, so the cost is about a millisecond a frame
@@ -93,8 +95,9 @@ def _error_bar(draw, x, y, w, h, e, rho):
     draw.line([xe, y - 3, xe, y + h + 3], fill=colour, width=3)
 
 
-def _tau_bar(draw, x, y, w, h, tau, q, scale):
-    """Law output tau as an outline and Q(tau) as a filled bar, both on [-scale, scale]."""
+def _tau_bar(draw, x, y, w, h, tau, q, scale, f=None, limits=None, saturated=False):
+    """Law output tau as an outline, the applied force f (Q(tau) when f is None) as a filled bar, Q(tau)
+    as a thin marker and the actuators' ``limits`` (lo, hi) as red ticks, all on [-scale, scale]."""
     cx = x + w / 2
     draw.rectangle([x, y, x + w, y + h], outline=DIM, width=1)
     draw.line([cx, y - 2, cx, y + h + 2], fill=DIM, width=1)
@@ -104,7 +107,9 @@ def _tau_bar(draw, x, y, w, h, tau, q, scale):
         return
     if not (math.isfinite(scale) and scale > 0):
         return
-    for value, colour, filled, inset in ((q, QUANT, True, 3), (tau, LAW, False, 1)):
+    filled_value = q if f is None else f
+    fill_colour = BAD if saturated else QUANT
+    for value, colour, filled, inset in ((filled_value, fill_colour, True, 3), (tau, LAW, False, 1)):
         try:
             v = float(value) / scale
         except (TypeError, ValueError):
@@ -122,13 +127,30 @@ def _tau_bar(draw, x, y, w, h, tau, q, scale):
         if abs(v) > 1.0:  # clipped: an arrow head at the end
             s = 1 if v > 0 else -1
             draw.polygon([(xe, y), (xe, y + h), (xe + s * h * 0.6, y + h / 2)], fill=colour)
+    if f is not None:  # the transmitted command, where it differs from what was applied
+        try:
+            vq = float(q) / scale
+        except (TypeError, ValueError):
+            vq = float("nan")
+        if math.isfinite(vq):
+            xq = cx + max(-1.0, min(1.0, vq)) * (w / 2)
+            draw.line([xq, y, xq, y + h], fill=QUANT, width=2)
+    for lim in (limits or ()):
+        try:
+            vl = float(lim) / scale
+        except (TypeError, ValueError):
+            continue
+        if math.isfinite(vl) and abs(vl) <= 1.0:
+            xl = cx + vl * (w / 2)
+            draw.line([xl, y - 4, xl, y + h + 4], fill=BAD, width=2)
 
 
 def draw_hud(frame: np.ndarray, values: dict, *, hud: bool = True, legend: bool = True) -> np.ndarray:
     """Draw the heads-up panel (top left) and the legend (bottom left) onto ``frame`` in place.
 
     ``values`` keys: t, t_end, speedup, title, e (3), rho (3), tau_u, q_tau_u, tau_r, q_tau_r,
-    tau_u_scale, tau_r_scale, camera. Missing or non-finite values print as "n/a".
+    tau_u_scale, tau_r_scale, camera; optional f_u, f_r (applied), sat_u, sat_r (0/1) and
+    tau_u_limits, tau_r_limits ((lo, hi) or None). Missing or non-finite values print as "n/a".
     """
     H, W = frame.shape[:2]
     s = H / 720.0
@@ -175,13 +197,21 @@ def _draw_panel(frame, values, s):
                fill=TEXT)
         y += int(27 * s)
     y += int(4 * s)
-    d.text((m, y), "control: law tau (outline), Q(tau) (filled)", font=tiny, fill=DIM)
+    applied = values.get("f_u") is not None
+    d.text((m, y), "control: tau (outline), applied (filled), limit (red)" if applied else
+           "control: law tau (outline), Q(tau) (filled)", font=tiny, fill=DIM)
     y += int(20 * s)
     for label, key, unit in (("tau_u", "u", "N"), ("tau_r", "r", "Nm")):
-        tau, q = values.get(f"tau_{key}"), values.get(f"q_tau_{key}")
+        tau, q, f = values.get(f"tau_{key}"), values.get(f"q_tau_{key}"), values.get(f"f_{key}")
+        sat = bool(values.get(f"sat_{key}") or 0.0)
         d.text((m, y), label, font=small, fill=TEXT)
-        _tau_bar(d, m + label_w, y + int(2 * s), bar_w, bar_h, tau, q, values.get(f"tau_{key}_scale"))
-        d.text((m + label_w + bar_w + int(10 * s), y), f"Q {_fmt(q, '+8.3g')} {unit}", font=tiny, fill=QUANT)
+        _tau_bar(d, m + label_w, y + int(2 * s), bar_w, bar_h, tau, q, values.get(f"tau_{key}_scale"), f,
+                 values.get(f"tau_{key}_limits"), sat)
+        if f is None:
+            d.text((m + label_w + bar_w + int(10 * s), y), f"Q {_fmt(q, '+8.3g')} {unit}", font=tiny, fill=QUANT)
+        else:
+            d.text((m + label_w + bar_w + int(10 * s), y), f"F {_fmt(f, '+8.3g')} {unit}{' SAT' if sat else ''}",
+                   font=tiny, fill=BAD if sat else QUANT)
         y += int(27 * s)
     frame[y0:y1, x0:x1] = np.asarray(img)
 

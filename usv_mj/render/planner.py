@@ -139,6 +139,32 @@ def _column(record, name, n):
         return np.full(n, np.nan)
 
 
+def _actuator_limits(metadata):
+    """((lo, hi) surge, (lo, hi) yaw) of the run's ``[actuators]`` for the control bars, None where
+    a channel is unlimited (or the metadata has no scenario)."""
+    table = ((metadata or {}).get("scenario") or {}).get("actuators")
+    if not table:
+        return None, None
+    from usv_mj.actuators import ActuatorSpec
+
+    try:
+        lo_u, hi_u, lo_r, hi_r = ActuatorSpec(**table).generalized_limits()
+    except (TypeError, ValueError):
+        return None, None
+    pick = lambda lo, hi: (lo, hi) if (math.isfinite(lo) or math.isfinite(hi)) else None  # noqa: E731
+    return pick(lo_u, hi_u), pick(lo_r, hi_r)
+
+
+def _bar_scale(limits, *arrays) -> float:
+    """The bars' half-range: 1.25 x the largest finite limit when the channel has one (the limit then
+    shows as a tick), the 99th percentile of |tau| otherwise."""
+    if limits is not None:
+        finite = [abs(v) for v in limits if math.isfinite(v)]
+        if finite:
+            return 1.25 * max(finite)
+    return _robust_scale(*arrays)
+
+
 def _robust_scale(*arrays) -> float:
     v = np.abs(np.concatenate([np.asarray(a, float) for a in arrays]))
     v = v[np.isfinite(v)]
@@ -232,11 +258,12 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     e = [_column(record, f"e{i}", n) for i in (1, 2, 3)]
     rho = [_column(record, f"rho{i}", n) for i in (1, 2, 3)]
     z = [_column(record, f"z{i}", n) for i in (1, 2, 3)]
-    tau = {k: _column(record, k, n) for k in ("tau_u", "q_tau_u", "tau_r", "q_tau_r")}
+    tau = {k: _column(record, k, n) for k in ("tau_u", "q_tau_u", "tau_r", "q_tau_r", "f_u", "f_r", "sat_u", "sat_r")}
     eps = do_pan_offset(record)
-    scale_u = _robust_scale(tau["tau_u"], tau["q_tau_u"])
-    scale_r = _robust_scale(tau["tau_r"], tau["q_tau_r"])
     md = getattr(record, "metadata", {}) or {}
+    lim_u, lim_r = _actuator_limits(md)
+    scale_u = _bar_scale(lim_u, tau["tau_u"], tau["q_tau_u"])
+    scale_r = _bar_scale(lim_r, tau["tau_r"], tau["q_tau_r"])
     title = " / ".join(str(md[k]) for k in ("preset", "controller", "plant") if md.get(k))
     aspect = width / height
     from .world import render_world
@@ -284,7 +311,10 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
                "e": tuple(float(e[i][k]) for i in range(3)), "rho": tuple(float(rho[i][k]) for i in range(3)),
                "tau_u": float(tau["tau_u"][k]), "q_tau_u": float(tau["q_tau_u"][k]),
                "tau_r": float(tau["tau_r"][k]), "q_tau_r": float(tau["q_tau_r"][k]),
-               "tau_u_scale": scale_u, "tau_r_scale": scale_r}
+               "tau_u_scale": scale_u, "tau_r_scale": scale_r,
+               "f_u": float(tau["f_u"][k]), "f_r": float(tau["f_r"][k]),
+               "sat_u": float(tau["sat_u"][k]), "sat_r": float(tau["sat_r"][k]),
+               "tau_u_limits": lim_u, "tau_r_limits": lim_r}
         frames.append(FrameSpec(j, float(t[k]), (float(x[k]), float(y[k]), float(psi[k])), ref, fc, fh, ok,
                                 trail, path, view, hud, world))
     return Plan(frames, rows, t0, t1, sp, played, float(fps), eps)

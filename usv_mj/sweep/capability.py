@@ -30,6 +30,13 @@ Loads
   :mod:`usv_mj.scenario` does not accept them stops with exit code 2 and says so), and a plant
   that takes the sea state. A load of 0 is calm whatever its direction: it is run once.
 
+Actuators (issue 18): a capability plot is by definition the limit that the thrusters set. With a
+base whose ``[actuators]`` limit the force (``--base paper-limited``: twin thrusters of a 2 m USV)
+the search measures the vessel. With unlimited actuators (the ``paper`` presets) it measures only
+the control law's arithmetic, which can ask for any force: the search still runs, but the figure,
+``capability.md`` and ``capability.json`` (``actuators_unlimited``) say so, and the command prints
+it.
+
 A run that *fails* (raises, or its worker dies) is not an answer about the funnel: the search stops
 with its reason (exit code 2), where a diverged run counts as the funnel lost.
 """
@@ -210,7 +217,12 @@ def search_capability(evaluate, directions: list, lo: float, hi: float, spacing:
     return [results[d] for d in directions]
 
 
-def draw_polar(results: list[DirectionResult], load: LoadKind, path: Path, title: str) -> None:
+UNLIMITED_NOTE = ("actuators UNLIMITED: this is the control law's limit, not the vessel's "
+                  "(no thrust limit; see --base paper-limited)")
+
+
+def draw_polar(results: list[DirectionResult], load: LoadKind, path: Path, title: str,
+               note: str | None = None) -> None:
     """The capability polar plot: radius = largest load that keeps the funnel, angle = direction
     relative to the path (0 = along the path, counter-clockwise, going-to)."""
     import matplotlib
@@ -248,6 +260,8 @@ def draw_polar(results: list[DirectionResult], load: LoadKind, path: Path, title
         ax.text(0.5, -0.2, "angle: going-to direction relative to the path, counter-clockwise",
                 transform=ax.transAxes, ha="center", va="top", fontsize=8)
     ax.set_title(title, fontsize=10, pad=18)
+    if note:
+        fig.text(0.5, 0.005, note, ha="center", va="bottom", fontsize=8, color="tab:red", wrap=True)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=2, fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110, bbox_inches="tight")
@@ -338,6 +352,8 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
     finally:
         if bar is not None:
             bar.close()
+    if scenario.actuators.unlimited:
+        echo(f"note: {UNLIMITED_NOTE}")
     _write_outputs(out, results, load, scenario, heading, lo, hi, tol, evaluator.rows)
     return results
 
@@ -345,12 +361,21 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
 def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows):
     title = (f"capability: {load.label}\n{scenario.preset}, {scenario.controller.kind}, "
              f"{scenario.duration:g} s, {scenario.plant.kind} plant")
-    draw_polar(results, load, out / "capability.png", title)
+    unlimited = scenario.actuators.unlimited
+    draw_polar(results, load, out / "capability.png", title, UNLIMITED_NOTE if unlimited else
+               f"actuators: {scenario.actuators.describe()}")
     unit = f" [{load.unit}]" if load.unit else ""
     lines = [f"# Capability: {load.label}", "",
              f"Base `{scenario.preset}`, controller `{scenario.controller.kind}`, plant `{scenario.plant.kind}`, "
              f"runs of {scenario.duration:g} s. The funnel holds when a run finishes ok with every |z_i| < 1 "
              f"throughout. Search between {lo:g} and {hi:g}, to {tol:.0%} (see `usv_mj.sweep.capability`).", ""]
+    if unlimited:
+        lines += ["**The actuators are unlimited** (`[actuators] kind = \"unlimited\"`, as in the paper): the "
+                  "controller may ask for any force, so this is the limit of the control law's arithmetic, "
+                  "not of a vessel; a capability plot in the DNV sense needs thrust limits "
+                  "(`--base paper-limited`).", ""]
+    else:
+        lines += [f"Actuators: {scenario.actuators.describe()}.", ""]
     if load.direction_path is None:
         lines += ["The paper's d(t) acts on fixed body-frame axes (docs/model.md §1): it has no direction, so the "
                   "search is on its scale alone and the polar plot draws one circle.", ""]
@@ -368,6 +393,7 @@ def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows):
     (out / "capability.json").write_text(json.dumps({
         "load": load.name, "path": load.path, "direction_path": load.direction_path, "unit": load.unit,
         "min": lo, "max": hi, "tol": tol, "path_heading_deg": heading,
+        "actuators_unlimited": unlimited, "actuators": scenario.actuators.describe(),
         "results": [{"direction_deg": r.direction_deg, "holds": r.holds, "fails": r.fails, "runs": r.runs,
                      "notes": r.notes} for r in results],
         "runs": [{k: row.get(k) for k in ("direction_deg", "load", "status", "reason", "kept_funnel",
