@@ -8,7 +8,7 @@ import pytest
 
 from usv_mj import load_scenario, simulate, summarize
 from usv_mj.actuators import ActuatorSpec, Actuators, actuator_step
-from usv_mj.build import make_plant
+from usv_mj.builder import make_plant
 from usv_mj.scenario import ScenarioError
 
 # the paper-limited preset: Fossen's Otter propellers (usv_mj/presets/paper-limited.toml)
