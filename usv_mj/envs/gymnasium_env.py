@@ -49,6 +49,7 @@ from __future__ import annotations
 import collections
 import math
 import warnings
+import weakref
 
 import numpy as np
 
@@ -253,6 +254,8 @@ class _Renderer:
 
             self.pool = multiprocessing.get_context("spawn").Pool(
                 1, initializer=_worker_init, initargs=(backend_environment(self.backend), self.kwargs))
+            # an environment dropped without close() still stops its worker
+            weakref.finalize(self, self.pool.terminate)
 
     def frame(self, spec) -> np.ndarray:
         if self.local is not None:
