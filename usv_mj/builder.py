@@ -107,11 +107,13 @@ def make_environment(scenario: Scenario, duration: float | None = None):
 
 
 def make_plant(scenario: Scenario, kind: str | None = None, environment="scenario", *, control_period: float | None = None,
-               substeps: int | None = None, contact=None, safety_radii=None):
+               substeps: int | None = None, contact=None, safety_radii=None, rangefinders=()):
     """The plant ``kind`` (default ``[plant] kind``) of ``scenario`` from :data:`usv_mj.registry.PLANTS`,
     in the scenario's sea (or ``environment``: an Environment, or None for calm water), with the
     scenario's obstacles in its scene; ``control_period`` [s] / ``substeps`` override the scenario's
-    (the convergence studies of ``usv-mj compare``). The caller closes it."""
+    (the convergence studies of ``usv-mj compare``); ``rangefinders``: body-frame angles [rad] of
+    range sensors on the hull (the harbor task's; a plant kind that has none raises ScenarioError).
+    The caller closes it."""
     if control_period is not None or substeps is not None:
         over = {}
         if control_period is not None:
@@ -119,9 +121,16 @@ def make_plant(scenario: Scenario, kind: str | None = None, environment="scenari
         if substeps is not None:
             over["plant"] = {"substeps": int(substeps)}
         scenario = scenario.with_overrides(over)
-    env = make_environment(scenario) if environment == "scenario" else environment
-    return PLANTS.get(kind or scenario.plant.kind, "plant.kind").obj.from_scenario(
-        scenario, environment=env, obstacles=tuple(scenario.obstacles), contact=contact, safety_radii=safety_radii)
+    kind = kind or scenario.plant.kind
+    entry = PLANTS.get(kind, "plant.kind")
+    extra = {}
+    if len(rangefinders):
+        if not entry.info.get("rangefinders"):
+            raise ScenarioError(f"{scenario.source}: the {kind!r} plant has no rangefinders")
+        extra["rangefinders"] = tuple(float(a) for a in rangefinders)
+    env = make_environment(scenario) if isinstance(environment, str) and environment == "scenario" else environment
+    return entry.obj.from_scenario(scenario, environment=env, obstacles=tuple(scenario.obstacles), contact=contact,
+                                   safety_radii=safety_radii, **extra)
 
 
 def make_controller(scenario: Scenario, kind: str | None = None):

@@ -23,36 +23,63 @@ Tasks (:data:`ALL_TASKS`; the observation, action, reward and termination conven
 - ``harbor``: from the origin to a goal 40 m ahead through a randomised harbour (two piers with a
   gap, a buoy field; a new layout every episode) without contact; the observed reference is the
   guidance plan; 16 rangefinders fan around the hull; 90 s episodes.
+- ``harbor_waves``: the harbour in the sea of ``track_waves``.
 
 Options of :func:`load` (keyword arguments): ``scenario`` (a :class:`usv_mj.scenario.Scenario`
 used as is), else ``preset`` ("paper") and ``overrides`` (a nested dict as in scenario files);
 ``control_period`` [s] (0.01), ``substeps`` (10), ``duration`` [s] (30 / 90), ``quantize`` (True),
-``max_surge_force`` [N] (1000), ``max_yaw_moment`` [N m] (1000), ``preview_times`` [s],
+``max_surge_force`` [N] and ``max_yaw_moment`` [N m] (1000: the action bounds of channels whose
+actuators are unlimited; ``scenario.actuators`` limits win where finite), ``preview_times`` [s],
 ``start_offset`` (track), ``max_distance`` [m] (50), harbor: ``n_rays`` (16), ``max_range`` [m] (20),
-``goal_radius`` [m] (1.5), ``goal_distance`` [m] (40).
+``goal_radius`` [m] (1.5), ``goal_distance`` [m] (40). As ``dm_control.suite.load``:
+``task_kwargs``, ``environment_kwargs`` (``time_limit``, ``flat_observation``, ``legacy_step``) and
+``flat_observation=True`` (one ``observations`` vector; ``env.unflatten(obs)`` splits it).
 
-The physics is the MuJoCo plant itself (:class:`usv_mj.envs.physics.USVPhysics` is a
-``dm_control.mujoco.Physics`` over the plant's own mjModel/mjData), so a policy sees exactly what
-``usv-mj run --plant mujoco`` integrates, with the same hydrodynamic callback. Close environments
-with ``env.close()`` (the plant unmarks its mjData; the global callback goes with the last plant).
+The plant is made by :func:`usv_mj.build.make_plant`, the one constructor of plants (the harbour's
+rangefinders are an option of the composed scene), so a policy sees exactly what ``usv-mj run
+--plant mujoco`` integrates, with the same hydrodynamic callback and sea;
+:class:`usv_mj.envs.physics.USVPhysics` is a ``dm_control.mujoco.Physics`` over the plant's own
+mjModel/mjData. Close environments with ``env.close()`` (the plant unmarks its mjData; the global
+callback goes with the last plant).
 
-A Gymnasium view: :func:`gym_env` (shimmy's ``DmControlCompatibilityV0``).
+A Gymnasium view: :func:`gym_env`, and the ids of :data:`GYM_IDS` (``usv_mj/Track-v0``,
+``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``, ``usv_mj/HarborWaves-v0``), registered when this
+package is imported (if gymnasium is installed), for ``gymnasium.make``; flat scaled observations
+and normalized actions: :mod:`usv_mj.envs.gymnasium_env`.
 """
 
 from __future__ import annotations
 
 import importlib
 
-ALL_TASKS = ("track", "track_waves", "harbor")
+ALL_TASKS = ("track", "track_waves", "harbor", "harbor_waves")
+#: Gymnasium id -> task (as usv_mj.envs.gymnasium_env.GYM_IDS, without importing gymnasium here)
+GYM_IDS = {"usv_mj/Track-v0": "track", "usv_mj/TrackWaves-v0": "track_waves",
+           "usv_mj/Harbor-v0": "harbor", "usv_mj/HarborWaves-v0": "harbor_waves"}
 
 _WHERE = {
     "load": "environment", "gym_env": "environment", "episode_record": "environment",
     "USVEnvironment": "environment", "PPCPolicy": "policies", "RandomPolicy": "policies",
-    "TrackTask": "tasks", "HarbourTask": "tasks", "USVPhysics": "physics", "HarbourEnvPlant": "physics",
+    "TrackTask": "tasks", "HarbourTask": "tasks", "USVPhysics": "physics", "USVGymEnv": "gymnasium_env",
 }
 
-__all__ = ["ALL_TASKS", "HarbourEnvPlant", "HarbourTask", "PPCPolicy", "RandomPolicy", "TrackTask", "USVEnvironment",
-           "USVPhysics", "episode_record", "gym_env", "load"]
+__all__ = ["ALL_TASKS", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "TrackTask", "USVEnvironment",
+           "USVGymEnv", "USVPhysics", "episode_record", "gym_env", "load"]
+
+
+def _register_gymnasium() -> None:
+    """Register :data:`GYM_IDS` with Gymnasium's registry when gymnasium is installed (it imports
+    neither dm_control nor mujoco: the entry point is resolved by ``gymnasium.make``)."""
+    try:
+        from gymnasium.envs.registration import register, registry
+    except ImportError:  # pragma: no cover - optional dependency
+        return
+    for env_id, task in GYM_IDS.items():
+        if env_id not in registry:
+            register(id=env_id, entry_point="usv_mj.envs.gymnasium_env:USVGymEnv", kwargs={"task": task})
+
+
+_register_gymnasium()
 
 
 def __getattr__(name: str):

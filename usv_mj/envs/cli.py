@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("task", choices=ALL_TASKS, help="track: the paper's reference from a randomised start; "
                         "track_waves: the same in the moderate sea with current and wind; harbor: reach a goal "
-                        "through a randomised harbour without contact")
+                        "through a randomised harbour without contact; harbor_waves: the harbour in that sea")
     parser.add_argument("--policy", choices=("ppc", "random"), default="ppc",
                         help="ppc: the paper's controller (docs/model.md §3) on the observations; random: uniform actions")
     parser.add_argument("--episodes", type=int, default=1, help="number of episodes (default 1)")
@@ -109,7 +109,7 @@ def _video(env, rows, args) -> None:
         out = Path(args.video)
         out.parent.mkdir(parents=True, exist_ok=True)
         kwargs = {}
-        if args.task == "harbor":
+        if args.task.startswith("harbor"):
             kwargs["model"] = env.physics.plant.render_model_path  # the episode's own harbour layout
         info = render_run(record, out, width=w, height=h, progress=False, **kwargs)
         print(f"video: {info['mp4']} ({info['frames']} frames)")

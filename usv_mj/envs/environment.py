@@ -3,7 +3,8 @@
 
 from __future__ import annotations
 
-import inspect
+import collections
+import dataclasses
 import math
 import warnings
 
@@ -12,13 +13,13 @@ import numpy as np
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.obstacles.compose)
     from dm_control.rl import control
+from dm_env import specs
 
-from usv_mj.plants.mujoco_plant import MuJoCoPlant
+from usv_mj.build import make_environment, make_plant
 from usv_mj.scenario import Scenario, load_scenario
-from usv_mj.simulation import make_environment
 
 from . import ALL_TASKS
-from .physics import HarbourEnvPlant, USVPhysics
+from .physics import USVPhysics
 from .tasks import DEFAULT_PREVIEW, HarbourTask, TrackTask
 
 WAVES_SEA = {"preset": "moderate",
@@ -26,18 +27,62 @@ WAVES_SEA = {"preset": "moderate",
              "current": {"speed": 0.3, "toward_deg": 60.0, "sigma": 0.0, "time_constant": 120.0},
              "wind": {"speed": 5.0, "from_deg": 180.0, "gust_sigma": 1.0, "gust_time_constant": 2.0, "seed": 2}}
 HARBOUR_FUNNEL = {"rho_xy": [3.0, 0.5], "rate": 0.2}  # as examples/scenarios/harbour_gap.toml
-
+HARBOUR_TASKS = ("harbor", "harbor_waves")
+WAVE_TASKS = ("track_waves", "harbor_waves")
+#: keys of ``environment_kwargs`` (as ``dm_control.suite.load``'s): control.Environment's own options
+ENVIRONMENT_KWARGS = ("time_limit", "flat_observation", "legacy_step")
 
 
 class USVEnvironment(control.Environment):
     """``dm_control.rl.control.Environment`` that owns its plant: :meth:`close` closes it, and a task
-    with a per-episode model (harbor) gets a new physics at every :meth:`reset` after the first."""
+    with a per-episode model (harbor) gets a new physics at every :meth:`reset` after the first (and
+    at the first after :meth:`reseed`).
 
-    def __init__(self, physics, task, *, time_limit, n_sub_steps, rebuild=None):
-        super().__init__(physics, task, time_limit=time_limit, n_sub_steps=n_sub_steps)
+    With ``flat_observation=True`` the observation is one float64 vector ``observations``: the
+    task's observations flattened and concatenated in :meth:`TrackTask.observation_shapes` order
+    (:meth:`observation_layout` gives each one's slice and shape)."""
+
+    def __init__(self, physics, task, *, time_limit, n_sub_steps, rebuild=None, flat_observation=False,
+                 legacy_step=True):
+        super().__init__(physics, task, time_limit=time_limit, n_sub_steps=n_sub_steps,
+                         flat_observation=flat_observation, legacy_step=legacy_step)
         self._rebuild = rebuild
         self._fresh = True
         self._closed = False
+
+    @property
+    def flat_observation(self) -> bool:
+        return bool(self._flat_observation)
+
+    def observation_layout(self) -> dict:
+        """name -> (slice, shape) of each observation in the flat vector."""
+        out, i = {}, 0
+        for name, shape in self._task.observation_shapes():
+            n = int(np.prod(shape))
+            out[name] = (slice(i, i + n), shape)
+            i += n
+        return out
+
+    def unflatten(self, observation) -> dict:
+        """The observation as a dict of arrays (a flat ``observations`` vector is split by
+        :meth:`observation_layout`; a dict is returned as is)."""
+        if "observations" not in observation:
+            return observation
+        v = np.asarray(observation["observations"])
+        return collections.OrderedDict((k, v[sl].reshape(shape)) for k, (sl, shape) in self.observation_layout().items())
+
+    def observation_spec(self):
+        spec = self._task.observation_spec(self._physics)
+        if not self._flat_observation:
+            return spec
+        n = sum(int(np.prod(s.shape)) for s in spec.values())
+        return collections.OrderedDict(observations=specs.Array((n,), np.float64, name="observations"))
+
+    def reseed(self, seed) -> None:
+        """A new random state for the task (an int, a RandomState or None); the next :meth:`reset`
+        draws its episode (start, harbour layout) from it, the first one included."""
+        self._task._random = seed if isinstance(seed, np.random.RandomState) else np.random.RandomState(seed)
+        self._fresh = False
 
     def reset(self):
         if self._closed:
@@ -53,7 +98,10 @@ class USVEnvironment(control.Environment):
     def step(self, action):
         if self._closed:
             raise RuntimeError("USVEnvironment: the environment is closed")
-        return super().step(action)
+        ts = super().step(action)
+        if ts.last() and ts.discount == 1.0:
+            self._task.mark_time_limit(self._physics.time())
+        return ts
 
     def close(self):
         if not self._closed:
@@ -72,9 +120,9 @@ def _scenario(task: str, options: dict, duration: float) -> Scenario:
             raise TypeError(f"usv_mj.envs.load: scenario must be a usv_mj.scenario.Scenario, got {type(scenario).__name__}")
         return scenario
     base = {"control_period": cp, "plant": {"kind": "mujoco", "substeps": sub}, "duration": duration}
-    if task == "track_waves":
+    if task in WAVE_TASKS:
         base["sea"] = WAVES_SEA
-    if task == "harbor":
+    if task in HARBOUR_TASKS:
         base["funnel"] = HARBOUR_FUNNEL
         base["trajectory"] = {"kind": "waypoints", "points": [[0.0, 0.0], [40.0, 0.0]], "speed": 0.6}
         base["initial"] = {"eta": [0.0, 0.0, 0.0]}
@@ -90,21 +138,31 @@ def _nested_merge(a: dict, b: dict) -> dict:
     return out
 
 
-def _plant_supports_sea() -> bool:
-    return "environment" in inspect.signature(MuJoCoPlant.__init__).parameters
-
-
-def load(task: str, seed=None, **options) -> USVEnvironment:
+def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, flat_observation: bool = False,
+         **options) -> USVEnvironment:
     """A new environment for ``task`` (one of :data:`ALL_TASKS`) seeded with ``seed`` (an int, a
     ``numpy.random.RandomState`` or None for fresh entropy); options: see the module docstring.
 
-    Raises ValueError for an unknown task or option, NotImplementedError for ``track_waves`` when
-    the MuJoCo plant does not take a sea state.
+    As ``dm_control.suite.load``: ``task_kwargs`` (a dict, merged into the options),
+    ``environment_kwargs`` (``time_limit`` [s] = the episode length, ``flat_observation``,
+    ``legacy_step``) and ``flat_observation`` (one concatenated ``observations`` vector).
+
+    Raises ValueError for an unknown task or option.
     """
     if task not in ALL_TASKS:
         raise ValueError(f"usv_mj.envs.load: unknown task {task!r}; tasks: {', '.join(ALL_TASKS)}")
-    options = dict(options)
-    default_duration = 90.0 if task == "harbor" else 30.0
+    options = {**(task_kwargs or {}), **options}
+    env_kw = dict(environment_kwargs or {})
+    unknown = sorted(set(env_kw) - set(ENVIRONMENT_KWARGS))
+    if unknown:
+        raise ValueError(f"usv_mj.envs.load({task!r}): unknown environment_kwargs {unknown}; "
+                         f"known: {', '.join(ENVIRONMENT_KWARGS)}")
+    flat = bool(env_kw.pop("flat_observation", flat_observation))
+    legacy_step = bool(env_kw.pop("legacy_step", True))
+    if "time_limit" in env_kw:
+        options.setdefault("duration", env_kw.pop("time_limit"))
+    harbour = task in HARBOUR_TASKS
+    default_duration = 90.0 if harbour else 30.0
     duration = float(options.pop("duration", default_duration))
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"usv_mj.envs.load: duration must be a finite number > 0 s, got {duration!r}")
@@ -115,27 +173,22 @@ def load(task: str, seed=None, **options) -> USVEnvironment:
     task_kw = {k: options.pop(k) for k in ("quantize", "max_surge_force", "max_yaw_moment", "preview_times",
                                            "start_offset", "max_distance") if k in options}
     cp, sub = scenario.control_period, scenario.plant.substeps
-    environment = None
-    if not scenario.sea.calm:
-        if not _plant_supports_sea():
-            raise NotImplementedError(f"usv_mj.envs.load({task!r}): the MuJoCo plant does not take a sea state yet "
-                                      "(MuJoCoPlant has no 'environment' argument)")
-        environment = make_environment(scenario, duration + max(preview) + 1.0)
     n_steps = round(duration / cp)
     time_limit = n_steps * cp
-    if task in ("track", "track_waves"):
+    env_kw = {"time_limit": time_limit, "n_sub_steps": sub, "flat_observation": flat, "legacy_step": legacy_step}
+    if not harbour:
         if options:
             raise ValueError(f"usv_mj.envs.load({task!r}): unknown options {sorted(options)}")
-        kwargs = {} if environment is None else {"environment": environment}
-        plant = MuJoCoPlant(scenario.ship, scenario.disturbance, cp, sub, **kwargs)
-        tsk = TrackTask(scenario, random=seed, **task_kw)
-        return USVEnvironment(USVPhysics.from_plant(plant), tsk, time_limit=time_limit, n_sub_steps=sub)
-    # harbor
+        tsk = TrackTask(scenario, random=seed, time_limit=time_limit, **task_kw)
+        return USVEnvironment(USVPhysics.from_plant(make_plant(scenario, "mujoco")), tsk, **env_kw)
     harbour_kw = {k: options.pop(k) for k in ("n_rays", "max_range", "goal_radius") if k in options}
     goal_distance = float(options.pop("goal_distance", 40.0))
     if options:
-        raise ValueError(f"usv_mj.envs.load('harbor'): unknown options {sorted(options)}")
-    tsk = HarbourTask(scenario, margin_m=scenario.guidance.margin_m, random=seed, **harbour_kw, **task_kw)
+        raise ValueError(f"usv_mj.envs.load({task!r}): unknown options {sorted(options)}")
+    tsk = HarbourTask(scenario, margin_m=scenario.guidance.margin_m, random=seed, time_limit=time_limit,
+                      **harbour_kw, **task_kw)
+    tsk.goal_distance = goal_distance
+    sea = make_environment(scenario)  # one sea for every layout (a pure function of t and the seeds)
 
     def build():
         from usv_mj.obstacles.clearance import MuJoCoClearance
@@ -143,39 +196,42 @@ def load(task: str, seed=None, **options) -> USVEnvironment:
         from .layout import harbour_layout
 
         layout = harbour_layout(tsk.random, scenario, scenario.guidance, duration, goal_distance)
-        kwargs = {} if environment is None else {"environment": environment}
-        plant = HarbourEnvPlant(scenario.ship, scenario.disturbance, layout.obstacles, cp, sub,
-                                ray_angles=tsk.ray_angles, **kwargs)
-        tsk.attach_layout(layout, MuJoCoClearance(plant))
+        episode = dataclasses.replace(scenario, obstacles=tuple(layout.obstacles))
+        plant = make_plant(episode, "mujoco", sea, rangefinders=tsk.ray_angles)
+        tsk.attach_layout(layout, MuJoCoClearance(plant), episode)
         return USVPhysics.from_plant(plant)
 
-    return USVEnvironment(build(), tsk, time_limit=time_limit, n_sub_steps=sub, rebuild=build)
+    return USVEnvironment(build(), tsk, rebuild=build, **env_kw)
 
 
 def gym_env(task: str, seed=None, render_mode=None, **options):
-    """A Gymnasium view of :func:`load` through shimmy's ``DmControlCompatibilityV0`` (observations a
-    dict of arrays, action the thrust box). Raises ImportError if shimmy is not installed."""
-    try:
-        from shimmy.dm_control_compatibility import DmControlCompatibilityV0
-    except ImportError as exc:  # pragma: no cover - optional dependency
-        raise ImportError("usv_mj.envs.gym_env needs shimmy[dm-control] (pip install 'shimmy[dm-control]')") from exc
-    return DmControlCompatibilityV0(load(task, seed=seed, **options), render_mode=render_mode)
+    """A Gymnasium view of :func:`load`: :class:`usv_mj.envs.gymnasium_env.USVGymEnv` (a flat,
+    scaled float32 observation and a normalized Box(-1, 1) action by default; see that module).
+    The same environments are registered as ``usv_mj/Track-v0`` ... for ``gymnasium.make``
+    (:data:`usv_mj.envs.GYM_IDS`). Raises ImportError if gymnasium is not installed."""
+    from .gymnasium_env import USVGymEnv
+
+    return USVGymEnv(task, seed=seed, render_mode=render_mode, **options)
 
 
 def episode_record(env, steps, metadata=None):
     """A :class:`usv_mj.record.RunRecord` of an episode for the renderer (``usv_mj.render.render_run``).
 
     ``steps``: a list of (t, state (6), reference (7), action (2), thrust (2)) rows, as collected by
-    :func:`usv_mj.envs.cli.rollout`. The diagnostics the HUD shows are filled from the task: e1, e2 =
-    x - x_d, y - y_d [m] (the hull origin, not the controller's offset point), e3 = wrap(psi - psi_d),
-    rho1 = rho2 = rho_xy(t), rho3 = rho_psi(t) and z_i = e_i / rho_i; the controller's own adaptive
-    states are not known here (NaN).
+    :func:`usv_mj.envs.cli.rollout`. The record declares the funnel block
+    (:data:`usv_mj.controllers.base.FUNNEL_FIELDS`), filled from the task: e1, e2 = x - x_d, y - y_d
+    [m] (the hull origin, not the controller's offset point), e3 = wrap(psi - psi_d), rho1 = rho2 =
+    rho_xy(t), rho3 = rho_psi(t) and z_i = e_i / rho_i. ``tau`` is the clipped action, ``q_tau`` and
+    ``f`` the thrust the plant got. The metadata carry the episode's scenario (its sea and, in the
+    harbor, the layout's obstacles), so the video shows the water and the harbour.
     """
+    from usv_mj.controllers.base import FUNNEL_FIELDS
+    from usv_mj.record import CORE_COLUMNS, RunRecord
     from usv_mj.ship import wrap_angle as wrap
-    from usv_mj.record import COLUMNS, RunRecord
 
+    task = env.task
     n = len(steps)
-    cols = {name: np.full(n, np.nan) for name in COLUMNS}
+    cols = {name: np.full(n, np.nan) for name in CORE_COLUMNS + FUNNEL_FIELDS}
     for i, (t, x, ref, a, q) in enumerate(steps):
         cols["t"][i] = t
         for j, name in enumerate(("x", "y", "psi", "u", "v", "r")):
@@ -184,12 +240,17 @@ def episode_record(env, steps, metadata=None):
             cols[name][i] = ref[j]
         cols["tau_u"][i], cols["tau_r"][i] = a
         cols["q_tau_u"][i], cols["q_tau_r"][i] = q
-        rxy, rpsi = float(env.task.funnel_xy(t)), float(env.task.funnel_psi(t))
+        cols["f_u"][i], cols["f_r"][i] = q
+        cols["sat_u"][i] = cols["sat_r"][i] = 0.0
+        rxy, rpsi = float(task.funnel_xy(t)), float(task.funnel_psi(t))
         e = (x[0] - ref[0], x[1] - ref[1], wrap(x[2] - ref[2]))
         for j, rho in enumerate((rxy, rxy, rpsi)):
             cols[f"e{j + 1}"][i] = e[j]
             cols[f"rho{j + 1}"][i] = rho
             cols[f"z{j + 1}"][i] = e[j] / rho
-    meta = {"plant": "mujoco", "controller": "env", "control_period_s": env.control_timestep()}
+    scenario = getattr(task, "episode_scenario", None) or task.scenario
+    meta = {"plant": "mujoco", "controller": "env", "control_period_s": env.control_timestep(),
+            "duration_s": float(steps[-1][0]) if steps else 0.0, "scenario": scenario.to_dict(),
+            "diagnostic_fields": list(FUNNEL_FIELDS)}
     meta.update(metadata or {})
-    return RunRecord.from_arrays(cols, metadata=meta)
+    return RunRecord.from_arrays(cols, metadata=meta, diagnostic_fields=FUNNEL_FIELDS)

@@ -14,18 +14,15 @@ structs), so the environment integrates exactly what ``usv-mj run --plant mujoco
   parameters again after ``mj_resetData`` (a bare ``mj_resetData`` would zero ``userdata`` and
   silently turn the hydrodynamics off).
 
-:class:`HarbourEnvPlant` is the MuJoCo plant on the harbour model of
-:func:`usv_mj.obstacles.compose.compose_scene` plus a fan of MuJoCo ``rangefinder`` sensors on the
-hull (sites at the hull origin, 0.3 m above the waterline, rays horizontal).
+The plant comes from :func:`usv_mj.build.make_plant` (the one constructor of plants): in the
+harbor tasks it is the composed harbour scene with the ``rangefinders`` option (a fan of MuJoCo
+``rangefinder`` sensors on the hull, :func:`usv_mj.obstacles.compose.compose_scene`).
 """
 
 from __future__ import annotations
 
-import math
-import tempfile
 import warnings
 
-import mujoco
 import numpy as np
 
 with warnings.catch_warnings():
@@ -38,7 +35,6 @@ with warnings.catch_warnings():
 from usv_mj.plants.mujoco_callback import HydrodynamicCallbackError
 from usv_mj.plants.mujoco_plant import MuJoCoPlant
 
-RANGEFINDER_HEIGHT = 0.3  # m above the waterline (obstacles span z in [-1, 1], the water plane is z = 0)
 
 
 class USVPhysics(dm_mujoco.Physics):
@@ -117,80 +113,3 @@ class USVPhysics(dm_mujoco.Physics):
                 self.free()
             finally:
                 self.plant.close()
-
-
-class HarbourEnvPlant(MuJoCoPlant):
-    """:class:`MuJoCoPlant` on the composed harbour model with ``n_rays`` rangefinders on the hull.
-
-    Same composition as :class:`usv_mj.obstacles.compose.HarbourPlant` (collision geoms, contact
-    parameters, filtering), plus sites ``range_i`` on body "hull" at z = :data:`RANGEFINDER_HEIGHT`
-    whose z axes point at the body-frame angles ``ray_angles`` [rad] (0 = bow, counter-clockwise),
-    and one ``rangefinder`` sensor per site. MuJoCo's rangefinder excludes the site's own body, so
-    the hull never sees itself; the rays are parallel to the water plane and hit only obstacles.
-    Readings are the distance [m] from the hull origin along the ray, -1 when nothing is hit.
-
-    Attributes as ``HarbourPlant``: ``obstacles``, ``hull_geoms``, ``obstacle_geoms``,
-    ``obstacle_mocap``, ``model_xml_path``; plus ``ray_angles``, :meth:`rangefinders` and
-    ``render_model_path`` (the same harbour without the rangefinder sites, for ``usv_mj.render``).
-    """
-
-    def __init__(self, ship, disturbance, obstacles=(), control_period: float = 1e-3, substeps: int = 1,
-                 contact=None, ray_angles=(), environment=None):
-        from usv_mj.obstacles.compose import (
-            HULL_COLLISION_GEOMS,
-            ContactParams,
-            compose_scene,
-            export_scene,
-            obstacle_geom_name,
-        )
-
-        contact = contact or ContactParams()
-        self.obstacles = tuple(obstacles)
-        self.contact = contact
-        if contact.solref[0] < 2.0 * control_period / substeps:
-            raise ValueError(f"HarbourEnvPlant: contact.solref[0] = {contact.solref[0]} s is under twice the MuJoCo "
-                             f"time step ({control_period / substeps} s)")
-        self.ray_angles = np.asarray(ray_angles, dtype=float).reshape(-1)
-        root = compose_scene(self.obstacles, contact)
-        hull = root.find("body", "hull")
-        for i, a in enumerate(self.ray_angles):
-            site = hull.add("site", name=f"range_{i}", pos=[0.0, 0.0, RANGEFINDER_HEIGHT],
-                            zaxis=[math.cos(a), math.sin(a), 0.0], size=[0.02], group=4)
-            root.sensor.add("rangefinder", name=f"range_{i}", site=site)
-        self._tmp = tempfile.TemporaryDirectory(prefix="usv_mj_env_harbour_")
-        self.model_xml_path = export_scene(root, self._tmp.name)
-        # the same harbour without the rangefinders, for the renderer (MuJoCo draws rangefinder rays)
-        self.render_model_path = export_scene(compose_scene(self.obstacles, contact),
-                                              tempfile.mkdtemp(dir=self._tmp.name))
-        kwargs = {} if environment is None else {"environment": environment}
-        super().__init__(ship, disturbance, control_period, substeps, model_path=self.model_xml_path, **kwargs)
-        m = self.model
-        gid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)
-        self.hull_geoms = np.array([gid(n) for n, *_ in HULL_COLLISION_GEOMS], dtype=np.int64)
-        self.obstacle_geoms = np.array([gid(obstacle_geom_name(o)) for o in self.obstacles], dtype=np.int64)
-        self.obstacle_mocap = np.full(len(self.obstacles), -1, dtype=np.int64)
-        for i, o in enumerate(self.obstacles):
-            if o.moving:
-                self.obstacle_mocap[i] = m.body_mocapid[m.geom_bodyid[self.obstacle_geoms[i]]]
-        self._sensor_adr = np.array([m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, f"range_{i}")]
-                                     for i in range(len(self.ray_angles))], dtype=np.int64)
-
-    def move_obstacles(self, t: float) -> None:
-        """Put every moving obstacle at center + velocity t (held during the next step)."""
-        for i, o in enumerate(self.obstacles):
-            j = self.obstacle_mocap[i]
-            if j >= 0:
-                cx, cy = o.center_at(t)
-                self.data.mocap_pos[j, 0] = cx
-                self.data.mocap_pos[j, 1] = cy
-
-    def rangefinders(self) -> np.ndarray:
-        """Readings [m] (-1: no hit) at the current state: kinematics, then MuJoCo's position-stage
-        sensors (after ``mj_step`` the sensor data are those of the last step's start)."""
-        mujoco.mj_kinematics(self.model, self.data)
-        mujoco.mj_sensorPos(self.model, self.data)
-        return self.data.sensordata[self._sensor_adr].copy()
-
-    def close(self) -> None:
-        super().close()
-        self._tmp.cleanup()

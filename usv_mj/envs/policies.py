@@ -9,31 +9,46 @@ import math
 
 import numpy as np
 
-from usv_mj.simulation import make_controller
+from usv_mj.build import make_controller
+
+
+def _views(env):
+    """(dm_env, gymnasium view or None) of ``env``: a USVEnvironment, or a Gymnasium env (wrapped or
+    not) whose ``unwrapped`` is a :class:`usv_mj.envs.gymnasium_env.USVGymEnv`."""
+    unwrapped = getattr(env, "unwrapped", env)
+    if hasattr(unwrapped, "dm_env") and hasattr(unwrapped, "decode"):
+        return unwrapped.dm_env, unwrapped
+    return env, None
 
 
 class PPCPolicy:
     """The adaptive PPC law (docs/model.md §3, Eqs. 14-37) run on the environment's observations.
 
+    Works on both views: ``PPCPolicy(dm_env)`` is called with a ``dm_env.TimeStep`` and returns
+    the thrust (tau_u [N], tau_r [N m]); ``PPCPolicy(gym_env)`` (``gymnasium.make("usv_mj/Track-v0")``
+    or :func:`usv_mj.envs.gym_env`) is called with the Gymnasium observation and returns the
+    normalized action in [-1, 1]^2. Flat observations (``flat_observation=True``, the Gymnasium
+    view's default) are decoded first.
+
     What it reads
     -------------
-    From the time step's observation: ``time``, ``heading`` (cos psi, sin psi), ``position_error``
-    (body frame), ``velocity`` (u, v, r). From the environment: the task's reference trajectory
+    From the observation: ``time``, ``heading`` (cos psi, sin psi), ``position_error`` (body
+    frame), ``velocity`` (u, v, r). From the environment: the task's reference trajectory
     (``env.task.reference_at(t)``: the same trajectory the ``reference_preview`` and
-    ``reference_velocity`` observations are sampled from; the law needs its pose, velocity and yaw
+    ``velocity_error`` observations are sampled from; the law needs its pose, velocity and yaw
     rate at t) and the scenario's controller design (gains, nominal ship model, funnel, quantizer
     delta for Eq. 37's margin, control period). It does not read the physics: the world-frame pose
     is rebuilt as p = p_d + R(psi) position_error, psi = atan2(sin, cos) (within rounding of the
-    plant's own state, about 1e-15 m).
+    plant's own state: about 1e-15 m in float64, 1e-6 m through the float32 Gymnasium view).
 
-    The output is the unquantized law (tau_u, tau_r); the environment's quantizer (``quantize=True``)
-    plays the actuator's role as in :func:`usv_mj.simulation.simulate`. A FIRST time step resets the
-    adaptive states (W = 0, s2 = 0).
+    The output is the unquantized law; the environment's quantizer (``quantize=True``) plays the
+    actuator's role as in :func:`usv_mj.simulation.simulate`. The first step of an episode (a FIRST
+    time step; on the Gymnasium view, t = 0) resets the adaptive states (W = 0, s2 = 0).
     """
 
     def __init__(self, env, controller=None):
-        self.env = env
-        task = env.task
+        self.env, self.gym = _views(env)
+        task = self.env.task
         self.controller = controller if controller is not None else make_controller(task.scenario, "ppc")
         self._x = np.zeros(6)
 
@@ -41,9 +56,15 @@ class PPCPolicy:
     def reference(self):
         return self.env.task.reference  # read each call: the harbor task re-plans every episode
 
-    def __call__(self, time_step) -> np.ndarray:
-        obs = time_step.observation
-        if time_step.first():
+    def __call__(self, observation) -> np.ndarray:
+        if self.gym is not None:
+            obs = self.gym.decode(observation)
+            first = float(obs["time"][0]) == 0.0
+        else:
+            obs = self.env.unflatten(observation.observation) if hasattr(self.env, "unflatten") \
+                else observation.observation
+            first = observation.first()
+        if first:
             self.controller.reset()
         t = float(obs["time"][0])
         ref = self.env.task.reference_at(t)
@@ -55,7 +76,8 @@ class PPCPolicy:
         x[2] = math.atan2(s, c)
         x[3:6] = obs["velocity"]
         tau_u, tau_r, _ = self.controller(t, x, ref)
-        return np.array([tau_u, tau_r])
+        thrust = np.array([tau_u, tau_r])
+        return thrust if self.gym is None else self.gym.normalized_action(thrust)
 
 
 class RandomPolicy:

@@ -2,9 +2,10 @@
 
 Conventions (all tasks)
 -----------------------
-Action: ``thrust`` = (tau_u [N], tau_r [N m]), a ``specs.BoundedArray`` with bounds
-(+-``max_surge_force``, +-``max_yaw_moment``); values outside are clipped, non-finite ones raise
-ValueError. With ``quantize=True`` the clipped action goes through the hysteresis quantizer of Eq. 3
+Action: ``thrust`` = (tau_u [N], tau_r [N m]), a ``specs.BoundedArray`` whose bounds are the
+scenario's actuator limits (``scenario.actuators.generalized_limits()``) where they are finite, else
++-``max_surge_force`` / +-``max_yaw_moment`` (1000 N, 1000 N m: the paper's ship has no thrust
+limits); values outside are clipped, non-finite ones raise ValueError. With ``quantize=True`` the clipped action goes through the hysteresis quantizer of Eq. 3
 (docs/model.md §2; the scenario's delta and u_min per channel), exactly as in :func:`usv_mj.simulation.simulate`.
 The (quantized) thrust is held over the control period: ``n_sub_steps`` = ``plant.substeps`` RK4
 steps of the plant's time step.
@@ -15,11 +16,13 @@ Observations (an OrderedDict of float64 arrays; "body frame" = rotated by -psi, 
 - ``heading_error`` (1,): wrap(psi - psi_d) [rad] in [-pi, pi);
 - ``heading`` (2,): (cos psi, sin psi) (the funnel of Eq. 9 bounds world-frame errors);
 - ``velocity`` (3,): (u, v, r) [m/s, m/s, rad/s];
-- ``reference_velocity`` (3,): R(psi)^T (x_d_dot, y_d_dot) [m/s] and r_d [rad/s];
+- ``velocity_error`` (3,): R(psi)^T (x_d_dot, y_d_dot) - (u, v) [m/s] and r_d - r [rad/s] (the
+  reference's velocity in the body frame minus the hull's; r_d alone is constant on most of the
+  paper's reference, so it is observed against r);
 - ``reference_preview`` (n, 2): R(psi)^T (p_d(t + tau_k) - p) [m] at the preview times tau_k
   (default 0.5, 1, 2, 4 s);
 - ``funnel`` (2,): rho_xy(t) [m], rho_psi(t) [rad] of Eq. 9 (the prescribed performance);
-- ``time`` (1,): t [s];
+- ``time`` (1,): t [s], in [0, time limit];
 - harbor only: ``goal`` (3,): R(psi)^T (p_goal - p) [m] and wrap(psi_goal - psi) [rad];
   ``rangefinder`` (n_rays,): distance [m] from the hull origin to the first obstacle along rays
   fanned evenly around the hull (first ray at the bow, counter-clockwise), ``max_range`` when none.
@@ -33,11 +36,16 @@ Rewards (per step, in [0, 1], ``dm_control.utils.rewards.tolerance``):
   reference, r_clear = tolerance(min clearance, bounds (margin_m, inf), margin margin_m, linear)
   (0 at contact).
 
+The specs of ``heading_error``, ``heading``, ``funnel``, ``time`` and ``rangefinder`` are
+``BoundedArray`` s (their bounds hold by construction); the others are unbounded ``Array`` s (the
+Gymnasium view, :mod:`usv_mj.envs.gymnasium_env`, bounds them through the termination thresholds).
+
 Termination (``get_termination`` -> discount 0, reason in ``task.termination_reason`` and
-``task.info``): divergence (the hydrodynamic callback failed, or |u|, |v| > limits.max_speed, |r| >
-limits.max_yaw_rate, distance to the reference > ``max_distance``); in harbor also contact with an
-obstacle (MuJoCo contact or clearance <= 0) and success (|p - p_goal| < goal_radius). The time limit
-ends the episode with discount 1.
+``task.info``): ``diverged`` (the hydrodynamic callback failed, or the state left
+``scenario.limits``: :func:`usv_mj.simulation.state_limit_exceeded`, the loop's own check), ``lost``
+(distance to the reference >= ``max_distance``); in harbor also ``contact`` with an obstacle
+(MuJoCo contact or clearance <= 0) and ``goal`` (|p - p_goal| < goal_radius). The time limit ends
+the episode with discount 1 and kind ``time_limit``.
 """
 
 from __future__ import annotations
@@ -54,12 +62,28 @@ with warnings.catch_warnings():
     from dm_control.utils import rewards
 from dm_env import specs
 
+from usv_mj.build import make_quantizers
 from usv_mj.controllers.hysteresis_quantizer import quantize_step
-from usv_mj.controllers.performance_funnel import funnel_bound
+from usv_mj.controllers.performance_funnel import funnel_bound, funnels_of
 from usv_mj.controllers.tracking_errors import wrap
-from usv_mj.simulation import make_funnels, make_quantizers, make_reference
+from usv_mj.simulation import _which_limit, make_reference, state_limit_exceeded
 
 DEFAULT_PREVIEW = (0.5, 1.0, 2.0, 4.0)
+
+
+DEFAULT_FORCE = 1000.0  # N and N m: the action bound of a channel whose actuator is unlimited
+
+
+def action_bounds(scenario, max_surge_force: float = DEFAULT_FORCE, max_yaw_moment: float = DEFAULT_FORCE):
+    """(low, high) of the action [N, N m]: the actuators' generalized limits where finite, else
+    -+``max_surge_force`` / -+``max_yaw_moment`` (one number each side, so the task and the plant's
+    ctrlrange come from the same figures)."""
+    u_lo, u_hi, r_lo, r_hi = scenario.actuators.generalized_limits()
+    low = np.array([u_lo if math.isfinite(u_lo) else -float(max_surge_force),
+                    r_lo if math.isfinite(r_lo) else -float(max_yaw_moment)])
+    high = np.array([u_hi if math.isfinite(u_hi) else float(max_surge_force),
+                     r_hi if math.isfinite(r_hi) else float(max_yaw_moment)])
+    return low, high
 
 
 def _tol_pos(d: float) -> float:
@@ -82,9 +106,9 @@ class TrackTask(base.Task):
     ``max_distance`` [m], ``random`` (seed or RandomState).
     """
 
-    def __init__(self, scenario, quantize: bool = True, max_surge_force: float = 1000.0,
-                 max_yaw_moment: float = 1000.0, preview_times=DEFAULT_PREVIEW, start_offset=(3.0, 3.0, 0.5),
-                 max_distance: float = 50.0, reference=None, random=None):
+    def __init__(self, scenario, quantize: bool = True, max_surge_force: float = DEFAULT_FORCE,
+                 max_yaw_moment: float = DEFAULT_FORCE, preview_times=DEFAULT_PREVIEW, start_offset=(3.0, 3.0, 0.5),
+                 max_distance: float = 50.0, reference=None, random=None, time_limit: float = math.inf):
         for name, value in (("max_surge_force", max_surge_force), ("max_yaw_moment", max_yaw_moment),
                             ("max_distance", max_distance)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -101,12 +125,14 @@ class TrackTask(base.Task):
         self.max_distance = float(max_distance)
         self.preview_times = preview
         self.start_offset = offset
-        self._bounds = np.array([max_surge_force, max_yaw_moment], dtype=float)
-        self._bounds_t = (float(max_surge_force), float(max_yaw_moment))
+        self.action_low, self.action_high = action_bounds(scenario, max_surge_force, max_yaw_moment)
+        self._bounds_t = (float(self.action_low[0]), float(self.action_high[0]),
+                          float(self.action_low[1]), float(self.action_high[1]))
+        self.time_limit = float(time_limit)
         self._ref_t = None          # cache: the reference at the last time asked for
         self._ref = None
         self.reference = reference if reference is not None else make_reference(scenario)
-        self.funnel_xy, self.funnel_psi = make_funnels(scenario)
+        self.funnel_xy, self.funnel_psi = funnels_of(scenario)
         q_u, q_r = make_quantizers(scenario)
         self._qp = ((q_u.params.delta, q_u.params.u_min), (q_r.params.delta, q_r.params.u_min))
         self._k = [0, 0]
@@ -114,6 +140,7 @@ class TrackTask(base.Task):
         self.last_thrust = np.zeros(2)      # after the quantizer: what the plant got
         self.termination_reason: str | None = None
         self.termination_kind: str | None = None
+        self.episode_scenario = scenario  # what the plant was built from (harbor: with the layout's obstacles)
 
     # --- episode -------------------------------------------------------------------------------
 
@@ -134,7 +161,7 @@ class TrackTask(base.Task):
         physics.set_initial_state(eta0, nu0)
 
     def action_spec(self, physics):
-        return specs.BoundedArray((2,), np.float64, -self._bounds, self._bounds, name="thrust")
+        return specs.BoundedArray((2,), np.float64, self.action_low.copy(), self.action_high.copy(), name="thrust")
 
     def before_step(self, action, physics):
         a = np.asarray(action, dtype=np.float64)
@@ -144,9 +171,9 @@ class TrackTask(base.Task):
         a0, a1 = float(a[0]), float(a[1])
         if not (math.isfinite(a0) and math.isfinite(a1)):
             raise ValueError(f"{type(self).__name__}: action must be finite, got {a.tolist()}")
-        b0, b1 = self._bounds_t
-        a0 = min(max(a0, -b0), b0)
-        a1 = min(max(a1, -b1), b1)
+        lo0, hi0, lo1, hi1 = self._bounds_t
+        a0 = min(max(a0, lo0), hi0)
+        a1 = min(max(a1, lo1), hi1)
         self.last_action[0], self.last_action[1] = a0, a1
         if self.quantize:
             (d0, m0), (d1, m1) = self._qp
@@ -168,13 +195,10 @@ class TrackTask(base.Task):
         x = physics.state
         lim = self.scenario.limits
         ref = self.reference_at(t)
-        dist = math.hypot(x[0] - ref[0], x[1] - ref[1])
-        if not all(math.isfinite(v) for v in x):
-            self._terminate("diverged", f"non-finite state at t = {t:.3f} s")
-        elif abs(x[3]) >= lim.max_speed or abs(x[4]) >= lim.max_speed:
-            self._terminate("diverged", f"|u| or |v| reached limits.max_speed = {lim.max_speed:g} m/s at t = {t:.3f} s")
-        elif abs(x[5]) >= lim.max_yaw_rate:
-            self._terminate("diverged", f"|r| reached limits.max_yaw_rate = {lim.max_yaw_rate:g} rad/s at t = {t:.3f} s")
+        ex, ey = x[0] - ref[0], x[1] - ref[1]
+        dist = math.hypot(ex, ey)
+        if state_limit_exceeded(x, ex, ey, lim) or not all(math.isfinite(v) for v in x):
+            self._terminate("diverged", f"state left its limits at t = {t:.3f} s: {_which_limit(x, ex, ey, lim)}")
         elif dist >= self.max_distance:
             self._terminate("lost", f"distance to the reference {dist:.3g} m reached max_distance = "
                                     f"{self.max_distance:g} m at t = {t:.3f} s")
@@ -186,10 +210,15 @@ class TrackTask(base.Task):
     def get_termination(self, physics):
         return 0.0 if self.termination_reason is not None else None
 
+    def mark_time_limit(self, t: float) -> None:
+        """The environment ended the episode at its time limit (discount 1): say so in :attr:`info`."""
+        if self.termination_reason is None:
+            self._terminate("time_limit", f"reached the time limit at t = {t:.3f} s")
+
     @property
     def info(self) -> dict:
-        """Why the episode ended (``kind``: None, "diverged", "lost", "contact", "goal"; ``reason``),
-        the last action and the thrust the plant got."""
+        """Why the episode ended (``kind``: None while it runs, else "diverged", "lost", "contact",
+        "goal" or "time_limit"; ``reason``: one sentence), the last action and the thrust the plant got."""
         return {"kind": self.termination_kind, "reason": self.termination_reason,
                 "action": self.last_action.copy(), "thrust": self.last_thrust.copy()}
 
@@ -220,7 +249,8 @@ class TrackTask(base.Task):
         obs["heading_error"] = np.array([wrap(x[2] - ref[2])])
         obs["heading"] = np.array([c, s])
         obs["velocity"] = np.array([x[3], x[4], x[5]])
-        obs["reference_velocity"] = np.array([c * ref[3] + s * ref[4], -s * ref[3] + c * ref[4], ref[5]])
+        obs["velocity_error"] = np.array([c * ref[3] + s * ref[4] - x[3], -s * ref[3] + c * ref[4] - x[4],
+                                          ref[5] - x[5]])
         prev = np.empty((self.preview_times.size, 2))
         for k, tau in enumerate(self.preview_times):
             r = self.reference.evaluate(t + tau)
@@ -235,14 +265,30 @@ class TrackTask(base.Task):
 
     def observation_spec(self, physics):
         spec = collections.OrderedDict()
-        for name, shape in self._observation_shapes():
-            spec[name] = specs.Array(shape, np.float64, name=name)
+        bounds = self.observation_bounds()
+        for name, shape in self.observation_shapes():
+            if name in bounds:
+                lo, hi = bounds[name]
+                spec[name] = specs.BoundedArray(shape, np.float64, np.broadcast_to(lo, shape).copy(),
+                                                np.broadcast_to(hi, shape).copy(), name=name)
+            else:
+                spec[name] = specs.Array(shape, np.float64, name=name)
         return spec
 
-    def _observation_shapes(self):
+    def observation_shapes(self):
+        """(name, shape) of every observation, in order (the flat layouts concatenate them so)."""
         return [("position_error", (2,)), ("heading_error", (1,)), ("heading", (2,)), ("velocity", (3,)),
-                ("reference_velocity", (3,)), ("reference_preview", (self.preview_times.size, 2)),
+                ("velocity_error", (3,)), ("reference_preview", (self.preview_times.size, 2)),
                 ("funnel", (2,)), ("time", (1,))]
+
+    def observation_bounds(self) -> dict:
+        """name -> (low, high) of the observations bounded by construction."""
+        fx, fp = self.funnel_xy, self.funnel_psi
+        lo_f = [min(fx.rho_0, fx.rho_inf), min(fp.rho_0, fp.rho_inf)]
+        hi_f = [max(fx.rho_0, fx.rho_inf), max(fp.rho_0, fp.rho_inf)]
+        t_hi = self.time_limit if math.isfinite(self.time_limit) else np.finfo(np.float64).max
+        return {"heading_error": (-math.pi, math.pi), "heading": (-1.0, 1.0),
+                "funnel": (np.array(lo_f), np.array(hi_f)), "time": (0.0, t_hi)}
 
     def tracking_reward(self, physics) -> float:
         t = physics.time()
@@ -285,9 +331,11 @@ class HarbourTask(TrackTask):
         self.min_clearance = math.inf
         self._start_distance = 1.0
 
-    def attach_layout(self, layout, monitor) -> None:
-        """Use ``layout`` (:class:`usv_mj.envs.layout.HarbourLayout`) and its clearance monitor."""
+    def attach_layout(self, layout, monitor, episode_scenario=None) -> None:
+        """Use ``layout`` (:class:`usv_mj.envs.layout.HarbourLayout`), its clearance monitor and the
+        episode's scenario (the task's with the layout's obstacles: what the plant was built from)."""
         self.layout = layout
+        self.episode_scenario = episode_scenario if episode_scenario is not None else self.scenario
         self.reference = layout.plan.reference
         self._ref_t = None
         self.monitor = monitor
@@ -336,8 +384,11 @@ class HarbourTask(TrackTask):
         obs["rangefinder"] = np.where((r < 0) | (r > self.max_range), self.max_range, r)
         return obs
 
-    def _observation_shapes(self):
-        return super()._observation_shapes() + [("goal", (3,)), ("rangefinder", (self.n_rays,))]
+    def observation_shapes(self):
+        return super().observation_shapes() + [("goal", (3,)), ("rangefinder", (self.n_rays,))]
+
+    def observation_bounds(self) -> dict:
+        return {**super().observation_bounds(), "rangefinder": (0.0, self.max_range)}
 
     def get_reward(self, physics):
         x, _, _ = self._frame(physics)

@@ -12,6 +12,9 @@
   moving ones are mocap bodies (``mocap_pos`` is set by :meth:`HarbourPlant.move_obstacles`);
 - optionally, visual-only translucent discs/rounded rectangles showing each obstacle's inflated
   safety boundary (see :mod:`usv_mj.obstacles.planner`);
+- optionally, a fan of MuJoCo ``rangefinder`` sensors on the hull (``rangefinders``: body-frame
+  ray angles [rad], 0 = bow, counter-clockwise): sites ``range_i`` at the hull origin,
+  :data:`RANGEFINDER_HEIGHT` above the waterline, rays horizontal (the harbor task's sensors);
 - ``<option><flag contact="enable" constraint="enable"/>``: ``usv.xml`` disables both (open water
   needs neither); here the hull must be stopped by a contact force.
 
@@ -74,6 +77,7 @@ def hull_collision_geoms(model_path: str = HULL_PATH) -> tuple:
 
 HULL_COLLISION_GEOMS = hull_collision_geoms()
 
+RANGEFINDER_HEIGHT = 0.3  # m above the waterline: rays at this height hit only the obstacles
 HULL_CONTYPE, HULL_CONAFFINITY = 1, 2
 OBSTACLE_CONTYPE, OBSTACLE_CONAFFINITY = 2, 1
 
@@ -146,11 +150,14 @@ def obstacle_geom_name(obstacle: ObstacleSpec) -> str:
 
 
 def compose_scene(obstacles=(), contact: ContactParams = ContactParams(), safety_radii=None,
-                  scene_path: str = SCENE_PATH) -> mjcf.RootElement:
+                  scene_path: str = SCENE_PATH, rangefinders=()) -> mjcf.RootElement:
     """The composed MJCF model (see the module docstring).
 
     ``safety_radii``: optional inflation [m] per obstacle (e.g. :meth:`Plan.inflation`): adds a
     visual-only translucent boundary at that distance around each static obstacle.
+    ``rangefinders``: body-frame angles [rad] of horizontal rangefinder rays from the hull origin
+    (sites and sensors ``range_i``; MuJoCo's rangefinder excludes the site's own body, so the hull
+    never sees itself).
     """
     root = mjcf.from_path(scene_path)
     root.model = "usv harbour"
@@ -183,6 +190,10 @@ def compose_scene(obstacles=(), contact: ContactParams = ContactParams(), safety
             root.worldbody.add("geom", pos=[obstacle.center[0], obstacle.center[1], 0.0], quat=quat, **geom)
             if safety_radii is not None and safety_radii[i] > 0:
                 _add_safety_boundary(root.worldbody, obstacle, float(safety_radii[i]), name)
+    for i, a in enumerate(np.asarray(rangefinders, dtype=float).reshape(-1)):
+        site = hull.add("site", name=f"range_{i}", pos=[0.0, 0.0, RANGEFINDER_HEIGHT],
+                        zaxis=[math.cos(a), math.sin(a), 0.0], size=[0.02], group=4)
+        root.sensor.add("rangefinder", name=f"range_{i}", site=site)
     return root
 
 
@@ -244,19 +255,28 @@ class HarbourPlant(MuJoCoPlant):
     obstacle_geoms: geom id of each obstacle.
     obstacle_mocap: mocap index of each obstacle (-1: static).
     model_xml_path: the composed file (kept while the plant lives).
+    ray_angles: the rangefinders' body-frame angles [rad] (empty: none); read with :meth:`rangefinders`.
+    render_model_path: the same scene without the rangefinder sites (MuJoCo draws rangefinder rays),
+        for ``usv_mj.render``; the model file itself when there are none.
     """
 
     def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, obstacles=(), control_period: float = 1e-3,
                  substeps: int = 1, contact: ContactParams = ContactParams(), safety_radii=None,
                  split: RigidBodySplit = RigidBodySplit(), callback: str = "native", environment=None,
-                 actuator_limits=None):
+                 actuator_limits=None, rangefinders=()):
         self.obstacles = tuple(obstacles)
         self.contact = contact
         if contact.solref[0] < 2.0 * control_period / substeps:
             raise ValueError(f"HarbourPlant: contact.solref[0] = {contact.solref[0]} s is under twice the MuJoCo "
                              f"time step ({control_period / substeps} s)")
+        self.ray_angles = np.asarray(rangefinders, dtype=float).reshape(-1)
         self._tmp = tempfile.TemporaryDirectory(prefix="usv_mj_harbour_")
-        self.model_xml_path = export_scene(compose_scene(self.obstacles, contact, safety_radii), self._tmp.name)
+        self.model_xml_path = export_scene(compose_scene(self.obstacles, contact, safety_radii,
+                                                         rangefinders=self.ray_angles), self._tmp.name)
+        self.render_model_path = self.model_xml_path
+        if self.ray_angles.size:
+            self.render_model_path = export_scene(compose_scene(self.obstacles, contact, safety_radii),
+                                                  tempfile.mkdtemp(dir=self._tmp.name))
         super().__init__(ship, disturbance, control_period, substeps, split, self.model_xml_path, callback,
                          environment=environment, actuator_limits=actuator_limits)
         m = self.model
@@ -271,6 +291,16 @@ class HarbourPlant(MuJoCoPlant):
         self._moving_list = np.flatnonzero(self.obstacle_mocap >= 0).tolist()
         self._velocity = np.array([o.velocity for o in self.obstacles], dtype=float).reshape(-1, 2)
         self._center0 = np.array([o.center for o in self.obstacles], dtype=float).reshape(-1, 2)
+        self._sensor_adr = np.array([m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, f"range_{i}")]
+                                     for i in range(self.ray_angles.size)], dtype=np.int64)
+
+    def rangefinders(self) -> np.ndarray:
+        """Rangefinder readings [m] along :attr:`ray_angles` (-1: nothing hit) at the current state:
+        kinematics, then MuJoCo's position-stage sensors (after ``mj_step`` the sensor data are
+        those of the last step's start)."""
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_sensorPos(self.model, self.data)
+        return self.data.sensordata[self._sensor_adr].copy()
 
     def move_obstacles(self, t: float) -> None:
         """Put every moving obstacle at center + velocity t (held during the next step)."""

@@ -119,7 +119,7 @@ def installed_callback() -> str | None:
     return REGISTRY.installed
 
 
-@PLANTS.register("mujoco")
+@PLANTS.register("mujoco", rangefinders=True)
 class MuJoCoPlant(PlantBase):
     """The ship of SPEC §1 integrated by MuJoCo (RK4) with a hydrodynamic passive-force callback.
 
@@ -424,17 +424,19 @@ class MuJoCoPlant(PlantBase):
         return np.array((c * qa[0] + s * qa[1] + r * v, -s * qa[0] + c * qa[1] - r * u, qa[2]))
 
     @classmethod
-    def from_scenario(cls, scenario, environment=None, obstacles=(), contact=None, safety_radii=None):
+    def from_scenario(cls, scenario, environment=None, obstacles=(), contact=None, safety_radii=None,
+                      rangefinders=()):
         """The MuJoCo plant of ``scenario``: the hull of ``models/usv.xml`` in open water, or the scene
-        composed from the hull and ``obstacles`` (with its contact model) when there are any; the
+        composed from the hull and ``obstacles`` (with its contact model) when there are any or
+        when ``rangefinders`` (body-frame ray angles [rad]) asks for range sensors on the hull; the
         sea ``environment`` acts on the hull in both."""
         limits = scenario.actuators.generalized_limits()
-        if obstacles:
+        if len(obstacles) or len(rangefinders):
             from usv_mj.obstacles.compose import ContactParams, HarbourPlant
 
             return HarbourPlant(scenario.ship, scenario.disturbance, obstacles, scenario.control_period,
                                 scenario.plant.substeps, contact or ContactParams(), safety_radii,
-                                environment=environment, actuator_limits=limits)
+                                environment=environment, actuator_limits=limits, rangefinders=rangefinders)
         return cls(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
                    environment=environment, actuator_limits=limits)
 
