@@ -15,7 +15,7 @@ with warnings.catch_warnings():
     from dm_control.rl import control
 from dm_env import specs
 
-from usv_mj.build import make_environment, make_plant
+from usv_mj.builder import make_environment, make_plant
 from usv_mj.scenario import Scenario, load_scenario
 
 from . import ALL_TASKS

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from usv_mj.build import make_controller
+from usv_mj.builder import make_controller
 
 
 def _views(env):

@@ -62,7 +62,7 @@ with warnings.catch_warnings():
     from dm_control.utils import rewards
 from dm_env import specs
 
-from usv_mj.build import make_quantizers
+from usv_mj.builder import make_quantizers
 from usv_mj.controllers.hysteresis_quantizer import quantize_step
 from usv_mj.controllers.performance_funnel import funnel_bound, funnels_of
 from usv_mj.controllers.tracking_errors import wrap
