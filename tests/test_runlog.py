@@ -23,7 +23,7 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from usv_mj.record import COL, COLUMNS, Event, RunRecord
 from usv_mj.runlog import (RunLogReadError, RunLogWriter, add_inspect_arguments, inspect_command, load_topic,
                            read_run)
-from usv_mj.runlog.topics import ROW_TOPICS
+from usv_mj.runlog.topics import ROW_TOPICS, row_topics
 from usv_mj.scenario import load_scenario
 from usv_mj.simulation import make_controller, simulate
 from usv_mj.summary import summarize
@@ -40,7 +40,9 @@ def _norm(obj):
 def assert_same_rows(a: RunRecord, b: RunRecord, n: int | None = None):
     n = len(b) if n is None else n
     assert len(a) == n
-    for c in COLUMNS:
+    assert a.column_names == b.column_names and a.diagnostic_fields == b.diagnostic_fields
+    assert a.diagnostic_events == b.diagnostic_events
+    for c in b.column_names:
         x, y = a[c], b[c][:n]
         assert np.array_equal(x.view(np.uint64)[~np.isnan(x)], y.view(np.uint64)[~np.isnan(y)]), c
         assert np.array_equal(np.isnan(x), np.isnan(y)), c
@@ -151,8 +153,9 @@ def test_file_passes_the_mcap_library_validation(logged):
         assert len(summary.chunk_indexes) == summary.statistics.chunk_count > 2
         topics = {c.topic: cid for cid, c in summary.channels.items()}
         counts = summary.statistics.channel_message_counts
-        for name, _, _ in ROW_TOPICS:
+        for name, _, _ in row_topics(main.column_names):
             assert counts[topics[f"/usv/{name}"]] == len(main)
+        for name, _, _ in row_topics(base.column_names):
             assert counts[topics[f"/baseline/usv/{name}"]] == len(base)
         n = 0
         last_state_time = -1
@@ -181,12 +184,15 @@ def test_messages_follow_their_json_schemas(logged):
     path, _, _ = logged
     seen = {}
     with open(path, "rb") as f:
-        for schema, channel, message in make_reader(f).iter_messages():
+        reader = make_reader(f)
+        n_topics = len(reader.get_summary().channels)
+        assert n_topics == 2 * 11      # 5 row topics, events, 5 Foxglove topics per run
+        for schema, channel, message in reader.iter_messages():
             if channel.topic not in seen:
                 seen[channel.topic] = (json.loads(schema.data), json.loads(message.data))
-                if len(seen) == 2 * 12:
+                if len(seen) == n_topics:
                     break
-    assert len(seen) == 2 * 12
+    assert len(seen) == n_topics
     for topic, (schema, msg) in seen.items():
         jsonschema.validate(msg, schema)
 
@@ -283,6 +289,8 @@ class _Stops:
     def __init__(self, scenario, n, exc):
         self.inner = make_controller(scenario)
         self.name = self.inner.name
+        self.diagnostic_fields = self.inner.diagnostic_fields
+        self.diagnostic_events = getattr(self.inner, "diagnostic_events", None)
         self.n, self.exc, self.calls = n, exc, 0
 
     def reset(self):
@@ -409,9 +417,11 @@ def test_topics_and_counts(logged):
     path, main, base = logged
     log = read_run(path)
     topics = log.topics()
+    assert [name for name, _, _ in ROW_TOPICS] == ["state", "reference", "control", "errors", "diagnostics"]
     for name, _, _ in ROW_TOPICS:
         assert topics[f"/usv/{name}"] == len(main)
         assert topics[f"/baseline/usv/{name}"] == len(base)
+    assert "/usv/adaptation" not in topics and "/usv/internal" not in topics
     assert topics["/usv/tf/hull"] == len(range(0, len(main), 20))
     with pytest.raises(RunLogReadError, match="no topic"):
         load_topic(path, "/nope")
@@ -583,3 +593,59 @@ def test_no_shared_memory_falls_back_to_writing_in_process(tmp_path, scenario, m
         sink.rows(rec, 0, 3000)
         sink.finish(rec)
     assert_same_rows(read_run(tmp_path / "fallback.mcap").record, rec, 3000)
+
+
+# --- declared columns ---------------------------------------------------------------------------------
+
+
+class _TwoFields:
+    """A user's controller: a proportional law that declares two made-up diagnostics and no funnel."""
+
+    name = "two_fields"
+    diagnostic_fields = ("heading_gap", "speed_gap")
+
+    def __init__(self):
+        self._diag = np.zeros(2)
+
+    def reset(self):
+        self._diag[:] = 0.0
+
+    def __call__(self, t, x, ref):
+        self._diag[0] = math.atan2(math.sin(ref[2] - x[2]), math.cos(ref[2] - x[2]))
+        self._diag[1] = ref[6] - x[3]
+        return 20.0 * self._diag[1], 2.0 * self._diag[0], self._diag
+
+
+def test_a_controller_with_its_own_fields_round_trips_on_its_own_topic(tmp_path, scenario):
+    sc = scenario.with_overrides({"duration": 3.0})
+    path = tmp_path / "own.mcap"
+    with RunLogWriter(path, sc, rows_per_chunk=400) as writer:
+        rec = simulate(sc, controller=_TwoFields(), sinks=[writer.sink("main")], block=700)
+    assert rec.column_names[-2:] == ("heading_gap", "speed_gap") and not rec.has_funnel
+    log = read_run(path)
+    got = log.record
+    assert_same_rows(got, rec)
+    assert got.diagnostic_fields == ("heading_gap", "speed_gap") and not got.has_funnel
+    assert got.metadata["diagnostic_fields"] == ["heading_gap", "speed_gap"]
+    topics = log.topics()
+    assert {t for t in topics if t.startswith("/usv/")} == {
+        "/usv/state", "/usv/reference", "/usv/control", "/usv/diagnostics", "/usv/events", "/usv/tf/hull",
+        "/usv/tf/reference", "/usv/scene/path", "/usv/scene/hull"}          # no errors, no funnel: none declared
+    diag = load_topic(path, "/usv/diagnostics")
+    assert set(diag) == {"log_time", "t", "heading_gap", "speed_gap"}
+    assert np.array_equal(diag["speed_gap"], rec["speed_gap"])
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    schemas = {c.topic: json.loads(summary.schemas[c.schema_id].data) for c in summary.channels.values()}
+    assert list(schemas["/usv/diagnostics"]["properties"]) == ["t", "heading_gap", "speed_gap"]
+    assert "two_fields" in schemas["/usv/diagnostics"]["description"]
+
+
+def test_pi_baseline_record_keeps_its_own_fields(logged):
+    path, _, base = logged
+    got = read_run(path).baseline
+    assert got.diagnostic_fields == base.diagnostic_fields
+    assert got.diagnostic_fields[-4:] == ("u_e", "r_e", "integral_u", "integral_r") and got.has_funnel
+    diag = load_topic(path, "/baseline/usv/diagnostics")
+    assert set(diag) == {"log_time", "t", "e1s", "e2s", "e3s", "psi_a", "u_e", "r_e", "integral_u", "integral_r"}
+    assert np.array_equal(diag["integral_u"], base["integral_u"])

@@ -43,7 +43,8 @@ def _save(fig, path: Path) -> None:
 
 def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, obstacles=()) -> list[Path]:
     """Write the seven figures into ``out_dir`` and return their paths (obstacles, with their
-    inflated safety boundaries, in the trajectory figure)."""
+    inflated safety boundaries, in the trajectory figure). A record whose controller declares no
+    funnel (e, rho, z) gets no figures 2-4, one without the weight norms no figure 7."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     s = _stride(len(record))
@@ -75,13 +76,15 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
 
     for axis, name, unit, fname in ((1, "x", "m", "fig2_error_x.png"), (2, "y", "m", "fig3_error_y.png"),
                                      (3, "psi", "rad", "fig4_error_psi.png")):
+        if not record.has_funnel:
+            break
         fig, ax = plt.subplots(figsize=(8, 4))
         rho = record[f"rho{axis}"][::s]
         ax.fill_between(t, -rho, rho, color="0.85", label=f"funnel ±rho{axis}")
         ax.plot(t, rho, color="0.4", lw=0.8)
         ax.plot(t, -rho, color="0.4", lw=0.8)
         ax.plot(t, record[f"e{axis}"][::s], "C0", lw=1.3, label=f"e{axis}, PPC")
-        if baseline is not None and len(baseline):
+        if baseline is not None and len(baseline) and baseline.has_funnel:
             sb = _stride(len(baseline))
             ax.plot(baseline["t"][::sb], baseline[f"e{axis}"][::sb], "C3", lw=1.0, alpha=0.85, label=f"e{axis}, PI")
         ax.set_xlabel("t [s]")
@@ -113,6 +116,8 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         paths.append(out / fname)
         _save(fig, paths[-1])
 
+    if not all(c in record for c in ("w_u_norm", "w_v_norm", "w_r_norm")):
+        return paths
     fig, ax = plt.subplots(figsize=(8, 4))
     for col, lab in (("w_u_norm", "|W_u|"), ("w_v_norm", "|W_v|"), ("w_r_norm", "|W_r|")):
         ax.plot(t, record[col][::s], lw=1.2, label=lab)

@@ -24,12 +24,11 @@ from numba import njit
 
 from . import json_codec
 
-from ..record import COLUMNS, Event, RunRecord
+from ..record import COL, CORE_COLUMNS, Event, RunRecord
 from .extra_topics import environment_arrays, obstacle_arrays
-from .topics import ROW_TOPICS, prefix_for
+from .topics import ROW_SCHEMAS, prefix_for
 
 MAGIC = b"\x89MCAP0\r\n"
-_ROW_SCHEMAS = {title for _, title, _ in ROW_TOPICS}
 
 
 class RunLogReadError(ValueError):
@@ -343,7 +342,7 @@ def _columns(scan: _Scan, ch: int) -> tuple[np.ndarray, dict]:
 def _is_row_channel(scan: _Scan, ch: int) -> bool:
     c = scan.channels.get(ch)
     schema = scan.schemas.get(c.schema_id) if c is not None else None
-    return schema is not None and schema.name in _ROW_SCHEMAS
+    return (c is not None and c.metadata.get("kind") == "rows") or (schema is not None and schema.name in ROW_SCHEMAS)
 
 
 def _float_column(msgs: list, name: str) -> np.ndarray:
@@ -457,7 +456,8 @@ def read_run(path) -> RunLog:
         elif "/" in name:
             kind, run = name.split("/", 1)
             runs_meta.setdefault(run, {})[kind.replace("run_", "")] = {
-                k: _maybe_json(v) if k in ("metadata", "summary", "columns") else v for k, v in m.items()}
+                k: _maybe_json(v) if k in ("metadata", "summary", "columns", "diagnostic_fields", "diagnostic_events",
+                                           "obstacles") else v for k, v in m.items()}
     by_topic = {c.topic: cid for cid, c in scan.channels.items()}
     runs, summaries = {}, {}
     obstacles_by_run, environment_by_run = {}, {}
@@ -468,28 +468,34 @@ def read_run(path) -> RunLog:
             continue
         if f"{p}/state" not in by_topic:
             continue
+        # every row topic of the run (state, reference, control, errors, diagnostics; version 1's
+        # adaptation and internal), fields by name: the record's columns come from the run's metadata
         columns, n = {}, None
         t_ref = None
-        for name, _, fields in ROW_TOPICS:
-            cid = by_topic.get(f"{p}/{name}")
-            if cid is None:
+        for cid, c in sorted(scan.channels.items()):
+            if not (c.topic.startswith(p + "/") and "/" not in c.topic[len(p) + 1:] and _is_row_channel(scan, cid)):
                 continue
             _, cols = _columns(scan, cid)
             m = len(cols.get("t", ()))
             n = m if n is None else min(n, m)
-            for f in fields:
-                if f not in cols:
-                    continue
+            for f, values in cols.items():
                 if f == "t":
-                    if t_ref is None:
-                        t_ref = cols["t"]
+                    if t_ref is None or c.topic == f"{p}/state":
+                        t_ref = values
                     continue
-                columns[f] = cols[f]
+                columns.setdefault(f, values)
         n = n or 0
-        columns = {k: v[:n] for k, v in columns.items()}
-        columns["t"] = (t_ref if t_ref is not None else np.zeros(0))[:n]
-        for c in COLUMNS:  # a column the file does not have (older log): NaN, as the record starts
-            columns.setdefault(c, np.full(n, np.nan))
+        start = (runs_meta.get(run) or {}).get("start") or {}
+        names = start.get("columns")
+        if not isinstance(names, list) or not names:
+            names = list(CORE_COLUMNS) + [f for f in columns if f not in COL]
+        diagnostic_fields = tuple(f for f in names if f not in COL)
+        t_col = (t_ref if t_ref is not None else np.zeros(0))[:n]
+        # a column the file does not have (an older log's f_u, sat_u, ...): NaN, as the record starts
+        columns = {"t": t_col, **{k: (columns[k][:n] if k in columns else np.full(n, np.nan))
+                                  for k in list(CORE_COLUMNS[1:]) + list(diagnostic_fields)}}
+        diagnostic_events = start.get("diagnostic_events")
+        diagnostic_events = diagnostic_events if isinstance(diagnostic_events, dict) else None
         events = []
         cid = by_topic.get(f"{p}/events")
         if cid is not None:
@@ -508,7 +514,8 @@ def read_run(path) -> RunLog:
             stop_reason = f"the log ends at t = {t_last:.3f} s without the run's end record ({scan.problem or 'no end record'})"
             record_meta = (meta.get("start") or {}).get("metadata") or {}
             summaries[run] = {}
-        rec = RunRecord.from_arrays(columns, events=events, metadata=record_meta, status=status, stop_reason=stop_reason)
+        rec = RunRecord.from_arrays(columns, events=events, metadata=record_meta, status=status, stop_reason=stop_reason,
+                                    diagnostic_fields=diagnostic_fields, diagnostic_events=diagnostic_events)
         runs[run] = rec
         cid = by_topic.get(f"{p}/obstacles")
         if cid is not None:

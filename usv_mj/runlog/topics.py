@@ -60,27 +60,51 @@ from __future__ import annotations
 
 import json
 
-from ..record import COLUMNS
+from ..controllers.base import FUNNEL_FIELDS, REF_FIELDS
+from ..record import COLUMNS, CONTROL_FIELDS, CORE_COLUMNS, STATE_FIELDS
 
-SCHEMA_VERSION = "usv_mj.runlog/1"
+SCHEMA_VERSION = "usv_mj.runlog/2"
 FRAME_PERIOD = 0.02      # s of simulated time between FrameTransform / funnel SceneUpdate messages
 SLOW_PERIOD = 10.0       # s between the path and hull SceneUpdate messages
 PATH_SAMPLE = 0.5        # s between the points of the drawn reference path
 HULL_SIZE = (1.255, 0.29, 0.25)   # m: CyberShip II length, beam, a display height (display only)
 
-_ROW_TOPICS_FIXED = (
-    ("state", "usv_mj.State", ("t", "x", "y", "psi", "u", "v", "r")),
-    ("reference", "usv_mj.Reference", ("t", "x_d", "y_d", "psi_d", "u_d", "r_d")),
-    ("errors", "usv_mj.Errors", ("t", "e1", "e2", "e3", "rho1", "rho2", "rho3", "z1", "z2", "z3",
-                                 "e1s", "e2s", "e3s", "psi_a")),
-    ("control", "usv_mj.Control", ("t", "tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r")),
-    ("adaptation", "usv_mj.Adaptation", ("t", "w_u_norm", "w_v_norm", "w_r_norm", "s2")),
+#: the row topics every run has (the record's core columns)
+CORE_ROW_TOPICS = (
+    ("state", "usv_mj.State", ("t",) + STATE_FIELDS),
+    ("reference", "usv_mj.Reference", ("t",) + REF_FIELDS),
+    ("control", "usv_mj.Control", ("t",) + CONTROL_FIELDS),
 )
-_covered = {f for _, _, fields in _ROW_TOPICS_FIXED for f in fields}
-# Every record column not on a named topic goes to "internal", so nothing of the record is lost.
-ROW_TOPICS = _ROW_TOPICS_FIXED + (
-    ("internal", "usv_mj.Internal", ("t",) + tuple(c for c in COLUMNS if c not in _covered)),)
-assert {f for _, _, fields in ROW_TOPICS for f in fields} == set(COLUMNS)
+ERRORS_TOPIC = ("errors", "usv_mj.Errors", ("t",) + FUNNEL_FIELDS)
+DIAGNOSTICS_TITLE = "usv_mj.Diagnostics"
+#: schema titles of row topics (one message per control step, flat numbers), this version's and
+#: version 1's (usv_mj.Adaptation / usv_mj.Internal), so that older logs still read
+ROW_SCHEMAS = frozenset({t for _, t, _ in CORE_ROW_TOPICS} | {ERRORS_TOPIC[1], DIAGNOSTICS_TITLE,
+                                                              "usv_mj.Adaptation", "usv_mj.Internal"})
+
+
+def row_topics(column_names=COLUMNS) -> tuple:
+    """The row topics of a run whose record has ``column_names`` (the core, then the controller's
+    declared fields): (name, schema title, fields) triples covering every column exactly once
+    (``t`` on each). ``errors`` only when the block declares the funnel (e, rho, z);
+    ``diagnostics`` holds the rest of the block in its declared order (absent when it is empty)."""
+    names = tuple(column_names)
+    if names[:len(CORE_COLUMNS)] != CORE_COLUMNS:
+        raise ValueError(f"a record's columns start with the core {CORE_COLUMNS}, got {names[:len(CORE_COLUMNS)]}")
+    block = names[len(CORE_COLUMNS):]
+    funnel = all(f in block for f in FUNNEL_FIELDS)
+    out = list(CORE_ROW_TOPICS)
+    if funnel:
+        out.append(ERRORS_TOPIC)
+    rest = tuple(f for f in block if not (funnel and f in FUNNEL_FIELDS))
+    if rest:
+        out.append(("diagnostics", DIAGNOSTICS_TITLE, ("t",) + rest))
+    return tuple(out)
+
+
+#: the row topics of a run of the paper's PPC law (the default record layout)
+ROW_TOPICS = row_topics(COLUMNS)
+assert sorted(f for _, _, fields in ROW_TOPICS for f in fields if f != "t") == sorted(COLUMNS[1:])
 
 FIELD_DOC = {
     "t": "time [s]", "x": "north position x [m]", "y": "east position y [m]",
@@ -102,6 +126,11 @@ FIELD_DOC = {
     "tau_u": "surge force from the law [N]", "tau_r": "yaw moment from the law [N m]",
     "q_tau_u": "quantized surge force applied [N]", "q_tau_r": "quantized yaw moment applied [N m]",
     "k_u": "surge quantizer level index (signed)", "k_r": "yaw quantizer level index (signed)",
+    "f_u": "surge force the actuators realize, what the plant receives [N]",
+    "f_r": "yaw moment the actuators realize, what the plant receives [N m]",
+    "sat_u": "1 where an actuator limit cut the surge command, else 0",
+    "sat_r": "1 where an actuator limit cut the yaw command, else 0",
+    "integral_u": "PI baseline: integral of u_c - u [m]", "integral_r": "PI baseline: integral of e3 [rad s]",
 }
 
 _NUMBER = {"type": ["number", "null"],
@@ -120,10 +149,10 @@ def frame_for(run: str) -> str:
     return "usv" if run == "main" else f"{run}/usv"
 
 
-def row_topic_schema(title: str, fields: tuple) -> bytes:
+def row_topic_schema(title: str, fields: tuple, description: str = "") -> bytes:
     schema = {
         "title": title, "type": "object",
-        "description": "one control step of a usv_mj run (see usv_mj.runlog.topics)",
+        "description": description or "one control step of a usv_mj run (see usv_mj.runlog.topics)",
         "properties": {f: {**_NUMBER, "description": FIELD_DOC.get(f, f)} for f in fields},
         "required": list(fields),
     }
@@ -221,14 +250,19 @@ SCENE_UPDATE_SCHEMA = json.dumps({
 }, indent=1).encode()
 
 
-def topic_table(run: str) -> list[dict]:
-    """Every topic of one run: name, schema name, kind ("rows", "events", "foxglove"), fields."""
+def topic_table(run: str, column_names=COLUMNS) -> list[dict]:
+    """Every topic of one run whose record has ``column_names``: name, schema name, kind ("rows",
+    "events", "foxglove"), fields (the per-run extras of extra_topics are not listed)."""
     p = prefix_for(run)
+    rows = row_topics(column_names)
     table = [{"topic": f"{p}/{name}", "schema": title, "kind": "rows", "fields": fields}
-             for name, title, fields in ROW_TOPICS]
+             for name, title, fields in rows]
     table.append({"topic": f"{p}/events", "schema": "usv_mj.Event", "kind": "events", "fields": ()})
+    funnel = any(name == "errors" for name, _, _ in rows)
     for name, schema in (("tf/hull", "foxglove.FrameTransform"), ("tf/reference", "foxglove.FrameTransform"),
                          ("scene/funnel", "foxglove.SceneUpdate"), ("scene/path", "foxglove.SceneUpdate"),
                          ("scene/hull", "foxglove.SceneUpdate")):
+        if name == "scene/funnel" and not funnel:
+            continue
         table.append({"topic": f"{p}/{name}", "schema": schema, "kind": "foxglove", "fields": ()})
     return table
