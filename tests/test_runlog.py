@@ -649,3 +649,67 @@ def test_pi_baseline_record_keeps_its_own_fields(logged):
     diag = load_topic(path, "/baseline/usv/diagnostics")
     assert set(diag) == {"log_time", "t", "e1s", "e2s", "e3s", "psi_a", "u_e", "r_e", "integral_u", "integral_r"}
     assert np.array_equal(diag["integral_u"], base["integral_u"])
+
+
+# --- file order = log-time order ------------------------------------------------------------------------
+
+
+def _log_times_in_file_order(path) -> np.ndarray:
+    with open(path, "rb") as f:
+        return np.array([m.log_time for _, _, m in make_reader(f).iter_messages(log_time_order=False)], np.int64)
+
+
+def test_main_job_logs_one_file_per_run_each_in_log_time_order(tmp_path, scenario):
+    from usv_mj.main_job import run_job
+
+    job = run_job(scenario.with_overrides({"duration": 6.0}), tmp_path / "job", video=False, progress=False,
+                  step_check=False)
+    main_path, base_path = tmp_path / "job" / "run.mcap", tmp_path / "job" / "baseline.mcap"
+    assert job.baseline is not None and base_path.is_file()
+    for path, rec in ((main_path, job.record), (base_path, job.baseline)):
+        lt = _log_times_in_file_order(path)           # the mcap library, chunk by chunk in file order
+        assert lt.size > 5 * len(rec) and np.all(np.diff(lt) >= 0), path.name
+        assert lt[0] == 0 and lt[-1] == round(rec["t"][-1] * 1e9)
+        with open(path, "rb") as f:                    # and record by record with the stream reader
+            stream = [r.log_time for r in StreamReader(f, validate_crcs=True).records if isinstance(r, Message)]
+        assert stream == lt.tolist()
+    with open(main_path, "rb") as f:
+        assert {c.topic.split("/")[1] for c in make_reader(f).get_summary().channels.values()} == {"usv"}
+    log = read_run(main_path)                          # the baseline is found beside the main run's log
+    assert_same_rows(log.record, job.record)
+    assert_same_rows(log.baseline, job.baseline)
+    assert log.files == {"main": str(main_path), "baseline": str(base_path)}
+    assert log.summaries["baseline"] == _norm(summarize(job.baseline))
+    assert read_run(main_path, companions=False).baseline is None
+    # a log beside it that is not its companion (another job's) is not taken for its baseline
+    other = tmp_path / "other"
+    other.mkdir()
+    with RunLogWriter(other / "run.mcap", scenario) as writer:
+        simulate(scenario.with_overrides({"duration": 0.5}), controller_kind="pi", sinks=[writer.sink("baseline")])
+    base_path.unlink()
+    (other / "run.mcap").rename(base_path)
+    assert read_run(main_path).baseline is None
+
+
+def test_events_are_logged_in_the_chunk_of_their_time(tmp_path, scenario):
+    """Events of a block go to the chunk of their time, and one reported late is logged no earlier
+    than the rows already written: the file never goes back in log time."""
+    rec = _handmade_record(3000, seed=11)
+    path = tmp_path / "events.mcap"
+    with RunLogWriter(path, scenario, background=False, rows_per_chunk=400) as writer:
+        sink = writer.sink("main")
+        sink.start(rec)
+        rec.events += [Event(0.1, "early", "in the first chunk"), Event(1.7, "late", "in the fifth chunk")]
+        rec.n_rows = 2000
+        sink.rows(rec, 0, 2000)
+        rec.events.append(Event(0.5, "reported_late", "after rows to 2 s were written"))
+        rec.n_rows = 3000
+        sink.rows(rec, 2000, 3000)
+        sink.finish(rec)
+    lt = _log_times_in_file_order(path)
+    assert np.all(np.diff(lt) >= 0)
+    ev = load_topic(path, "/usv/events")
+    assert list(ev["kind"]) == ["early", "late", "reported_late", "run_end"]
+    assert list(ev["log_time"][:3]) == [100_000_000, 1_700_000_000, 2_000_000_000]
+    assert list(ev["t"][:3]) == [0.1, 1.7, 0.5]       # the event's own time is kept in the message
+    assert [e.t for e in read_run(path).record.events] == [0.1, 0.5, 1.7]

@@ -393,6 +393,7 @@ class RunLog:
     summaries: dict             # run name -> summary dict written at the run's end ({} if none)
     obstacles_by_run: dict = field(default_factory=dict)    # run -> extra_topics.obstacle_arrays(...)
     environment_by_run: dict = field(default_factory=dict)  # run -> extra_topics.environment_arrays(...)
+    files: dict = field(default_factory=dict)               # run -> the file it was read from
 
     @property
     def obstacles(self) -> dict | None:
@@ -440,19 +441,83 @@ def _run_names(scan: _Scan) -> list:
     return list(dict.fromkeys(names))
 
 
-def read_run(path) -> RunLog:
+def peek_file_metadata(path) -> dict:
+    """The ``usv_mj`` metadata record of a run log (written first, before any chunk), {} if none."""
+    try:
+        stream, _, _ = _open(path)
+    except (RunLogReadError, OSError):
+        return {}
+    try:
+        for rec in StreamReader(stream, emit_chunks=True, record_size_limit=None).records:
+            if isinstance(rec, Metadata) and rec.name == "usv_mj":
+                return dict(rec.metadata)
+            if isinstance(rec, (Chunk, Attachment, Footer)):
+                break
+    except Exception:  # noqa: BLE001 - a damaged neighbour is simply not a companion
+        pass
+    finally:
+        stream.close()
+    return {}
+
+
+def companion_files(path) -> list[Path]:
+    """The run logs beside ``path`` written as its companions (``RunLogWriter(companion_of=...)``:
+    the main job's ``baseline.mcap`` beside ``run.mcap``), matched by the main file's log id."""
+    path = Path(path)
+    log_id = peek_file_metadata(path).get("log_id")
+    if not log_id:
+        return []
+    out = []
+    for other in sorted(path.parent.glob("*.mcap")):
+        if other.resolve() == path.resolve():
+            continue
+        link = _maybe_json(peek_file_metadata(other).get("companion_of", ""))
+        if isinstance(link, dict) and link.get("log_id") == log_id:
+            out.append(other)
+    return out
+
+
+def read_run(path, companions: bool = True) -> RunLog:
     """Read every run of a run log (a path, or a binary stream that need not be seekable).
 
-    Each run becomes a :class:`RunRecord` (``RunRecord.from_arrays``) with its events (ordered by
-    time, as ``simulate`` leaves them), ``status``, ``stop_reason`` and the record's metadata as
-    written at the end of the run. A run whose end record is missing (the file was cut) gets
-    ``status = "truncated"`` and a ``stop_reason`` saying where the log ends.
+    Each run becomes a :class:`RunRecord` (``RunRecord.from_arrays``) with the columns and the
+    diagnostic fields it was written with, its events (ordered by time, as ``simulate`` leaves
+    them), ``status``, ``stop_reason`` and the record's metadata as written at the end of the run.
+    A run whose end record is missing (the file was cut) gets ``status = "truncated"`` and a
+    ``stop_reason`` saying where the log ends. With ``companions`` (and a path), the runs of the
+    companion files beside it (the main job's ``baseline.mcap``) are added; ``RunLog.files`` says
+    which file each run came from.
     """
+    log = _read_one(path)
+    if companions and isinstance(path, (str, Path)):
+        for other in companion_files(path):
+            try:
+                more = _read_one(other)
+            except RunLogReadError:
+                continue
+            for run, rec in more.runs.items():
+                if run in log.runs:
+                    continue
+                log.runs[run] = rec
+                log.files[run] = more.path
+                log.summaries[run] = more.summaries.get(run, {})
+                log.metadata.setdefault("runs", {})[run] = more.metadata.get("runs", {}).get(run, {})
+                for mine, theirs in ((log.obstacles_by_run, more.obstacles_by_run),
+                                     (log.environment_by_run, more.environment_by_run)):
+                    if run in theirs:
+                        mine[run] = theirs[run]
+            for topic, count in more.topic_counts.items():
+                log.topic_counts.setdefault(topic, count)
+    return log
+
+
+def _read_one(path) -> RunLog:
     scan = _scan(path, flat=_is_row_channel)
     file_meta, runs_meta = {}, {}
     for name, m in scan.metadata:
         if name == "usv_mj":
-            file_meta = {k: _maybe_json(v) if k in ("scenario", "versions", "git_dirty") else v for k, v in m.items()}
+            file_meta = {k: _maybe_json(v) if k in ("scenario", "versions", "git_dirty", "companion_of") else v
+                         for k, v in m.items()}
         elif "/" in name:
             kind, run = name.split("/", 1)
             runs_meta.setdefault(run, {})[kind.replace("run_", "")] = {
@@ -533,7 +598,8 @@ def read_run(path) -> RunLog:
         raise RunLogReadError(f"{path}: no usv_mj run in this MCAP file ({scan.problem or 'no /usv/state topic'})")
     return RunLog(path=str(path), runs=runs, metadata=file_meta, attachments=dict(scan.attachments),
                   topic_counts=counts, truncated=scan.truncated, complete=scan.complete, problem=scan.problem,
-                  summaries=summaries, obstacles_by_run=obstacles_by_run, environment_by_run=environment_by_run)
+                  summaries=summaries, obstacles_by_run=obstacles_by_run, environment_by_run=environment_by_run,
+                  files={run: str(path) for run in runs})
 
 
 def load_topic(path, topic: str) -> dict:

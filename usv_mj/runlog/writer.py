@@ -47,6 +47,7 @@ import subprocess
 import sys
 import time
 import traceback
+import uuid
 import warnings
 import weakref
 from multiprocessing import shared_memory
@@ -225,11 +226,16 @@ class RunLogFile:
         st = self.runs[run]
         n = block.shape[0]
         step = self.rows_per_chunk
+        t = block[:, COL["t"]]
+        # log time = round(t * 1e9) ns; never before what this run already wrote (a row whose t is
+        # not finite gets the time before it), so that the file is in log-time order
+        raw = np.rint(np.nan_to_num(t, nan=0.0, posinf=0.0, neginf=0.0) * 1e9).clip(0).astype(np.int64)
+        block_time = np.maximum.accumulate(np.maximum(raw, st["last_ns"]))
+        events = sorted(events, key=lambda e: (e["t"], e["seq"]))
         for a in range(0, n, step):
             sub = block[a:a + step]
             buf = ChunkBuffer()
-            t = sub[:, COL["t"]]
-            log_time = np.rint(np.nan_to_num(t, nan=0.0, posinf=0.0, neginf=0.0) * 1e9).clip(0).astype(np.int64)
+            log_time = block_time[a:a + step]
             records, offsets = st["layout"].encode(sub, log_time, lo + a)
             buf.add_rows(records, offsets, log_time, st["layout"].channel_ids)
             if obstacles is not None and st["obs_layout"] is not None:
@@ -241,16 +247,22 @@ class RunLogFile:
                 records, offsets = lay.encode(environment_block(st["env"], sub), log_time, lo + a)
                 buf.add_rows(records, offsets, log_time, lay.channel_ids)
             self._foxglove(st, buf, sub, lo + a, log_time)
+            # each event in the chunk of its time (the rest in the last one)
             if a + step >= n:
-                self._events(st, buf, events)
+                here, events = events, []
+            else:
+                cut = int(block_time[a + step])
+                here = [e for e in events if _ns(e["t"]) < cut]
+                events = events[len(here):]
+            self._events(st, buf, here, int(log_time[0]))
             self.mcap.write_chunk(buf)
-            st["last_ns"] = int(log_time[-1])
+            st["last_ns"] = max(st["last_ns"], int(buf.end_time if buf.end_time is not None else log_time[-1]))
         st["rows"] = lo + n
 
     def cmd_finish(self, run: str, end: dict, events: list):
         st = self.runs[run]
         buf = ChunkBuffer()
-        self._events(st, buf, events)
+        self._events(st, buf, events, st["last_ns"])
         t_end = max([st["last_ns"]] + [_ns(e["t"]) for e in events])
         buf.add_message(st["chans"]["events"], t_end, json_codec.dumps({
             "t": t_end / 1e9, "seq": -1, "kind": "run_end", "synthetic": True, "status": end["status"],
@@ -267,10 +279,14 @@ class RunLogFile:
     def cmd_close(self):
         self.mcap.finish()
 
-    def _events(self, st, buf, events):
+    def _events(self, st, buf, events, floor: int = 0):
+        """Event messages at log time round(t * 1e9), or at ``floor`` (the chunk's first row, or the
+        run's last written time) for an event reported after later rows were written: the file stays
+        in log-time order; the event's own ``t`` is in its message."""
         ch = st["chans"]["events"]
+        floor = max(int(floor), st["last_ns"])
         for e in sorted(events, key=lambda e: (e["t"], e["seq"])):
-            buf.add_message(ch, _ns(e["t"]), json_codec.dumps(e), e["seq"])
+            buf.add_message(ch, max(_ns(e["t"]), floor), json_codec.dumps(e), e["seq"])
 
     def _foxglove(self, st, buf, sub, k0, log_time):
         """Foxglove messages of the rows ``sub`` (record rows k0...): the hull and reference frames and
@@ -481,12 +497,16 @@ class RunLogWriter:
     is ``record.statics.reference`` sampled every 0.5 s. An obstacle run gets ``P/obstacles`` from
     its :class:`~usv_mj.obstacles.sink.ObstacleLog` (``record.statics.obstacle_log``, or one attached
     with :meth:`RunLogSink.attach_obstacle_log`) and ``P/scene/obstacles`` whenever it has obstacles.
+    ``companion_of``: the writer of the main run's file when this one holds another run of the
+    same job (the main job's ``baseline.mcap`` beside ``run.mcap``): one file per run keeps each
+    file in log-time order, and :func:`usv_mj.runlog.read_run` of the main file finds this one.
     """
 
     def __init__(self, path, scenario, attachments: dict | None = None, *, background: bool = True,
                  rows_per_chunk: int = 1000, compression_level: int = 1, queue_blocks: int = 32,
-                 environment=None):
+                 environment=None, companion_of: "RunLogWriter | None" = None):
         self.path = Path(path)
+        self.log_id = uuid.uuid4().hex
         if not self.path.parent.is_dir():
             raise RunLogError(f"cannot write run log {self.path}: folder {self.path.parent} does not exist")
         self.scenario = scenario
@@ -502,7 +522,11 @@ class RunLogWriter:
             "versions": _json(package_versions()), "git_commit": commit, "git_dirty": _json(dirty),
             "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "topics": "see usv_mj.runlog.topics: /usv/... (run main), /baseline/usv/... (run baseline)",
+            "log_id": self.log_id,
         }
+        if companion_of is not None:
+            # read_run(companion_of's file) finds this file beside it and adds its runs
+            file_metadata["companion_of"] = _json({"file": companion_of.path.name, "log_id": companion_of.log_id})
         att = []
         for f in model_files():
             att.append((f"models/{f.name}", "application/xml", f.read_bytes()))
