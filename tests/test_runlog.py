@@ -394,7 +394,9 @@ def test_foxglove_topics_match_the_state(logged):
     psi = main["psi"][k]
     assert np.allclose(tf["rotation.z"], np.sin(psi / 2), rtol=0, atol=1e-15)
     assert np.allclose(tf["rotation.w"], np.cos(psi / 2), rtol=0, atol=1e-15)
-    assert set(tf["child_frame_id"]) == {"usv"} and set(tf["parent_frame_id"]) == {"world"}
+    assert set(tf["child_frame_id"]) == {"base_link"} and set(tf["parent_frame_id"]) == {"map"}      # REP-105
+    ref = load_topic(path, "/usv/tf/reference")
+    assert set(ref["child_frame_id"]) == {"reference"} and set(ref["parent_frame_id"]) == {"map"}
     assert np.array_equal(tf["timestamp.sec"] * 1e9 + tf["timestamp.nsec"], tf["log_time"].astype(float))
     funnel = load_topic(path, "/usv/scene/funnel")
     first = funnel["entities"][len(k) // 2][0]
@@ -713,3 +715,77 @@ def test_events_are_logged_in_the_chunk_of_their_time(tmp_path, scenario):
     assert list(ev["log_time"][:3]) == [100_000_000, 1_700_000_000, 2_000_000_000]
     assert list(ev["t"][:3]) == [0.1, 1.7, 0.5]       # the event's own time is kept in the message
     assert [e.t for e in read_run(path).record.events] == [0.1, 0.5, 1.7]
+
+
+# --- Foxglove and ROS conventions -------------------------------------------------------------------
+
+
+SCHEMA_DIR = ROOT / "usv_mj" / "runlog" / "schemas"
+
+
+def test_foxglove_schemas_are_embedded_as_published(logged):
+    """The channels' schemas are the published files byte for byte (their hashes as recorded in
+    schemas/NOTICE.md, from @foxglove/schemas), with the descriptions and enums of the fields used."""
+    import hashlib
+    import re
+
+    notice = (SCHEMA_DIR / "NOTICE.md").read_text()
+    published = {}
+    for name, digest in re.findall(r"\| (foxglove\.\w+)\.json \| ([0-9a-f]{64}) \|", notice):
+        data = (SCHEMA_DIR / f"{name}.json").read_bytes()
+        assert hashlib.sha256(data).hexdigest() == digest, name
+        published[name] = data
+    assert set(published) == {"foxglove.FrameTransform", "foxglove.SceneUpdate"}
+    path, _, _ = logged
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    used = {}
+    for c in summary.channels.values():
+        s = summary.schemas[c.schema_id]
+        if s.name.startswith("foxglove."):
+            assert s.data == published[s.name], c.topic
+            used[s.name] = json.loads(s.data)
+    assert set(used) == set(published)
+    tf = used["foxglove.FrameTransform"]["properties"]
+    assert all(tf[k].get("description") for k in ("timestamp", "parent_frame_id", "child_frame_id", "translation",
+                                                  "rotation"))
+    scene = used["foxglove.SceneUpdate"]["properties"]
+    deletion = scene["deletions"]["items"]["properties"]["type"]
+    assert deletion["title"] == "foxglove.SceneEntityDeletionType"
+    assert [(o["title"], o["const"]) for o in deletion["oneOf"]] == [("MATCHING_ID", 0), ("ALL", 1)]
+    entity = scene["entities"]["items"]["properties"]
+    line_type = entity["lines"]["items"]["properties"]["type"]
+    assert [(o["title"], o["const"]) for o in line_type["oneOf"]] == [("LINE_STRIP", 0), ("LINE_LOOP", 1),
+                                                                       ("LINE_LIST", 2)]
+    assert all(o.get("description") for o in line_type["oneOf"])
+    assert entity["cubes"]["items"]["properties"]["size"]["description"]
+
+
+def test_foxglove_schemas_equal_the_npm_package_when_it_is_at_hand():
+    """Against @foxglove/schemas itself, where a copy is unpacked (USV_MJ_FOXGLOVE_SCHEMAS = its
+    package/ folder) and node runs: the same objects as the files embedded here."""
+    import os
+    import shutil
+
+    pkg = os.environ.get("USV_MJ_FOXGLOVE_SCHEMAS")
+    if not pkg or shutil.which("node") is None:
+        pytest.skip("set USV_MJ_FOXGLOVE_SCHEMAS to an unpacked @foxglove/schemas package/ folder")
+    out = subprocess.run(["node", "-e", "const s=require(process.argv[1]); process.stdout.write(JSON.stringify("
+                          "{FrameTransform: s.FrameTransform, SceneUpdate: s.SceneUpdate}))",
+                          str(Path(pkg) / "dist" / "jsonschema" / "index.js")], capture_output=True, text=True,
+                         check=True).stdout
+    for name, schema in json.loads(out).items():
+        assert json.loads((SCHEMA_DIR / f"foxglove.{name}.json").read_text()) == schema, name
+
+
+def test_state_schema_says_the_axes_conventions(logged):
+    path, _, _ = logged
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    state = next(json.loads(summary.schemas[c.schema_id].data) for c in summary.channels.values()
+                 if c.topic == "/usv/state")["properties"]
+    assert "east" in state["x"]["description"] and "ENU" in state["x"]["description"]
+    assert "north" in state["y"]["description"]
+    assert "counter-clockwise from east" in state["psi"]["description"]
+    assert "forward" in state["u"]["description"] and "port" in state["v"]["description"]
+    assert "north position" not in state["x"]["description"] and "east position" not in state["y"]["description"]

@@ -64,8 +64,8 @@ from .mcap_file import ChunkBuffer, McapFileWriter, RowLayout, TemplateLayout, t
 from .extra_topics import (ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME, OBSTACLES_SCHEMA, OBSTACLES_SCHEMA_NAME,
                            environment_block, environment_layout, obstacle_layout)
 from .topics import (EVENT_SCHEMA, FRAME_PERIOD, FRAME_TRANSFORM_SCHEMA, HULL_SIZE, PATH_SAMPLE,
-                     SCENE_UPDATE_SCHEMA, SCHEMA_VERSION, SLOW_PERIOD, frame_for, prefix_for, row_topic_schema,
-                     row_topics)
+                     SCENE_UPDATE_SCHEMA, SCHEMA_VERSION, SLOW_PERIOD, WORLD_FRAME, frame_for, prefix_for,
+                     reference_frame_for, row_topic_schema, row_topics)
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
 SLOT_ROWS = 2048       # rows per slot of the shared-memory ring at the PPC record's width
@@ -182,7 +182,7 @@ class RunLogFile:
             chans[key] = self.mcap.register_channel(f"{p}/{topic}", "json", self._schema(schema, data), {"run": run})
         extra = self._extra_topics(run, p, info)
         extra.update(tf_hull=frame_layout(chans["tf_hull"], frame_for(run)),
-                     tf_ref=frame_layout(chans["tf_ref"], frame_for(run) + "_reference"),
+                     tf_ref=frame_layout(chans["tf_ref"], reference_frame_for(run)),
                      funnel=funnel_layout(chans["funnel"]) if funnel else None)
         dt = float(info["control_period_s"])
         self.runs[run] = {**extra,
@@ -333,7 +333,7 @@ class RunLogFile:
                     int(k[i]))
             if k[i] % slow == 0:
                 if st["path"]:
-                    buf.add_message(ch["path"], ns, _scene(stamp, "world", "reference_path", lines=[
+                    buf.add_message(ch["path"], ns, _scene(stamp, WORLD_FRAME, "reference_path", lines=[
                         _line(0, st["path"], (0.2, 0.6, 1.0, 1.0), 0.05)]), int(k[i]))
                 half = HULL_SIZE[2] / 2
                 buf.add_message(ch["hull"], ns, _scene(stamp, st["frame"], "hull", frame_locked=True, cubes=[{
@@ -357,7 +357,7 @@ def funnel_layout(channel_id: int) -> TemplateLayout:
     """``foxglove.SceneUpdate`` of the funnel rectangle (LINE_LOOP, world frame); block columns:
     (sec, nsec: ignored), then x, y of its 4 corners [m]."""
     holes = [(f"$x{i}", f"$y{i}") for i in range(4)]
-    return template_layout(channel_id, _scene(_STAMP_HOLES, "world", "funnel", lines=[
+    return template_layout(channel_id, _scene(_STAMP_HOLES, WORLD_FRAME, "funnel", lines=[
         _line(1, holes, (1.0, 0.55, 0.0, 1.0), 0.05)], encode=False),
         ("$sec", "$nsec") + tuple(h for pair in holes for h in pair))
 
@@ -398,7 +398,7 @@ def _ns(t) -> int:
 
 
 def _frame(stamp, child, x, y, qz, qw) -> dict:
-    return {"timestamp": stamp, "parent_frame_id": "world", "child_frame_id": child,
+    return {"timestamp": stamp, "parent_frame_id": WORLD_FRAME, "child_frame_id": child,
             "translation": {"x": x, "y": y, "z": 0.0}, "rotation": {"x": 0.0, "y": 0.0, "z": qz, "w": qw}}
 
 
