@@ -23,7 +23,7 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from usv_mj.record import COL, COLUMNS, Event, RunRecord
 from usv_mj.runlog import (RunLogReadError, RunLogWriter, add_inspect_arguments, inspect_command, load_topic,
                            read_run)
-from usv_mj.runlog.topics import ROW_TOPICS
+from usv_mj.runlog.topics import ROW_TOPICS, row_topics
 from usv_mj.scenario import load_scenario
 from usv_mj.simulation import make_controller, simulate
 from usv_mj.summary import summarize
@@ -40,7 +40,9 @@ def _norm(obj):
 def assert_same_rows(a: RunRecord, b: RunRecord, n: int | None = None):
     n = len(b) if n is None else n
     assert len(a) == n
-    for c in COLUMNS:
+    assert a.column_names == b.column_names and a.diagnostic_fields == b.diagnostic_fields
+    assert a.diagnostic_events == b.diagnostic_events
+    for c in b.column_names:
         x, y = a[c], b[c][:n]
         assert np.array_equal(x.view(np.uint64)[~np.isnan(x)], y.view(np.uint64)[~np.isnan(y)]), c
         assert np.array_equal(np.isnan(x), np.isnan(y)), c
@@ -151,8 +153,9 @@ def test_file_passes_the_mcap_library_validation(logged):
         assert len(summary.chunk_indexes) == summary.statistics.chunk_count > 2
         topics = {c.topic: cid for cid, c in summary.channels.items()}
         counts = summary.statistics.channel_message_counts
-        for name, _, _ in ROW_TOPICS:
+        for name, _, _ in row_topics(main.column_names):
             assert counts[topics[f"/usv/{name}"]] == len(main)
+        for name, _, _ in row_topics(base.column_names):
             assert counts[topics[f"/baseline/usv/{name}"]] == len(base)
         n = 0
         last_state_time = -1
@@ -181,12 +184,15 @@ def test_messages_follow_their_json_schemas(logged):
     path, _, _ = logged
     seen = {}
     with open(path, "rb") as f:
-        for schema, channel, message in make_reader(f).iter_messages():
+        reader = make_reader(f)
+        n_topics = len(reader.get_summary().channels)
+        assert n_topics == 2 * 11      # 5 row topics, events, 5 Foxglove topics per run
+        for schema, channel, message in reader.iter_messages():
             if channel.topic not in seen:
                 seen[channel.topic] = (json.loads(schema.data), json.loads(message.data))
-                if len(seen) == 2 * 12:
+                if len(seen) == n_topics:
                     break
-    assert len(seen) == 2 * 12
+    assert len(seen) == n_topics
     for topic, (schema, msg) in seen.items():
         jsonschema.validate(msg, schema)
 
@@ -283,6 +289,8 @@ class _Stops:
     def __init__(self, scenario, n, exc):
         self.inner = make_controller(scenario)
         self.name = self.inner.name
+        self.diagnostic_fields = self.inner.diagnostic_fields
+        self.diagnostic_events = getattr(self.inner, "diagnostic_events", None)
         self.n, self.exc, self.calls = n, exc, 0
 
     def reset(self):
@@ -386,7 +394,9 @@ def test_foxglove_topics_match_the_state(logged):
     psi = main["psi"][k]
     assert np.allclose(tf["rotation.z"], np.sin(psi / 2), rtol=0, atol=1e-15)
     assert np.allclose(tf["rotation.w"], np.cos(psi / 2), rtol=0, atol=1e-15)
-    assert set(tf["child_frame_id"]) == {"usv"} and set(tf["parent_frame_id"]) == {"world"}
+    assert set(tf["child_frame_id"]) == {"base_link"} and set(tf["parent_frame_id"]) == {"map"}      # REP-105
+    ref = load_topic(path, "/usv/tf/reference")
+    assert set(ref["child_frame_id"]) == {"reference"} and set(ref["parent_frame_id"]) == {"map"}
     assert np.array_equal(tf["timestamp.sec"] * 1e9 + tf["timestamp.nsec"], tf["log_time"].astype(float))
     funnel = load_topic(path, "/usv/scene/funnel")
     first = funnel["entities"][len(k) // 2][0]
@@ -409,9 +419,11 @@ def test_topics_and_counts(logged):
     path, main, base = logged
     log = read_run(path)
     topics = log.topics()
+    assert [name for name, _, _ in ROW_TOPICS] == ["state", "reference", "control", "errors", "diagnostics"]
     for name, _, _ in ROW_TOPICS:
         assert topics[f"/usv/{name}"] == len(main)
         assert topics[f"/baseline/usv/{name}"] == len(base)
+    assert "/usv/adaptation" not in topics and "/usv/internal" not in topics
     assert topics["/usv/tf/hull"] == len(range(0, len(main), 20))
     with pytest.raises(RunLogReadError, match="no topic"):
         load_topic(path, "/nope")
@@ -583,3 +595,197 @@ def test_no_shared_memory_falls_back_to_writing_in_process(tmp_path, scenario, m
         sink.rows(rec, 0, 3000)
         sink.finish(rec)
     assert_same_rows(read_run(tmp_path / "fallback.mcap").record, rec, 3000)
+
+
+# --- declared columns ---------------------------------------------------------------------------------
+
+
+class _TwoFields:
+    """A user's controller: a proportional law that declares two made-up diagnostics and no funnel."""
+
+    name = "two_fields"
+    diagnostic_fields = ("heading_gap", "speed_gap")
+
+    def __init__(self):
+        self._diag = np.zeros(2)
+
+    def reset(self):
+        self._diag[:] = 0.0
+
+    def __call__(self, t, x, ref):
+        self._diag[0] = math.atan2(math.sin(ref[2] - x[2]), math.cos(ref[2] - x[2]))
+        self._diag[1] = ref[6] - x[3]
+        return 20.0 * self._diag[1], 2.0 * self._diag[0], self._diag
+
+
+def test_a_controller_with_its_own_fields_round_trips_on_its_own_topic(tmp_path, scenario):
+    sc = scenario.with_overrides({"duration": 3.0})
+    path = tmp_path / "own.mcap"
+    with RunLogWriter(path, sc, rows_per_chunk=400) as writer:
+        rec = simulate(sc, controller=_TwoFields(), sinks=[writer.sink("main")], block=700)
+    assert rec.column_names[-2:] == ("heading_gap", "speed_gap") and not rec.has_funnel
+    log = read_run(path)
+    got = log.record
+    assert_same_rows(got, rec)
+    assert got.diagnostic_fields == ("heading_gap", "speed_gap") and not got.has_funnel
+    assert got.metadata["diagnostic_fields"] == ["heading_gap", "speed_gap"]
+    topics = log.topics()
+    assert {t for t in topics if t.startswith("/usv/")} == {
+        "/usv/state", "/usv/reference", "/usv/control", "/usv/diagnostics", "/usv/events", "/usv/tf/hull",
+        "/usv/tf/reference", "/usv/scene/path", "/usv/scene/hull"}          # no errors, no funnel: none declared
+    diag = load_topic(path, "/usv/diagnostics")
+    assert set(diag) == {"log_time", "t", "heading_gap", "speed_gap"}
+    assert np.array_equal(diag["speed_gap"], rec["speed_gap"])
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    schemas = {c.topic: json.loads(summary.schemas[c.schema_id].data) for c in summary.channels.values()}
+    assert list(schemas["/usv/diagnostics"]["properties"]) == ["t", "heading_gap", "speed_gap"]
+    assert "two_fields" in schemas["/usv/diagnostics"]["description"]
+
+
+def test_pi_baseline_record_keeps_its_own_fields(logged):
+    path, _, base = logged
+    got = read_run(path).baseline
+    assert got.diagnostic_fields == base.diagnostic_fields
+    assert got.diagnostic_fields[-4:] == ("u_e", "r_e", "integral_u", "integral_r") and got.has_funnel
+    diag = load_topic(path, "/baseline/usv/diagnostics")
+    assert set(diag) == {"log_time", "t", "e1s", "e2s", "e3s", "psi_a", "u_e", "r_e", "integral_u", "integral_r"}
+    assert np.array_equal(diag["integral_u"], base["integral_u"])
+
+
+# --- file order = log-time order ------------------------------------------------------------------------
+
+
+def _log_times_in_file_order(path) -> np.ndarray:
+    with open(path, "rb") as f:
+        return np.array([m.log_time for _, _, m in make_reader(f).iter_messages(log_time_order=False)], np.int64)
+
+
+def test_main_job_logs_one_file_per_run_each_in_log_time_order(tmp_path, scenario):
+    from usv_mj.main_job import run_job
+
+    job = run_job(scenario.with_overrides({"duration": 6.0}), tmp_path / "job", video=False, progress=False,
+                  step_check=False)
+    main_path, base_path = tmp_path / "job" / "run.mcap", tmp_path / "job" / "baseline.mcap"
+    assert job.baseline is not None and base_path.is_file()
+    for path, rec in ((main_path, job.record), (base_path, job.baseline)):
+        lt = _log_times_in_file_order(path)           # the mcap library, chunk by chunk in file order
+        assert lt.size > 5 * len(rec) and np.all(np.diff(lt) >= 0), path.name
+        assert lt[0] == 0 and lt[-1] == round(rec["t"][-1] * 1e9)
+        with open(path, "rb") as f:                    # and record by record with the stream reader
+            stream = [r.log_time for r in StreamReader(f, validate_crcs=True).records if isinstance(r, Message)]
+        assert stream == lt.tolist()
+    with open(main_path, "rb") as f:
+        assert {c.topic.split("/")[1] for c in make_reader(f).get_summary().channels.values()} == {"usv"}
+    log = read_run(main_path)                          # the baseline is found beside the main run's log
+    assert_same_rows(log.record, job.record)
+    assert_same_rows(log.baseline, job.baseline)
+    assert log.files == {"main": str(main_path), "baseline": str(base_path)}
+    assert log.summaries["baseline"] == _norm(summarize(job.baseline))
+    assert read_run(main_path, companions=False).baseline is None
+    # a log beside it that is not its companion (another job's) is not taken for its baseline
+    other = tmp_path / "other"
+    other.mkdir()
+    with RunLogWriter(other / "run.mcap", scenario) as writer:
+        simulate(scenario.with_overrides({"duration": 0.5}), controller_kind="pi", sinks=[writer.sink("baseline")])
+    base_path.unlink()
+    (other / "run.mcap").rename(base_path)
+    assert read_run(main_path).baseline is None
+
+
+def test_events_are_logged_in_the_chunk_of_their_time(tmp_path, scenario):
+    """Events of a block go to the chunk of their time, and one reported late is logged no earlier
+    than the rows already written: the file never goes back in log time."""
+    rec = _handmade_record(3000, seed=11)
+    path = tmp_path / "events.mcap"
+    with RunLogWriter(path, scenario, background=False, rows_per_chunk=400) as writer:
+        sink = writer.sink("main")
+        sink.start(rec)
+        rec.events += [Event(0.1, "early", "in the first chunk"), Event(1.7, "late", "in the fifth chunk")]
+        rec.n_rows = 2000
+        sink.rows(rec, 0, 2000)
+        rec.events.append(Event(0.5, "reported_late", "after rows to 2 s were written"))
+        rec.n_rows = 3000
+        sink.rows(rec, 2000, 3000)
+        sink.finish(rec)
+    lt = _log_times_in_file_order(path)
+    assert np.all(np.diff(lt) >= 0)
+    ev = load_topic(path, "/usv/events")
+    assert list(ev["kind"]) == ["early", "late", "reported_late", "run_end"]
+    assert list(ev["log_time"][:3]) == [100_000_000, 1_700_000_000, 2_000_000_000]
+    assert list(ev["t"][:3]) == [0.1, 1.7, 0.5]       # the event's own time is kept in the message
+    assert [e.t for e in read_run(path).record.events] == [0.1, 0.5, 1.7]
+
+
+# --- Foxglove and ROS conventions -------------------------------------------------------------------
+
+
+SCHEMA_DIR = ROOT / "usv_mj" / "runlog" / "schemas"
+
+
+def test_foxglove_schemas_are_embedded_as_published(logged):
+    """The channels' schemas are the published files byte for byte (their hashes as recorded in
+    schemas/NOTICE.md, from @foxglove/schemas), with the descriptions and enums of the fields used."""
+    import hashlib
+    import re
+
+    notice = (SCHEMA_DIR / "NOTICE.md").read_text()
+    published = {}
+    for name, digest in re.findall(r"\| (foxglove\.\w+)\.json \| ([0-9a-f]{64}) \|", notice):
+        data = (SCHEMA_DIR / f"{name}.json").read_bytes()
+        assert hashlib.sha256(data).hexdigest() == digest, name
+        published[name] = data
+    assert set(published) == {"foxglove.FrameTransform", "foxglove.SceneUpdate"}
+    path, _, _ = logged
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    used = {}
+    for c in summary.channels.values():
+        s = summary.schemas[c.schema_id]
+        if s.name.startswith("foxglove."):
+            assert s.data == published[s.name], c.topic
+            used[s.name] = json.loads(s.data)
+    assert set(used) == set(published)
+    tf = used["foxglove.FrameTransform"]["properties"]
+    assert all(tf[k].get("description") for k in ("timestamp", "parent_frame_id", "child_frame_id", "translation",
+                                                  "rotation"))
+    scene = used["foxglove.SceneUpdate"]["properties"]
+    deletion = scene["deletions"]["items"]["properties"]["type"]
+    assert deletion["title"] == "foxglove.SceneEntityDeletionType"
+    assert [(o["title"], o["const"]) for o in deletion["oneOf"]] == [("MATCHING_ID", 0), ("ALL", 1)]
+    entity = scene["entities"]["items"]["properties"]
+    line_type = entity["lines"]["items"]["properties"]["type"]
+    assert [(o["title"], o["const"]) for o in line_type["oneOf"]] == [("LINE_STRIP", 0), ("LINE_LOOP", 1),
+                                                                       ("LINE_LIST", 2)]
+    assert all(o.get("description") for o in line_type["oneOf"])
+    assert entity["cubes"]["items"]["properties"]["size"]["description"]
+
+
+def test_foxglove_schemas_equal_the_npm_package_when_it_is_at_hand():
+    """Against @foxglove/schemas itself, where a copy is unpacked (USV_MJ_FOXGLOVE_SCHEMAS = its
+    package/ folder) and node runs: the same objects as the files embedded here."""
+    import os
+    import shutil
+
+    pkg = os.environ.get("USV_MJ_FOXGLOVE_SCHEMAS")
+    if not pkg or shutil.which("node") is None:
+        pytest.skip("set USV_MJ_FOXGLOVE_SCHEMAS to an unpacked @foxglove/schemas package/ folder")
+    out = subprocess.run(["node", "-e", "const s=require(process.argv[1]); process.stdout.write(JSON.stringify("
+                          "{FrameTransform: s.FrameTransform, SceneUpdate: s.SceneUpdate}))",
+                          str(Path(pkg) / "dist" / "jsonschema" / "index.js")], capture_output=True, text=True,
+                         check=True).stdout
+    for name, schema in json.loads(out).items():
+        assert json.loads((SCHEMA_DIR / f"foxglove.{name}.json").read_text()) == schema, name
+
+
+def test_state_schema_says_the_axes_conventions(logged):
+    path, _, _ = logged
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    state = next(json.loads(summary.schemas[c.schema_id].data) for c in summary.channels.values()
+                 if c.topic == "/usv/state")["properties"]
+    assert "east" in state["x"]["description"] and "ENU" in state["x"]["description"]
+    assert "north" in state["y"]["description"]
+    assert "counter-clockwise from east" in state["psi"]["description"]
+    assert "forward" in state["u"]["description"] and "port" in state["v"]["description"]
+    assert "north position" not in state["x"]["description"] and "east position" not in state["y"]["description"]

@@ -43,7 +43,8 @@ def _save(fig, path: Path) -> None:
 
 def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, obstacles=()) -> list[Path]:
     """Write the seven figures into ``out_dir`` and return their paths (obstacles, with their
-    inflated safety boundaries, in the trajectory figure)."""
+    inflated safety boundaries, in the trajectory figure). A record whose controller declares no
+    funnel (e, rho, z) gets no figures 2-4, one without the weight norms no figure 7."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     s = _stride(len(record))

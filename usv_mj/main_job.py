@@ -7,8 +7,8 @@
     result = run_job(load_scenario(preset="paper"), "renders/paper", video=False)
     result.summary["errors_at"]
 
-Outputs in ``out_dir``: ``summary.json``, ``report.md``, ``figures/*.png``, ``run.mcap`` (unless
-``log=False``), ``video.mp4`` and ``video.png``, its last frame (unless ``video=False``). Everything is written
+Outputs in ``out_dir``: ``summary.json``, ``report.md``, ``figures/*.png``, ``run.mcap`` and the
+baseline's ``baseline.mcap`` (unless ``log=False``), ``video.mp4`` and ``video.png``, its last frame (unless ``video=False``). Everything is written
 from the finished records, so ``usv-mj plot run.mcap`` and ``usv-mj render run.mcap`` remake them.
 """
 
@@ -417,7 +417,7 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
             from .runlog import RunLogWriter
 
             writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario))
-            sink_main, sink_base = [writer.sink(run="main")], [writer.sink(run="baseline")]
+            sink_main = [writer.sink(run="main")]
             files["mcap"] = out / "run.mcap"
         cb, close = progress_bar(scenario.duration, f"{scenario.controller.kind.upper()} on {plant_kind}", progress, dt)
         try:
@@ -464,6 +464,9 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         video_job = _start_video(pool, record, out / "video.mp4", render_opts) if pool is not None else None
         if run_baseline and record.status != "interrupted":
             phase = f"running the {scenario.baseline.kind.upper()} baseline"
+            if log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
+                base_writer = stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario, companion_of=writer))
+                sink_base, files["baseline_mcap"] = [base_writer.sink(run="baseline")], out / "baseline.mcap"
             cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", progress, dt)
             try:
                 base_rec = _simulate(scenario, plant_kind, scenario.baseline.kind, sink_base, cb)

@@ -4,7 +4,8 @@
   inflated safety boundary (obstacle grown by the plan's inflation) dashed.
 - :func:`scene_entities`: ``foxglove.SceneEntity`` dicts (the layout of
   :func:`usv_mj.runlog.writer._scene`): a cube per box, a cylinder per circle, a LINE_LOOP per
-  inflated boundary, in frame "world", for a ``foxglove.SceneUpdate`` on ``P/scene/obstacles``.
+  inflated boundary, in frame "map" (REP-105: the run log's world frame), for a
+  ``foxglove.SceneUpdate`` on ``P/scene/obstacles``.
 - :func:`obstacles_message`: everything about the obstacles at one logged row as plain data
   (:meth:`usv_mj.obstacles.sink.ObstacleLog.frame`). The ``/usv/obstacles`` MCAP topic itself is
   laid out in bulk by :mod:`usv_mj.runlog.extra_topics` (t; per obstacle name, clearance_m,
@@ -88,7 +89,7 @@ def scene_entities(obstacles, t: float, stamp: dict, inflation=None) -> list[dic
             lines.append({"type": 1, "pose": _pose(0.0, 0.0, 0.0), "thickness": 0.05, "scale_invariant": False,
                           "points": [{"x": float(px), "y": float(py), "z": 0.02} for px, py in pts],
                           "color": _color((1.0, 0.8, 0.1, 0.9)), "colors": [], "indices": []})
-        out.append({"timestamp": stamp, "frame_id": "world", "id": f"obstacle/{o.name}",
+        out.append({"timestamp": stamp, "frame_id": "map", "id": f"obstacle/{o.name}",
                     "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": False,
                     "metadata": [{"key": "kind", "value": o.kind}, {"key": "moving", "value": str(o.moving).lower()}],
                     "arrows": [], "cubes": cubes, "spheres": [], "cylinders": cylinders, "lines": lines,

@@ -10,7 +10,7 @@ import argparse
 import json
 import sys
 
-from .reader import RunLogReadError, scan_summary
+from .reader import RunLogReadError, companion_files, scan_summary
 
 
 def add_inspect_arguments(parser: argparse.ArgumentParser) -> None:
@@ -48,8 +48,10 @@ def inspect_command(args) -> int:
         elif "/" in name:
             kind, run = name.split("/", 1)
             runs.setdefault(run, {})[kind] = m
+    companions = companion_files(path)
     if getattr(args, "json", False):
-        print(json.dumps({**info, "metadata": {n: m for n, m in info["metadata"]}}, indent=1, default=str))
+        print(json.dumps({**info, "metadata": {n: m for n, m in info["metadata"]},
+                          "companions": [str(c) for c in companions]}, indent=1, default=str))
         return 0
     state = "complete (summary and footer present)" if info["complete"] else \
         f"CUT SHORT: {info['problem'] or 'no summary'}"
@@ -87,6 +89,14 @@ def inspect_command(args) -> int:
     width = max((len(t) for t in info["topics"]), default=10)
     for topic, t in info["topics"].items():
         print(f"  {topic:<{width}}  {t['count']:>9}  {t['schema']}")
+    for c in companions:
+        print(f"companion log beside it: {c.name} (read with it by usv-mj plot / read_run; inspect it on its own)")
+    if meta.get("companion_of"):
+        try:
+            main_file = json.loads(meta["companion_of"]).get("file", "?")
+        except (ValueError, AttributeError):
+            main_file = "?"
+        print(f"companion of: {main_file} (the main run's log)")
     if info["attachments"]:
         print("attachments: " + ", ".join(f"{k} ({_fmt_size(v)})" for k, v in info["attachments"].items()))
     return 0

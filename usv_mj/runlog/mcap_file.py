@@ -14,7 +14,9 @@ data; Message Index = opcode u8, length u64, channel_id u16, records byte length
 u64, offset u64) pairs, offset = position of the message record in the uncompressed chunk.
 
 Every chunk is written whole and the file is flushed to the OS after it, so a killed process leaves
-a file readable up to its last complete chunk (see :mod:`usv_mj.runlog.reader`).
+a file readable up to its last complete chunk (see :mod:`usv_mj.runlog.reader`). Inside a chunk the
+messages are in log-time order (:meth:`ChunkBuffer.finish`), so with chunks written in time order a
+front-to-back reader sees log time never go back.
 """
 
 from __future__ import annotations
@@ -230,13 +232,34 @@ def message_record(channel_id: int, log_time: int, data: bytes, sequence: int = 
                        log_time, log_time) + data
 
 
+@njit(cache=True)
+def _gather_records(src, starts, lengths, order, out):
+    """out = the records src[starts[i]:starts[i] + lengths[i]] for i in ``order``; returns the new
+    start of each record (in the order of ``order``)."""
+    new = np.empty(order.shape[0], np.int64)
+    p = 0
+    for j in range(order.shape[0]):
+        i = order[j]
+        new[j] = p
+        a = starts[i]
+        for b in range(lengths[i]):
+            out[p + b] = src[a + b]
+        p += lengths[i]
+    return new
+
+
 class ChunkBuffer:
-    """The records of one chunk being assembled, with their message index entries per channel."""
+    """The message records of one chunk being assembled. :meth:`finish` puts them in log-time order
+    (a stable sort: messages of one log time keep the order they were added in), so that a reader
+    that goes through the file front to back sees log time never go back inside a chunk."""
 
     def __init__(self):
         self.parts: list = []
         self.size = 0
-        self.index: dict[int, list] = {}          # channel -> list of (log_times, offsets) arrays
+        self._lt: list = []           # per added piece: log time, channel, start, length of each message
+        self._ch: list = []
+        self._start: list = []
+        self._len: list = []
         self.count: dict[int, int] = {}
         self.start_time = None
         self.end_time = None
@@ -249,25 +272,55 @@ class ChunkBuffer:
         self.end_time = hi if self.end_time is None else max(self.end_time, hi)
 
     def add_rows(self, records: np.ndarray, offsets: np.ndarray, log_time: np.ndarray, channel_ids):
+        """Records laid out by a :class:`RowLayout` (row-major: row i's messages, topic by topic)."""
         if len(log_time) == 0:
             return
         base = self.size
+        n, k = offsets.shape
+        starts = offsets.reshape(-1).astype(np.int64)
+        lengths = np.diff(np.append(starts, len(records)))
+        lt = np.asarray(log_time, np.int64)
+        self._lt.append(np.repeat(lt, k))
+        self._ch.append(np.tile(np.asarray(channel_ids, np.int64), n))
+        self._start.append(starts + base)
+        self._len.append(lengths)
         self.parts.append(records)
         self.size += len(records)
-        lt = log_time.astype(np.uint64)
-        for j, ch in enumerate(channel_ids):
-            self.index.setdefault(int(ch), []).append((lt, (offsets[:, j] + base).astype(np.uint64)))
-            self.count[int(ch)] = self.count.get(int(ch), 0) + len(lt)
-        self._times(int(lt[0]), int(lt[-1]))
+        for ch in channel_ids:
+            self.count[int(ch)] = self.count.get(int(ch), 0) + n
+        self._times(int(lt.min()), int(lt.max()))
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, sequence: int = 0):
         rec = message_record(channel_id, log_time, data, sequence)
-        self.index.setdefault(channel_id, []).append((np.array([log_time], np.uint64),
-                                                      np.array([self.size], np.uint64)))
+        self._lt.append(np.array([log_time], np.int64))
+        self._ch.append(np.array([channel_id], np.int64))
+        self._start.append(np.array([self.size], np.int64))
+        self._len.append(np.array([len(rec)], np.int64))
         self.count[channel_id] = self.count.get(channel_id, 0) + 1
         self.parts.append(rec)
         self.size += len(rec)
         self._times(log_time, log_time)
+
+    def finish(self) -> tuple[list, dict]:
+        """(the chunk's data as parts, {channel: (log times, record offsets)}), messages in log-time order."""
+        lt = np.concatenate(self._lt)
+        ch = np.concatenate(self._ch)
+        start = np.concatenate(self._start)
+        if lt.size > 1 and np.any(np.diff(lt) < 0):
+            order = np.argsort(lt, kind="stable")
+            src = np.concatenate([np.frombuffer(p, np.uint8) if isinstance(p, (bytes, bytearray)) else p
+                                  for p in self.parts])
+            out = np.empty(self.size, np.uint8)
+            start = _gather_records(src, start, np.concatenate(self._len), order, out)
+            lt, ch = lt[order], ch[order]
+            parts = [out]
+        else:
+            parts = self.parts
+        index = {}
+        for c in np.unique(ch):
+            sel = ch == c
+            index[int(c)] = (lt[sel].astype(np.uint64), start[sel].astype(np.uint64))
+        return parts, index
 
 
 def _merge_small(parts: list) -> list:
@@ -418,9 +471,10 @@ class McapFileWriter:
         """Compress and write one chunk, then its message indexes; flush to the OS."""
         if not len(buf):
             return
+        parts, index = buf.finish()
         cobj = self._compressor.compressobj(size=buf.size)
         pieces, crc = [], 0
-        for part in _merge_small(buf.parts):
+        for part in _merge_small(parts):
             crc = zlib.crc32(part, crc)
             pieces.append(cobj.compress(part))
         pieces.append(cobj.flush())
@@ -432,10 +486,9 @@ class McapFileWriter:
         index_offsets = {}
         pieces = []
         pos = index_start
-        for ch in sorted(buf.index):
-            lt = np.concatenate([a for a, _ in buf.index[ch]])
-            off = np.concatenate([b for _, b in buf.index[ch]])
-            order = np.argsort(lt, kind="stable")
+        for ch in sorted(index):
+            lt, off = index[ch]
+            order = np.argsort(lt, kind="stable")      # already in order after finish(): kept for safety
             pairs = np.empty(2 * len(lt), "<u8")
             pairs[0::2] = lt[order]
             pairs[1::2] = off[order]

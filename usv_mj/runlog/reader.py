@@ -24,12 +24,11 @@ from numba import njit
 
 from . import json_codec
 
-from ..record import COLUMNS, Event, RunRecord
+from ..record import COL, CORE_COLUMNS, Event, RunRecord
 from .extra_topics import environment_arrays, obstacle_arrays
-from .topics import ROW_TOPICS, prefix_for
+from .topics import ROW_SCHEMAS, prefix_for
 
 MAGIC = b"\x89MCAP0\r\n"
-_ROW_SCHEMAS = {title for _, title, _ in ROW_TOPICS}
 
 
 class RunLogReadError(ValueError):
@@ -343,7 +342,7 @@ def _columns(scan: _Scan, ch: int) -> tuple[np.ndarray, dict]:
 def _is_row_channel(scan: _Scan, ch: int) -> bool:
     c = scan.channels.get(ch)
     schema = scan.schemas.get(c.schema_id) if c is not None else None
-    return schema is not None and schema.name in _ROW_SCHEMAS
+    return (c is not None and c.metadata.get("kind") == "rows") or (schema is not None and schema.name in ROW_SCHEMAS)
 
 
 def _float_column(msgs: list, name: str) -> np.ndarray:
@@ -394,6 +393,7 @@ class RunLog:
     summaries: dict             # run name -> summary dict written at the run's end ({} if none)
     obstacles_by_run: dict = field(default_factory=dict)    # run -> extra_topics.obstacle_arrays(...)
     environment_by_run: dict = field(default_factory=dict)  # run -> extra_topics.environment_arrays(...)
+    files: dict = field(default_factory=dict)               # run -> the file it was read from
 
     @property
     def obstacles(self) -> dict | None:
@@ -441,23 +441,88 @@ def _run_names(scan: _Scan) -> list:
     return list(dict.fromkeys(names))
 
 
-def read_run(path) -> RunLog:
+def peek_file_metadata(path) -> dict:
+    """The ``usv_mj`` metadata record of a run log (written first, before any chunk), {} if none."""
+    try:
+        stream, _, _ = _open(path)
+    except (RunLogReadError, OSError):
+        return {}
+    try:
+        for rec in StreamReader(stream, emit_chunks=True, record_size_limit=None).records:
+            if isinstance(rec, Metadata) and rec.name == "usv_mj":
+                return dict(rec.metadata)
+            if isinstance(rec, (Chunk, Attachment, Footer)):
+                break
+    except Exception:  # noqa: BLE001 - a damaged neighbour is simply not a companion
+        pass
+    finally:
+        stream.close()
+    return {}
+
+
+def companion_files(path) -> list[Path]:
+    """The run logs beside ``path`` written as its companions (``RunLogWriter(companion_of=...)``:
+    the main job's ``baseline.mcap`` beside ``run.mcap``), matched by the main file's log id."""
+    path = Path(path)
+    log_id = peek_file_metadata(path).get("log_id")
+    if not log_id:
+        return []
+    out = []
+    for other in sorted(path.parent.glob("*.mcap")):
+        if other.resolve() == path.resolve():
+            continue
+        link = _maybe_json(peek_file_metadata(other).get("companion_of", ""))
+        if isinstance(link, dict) and link.get("log_id") == log_id:
+            out.append(other)
+    return out
+
+
+def read_run(path, companions: bool = True) -> RunLog:
     """Read every run of a run log (a path, or a binary stream that need not be seekable).
 
-    Each run becomes a :class:`RunRecord` (``RunRecord.from_arrays``) with its events (ordered by
-    time, as ``simulate`` leaves them), ``status``, ``stop_reason`` and the record's metadata as
-    written at the end of the run. A run whose end record is missing (the file was cut) gets
-    ``status = "truncated"`` and a ``stop_reason`` saying where the log ends.
+    Each run becomes a :class:`RunRecord` (``RunRecord.from_arrays``) with the columns and the
+    diagnostic fields it was written with, its events (ordered by time, as ``simulate`` leaves
+    them), ``status``, ``stop_reason`` and the record's metadata as written at the end of the run.
+    A run whose end record is missing (the file was cut) gets ``status = "truncated"`` and a
+    ``stop_reason`` saying where the log ends. With ``companions`` (and a path), the runs of the
+    companion files beside it (the main job's ``baseline.mcap``) are added; ``RunLog.files`` says
+    which file each run came from.
     """
+    log = _read_one(path)
+    if companions and isinstance(path, (str, Path)):
+        for other in companion_files(path):
+            try:
+                more = _read_one(other)
+            except RunLogReadError:
+                continue
+            for run, rec in more.runs.items():
+                if run in log.runs:
+                    continue
+                log.runs[run] = rec
+                log.files[run] = more.path
+                log.summaries[run] = more.summaries.get(run, {})
+                log.metadata.setdefault("runs", {})[run] = more.metadata.get("runs", {}).get(run, {})
+                for mine, theirs in ((log.obstacles_by_run, more.obstacles_by_run),
+                                     (log.environment_by_run, more.environment_by_run)):
+                    if run in theirs:
+                        mine[run] = theirs[run]
+            for topic, count in more.topic_counts.items():
+                log.topic_counts.setdefault(topic, count)
+    return log
+
+
+def _read_one(path) -> RunLog:
     scan = _scan(path, flat=_is_row_channel)
     file_meta, runs_meta = {}, {}
     for name, m in scan.metadata:
         if name == "usv_mj":
-            file_meta = {k: _maybe_json(v) if k in ("scenario", "versions", "git_dirty") else v for k, v in m.items()}
+            file_meta = {k: _maybe_json(v) if k in ("scenario", "versions", "git_dirty", "companion_of") else v
+                         for k, v in m.items()}
         elif "/" in name:
             kind, run = name.split("/", 1)
             runs_meta.setdefault(run, {})[kind.replace("run_", "")] = {
-                k: _maybe_json(v) if k in ("metadata", "summary", "columns") else v for k, v in m.items()}
+                k: _maybe_json(v) if k in ("metadata", "summary", "columns", "diagnostic_fields", "diagnostic_events",
+                                           "obstacles") else v for k, v in m.items()}
     by_topic = {c.topic: cid for cid, c in scan.channels.items()}
     runs, summaries = {}, {}
     obstacles_by_run, environment_by_run = {}, {}
@@ -468,28 +533,34 @@ def read_run(path) -> RunLog:
             continue
         if f"{p}/state" not in by_topic:
             continue
+        # every row topic of the run (state, reference, control, errors, diagnostics; version 1's
+        # adaptation and internal), fields by name: the record's columns come from the run's metadata
         columns, n = {}, None
         t_ref = None
-        for name, _, fields in ROW_TOPICS:
-            cid = by_topic.get(f"{p}/{name}")
-            if cid is None:
+        for cid, c in sorted(scan.channels.items()):
+            if not (c.topic.startswith(p + "/") and "/" not in c.topic[len(p) + 1:] and _is_row_channel(scan, cid)):
                 continue
             _, cols = _columns(scan, cid)
             m = len(cols.get("t", ()))
             n = m if n is None else min(n, m)
-            for f in fields:
-                if f not in cols:
-                    continue
+            for f, values in cols.items():
                 if f == "t":
-                    if t_ref is None:
-                        t_ref = cols["t"]
+                    if t_ref is None or c.topic == f"{p}/state":
+                        t_ref = values
                     continue
-                columns[f] = cols[f]
+                columns.setdefault(f, values)
         n = n or 0
-        columns = {k: v[:n] for k, v in columns.items()}
-        columns["t"] = (t_ref if t_ref is not None else np.zeros(0))[:n]
-        for c in COLUMNS:  # a column the file does not have (older log): NaN, as the record starts
-            columns.setdefault(c, np.full(n, np.nan))
+        start = (runs_meta.get(run) or {}).get("start") or {}
+        names = start.get("columns")
+        if not isinstance(names, list) or not names:
+            names = list(CORE_COLUMNS) + [f for f in columns if f not in COL]
+        diagnostic_fields = tuple(f for f in names if f not in COL)
+        t_col = (t_ref if t_ref is not None else np.zeros(0))[:n]
+        # a column the file does not have (an older log's f_u, sat_u, ...): NaN, as the record starts
+        columns = {"t": t_col, **{k: (columns[k][:n] if k in columns else np.full(n, np.nan))
+                                  for k in list(CORE_COLUMNS[1:]) + list(diagnostic_fields)}}
+        diagnostic_events = start.get("diagnostic_events")
+        diagnostic_events = diagnostic_events if isinstance(diagnostic_events, dict) else None
         events = []
         cid = by_topic.get(f"{p}/events")
         if cid is not None:
@@ -508,7 +579,8 @@ def read_run(path) -> RunLog:
             stop_reason = f"the log ends at t = {t_last:.3f} s without the run's end record ({scan.problem or 'no end record'})"
             record_meta = (meta.get("start") or {}).get("metadata") or {}
             summaries[run] = {}
-        rec = RunRecord.from_arrays(columns, events=events, metadata=record_meta, status=status, stop_reason=stop_reason)
+        rec = RunRecord.from_arrays(columns, events=events, metadata=record_meta, status=status, stop_reason=stop_reason,
+                                    diagnostic_fields=diagnostic_fields, diagnostic_events=diagnostic_events)
         runs[run] = rec
         cid = by_topic.get(f"{p}/obstacles")
         if cid is not None:
@@ -526,7 +598,8 @@ def read_run(path) -> RunLog:
         raise RunLogReadError(f"{path}: no usv_mj run in this MCAP file ({scan.problem or 'no /usv/state topic'})")
     return RunLog(path=str(path), runs=runs, metadata=file_meta, attachments=dict(scan.attachments),
                   topic_counts=counts, truncated=scan.truncated, complete=scan.complete, problem=scan.problem,
-                  summaries=summaries, obstacles_by_run=obstacles_by_run, environment_by_run=environment_by_run)
+                  summaries=summaries, obstacles_by_run=obstacles_by_run, environment_by_run=environment_by_run,
+                  files={run: str(path) for run in runs})
 
 
 def load_topic(path, topic: str) -> dict:

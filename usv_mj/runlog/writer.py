@@ -47,6 +47,7 @@ import subprocess
 import sys
 import time
 import traceback
+import uuid
 import warnings
 import weakref
 from multiprocessing import shared_memory
@@ -62,19 +63,40 @@ from . import json_codec
 from .mcap_file import ChunkBuffer, McapFileWriter, RowLayout, TemplateLayout, template_layout
 from .extra_topics import (ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME, OBSTACLES_SCHEMA, OBSTACLES_SCHEMA_NAME,
                            environment_block, environment_layout, obstacle_layout)
-from .topics import (EVENT_SCHEMA, FRAME_PERIOD, FRAME_TRANSFORM_SCHEMA, HULL_SIZE, PATH_SAMPLE, ROW_TOPICS,
-                     SCENE_UPDATE_SCHEMA, SCHEMA_VERSION, SLOW_PERIOD, frame_for, prefix_for, row_topic_schema)
+from .topics import (EVENT_SCHEMA, FRAME_PERIOD, FRAME_TRANSFORM_SCHEMA, HULL_SIZE, PATH_SAMPLE,
+                     SCENE_UPDATE_SCHEMA, SCHEMA_VERSION, SLOW_PERIOD, WORLD_FRAME, frame_for, prefix_for,
+                     reference_frame_for, row_topic_schema, row_topics)
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
-SLOT_ROWS = 2048       # rows per slot of the shared-memory ring (simulate's default block is 2000)
+SLOT_ROWS = 2048       # rows per slot of the shared-memory ring at the PPC record's width
+SLOT_FLOATS = SLOT_ROWS * len(COLUMNS)   # a slot's size in float64; a run of W columns puts SLOT_FLOATS // W rows in it
 
 
 class RunLogError(RuntimeError):
     """The run log could not be written or read; the message says which file and why."""
 
 
+_POS_INF, _NEG_INF = "\x00+inf\x00", "\x00-inf\x00"
+
+
+def _mark_inf(obj):
+    if isinstance(obj, dict):
+        return {k: _mark_inf(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_mark_inf(v) for v in obj]
+    if isinstance(obj, (float, np.floating)) and math.isinf(obj):
+        return _POS_INF if obj > 0 else _NEG_INF
+    return obj
+
+
 def _json(obj) -> str:
-    return json_codec.dumps(obj).decode()
+    """Metadata JSON text; +-inf (an unlimited actuator's limit) as 1e999 / -1e999, as in the row
+    topics, so that ``json.loads`` gives the record's metadata back (NaN stays null)."""
+    text = json_codec.dumps(_mark_inf(obj)).decode()
+    if "\\u0000" in text:
+        for mark, token in ((_POS_INF, "1e999"), (_NEG_INF, "-1e999")):
+            text = text.replace(json_codec.dumps(mark).decode(), token)
+    return text
 
 
 def package_versions() -> dict:
@@ -119,13 +141,14 @@ class RunLogFile:
         self.mcap.add_metadata("usv_mj", file_metadata)
         for name, media_type, data in attachments:
             self.mcap.add_attachment(name, media_type, data, log_time=0, create_time=time.time_ns())
-        self.schema_ids: dict[str, int] = {}
+        self.schema_ids: dict[tuple, int] = {}
         self.runs: dict[str, dict] = {}
 
     def _schema(self, name: str, data: bytes) -> int:
-        if name not in self.schema_ids:
-            self.schema_ids[name] = self.mcap.register_schema(name, "jsonschema", data)
-        return self.schema_ids[name]
+        # keyed by the text too: two controllers' usv_mj.Diagnostics differ (one file may hold both)
+        if (name, data) not in self.schema_ids:
+            self.schema_ids[(name, data)] = self.mcap.register_schema(name, "jsonschema", data)
+        return self.schema_ids[(name, data)]
 
     def handle(self, cmd: tuple):
         getattr(self, "cmd_" + cmd[0])(*cmd[1:])
@@ -134,12 +157,19 @@ class RunLogFile:
         if run in self.runs:
             raise RunLogError(f"run {run!r} is logged twice in one file")
         p = prefix_for(run)
+        columns = tuple(info.get("columns") or COLUMNS)
+        controller = str((info.get("metadata") or {}).get("controller", "?"))
         chans = {}
-        row_topics = []
-        for name, title, fields in ROW_TOPICS:
-            cid = self.mcap.register_channel(f"{p}/{name}", "json", self._schema(title, row_topic_schema(title, fields)),
-                                             {"run": run})
-            row_topics.append((cid, fields))
+        rows = []
+        topics = row_topics(columns)
+        for name, title, fields in topics:
+            desc = (f"the declared diagnostics of controller {controller!r}, one control step"
+                    if name == "diagnostics" else "")
+            cid = self.mcap.register_channel(f"{p}/{name}", "json",
+                                             self._schema(title, row_topic_schema(title, fields, desc)),
+                                             {"run": run, "kind": "rows"})
+            rows.append((cid, fields))
+        funnel = any(name == "errors" for name, _, _ in topics)
         chans["events"] = self.mcap.register_channel(f"{p}/events", "json", self._schema("usv_mj.Event", EVENT_SCHEMA),
                                                      {"run": run})
         for key, topic, schema, data in (("tf_hull", "tf/hull", "foxglove.FrameTransform", FRAME_TRANSFORM_SCHEMA),
@@ -147,20 +177,25 @@ class RunLogFile:
                                          ("funnel", "scene/funnel", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA),
                                          ("path", "scene/path", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA),
                                          ("hull", "scene/hull", "foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA)):
+            if key == "funnel" and not funnel:
+                continue
             chans[key] = self.mcap.register_channel(f"{p}/{topic}", "json", self._schema(schema, data), {"run": run})
         extra = self._extra_topics(run, p, info)
         extra.update(tf_hull=frame_layout(chans["tf_hull"], frame_for(run)),
-                     tf_ref=frame_layout(chans["tf_ref"], frame_for(run) + "_reference"),
-                     funnel=funnel_layout(chans["funnel"]))
+                     tf_ref=frame_layout(chans["tf_ref"], reference_frame_for(run)),
+                     funnel=funnel_layout(chans["funnel"]) if funnel else None)
         dt = float(info["control_period_s"])
         self.runs[run] = {**extra,
-            "layout": RowLayout(COLUMNS, row_topics), "chans": chans, "dt": dt,
+            "layout": RowLayout(columns, rows), "chans": chans, "dt": dt, "width": len(columns),
+            "col": {c: i for i, c in enumerate(columns)},
             "decim": max(1, int(round(FRAME_PERIOD / dt))), "slow": max(1, int(round(SLOW_PERIOD / dt))),
-            "frame": frame_for(run), "path": info.get("path") or reference_path(info.get("scenario")), "rows": 0,
+            "frame": frame_for(run), "path": list(info.get("path") or ()), "rows": 0,
             "last_ns": 0, "ended": False,
         }
         self.mcap.add_metadata(f"run_start/{run}", {
-            "run": run, "prefix": p, "schema_version": SCHEMA_VERSION, "columns": _json(list(COLUMNS)),
+            "run": run, "prefix": p, "schema_version": SCHEMA_VERSION, "columns": _json(list(columns)),
+            "diagnostic_fields": _json(list(columns[len(COL):])),
+            "diagnostic_events": _json(dict(info.get("diagnostic_events") or {})),
             "control_period_s": repr(dt), "metadata": _json(info.get("metadata", {})),
             **({"obstacles": _json(obstacle_table(info["obstacles"], info.get("inflation")))}
                if info.get("obstacles") else {}),
@@ -179,11 +214,7 @@ class RunLogFile:
                 cid = self.mcap.register_channel(f"{p}/obstacles", "json",
                                                  self._schema(OBSTACLES_SCHEMA_NAME, OBSTACLES_SCHEMA), {"run": run})
                 out["obs_layout"] = obstacle_layout(cid, [o.name for o in out["obstacles"]])
-        env = self.environment
-        if env is None and info.get("scenario") is not None and hasattr(info["scenario"], "sea"):
-            from ..simulation import make_environment
-
-            env = make_environment(info["scenario"])
+        env = self.environment if self.environment is not None else info.get("environment")
         if env is not None and not env.calm:
             out["env"] = env
             cid = self.mcap.register_channel(f"{p}/environment", "json",
@@ -195,11 +226,16 @@ class RunLogFile:
         st = self.runs[run]
         n = block.shape[0]
         step = self.rows_per_chunk
+        t = block[:, COL["t"]]
+        # log time = round(t * 1e9) ns; never before what this run already wrote (a row whose t is
+        # not finite gets the time before it), so that the file is in log-time order
+        raw = np.rint(np.nan_to_num(t, nan=0.0, posinf=0.0, neginf=0.0) * 1e9).clip(0).astype(np.int64)
+        block_time = np.maximum.accumulate(np.maximum(raw, st["last_ns"]))
+        events = sorted(events, key=lambda e: (e["t"], e["seq"]))
         for a in range(0, n, step):
             sub = block[a:a + step]
             buf = ChunkBuffer()
-            t = sub[:, COL["t"]]
-            log_time = np.rint(np.nan_to_num(t, nan=0.0, posinf=0.0, neginf=0.0) * 1e9).clip(0).astype(np.int64)
+            log_time = block_time[a:a + step]
             records, offsets = st["layout"].encode(sub, log_time, lo + a)
             buf.add_rows(records, offsets, log_time, st["layout"].channel_ids)
             if obstacles is not None and st["obs_layout"] is not None:
@@ -211,16 +247,22 @@ class RunLogFile:
                 records, offsets = lay.encode(environment_block(st["env"], sub), log_time, lo + a)
                 buf.add_rows(records, offsets, log_time, lay.channel_ids)
             self._foxglove(st, buf, sub, lo + a, log_time)
+            # each event in the chunk of its time (the rest in the last one)
             if a + step >= n:
-                self._events(st, buf, events)
+                here, events = events, []
+            else:
+                cut = int(block_time[a + step])
+                here = [e for e in events if _ns(e["t"]) < cut]
+                events = events[len(here):]
+            self._events(st, buf, here, int(log_time[0]))
             self.mcap.write_chunk(buf)
-            st["last_ns"] = int(log_time[-1])
+            st["last_ns"] = max(st["last_ns"], int(buf.end_time if buf.end_time is not None else log_time[-1]))
         st["rows"] = lo + n
 
     def cmd_finish(self, run: str, end: dict, events: list):
         st = self.runs[run]
         buf = ChunkBuffer()
-        self._events(st, buf, events)
+        self._events(st, buf, events, st["last_ns"])
         t_end = max([st["last_ns"]] + [_ns(e["t"]) for e in events])
         buf.add_message(st["chans"]["events"], t_end, json_codec.dumps({
             "t": t_end / 1e9, "seq": -1, "kind": "run_end", "synthetic": True, "status": end["status"],
@@ -237,33 +279,38 @@ class RunLogFile:
     def cmd_close(self):
         self.mcap.finish()
 
-    def _events(self, st, buf, events):
+    def _events(self, st, buf, events, floor: int = 0):
+        """Event messages at log time round(t * 1e9), or at ``floor`` (the chunk's first row, or the
+        run's last written time) for an event reported after later rows were written: the file stays
+        in log-time order; the event's own ``t`` is in its message."""
         ch = st["chans"]["events"]
+        floor = max(int(floor), st["last_ns"])
         for e in sorted(events, key=lambda e: (e["t"], e["seq"])):
-            buf.add_message(ch, _ns(e["t"]), json_codec.dumps(e), e["seq"])
+            buf.add_message(ch, max(_ns(e["t"]), floor), json_codec.dumps(e), e["seq"])
 
     def _foxglove(self, st, buf, sub, k0, log_time):
         """Foxglove messages of the rows ``sub`` (record rows k0...): the hull and reference frames and
         the funnel every FRAME_PERIOD (laid out in bulk from templates), the path, hull shape and
         obstacles as single messages. Rows whose values are not finite get no message."""
-        decim, slow, ch, c = st["decim"], st["slow"], st["chans"], COL
+        decim, slow, ch, c = st["decim"], st["slow"], st["chans"], st["col"]
         k = np.arange(k0, k0 + sub.shape[0])
         pick = np.flatnonzero(k % decim == 0)
         if pick.size:
             rows, ks, ns = sub[pick], k[pick], log_time[pick]
             x, y, psi = rows[:, c["x"]], rows[:, c["y"]], rows[:, c["psi"]]
             xd, yd, psid = rows[:, c["x_d"]], rows[:, c["y_d"]], rows[:, c["psi_d"]]
-            r1, r2 = rows[:, c["rho1"]], rows[:, c["rho2"]]
             zero = np.zeros_like(x)
             hull_ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(psi)
             ref_ok = np.isfinite(xd) & np.isfinite(yd) & np.isfinite(psid)
-            funnel_ok = ref_ok & np.isfinite(r1) & np.isfinite(r2)
             with np.errstate(invalid="ignore"):
-                for layout, ok, cols in (
-                        (st["tf_hull"], hull_ok, (zero, zero, x, y, np.sin(psi / 2), np.cos(psi / 2))),
-                        (st["tf_ref"], ref_ok, (zero, zero, xd, yd, np.sin(psid / 2), np.cos(psid / 2))),
-                        (st["funnel"], funnel_ok, (zero, zero, xd - r1, yd - r2, xd + r1, yd - r2,
-                                                   xd + r1, yd + r2, xd - r1, yd + r2))):
+                todo = [(st["tf_hull"], hull_ok, (zero, zero, x, y, np.sin(psi / 2), np.cos(psi / 2))),
+                        (st["tf_ref"], ref_ok, (zero, zero, xd, yd, np.sin(psid / 2), np.cos(psid / 2)))]
+                if st["funnel"] is not None:
+                    r1, r2 = rows[:, c["rho1"]], rows[:, c["rho2"]]
+                    funnel_ok = ref_ok & np.isfinite(r1) & np.isfinite(r2)
+                    todo.append((st["funnel"], funnel_ok, (zero, zero, xd - r1, yd - r2, xd + r1, yd - r2,
+                                                           xd + r1, yd + r2, xd - r1, yd + r2)))
+                for layout, ok, cols in todo:
                     if ok.any():
                         block = np.stack(cols, axis=1)[ok]
                         records, offsets = layout.encode(block, ns[ok], ks[ok])
@@ -286,7 +333,7 @@ class RunLogFile:
                     int(k[i]))
             if k[i] % slow == 0:
                 if st["path"]:
-                    buf.add_message(ch["path"], ns, _scene(stamp, "world", "reference_path", lines=[
+                    buf.add_message(ch["path"], ns, _scene(stamp, WORLD_FRAME, "reference_path", lines=[
                         _line(0, st["path"], (0.2, 0.6, 1.0, 1.0), 0.05)]), int(k[i]))
                 half = HULL_SIZE[2] / 2
                 buf.add_message(ch["hull"], ns, _scene(stamp, st["frame"], "hull", frame_locked=True, cubes=[{
@@ -310,7 +357,7 @@ def funnel_layout(channel_id: int) -> TemplateLayout:
     """``foxglove.SceneUpdate`` of the funnel rectangle (LINE_LOOP, world frame); block columns:
     (sec, nsec: ignored), then x, y of its 4 corners [m]."""
     holes = [(f"$x{i}", f"$y{i}") for i in range(4)]
-    return template_layout(channel_id, _scene(_STAMP_HOLES, "world", "funnel", lines=[
+    return template_layout(channel_id, _scene(_STAMP_HOLES, WORLD_FRAME, "funnel", lines=[
         _line(1, holes, (1.0, 0.55, 0.0, 1.0), 0.05)], encode=False),
         ("$sec", "$nsec") + tuple(h for pair in holes for h in pair))
 
@@ -328,17 +375,21 @@ def obstacle_table(obstacles, inflation=None) -> list:
     return out
 
 
-def reference_path(scenario) -> list:
-    """The scenario's reference path (x_d, y_d) every PATH_SAMPLE s, for the 3D view ([] if unknown)."""
-    try:
-        from ..simulation import make_reference
-
-        ref = make_reference(scenario)
-        times = np.arange(0.0, float(scenario.duration) + 1e-9, PATH_SAMPLE)
-        pts = [(float(p[0]), float(p[1])) for p in (ref.evaluate(float(t)) for t in times)]
-        return [p for p in pts if math.isfinite(p[0]) and math.isfinite(p[1])]
-    except Exception:   # noqa: BLE001 - the path is decoration; never fail a run for it
+def reference_path(reference, duration: float) -> list:
+    """The run's reference (``record.statics.reference``, a pure function of t) sampled every
+    PATH_SAMPLE s over ``duration``: (x_d, y_d) points for the 3D view ([] if it cannot be sampled)."""
+    if reference is None or not (duration is not None and math.isfinite(float(duration)) and duration >= 0):
         return []
+    pts = []
+    for t in np.arange(0.0, float(duration) + 1e-9, PATH_SAMPLE):
+        try:
+            p = reference.evaluate(float(t))
+        except Exception:   # noqa: BLE001 - the path is decoration; never fail a run for it
+            break
+        x, y = float(p[0]), float(p[1])
+        if math.isfinite(x) and math.isfinite(y):
+            pts.append((x, y))
+    return pts
 
 
 def _ns(t) -> int:
@@ -347,7 +398,7 @@ def _ns(t) -> int:
 
 
 def _frame(stamp, child, x, y, qz, qw) -> dict:
-    return {"timestamp": stamp, "parent_frame_id": "world", "child_frame_id": child,
+    return {"timestamp": stamp, "parent_frame_id": WORLD_FRAME, "child_frame_id": child,
             "translation": {"x": x, "y": y, "z": 0.0}, "rotation": {"x": 0.0, "y": 0.0, "z": qz, "w": qw}}
 
 
@@ -396,7 +447,8 @@ def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_l
         if error is None:
             try:
                 if slot is not None:
-                    cmd = cmd[:3] + (ring[slot, :cmd[3][2]],) + cmd[4:]
+                    _, _, m, width = cmd[3]
+                    cmd = cmd[:3] + (ring[slot, :m * width].reshape(m, width),) + cmd[4:]
                 log.handle(cmd)
             except OSError as exc:      # disk full, read-only: one line naming the file (issue 15)
                 error = f"cannot write {path}: {exc.strerror or exc}; the log holds what was written before"
@@ -439,22 +491,26 @@ class RunLogWriter:
     """One ``.mcap`` run log. A context manager; :meth:`sink` gives the RunSink of one run.
 
     ``path``: the file to write (its folder must exist); ``scenario``: the
-    :class:`~usv_mj.scenario.Scenario` being run (metadata, reference path, scenario file);
+    :class:`~usv_mj.scenario.Scenario` being run (the file's metadata and the scenario file);
     ``attachments``: extra files to carry, name -> bytes or text. ``background=False`` writes in the
     calling process (same file, slower loop). ``rows_per_chunk`` bounds a chunk (~1.8 kB per row
     before compression); ``queue_blocks`` bounds the blocks waiting for the background writer.
-    ``environment``: the :class:`usv_mj.sea.Environment` the runs were simulated in, for the
-    ``P/environment`` topic (default: ``usv_mj.simulation.make_environment(scenario)``, the same
-    seeded sea the plants get; a calm sea writes no environment topic). An obstacle run gets
-    ``P/obstacles`` when its :class:`~usv_mj.obstacles.sink.ObstacleLog` is attached to the sink
-    (:meth:`RunLogSink.attach_obstacle_log`; :func:`usv_mj.obstacles.run.run_obstacle_scenario` does
-    it) and ``P/scene/obstacles`` whenever the scenario has obstacles.
+    ``environment``: an :class:`usv_mj.sea.Environment` to log on ``P/environment`` instead of
+    each run's own (``record.statics.environment``, the sea its plant saw: the writer builds none;
+    a calm sea or a record without statics writes no environment topic). The drawn reference path
+    is ``record.statics.reference`` sampled every 0.5 s. An obstacle run gets ``P/obstacles`` from
+    its :class:`~usv_mj.obstacles.sink.ObstacleLog` (``record.statics.obstacle_log``, or one attached
+    with :meth:`RunLogSink.attach_obstacle_log`) and ``P/scene/obstacles`` whenever it has obstacles.
+    ``companion_of``: the writer of the main run's file when this one holds another run of the
+    same job (the main job's ``baseline.mcap`` beside ``run.mcap``): one file per run keeps each
+    file in log-time order, and :func:`usv_mj.runlog.read_run` of the main file finds this one.
     """
 
     def __init__(self, path, scenario, attachments: dict | None = None, *, background: bool = True,
                  rows_per_chunk: int = 1000, compression_level: int = 1, queue_blocks: int = 32,
-                 environment=None):
+                 environment=None, companion_of: "RunLogWriter | None" = None):
         self.path = Path(path)
+        self.log_id = uuid.uuid4().hex
         if not self.path.parent.is_dir():
             raise RunLogError(f"cannot write run log {self.path}: folder {self.path.parent} does not exist")
         self.scenario = scenario
@@ -470,7 +526,11 @@ class RunLogWriter:
             "versions": _json(package_versions()), "git_commit": commit, "git_dirty": _json(dirty),
             "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "topics": "see usv_mj.runlog.topics: /usv/... (run main), /baseline/usv/... (run baseline)",
+            "log_id": self.log_id,
         }
+        if companion_of is not None:
+            # read_run(companion_of's file) finds this file beside it and adds its runs
+            file_metadata["companion_of"] = _json({"file": companion_of.path.name, "log_id": companion_of.log_id})
         att = []
         for f in model_files():
             att.append((f"models/{f.name}", "application/xml", f.read_bytes()))
@@ -485,7 +545,7 @@ class RunLogWriter:
             att.append((str(name), mimetypes.guess_type(str(name))[0] or "application/octet-stream", bytes(data)))
         args = (str(self.path), file_metadata, att, rows_per_chunk, compression_level, environment)
         slots = max(1, int(queue_blocks))
-        shape = (slots, SLOT_ROWS, len(COLUMNS))
+        shape = (slots, SLOT_FLOATS)     # each run views a slot as (SLOT_FLOATS // its width, its width)
         if background:
             try:
                 self._ring_shm = shared_memory.SharedMemory(create=True, size=int(np.prod(shape)) * 8)
@@ -534,18 +594,21 @@ class RunLogWriter:
         if not self._background:
             self._send(("rows", run, lo, np.array(block, dtype=np.float64, copy=True), events, obstacles))
             return
-        n = block.shape[0]
-        for a in range(0, n, SLOT_ROWS):
-            m = min(SLOT_ROWS, n - a)
+        n, width = block.shape
+        per_slot = SLOT_FLOATS // width
+        if per_slot < 1:
+            raise RunLogError(f"run {run!r}: a row of {width} columns does not fit a ring slot of {SLOT_FLOATS}")
+        for a in range(0, n, per_slot):
+            m = min(per_slot, n - a)
             while not self._free_slots.acquire(timeout=0.5):
                 if not self._proc.is_alive():
                     raise RunLogError(f"the background writer of {self.path} stopped (exit code "
                                       f"{self._proc.exitcode})")
             slot = self._next_slot
             self._next_slot = (slot + 1) % self._ring.shape[0]
-            self._ring[slot, :m] = block[a:a + m]
-            last = a + SLOT_ROWS >= n
-            self._send(("rows", run, lo + a, ("slot", slot, m), events if last else [],
+            self._ring[slot, :m * width].reshape(m, width)[:] = block[a:a + m]
+            last = a + per_slot >= n
+            self._send(("rows", run, lo + a, ("slot", slot, m, width), events if last else [],
                         None if obstacles is None else obstacles[a:a + m]))
 
     def sink(self, run: str = "main") -> "RunLogSink":
@@ -666,14 +729,25 @@ class RunLogSink:
         self.started = True
         self._record = record
         dt = record.metadata.get("control_period_s", getattr(self.writer.scenario, "control_period", 0.001))
-        # the reference path for the 3D view is computed by the writer (building a reference can take
-        # most of a second: not on the loop's time)
+        # what the run's outputs need comes from the build (record.statics): nothing is rebuilt here
+        statics = getattr(record, "statics", None)
+        if self.obstacle_log is None and statics is not None:
+            self.obstacle_log = getattr(statics, "obstacle_log", None)
         log = self.obstacle_log
-        obstacles = tuple(log.obstacles) if log is not None else tuple(getattr(self.writer.scenario, "obstacles", ()) or ())
+        if log is not None:
+            obstacles = tuple(log.obstacles)
+        elif statics is not None:
+            obstacles = tuple(getattr(statics, "obstacles", ()) or ())
+        else:
+            obstacles = tuple(getattr(self.writer.scenario, "obstacles", ()) or ())
         inflation = None if log is None or log.inflation is None else [float(v) for v in log.inflation]
-        self.writer._send(("start", self.run, {"control_period_s": float(dt), "metadata": record.metadata,
-                                               "scenario": self.writer.scenario, "obstacles": obstacles,
-                                               "inflation": inflation, "obstacle_log": log is not None}))
+        duration = record.metadata.get("duration_s", getattr(self.writer.scenario, "duration", None))
+        path = reference_path(getattr(statics, "reference", None), duration) if statics is not None else []
+        self.writer._send(("start", self.run, {
+            "control_period_s": float(dt), "metadata": record.metadata, "columns": tuple(record.column_names),
+            "diagnostic_events": dict(getattr(record, "diagnostic_events", {}) or {}),
+            "environment": getattr(statics, "environment", None), "path": path, "obstacles": obstacles,
+            "inflation": inflation, "obstacle_log": log is not None}))
 
     def rows(self, record: RunRecord, lo: int, hi: int) -> None:
         if hi <= lo:
