@@ -169,7 +169,8 @@ def test_killed_runs_staging_is_cleaned_up_by_the_next_run(tmp_path):
 
 def _start(tmp_path, *extra):
     env = dict(os.environ, PYTHONWARNINGS="default")
-    return subprocess.Popen([sys.executable, "-m", "usv_mj.cli", *FAST, "--duration", "120", *extra,
+    # long enough (600 s on the MuJoCo plant, 10 s or more of wall time) that the signal lands inside the loop
+    return subprocess.Popen([sys.executable, "-m", "usv_mj.cli", *FAST, "--plant", "mujoco", "--duration", "600", *extra,
                              "--out", str(tmp_path / "out")], cwd=tmp_path, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
 

@@ -70,8 +70,8 @@ def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | Non
                                     "baseline": {"enabled": False}})
     fine = _simulate(half, plant_kind, None, [], None)
     if fine.status != "completed":
-        return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": math.inf,
-                "max_heading_rad": math.inf, "ok": False}
+        return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": None,  # JSON has no inf
+                "max_heading_rad": None, "ok": False, "status": fine.status, "stop_reason": fine.stop_reason}
     e_c, e_f = pose_errors(record), pose_errors(fine)
     dpos, dpsi = 0.0, 0.0
     for tc in CHECK_TIMES:
@@ -586,7 +586,10 @@ def one_screen_summary(result: JobResult, wall_s: float) -> str:
                      + (f" (first at {b['first_violation_s']:.2f} s)" if b["first_violation_s"] is not None else ""))
     if "step_check" in s:
         c = s["step_check"]
-        lines.append(f"  half-step check: errors moved {c['max_position_m']*100:.3f} cm, {c['max_heading_rad']:.1e} rad")
+        if c.get("max_position_m") is None:
+            lines.append(f"  half-step check: did not finish ({c.get('status', '?')})")
+        else:
+            lines.append(f"  half-step check: errors moved {c['max_position_m']*100:.3f} cm, {c['max_heading_rad']:.1e} rad")
     if s.get("min_clearance_m") is not None:
         lines.append(f"  obstacles: min clearance {s['min_clearance_m']:.3f} m, contacts {s['contacts']}")
     if s.get("job_stopped"):

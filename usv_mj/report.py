@@ -97,7 +97,11 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
                      "It stayed inside the funnel." if baseline_summary["funnel_violations"] == 0 else
                      f"It left the funnel first at t = {_fmt(baseline_summary['first_violation_s'])} s "
                      f"({baseline_summary['funnel_violations']} control steps outside).")]
-    if step_check:
+    if step_check and step_check.get("max_position_m") is None:
+        lines += ["", "## Step-size check (docs/model.md §5)", "",
+                  f"The run again at half the control period did not finish ({step_check.get('status')}: "
+                  f"{step_check.get('stop_reason') or 'no reason recorded'}), so there is no step-size check."]
+    elif step_check:
         lines += ["", "## Step-size check (docs/model.md §5)", "",
                   f"The first {step_check['duration_s']:.0f} s again at half the control period "
                   f"({step_check['dt_half']*1e3:g} ms) moved the errors at 5 / 10 / 20 s by at most "

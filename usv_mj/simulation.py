@@ -155,12 +155,13 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
         if record.status == "running":
             record.status = "completed"
     except KeyboardInterrupt as exc:  # Ctrl-C, or a signal the caller raises as one (str: its name)
-        who = str(exc)
-        who = "the user (Ctrl-C)" if who in ("", "Ctrl-C") else who
-        record.status = "interrupted"
-        record.stop_reason = f"interrupted by {who} at t = {k * dt:.3f} s"
-        record.events.append(Event(k * dt, "interrupted", record.stop_reason))
+        _interrupted(record, exc, k * dt)
     except Exception as exc:  # recorded, then re-raised after the sinks are finished
+        cause = _interrupt_in_chain(exc)
+        if cause is not None:  # a signal that landed in compiled code surfaces as SystemError
+            _interrupted(record, cause, k * dt)
+            _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
+            return record
         record.status = "failed"
         record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}"
         record.events.append(Event(k * dt, "failed", record.stop_reason))
@@ -168,6 +169,26 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
         raise
     _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
     return record
+
+
+def _interrupted(record: RunRecord, exc: BaseException, t: float) -> None:
+    who = str(exc)
+    who = "the user (Ctrl-C)" if who in ("", "Ctrl-C") else who
+    record.status = "interrupted"
+    record.stop_reason = f"interrupted by {who} at t = {t:.3f} s"
+    record.events.append(Event(t, "interrupted", record.stop_reason))
+
+
+def _interrupt_in_chain(exc: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt behind ``exc`` (its cause or context), if any: Python raises a
+    signal handler's exception inside a numba kernel as a SystemError caused by it."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def _json_number(v) -> float | None:
