@@ -23,5 +23,10 @@ if ! "$PYTHON" -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then
   exit 1
 fi
 echo "setup: installing usv_mj and its Python dependencies"
-"$PYTHON" -m pip install --disable-pip-version-check -q -e ".[test,gym,hpc]" 2>&1 | grep -v "Running pip as the 'root' user" || true
+# stable-baselines3 (the tests' RL client) needs torch: the CPU build, not a CUDA build of several GB
+if ! "$PYTHON" -c 'import torch' 2>/dev/null; then
+  echo "setup: installing torch (CPU build) for the RL client test"
+  "$PYTHON" -m pip install --disable-pip-version-check -q "torch==2.13.0" 2>&1 | grep -v "Running pip as the 'root' user" || true
+fi
+"$PYTHON" -m pip install --disable-pip-version-check -q -e ".[test,gym,hpc,rl]" 2>&1 | grep -v "Running pip as the 'root' user" || true
 "$PYTHON" -c "import usv_mj, mujoco; print(f'setup: usv_mj {usv_mj.__version__} with mujoco {mujoco.__version__} ready')"
