@@ -216,6 +216,13 @@ def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
     return tau_u, tau_r
 
 
+@njit(cache=True)
+def ppc_kernel(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
+    """The compiled loop's kernel of :class:`PPCController` (usv_mj.kernels): ``__call__`` natively."""
+    tau_u, tau_r = ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf)
+    return tau_u, tau_r, diag
+
+
 @CONTROLLERS.register("ppc", gains=PPCGains)
 class PPCController:
     """The paper's adaptive PPC tracking controller (docs/model.md §3) behind the controller interface.
@@ -270,6 +277,13 @@ class PPCController:
         self.weights[:] = 0.0
         self._s2[0] = 0.0
         self._diag[:] = 0.0
+
+    def kernel(self):
+        """(ppc_kernel, its arrays): the law and its adaptive states for the compiled loop."""
+        from usv_mj.kernels import Kernel
+
+        return Kernel(ppc_kernel, (self._p, self._g, self._funnel, self._centres, self.weights, self._s2,
+                                   self.dt, self._diag, self._s_buf, self._z_buf))
 
     def __call__(self, t, state, reference):
         tau_u, tau_r = ppc_law(float(t), state, reference, self._p, self._g, self._funnel, self._centres,
