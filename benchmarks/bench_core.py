@@ -1,14 +1,23 @@
-"""Benchmark: simulated seconds per wall second of the paper run, per plant, with the parts of a step.
+"""Benchmark: the closed loop per control step, Python loop against compiled loop, beside the bare mj_step.
 
-    python benchmarks/bench_core.py [--duration 300] [--plant analytic] [--plant mujoco]
+    python benchmarks/bench_core.py [--duration 60] [--repeat 5] [--no-sea]
 
-Prints the bare MuJoCo step (the yardstick, when mujoco is installed), the controller call, the
-quantizer, the reference and the whole closed loop, so that ratios show where the time goes.
+Prints, per 1 ms control step, in CPU time of this thread (``time.thread_time``: on a shared machine
+the wall clock also counts the time waiting for a core), the best and the range over ``--repeat``
+interleaved rounds:
+
+- the bare RK4 ``mujoco.mj_step`` of models/usv.xml, no callback (the yardstick; ratios are to it);
+- ``MuJoCoPlant.step`` + ``.state`` (the hydrodynamic callback included), ``AnalyticPlant.step`` + ``.state``;
+- the PPC call, the reference, the quantizer (what the Python loop pays per part);
+- ``simulate`` of the paper preset (``--duration`` s, no baseline) on both plants with the Python
+  loop (``loop="python"``) and the compiled loop (usv_mj.compiled_loop), and the same in the
+  ``moderate`` sea, with the realtime factor.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -16,69 +25,93 @@ import numpy as np
 
 def per_call(fn, n=20000):
     fn()
-    t0 = time.perf_counter()
+    t0 = time.thread_time()
     for _ in range(n):
         fn()
-    return (time.perf_counter() - t0) / n
+    return (time.thread_time() - t0) / n
 
 
-def main():
+def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--duration", type=float, default=300.0)
-    ap.add_argument("--plant", action="append", choices=("analytic", "mujoco"))
-    args = ap.parse_args()
-    plants = args.plant or ["analytic", "mujoco"]
+    ap.add_argument("--duration", type=float, default=60.0)
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--no-sea", action="store_true", help="skip the moderate-sea runs")
+    args = ap.parse_args(argv)
+
+    import mujoco
 
     from usv_mj import load_scenario, simulate
-    from usv_mj.simulation import make_controller, make_plant, make_quantizers, make_reference
+    from usv_mj.plants.analytic import AnalyticPlant
+    from usv_mj.plants.mujoco_plant import DEFAULT_MODEL, MuJoCoPlant
+    from usv_mj.simulation import make_controller, make_quantizers, make_reference
 
-    scenario = load_scenario(preset="paper", overrides={"duration": args.duration})
-    simulate(scenario.with_overrides({"duration": 1.0}), plant_kind="analytic")  # numba compile / cache load
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; mujoco {mujoco.__version__}")
+    over = {"duration": args.duration, "baseline": {"enabled": False}}
+    scenario = load_scenario(preset="paper", overrides=over)
+    runs = {"paper": scenario}
+    if not args.no_sea:
+        runs["paper, moderate sea"] = load_scenario(preset="paper", overrides={**over, "sea": {"preset": "moderate"}})
+    for sc in runs.values():  # compile / cache load of both loops on both plants
+        for kind in ("analytic", "mujoco"):
+            for loop in ("auto", "python"):
+                simulate(sc.with_overrides({"duration": 1.0}), plant_kind=kind, loop=loop)
 
-    rows = []
-    try:
-        import mujoco
-
-        from pathlib import Path
-        model = mujoco.MjModel.from_xml_path(str(Path(__file__).resolve().parents[1] / "models" / "usv.xml"))
-        data = mujoco.MjData(model)
-        data.ctrl[:] = (10.0, 0.5)[: model.nu]
-        rows.append(("bare mujoco.mj_step (no callback), 1 ms RK4", per_call(lambda: mujoco.mj_step(model, data))))
-    except Exception as exc:  # the yardstick is optional for the analytic benchmark
-        print(f"(no bare MuJoCo yardstick: {exc})")
-
+    model = mujoco.MjModel.from_xml_path(DEFAULT_MODEL)
+    data = mujoco.MjData(model)
+    data.ctrl[:] = (60.0, 1.0)
     ctrl = make_controller(scenario)
     ref = make_reference(scenario)
+    qu, _ = make_quantizers(scenario)
     x = np.array([2.0, -3.0, 0.0, 0.1, 0.0, 0.0])
     r = ref.evaluate(1.0)
-    rows.append(("PPC controller call", per_call(lambda: ctrl(1.0, x, r))))
-    rows.append(("reference evaluate", per_call(lambda: ref.evaluate(123.4))))
-    qu, _ = make_quantizers(scenario)
-    rows.append(("quantizer step", per_call(lambda: qu.step(12.3))))
-    for kind in plants:
-        try:
-            plant = make_plant(scenario, kind)
-        except Exception as exc:
-            print(f"({kind} plant unavailable: {exc})")
-            continue
-        plant.reset((2, -3, 0), (0, 0, 0))
-        rows.append((f"{kind} plant step (1 ms)", per_call(lambda: plant.step(10.0, 0.5), 5000)))
-        plant.close()
-    yard = rows[0][1]
-    print(f"{'part':48s} {'us/call':>10s} {'x bare step':>12s}")
-    for name, sec in rows:
-        print(f"{name:48s} {sec * 1e6:10.2f} {sec / yard:12.2f}")
-    print()
-    for kind in plants:
-        try:
-            rec = simulate(scenario, plant_kind=kind)
-        except Exception as exc:
-            print(f"({kind}: {exc})")
-            continue
-        wall = rec.metadata["wall_time_s"]
-        print(f"paper run, {args.duration:.0f} s on the {kind} plant: {wall:.2f} s wall, "
-              f"{rec.metadata['realtime_factor']:.0f} simulated s per wall s, "
-              f"{wall / len(rec) * 1e6:.2f} us per closed-loop step")
+    analytic = AnalyticPlant(scenario.ship, scenario.disturbance, scenario.control_period)
+    analytic.reset((2.0, -3.0, 0.0), (0.5, 0.0, 0.0))
+    mj_plant = MuJoCoPlant(scenario.ship, scenario.disturbance, scenario.control_period)
+    mj_plant.reset((2.0, -3.0, 0.0), (0.5, 0.0, 0.0))
+
+    def plant_step(plant):
+        def f():
+            plant.step(60.0, 1.0)
+            return plant.state
+        return f
+
+    def one_round():
+        out = []
+        saved = mujoco.get_mjcb_passive()
+        mujoco.set_mjcb_passive(None)
+        out.append(("bare mj_step, no callback (RK4, 1 ms)", per_call(lambda: mujoco.mj_step(model, data))))
+        mujoco.set_mjcb_passive(saved)
+        out.append(("MuJoCoPlant.step + .state", per_call(plant_step(mj_plant))))
+        out.append(("AnalyticPlant.step + .state", per_call(plant_step(analytic))))
+        out.append(("PPC controller call", per_call(lambda: ctrl(1.0, x, r))))
+        out.append(("reference evaluate", per_call(lambda: ref.evaluate(12.3))))
+        out.append(("quantizer step", per_call(lambda: qu.step(12.3))))
+        for label, sc in runs.items():
+            for kind in ("mujoco", "analytic"):
+                for loop, name in (("python", "Python loop"), ("auto", "compiled loop")):
+                    c0 = time.thread_time()
+                    rec = simulate(sc, plant_kind=kind, loop=loop)
+                    cpu = time.thread_time() - c0
+                    assert rec.metadata["loop"] == ("python" if loop == "python" else "compiled"), rec.metadata
+                    out.append((f"simulate({label}), {kind}, {name}", cpu / (rec.n_rows - 1)))
+        return out
+
+    rounds = [one_round() for _ in range(args.repeat)]
+    mj_plant.close()
+    names = [name for name, _ in rounds[0]]
+    best = {name: min(r[i][1] for r in rounds) for i, name in enumerate(names)}
+    worst = {name: max(r[i][1] for r in rounds) for i, name in enumerate(names)}
+    yard = best[names[0]]
+    print(f"\n{'per 1 ms control step (CPU time), best of ' + str(args.repeat):58s} {'us':>7s} {'range us':>15s} "
+          f"{'x bare':>7s} {'x real time':>12s}")
+    for name in names:
+        b, w = best[name], worst[name]
+        rt = f"{1e-3 / b:12.0f}" if name.startswith(("simulate", "bare", "MuJoCo", "Analytic")) else ""
+        print(f"{name:58s} {b * 1e6:7.2f} {f'{b * 1e6:.2f}-{w * 1e6:.2f}':>15s} {b / yard:7.2f} {rt}")
+    for label in runs:
+        for kind in ("mujoco", "analytic"):
+            py, co = best[f"simulate({label}), {kind}, Python loop"], best[f"simulate({label}), {kind}, compiled loop"]
+            print(f"{label}, {kind}: compiled loop {py / co:.2f}x faster than the Python loop")
 
 
 if __name__ == "__main__":

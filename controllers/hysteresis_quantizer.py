@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 from numba import njit
 
 
@@ -69,6 +70,20 @@ def quantize_step(delta, u_min, k, tau):
     if n == 0 or sign == 0:
         return 0.0, 0
     return sign * _level(delta, u_min, n), sign * n
+
+
+@njit(cache=True)
+def quantizer_kernel(tau, state, delta, u_min, enabled):
+    """:meth:`HysteresisQuantizer.step` natively (usv_mj.kernels); ``state`` = (k, output, switches)."""
+    if enabled:
+        q, k = quantize_step(delta, u_min, np.int64(state[0]), tau)
+        state[0] = k
+    else:
+        q = tau
+    if q != state[1]:
+        state[2] += 1.0
+        state[1] = q
+    return q, state[0]
 
 
 @dataclass(frozen=True)
@@ -124,6 +139,19 @@ class HysteresisQuantizer:
         self.k = 0
         self.output = 0.0
         self.switches = 0
+
+    def kernel(self):
+        """(quantizer_kernel, its state and parameters) for the compiled loop; ``sync`` writes the
+        level, output and switch count back."""
+        from usv_mj.kernels import Kernel
+
+        state = np.array([float(self.k), float(self.output), float(self.switches)])
+
+        def sync():
+            self.k, self.output, self.switches = int(state[0]), float(state[1]), int(state[2])
+
+        return Kernel(quantizer_kernel, (state, float(self.params.delta), float(self.params.u_min),
+                                         bool(self.enabled)), sync)
 
     def step(self, tau: float) -> float:
         """Quantize one input sample; returns Q(tau) and counts output changes in ``switches``."""

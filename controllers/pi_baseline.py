@@ -99,6 +99,13 @@ def pi_law(t, x, ref, eps, g, funnel, integ, dt, diag):
     return tau_u, tau_r
 
 
+@njit(cache=True)
+def pi_kernel(t, x, ref, eps, g, funnel, integ, dt, diag):
+    """The compiled loop's kernel of :class:`PIController` (usv_mj.kernels): ``__call__`` natively."""
+    tau_u, tau_r = pi_law(t, x, ref, eps, g, funnel, integ, dt, diag)
+    return tau_u, tau_r, diag
+
+
 @CONTROLLERS.register("pi", gains=PIGains)
 class PIController:
     """The PI baseline of docs/model.md §6 behind the controller interface (see the module docstring)."""
@@ -128,6 +135,12 @@ class PIController:
     def reset(self) -> None:
         self._integ[:] = 0.0
         self._diag[:] = 0.0
+
+    def kernel(self):
+        """(pi_kernel, its arrays) for the compiled loop."""
+        from usv_mj.kernels import Kernel
+
+        return Kernel(pi_kernel, (self._eps, self._g, self._funnel, self._integ, self.dt, self._diag))
 
     def __call__(self, t, state, reference):
         tau_u, tau_r = pi_law(float(t), state, reference, self._eps, self._g, self._funnel,

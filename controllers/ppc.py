@@ -36,7 +36,7 @@ from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, ShipParams, do_pan_offset, n
 
 from .base import D_ALPHA_R, D_ALPHA_U, D_ALPHA_V, D_E1S, D_E2S, D_E3S, D_R_E, D_S2, D_S2_CLAMPED, D_U_E, D_V_E, D_W_R_NORM, D_W_U_NORM, D_W_V_NORM, DIAG_FIELDS, N_DIAG, REF_PSI, REF_R
 from .performance_funnel import PerformanceFunnel, funnels_of
-from .rbf_network import node_centres, rbf_activations
+from .rbf_network import node_centres, rbf_activations3
 from .tracking_errors import offset_point_velocity, tracking_errors
 
 ALPHA_R_MODES = ("printed", "analytic")
@@ -169,9 +169,8 @@ def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
     z_buf[0], z_buf[1], z_buf[2] = u, v, r
     z_buf[3], z_buf[4], z_buf[5] = alpha_u, alpha_v, alpha_r
     z_buf[6], z_buf[7], z_buf[8] = e1s, e2s, e3s
-    s_u = rbf_activations(z_buf, centres, sig_u, s_buf[0])
-    s_v = rbf_activations(z_buf, centres, sig_v, s_buf[1])
-    s_r = rbf_activations(z_buf, centres, sig_r, s_buf[2])
+    rbf_activations3(z_buf, centres, sig_u, sig_v, sig_r, s_buf)  # = rbf_activations per width
+    s_u, s_v, s_r = s_buf[0], s_buf[1], s_buf[2]
     phi_u, phi_v, phi_r = nominal_terms(p, x[3:])
     gamma1 = (k1 + l3) * u_e + phi_u + _dot(w[0], s_u) + l3 * v_e
     gamma3 = (k3 + l3) * r_e + phi_r + _dot(w[2], s_r) + l3 * v_e
@@ -214,6 +213,13 @@ def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
     diag[D_S2] = s2v  # the s2 this step's law used, like every other field of the row
     diag[D_S2_CLAMPED] = clamped
     return tau_u, tau_r
+
+
+@njit(cache=True)
+def ppc_kernel(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
+    """The compiled loop's kernel of :class:`PPCController` (usv_mj.kernels): ``__call__`` natively."""
+    tau_u, tau_r = ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf)
+    return tau_u, tau_r, diag
 
 
 @CONTROLLERS.register("ppc", gains=PPCGains)
@@ -270,6 +276,13 @@ class PPCController:
         self.weights[:] = 0.0
         self._s2[0] = 0.0
         self._diag[:] = 0.0
+
+    def kernel(self):
+        """(ppc_kernel, its arrays): the law and its adaptive states for the compiled loop."""
+        from usv_mj.kernels import Kernel
+
+        return Kernel(ppc_kernel, (self._p, self._g, self._funnel, self._centres, self.weights, self._s2,
+                                   self.dt, self._diag, self._s_buf, self._z_buf))
 
     def __call__(self, t, state, reference):
         tau_u, tau_r = ppc_law(float(t), state, reference, self._p, self._g, self._funnel, self._centres,

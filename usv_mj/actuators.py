@@ -221,6 +221,14 @@ def _actuator_step_compiled(p, state, q_u, q_r):
     return actuator_step(p, state, q_u, q_r)
 
 
+@njit(cache=True)
+def actuator_kernel(q_u, q_r, unlimited, p, state):
+    """:meth:`Actuators.apply` natively (usv_mj.kernels)."""
+    if unlimited:
+        return q_u, q_r, 0.0, 0.0
+    return actuator_step(p, state, q_u, q_r)
+
+
 def pack(spec: ActuatorSpec, control_period: float) -> np.ndarray:
     """The parameter vector of :func:`actuator_step` for ``spec`` at the control period h [s]."""
     h = float(control_period)
@@ -259,6 +267,12 @@ class Actuators:
     def reset(self) -> None:
         """Zero thrust, no history."""
         self.state[:] = 0.0
+
+    def kernel(self):
+        """(actuator_kernel, its parameters and state) for the compiled loop."""
+        from usv_mj.kernels import Kernel
+
+        return Kernel(actuator_kernel, (bool(self.unlimited), self.params, self.state))
 
     def apply(self, q_u: float, q_r: float) -> tuple[float, float, float, float]:
         """(f_u [N], f_r [N m], sat_u, sat_r) realized over the coming period from the command."""

@@ -51,7 +51,7 @@ def state_limit_exceeded(x, ex: float, ey: float, limits) -> bool:
 def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_kind: str | None = None,
              controller_kind: str | None = None, sinks: Iterable[RunSink] = (), block: int = 2000,
              progress: Callable[[int], None] | None = None, duration: float | None = None,
-             reference=None, hooks: Iterable[Callable] = ()) -> RunRecord:
+             reference=None, hooks: Iterable[Callable] = (), loop: str = "auto") -> RunRecord:
     """Run in closed loop and return the :class:`RunRecord`.
 
     ``scenario`` is a :class:`Scenario` (built here with :func:`usv_mj.build`, with ``plant_kind``,
@@ -60,19 +60,26 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
     every control step before the reference is evaluated, after the build's own. ``progress(n)``
     is called with the number of new steps every block. A plant the build made is closed here.
     The record's ``statics`` are the build's (the sea the plant saw, the obstacles, the plan).
+
+    ``loop``: "auto" runs the compiled loop (:mod:`usv_mj.compiled_loop`) when every part has a
+    kernel and there are no hooks, the Python loop otherwise; "python" always runs the Python loop.
+    ``record.metadata["loop"]`` says which ran (``"loop_reason"``: why not the compiled one).
     """
+    if loop not in ("auto", "python"):
+        raise ValueError(f"simulate: loop must be 'auto' or 'python', got {loop!r}")
     if isinstance(scenario, Parts):
         parts = scenario
     else:
         parts = build(scenario, plant_kind=plant_kind, controller_kind=controller_kind, duration=duration,
                       plant=plant, controller=controller, reference=reference)
     try:
-        return _run(parts, list(parts.sinks) + list(sinks), block, progress, tuple(parts.hooks) + tuple(hooks))
+        return _run(parts, list(parts.sinks) + list(sinks), block, progress, tuple(parts.hooks) + tuple(hooks),
+                    use_compiled=loop == "auto")
     finally:
         parts.close()
 
 
-def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRecord:
+def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_compiled: bool = True) -> RunRecord:
     scenario, plant, controller, reference = parts.scenario, parts.plant, parts.controller, parts.reference
     duration = parts.duration
     dt = scenario.control_period
@@ -81,10 +88,14 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
     actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario)
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
+    from .compiled_loop import kernels_of
+
+    compiled, why = (None, "asked for (loop='python')") if not use_compiled else kernels_of(parts, hooks)
+    loop = {"loop": "compiled"} if compiled is not None else {"loop": "python", "loop_reason": why}
     record = RunRecord(n + 1, metadata={
         "preset": scenario.preset, "plant": plant.name, "controller": controller.name,
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
-        "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata,
+        "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata, **loop,
     }, diagnostic_fields=fields, diagnostic_events=getattr(controller, "diagnostic_events", None))
     record.statics = parts.statics
     for sink in sinks:
@@ -103,6 +114,10 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
     wall0 = time.perf_counter()
     k = 0
     try:
+        if compiled is not None:
+            compiled, _ = kernels_of(parts, hooks)  # again after the resets: the kernels' state is theirs
+            k = _run_compiled(record, parts, compiled, block, flush, limits, dt, n, fields)
+            raise _Done
         x = plant.state
         while True:
             t = k * dt
@@ -154,9 +169,14 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple) -> RunRe
                 break
         if record.status == "running":
             record.status = "completed"
+    except _Done:
+        if record.status == "running":
+            record.status = "completed"
     except KeyboardInterrupt as exc:  # Ctrl-C, or a signal the caller raises as one (str: its name)
+        k = record.n_rows if compiled is not None else k
         _interrupted(record, exc, k * dt)
     except Exception as exc:  # recorded, then re-raised after the sinks are finished
+        k = record.n_rows if compiled is not None else k
         cause = _interrupt_in_chain(exc)
         if cause is not None:  # a signal that landed in compiled code surfaces as SystemError
             _interrupted(record, cause, k * dt)
@@ -189,6 +209,37 @@ def _interrupt_in_chain(exc: BaseException) -> KeyboardInterrupt | None:
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
     return None
+
+
+class _Done(Exception):
+    """The compiled loop ended (internal: joins the Python loop's normal exit)."""
+
+
+def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, fields) -> int:
+    """The compiled loop (usv_mj.compiled_loop) until the run stops, with the Python loop's events."""
+    from .compiled_loop import DIVERGED, FORCE_LIMIT, run_compiled
+
+    k, status, x, out = run_compiled(record, parts, kernels, block, flush, limits, dt, n)
+    if status == FORCE_LIMIT:
+        tau_u, tau_r = float(out[0]), float(out[1])
+        t = k * dt
+        message = (f"control force out of limits or not finite: tau_u = {tau_u!r}, tau_r = {tau_r!r}")
+        record.events.append(Event(t, "divergence", message, {"tau_u": _json_number(tau_u),
+                                                              "tau_r": _json_number(tau_r)}))
+        record.status = "diverged"
+        record.stop_reason = message
+        return k + 1
+    if status == DIVERGED:
+        row = record.data[k - 1]
+        ex, ey = x[0] - row[COL["x_d"]], x[1] - row[COL["y_d"]]
+        t_next = k * dt
+        record.events.append(Event(t_next, "divergence",
+            f"state left its limits at t = {t_next:.3f} s: {_which_limit(x, ex, ey, limits)}; "
+            f"(x, y, psi, u, v, r) = ({', '.join(f'{v:.4g}' for v in x)})",
+            {"state": [_json_number(v) for v in x]}))
+        record.status = "diverged"
+        record.stop_reason = record.events[-1].message
+    return k
 
 
 def _json_number(v) -> float | None:

@@ -88,6 +88,58 @@ def _paper_evaluate(tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, p
     return out
 
 
+@njit(cache=True)
+def paper_kernel(t, tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, period, out):
+    """:meth:`PaperReference.evaluate` natively (usv_mj.kernels; the loop checks the table's t_max)."""
+    return _paper_evaluate(tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, period, t, out)
+
+
+@njit(cache=True)
+def _unicycle_out(out, x, y, psi, r, u):
+    """:meth:`Reference.evaluate`'s assembly of the vector from a pose."""
+    out[0], out[1], out[2] = x, y, psi
+    out[3], out[4] = u * math.cos(psi), u * math.sin(psi)
+    out[5], out[6] = r, u
+    return out
+
+
+@njit(cache=True)
+def line_kernel(t, x0, y0, heading, speed, out):
+    """:class:`LineReference` natively."""
+    d = speed * t
+    return _unicycle_out(out, x0 + d * math.cos(heading), y0 + d * math.sin(heading), heading, 0.0, speed)
+
+
+@njit(cache=True)
+def circle_kernel(t, cx, cy, radius, speed, theta0, direction, out):
+    """:class:`CircleReference` natively."""
+    w = direction * speed / radius
+    th = theta0 + w * t
+    return _unicycle_out(out, cx + radius * math.cos(th), cy + radius * math.sin(th),
+                         th + direction * math.pi / 2, w, speed)
+
+
+@njit(cache=True)
+def waypoint_kernel(t, speed, starts, pieces, out):
+    """:class:`WaypointReference` natively; ``pieces`` rows (kind 0 line / 1 arc, then the piece's
+    numbers: line x0, y0, heading, length; arc cx, cy, theta0, sign, radius, length)."""
+    s = speed * t
+    i = 0  # bisect_right(starts, s) - 1, at least 0
+    for j in range(starts.shape[0]):
+        if starts[j] <= s:
+            i = j
+        else:
+            break
+    ds = s - starts[i]
+    pc = pieces[i]
+    if pc[0] == 0.0:
+        h = pc[3]
+        return _unicycle_out(out, pc[1] + ds * math.cos(h), pc[2] + ds * math.sin(h), h, 0.0, speed)
+    th = pc[3] + pc[4] * ds / pc[5]
+    return _unicycle_out(out, pc[1] + pc[5] * math.cos(th), pc[2] + pc[5] * math.sin(th), th + pc[4] * math.pi / 2,
+                         pc[4] * speed / pc[5], speed)
+
+
 class PaperReference(Reference):
     """The paper's reference (docs/model.md §4): u_d = 0.6 m/s, straight until 110 s, then
     r_d = -0.006 sin(pi (t - 100)/500) (the jump of r_d at 110 s is as printed).
@@ -126,6 +178,12 @@ class PaperReference(Reference):
         out = self.evaluate(t)
         return out[0], out[1], out[2], out[5], out[6]
 
+    def kernel(self):
+        from usv_mj.kernels import Kernel
+
+        return Kernel(paper_kernel, (self._x, self._y, self._psi, self.GRID, self.speed, self.t_turn, self.t_phase,
+                                     self.amplitude, self.period, self._out))
+
     def evaluate(self, t):
         if t > self.t_max:
             raise ValueError(f"reference asked at t = {t:.3f} s beyond its table ({self.t_max:.1f} s)")
@@ -144,6 +202,11 @@ class LineReference(Reference):
         self.start = (float(start[0]), float(start[1]))
         self.heading = math.radians(heading_deg)
         self.speed = float(speed)
+
+    def kernel(self):
+        from usv_mj.kernels import Kernel
+
+        return Kernel(line_kernel, (self.start[0], self.start[1], self.heading, self.speed, self._out))
 
     def pose(self, t):
         d = self.speed * t
@@ -166,6 +229,12 @@ class CircleReference(Reference):
         self.radius, self.speed = float(radius), float(speed)
         self.theta0 = math.radians(start_angle_deg)
         self.direction = -1.0 if clockwise else 1.0
+
+    def kernel(self):
+        from usv_mj.kernels import Kernel
+
+        return Kernel(circle_kernel, (self.center[0], self.center[1], self.radius, self.speed, self.theta0,
+                                      self.direction, self._out))
 
     def pose(self, t):
         w = self.direction * self.speed / self.radius
@@ -222,6 +291,18 @@ class WaypointReference(Reference):
                 cursor = end
         self.pieces = pieces
         self._starts = list(np.cumsum([0.0] + [pc[-1] for pc in pieces[:-1]]))
+
+    def kernel(self):
+        from usv_mj.kernels import Kernel
+
+        last = self.pieces[-1]
+        if last[0] != "line":  # pose() raises past a final arc; keep that in the Python loop
+            return None
+        rows = np.zeros((len(self.pieces), 7))
+        for i, pc in enumerate(self.pieces):
+            rows[i, 0] = 0.0 if pc[0] == "line" else 1.0
+            rows[i, 1:len(pc)] = pc[1:]
+        return Kernel(waypoint_kernel, (self.speed, np.array(self._starts, dtype=float), rows, self._out))
 
     def pose(self, t):
         s = self.speed * t

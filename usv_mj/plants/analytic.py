@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from numba import njit
+
 from usv_mj.registry import PLANTS
 from usv_mj.sea.dynamics import calm_rk4_advance, sea_rk4_advance
 from usv_mj.ship import PaperDisturbance, ShipParams
@@ -20,6 +22,15 @@ from .base import PlantBase
 #: ``rk4_advance(p, dp, t, x, tau_u, tau_r, h, n)``: ``n`` classic RK4 steps of size ``h`` from
 #: (t, x) under constant thrust in calm water; returns the new x.
 rk4_advance = calm_rk4_advance
+
+
+@njit(cache=True)
+def analytic_kernel(k, x, f_u, f_r, p, dp, sea, ep, waves, current_grid, wind_grid, t0, dt, h, n):
+    """:meth:`AnalyticPlant.step` natively (usv_mj.kernels): the k-th step, from t0 + k dt."""
+    t = t0 + k * dt if k > 0 else t0
+    if sea:
+        return sea_rk4_advance(p, dp, ep, waves, current_grid, wind_grid, t, x, f_u, f_r, h, n), False
+    return rk4_advance(p, dp, t, x, f_u, f_r, h, n), False
 
 
 @PLANTS.register("analytic")
@@ -74,6 +85,26 @@ class AnalyticPlant(PlantBase):
         self._k += 1
         # time from the step count: no drift from summing dt 300 000 times
         self._t = self._t0 + self._k * self.control_period
+
+    def kernel(self, t_end: float):
+        """(analytic_kernel, its arrays) for steps up to ``t_end`` [s] (the sea's grids cover them)."""
+        from usv_mj.kernels import Kernel
+
+        env = self.environment
+        if env is None:
+            from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
+
+            packed = (np.zeros(N_ENV_PARAMS), np.zeros((N_WAVE_COLS, 0)), np.zeros((0, 2)), np.zeros((0, 1)))
+        else:
+            env.ensure_horizon(t_end + 2 * self.control_period)
+            packed = tuple(env.packed)
+
+        def sync(k, x):
+            self._x, self._k = x, k
+            self._t = self._t0 + k * self.control_period
+
+        return Kernel(analytic_kernel, (self._p, self._dp, env is not None, *packed, self._t0, self.control_period,
+                                        self._h, self.substeps), sync)
 
     @property
     def time(self) -> float:

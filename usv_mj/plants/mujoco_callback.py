@@ -52,6 +52,7 @@ import os
 
 import mujoco
 import numpy as np
+from llvmlite import ir as llvmlite_ir
 from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
@@ -123,6 +124,23 @@ def _i64_ptr(typingctx, address):
 
     def codegen(context, builder, signature, args):
         return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
+
+    return sig, codegen
+
+
+@intrinsic
+def _call_model_data(typingctx, fn_address, m_addr, d_addr):
+    """Call the C function ``void f(const mjModel*, mjData*)`` at ``fn_address`` (numba intrinsic).
+
+    The address is an argument, not a ctypes global, so that functions calling it can be cached."""
+    sig = types.void(types.int64, types.int64, types.int64)
+
+    def codegen(context, builder, signature, args):
+        i64 = context.get_value_type(types.int64)
+        fnty = llvmlite_ir.FunctionType(llvmlite_ir.VoidType(), [i64, i64])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [args[1], args[2]])
+        return context.get_dummy_value()
 
     return sig, codegen
 
@@ -378,6 +396,47 @@ def native_callback():
 
     _NATIVE = hydrodynamic_passive
     return _NATIVE
+
+
+@njit(cache=True)
+def mujoco_kernel(k, x, f_u, f_r, m_addr, d_addr, t0, dt, nsub, o_time, o_qpos, o_qvel, o_ctrl, o_ud, n_words,
+                  mj_step_address):
+    """:meth:`MuJoCoPlant.step` natively (usv_mj.kernels): the k-th step, from t0 + k dt.
+
+    Writes the thrust into ``ctrl``, sets ``d.time``, calls ``mj_step`` ``nsub`` times (at
+    ``mj_step_address``) and returns the new state (x, y, psi, u, v, r) and whether the callback
+    recorded a failure or MuJoCo reset the data (time not advanced). Field offsets are words
+    (:func:`struct_offsets` // 8)."""
+    t = t0 + k * dt
+    dd = carray(_f64_ptr(d_addr), (o_time + 1,))
+    dw = carray(_i64_ptr(d_addr), (n_words,))
+    ctrl = carray(_f64_ptr(dw[o_ctrl]), (2,))
+    ctrl[0] = f_u
+    ctrl[1] = f_r
+    dd[o_time] = t
+    for _ in range(nsub):
+        _call_model_data(mj_step_address, m_addr, d_addr)
+    qpos = carray(_f64_ptr(dw[o_qpos]), (3,))
+    qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
+    ud = carray(_f64_ptr(dw[o_ud]), (N_USERDATA,))
+    psi = qpos[2]
+    c, s = math.cos(psi), math.sin(psi)
+    out = np.empty(6)
+    out[0], out[1], out[2] = qpos[0], qpos[1], psi
+    out[3] = c * qvel[0] + s * qvel[1]
+    out[4] = -s * qvel[0] + c * qvel[1]
+    out[5] = qvel[2]
+    failed = ud[U_STATUS] != 0.0 or not dd[o_time] > t
+    return out, failed
+
+
+def kernel_constants() -> tuple:
+    """The trailing arguments of :func:`mujoco_kernel`: (o_time, o_qpos, o_qvel, o_ctrl, o_ud,
+    n_words, address of mj_step) for this process's libmujoco."""
+    off = struct_offsets()
+    words = tuple(off[name] // 8 for name in ("time", "qpos", "qvel", "ctrl", "userdata"))
+    address = ctypes.cast(_libmujoco().mj_step, ctypes.c_void_p).value
+    return words + (max(words[1:]) + 1, int(address))
 
 
 _STEPPER = None

@@ -376,6 +376,27 @@ class MuJoCoPlant(PlantBase):
         if self._userdata[mcb.U_STATUS] != 0.0 or self._python_error is not None or not d.time > t:
             self._raise_after_step(t)
 
+    def kernel(self, t_end: float):
+        """(mujoco_kernel, the model and data) for the compiled loop, steps up to ``t_end`` [s] (the
+        sea's grids extended past it first); None with the Python callback."""
+        from usv_mj.kernels import Kernel
+
+        if self.callback != "native":
+            return None
+        self._check_open()
+        if t_end + self.control_period > self._sea_horizon:
+            self._extend_sea(t_end + self.control_period)
+
+        def sync(k, x):
+            self._k, self._x = k, x
+
+        def fail(k):  # the k-th step failed: raise its error as step() does
+            self._k = k + 1
+            self._raise_after_step(self._t0 + k * self.control_period)
+
+        return Kernel(mcb.mujoco_kernel, (self._m_addr, self._d_addr, self._t0, self.control_period, self.substeps,
+                                          *mcb.kernel_constants()), sync, fail)
+
     def _raise_after_step(self, t: float) -> None:
         self._x = None
         if self._userdata[mcb.U_STATUS] != 0.0 or self._python_error is not None:
