@@ -1,4 +1,4 @@
-"""``usv-mj``: the command line of usv_mj.
+"""usv-mj: the command line of usv_mj.
 
     usv-mj run                         the paper scenario on the MuJoCo plant: video, figures, log, report
     usv-mj run --preset harsh --plant analytic --duration 60 --no-video
@@ -90,7 +90,7 @@ def _add_run(sub):
     p = sub.add_parser("run", formatter_class=_Formatter, help="run a scenario: video, figures, MCAP log, report",
                        description="Run one scenario end to end. With no options: the paper scenario (docs/model.md §4-5) "
                        "on the MuJoCo plant for 300 s, then the PI baseline, writing summary.json, report.md, "
-                       "figures/, run.mcap, video.mp4 and final.png into --out.")
+                       "figures/, run.mcap (baseline.mcap), video.mp4 and video.png into --out.")
     add_scenario_arguments(p)
     p.add_argument("--plant", choices=("mujoco", "analytic"), help="which plant integrates the ship")
     p.add_argument("--out", metavar="DIR", help="output folder (default renders/<preset or scenario name>)")
@@ -173,7 +173,7 @@ def _add_plot(sub):
     p = sub.add_parser("plot", formatter_class=_Formatter, help="figures and report again from a run's MCAP log",
                        description="Remake figures/ and report.md from RUN (an .mcap file or a run folder "
                        "holding run.mcap) without simulating.")
-    p.add_argument("run", metavar="RUN")
+    p.add_argument("run", metavar="RUN", help="a run log (run.mcap) or the run folder that holds it")
     p.add_argument("--out", metavar="DIR", help="output folder (default: beside the log)")
     p.set_defaults(func=_plot_command)
 
@@ -225,6 +225,29 @@ _EXTERNAL = {
 }
 
 
+# what each command's --help says first: for users, in plain text
+_DESCRIPTIONS = {
+    "compare": "Run the same scenario on the analytic plant and the MuJoCo plant and report how far they\n"
+               "differ: open loop under a rich thrust sequence (with a convergence study in the time step)\n"
+               "and in closed loop with the scenario's controller. Writes compare.json, compare.md and\n"
+               "figures into --out. Exit 1 when a difference is outside its tolerance.",
+    "inspect": "Say what a run log (.mcap) holds: its runs, topics, message counts, duration, status and\n"
+               "metadata, and whether the file is complete. --json prints the same as one JSON object.",
+    "render": "Draw the video of a recorded run again from its run.mcap alone: another size, frame rate,\n"
+              "speed-up or camera (top, chase, overview). Writes video.mp4 and video.png.",
+    "sweep": "Run many variations of one scenario (a sweep file: a base scenario and what varies, by dotted\n"
+             "path such as initial.eta[0] or sea.current.speed) on a Dask cluster, local by default.\n"
+             "Results stream into results.parquet; report.md gives the rate of runs that kept the funnel.\n"
+             "--resume runs only what is missing.",
+    "capability": "The environment capability polar (DNV style): for each direction, the largest current,\n"
+                  "wind or wave load at which the controller keeps its funnel, found by bisection. With\n"
+                  "unlimited actuators it shows the control law's limit, not the vessel's (use a preset\n"
+                  "with [actuators], e.g. --scenario paper-limited).",
+    "env": "Roll out a policy (ppc: the paper's controller; random) in a dm_control task (track,\n"
+           "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode.",
+}
+
+
 def _add_external(sub, name, spec):
     module_name, add_name, run_name, help_text = spec
     try:
@@ -232,8 +255,9 @@ def _add_external(sub, name, spec):
         add, run = getattr(module, add_name), getattr(module, run_name)
     except (ImportError, AttributeError):
         return
-    p = sub.add_parser(name, formatter_class=_Formatter, help=help_text, description=module.__doc__)
+    p = sub.add_parser(name, formatter_class=_Formatter, help=help_text, description=_DESCRIPTIONS[name])
     add(p)
+    _harmonize(p)
     p.set_defaults(func=run)
 
 
@@ -251,20 +275,49 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+SHORT_USAGE = """usage: usv-mj COMMAND [options]
+
+commands: run, presets, compare, inspect, plot, render, sweep, capability, env
+  usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
+  usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
+
+
+def _harmonize(p: argparse.ArgumentParser) -> None:
+    """One flag name per concept in every command; the old spellings stay as hidden aliases."""
+    by_flag = {o: a for a in p._actions for o in a.option_strings}
+    for old, new, help_text in (("--no-progress", ("-q", "--quiet"), "no progress bars"),
+                                ("--video-size", ("--size",), "video size in pixels, WxH"),
+                                ("--base", ("--scenario",), "a preset name or a scenario TOML file")):
+        action = by_flag.get(old)
+        if action is None or any(n in by_flag for n in new):
+            continue
+        kwargs = {"dest": action.dest, "default": action.default, "help": help_text}
+        if isinstance(action, argparse._StoreTrueAction):
+            kwargs["action"] = "store_true"
+        else:
+            kwargs.update(metavar="WxH" if old == "--video-size" else "NAME_OR_FILE", type=action.type)
+        action.help = argparse.SUPPRESS
+        p.add_argument(*new, **kwargs)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if not argv:
+        print(SHORT_USAGE, file=sys.stderr)
+        return EXIT_BAD_INPUT
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
-        parser.print_help()
+        print(SHORT_USAGE, file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
         return int(args.func(args) or 0)
     except ScenarioError as exc:
         print(f"usv-mj {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # the run commands record it themselves; here: stopped early, exit 1
         print(f"usv-mj {args.command}: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_STOPPED
     except BrokenPipeError:
         # the reader went away (usv-mj inspect run.mcap | head): stop quietly, as Unix tools do;
         # point stdout at /dev/null so that the interpreter's final flush does not fail again

@@ -60,7 +60,7 @@ def run_command(args: argparse.Namespace) -> int:
     from . import PPCPolicy, RandomPolicy, load
 
     if args.episodes < 1:
-        print(f"usv-mj env: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
+        print(f"usv-mj env: error: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
         return 2
     options = {"quantize": not args.no_quantize}
     if args.duration is not None:
@@ -68,7 +68,7 @@ def run_command(args: argparse.Namespace) -> int:
     try:
         env = load(args.task, seed=args.seed, **options)
     except (ValueError, ScenarioError) as exc:
-        print(f"usv-mj env: {exc}", file=sys.stderr)
+        print(f"usv-mj env: error: {exc}", file=sys.stderr)
         return 2
     except NotImplementedError as exc:
         print(f"usv-mj env: {exc}", file=sys.stderr)

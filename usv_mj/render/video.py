@@ -545,7 +545,7 @@ def run_command(args: argparse.Namespace) -> int:
     try:
         record, mcap = load_run_record(args.run)
     except (FileNotFoundError, ValueError, RuntimeError) as exc:
-        print(f"usv-mj render: {exc}", file=sys.stderr)
+        print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
     try:
@@ -554,7 +554,7 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"usv-mj render: {exc}", file=sys.stderr)
         return 3
     except ValueError as exc:
-        print(f"usv-mj render: {exc}", file=sys.stderr)
+        print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
     print(f"video {result['mp4']} ({result['frames']} frames, {result['width']}x{result['height']} at "
           f"{result['video_fps']:g} fps, {result['speedup']:.3g}x) and still {result['png']}")

@@ -35,10 +35,10 @@ def inspect_command(args) -> int:
     try:
         info = scan_summary(path)
     except RunLogReadError as exc:
-        print(f"usv-mj inspect: {exc}", file=sys.stderr)
+        print(f"usv-mj inspect: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:
-        print(f"usv-mj inspect: cannot read {path}: {exc}", file=sys.stderr)
+        print(f"usv-mj inspect: error: cannot read {path}: {exc}", file=sys.stderr)
         return 2
     meta = {}
     runs = {}

@@ -60,7 +60,8 @@ def read_results(path):
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``usv-mj sweep``."""
     parser.add_argument("sweep", help="the sweep file (TOML: base, duration, samples, seed, [set], [vary])")
-    parser.add_argument("--out", required=True, help="directory for results.parquet, report.md, figures/")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="output folder for results.parquet, report.md, figures/ (default renders/sweep-<file name>)")
     parser.add_argument("--scheduler", default=None,
                         help="address of a running Dask scheduler (tcp://host:8786); default: a local cluster")
     parser.add_argument("--jobqueue", default=None, metavar="SYSTEM",
@@ -79,9 +80,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_command(args: argparse.Namespace) -> int:
-    """``usv-mj sweep``: 0 when every run was recorded, 2 on a bad sweep file or option, 130 on Ctrl-C."""
+    """``usv-mj sweep``: 0 when every run was recorded, 2 on a bad sweep file or option, 1 when interrupted."""
     import sys
 
+    if args.out is None:
+        from pathlib import Path
+
+        args.out = str(Path("renders") / f"sweep-{Path(args.sweep).stem}")
     try:
         plan = load_sweep(args.sweep)
         if args.workers is not None and args.workers < 1:
@@ -97,12 +102,12 @@ def run_command(args: argparse.Namespace) -> int:
                            max_runs=max_runs, jobqueue=getattr(args, "jobqueue", None),
                            jobs=getattr(args, "jobs", 1), retry_failed=getattr(args, "retry_failed", False))
     except SweepError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"usv-mj sweep: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"\ninterrupted: the runs finished so far are in {args.out}/results.parquet; "
+        print(f"\nusv-mj sweep: interrupted: the runs finished so far are in {args.out}/results.parquet; "
               f"run the same command with --resume to finish the sweep", file=sys.stderr)
-        return 130
+        return 1
     kept = sum(bool(r.get("kept_funnel")) for r in result.rows)
     if not result.complete:
         print(f"{len(result.rows)} of {len(plan.runs)} runs in {args.out}/results.parquet; run again with "

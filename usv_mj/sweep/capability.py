@@ -281,10 +281,12 @@ def add_capability_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max", dest="load_max", type=float, default=None, help="upper end of the search")
     parser.add_argument("--tol", type=float, default=0.05,
                         help="stop when (fails - holds) <= tol * fails (default 0.05)")
-    parser.add_argument("--out", required=True, help="directory for capability.md, capability.png, .json")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="output folder for capability.md, capability.png, capability.json "
+                             "(default renders/capability-<load>)")
     parser.add_argument("--scheduler", default=None, help="address of a running Dask scheduler")
     parser.add_argument("--workers", type=int, default=None, help="local cluster: worker processes")
-    parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run_capability(load_name: str, *, base: str = "paper", duration: float | None = None,
@@ -402,7 +404,11 @@ def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows):
 
 
 def capability_command(args: argparse.Namespace) -> int:
-    """``usv-mj capability``: 0 on success, 2 on bad input or a load not available yet, 130 on Ctrl-C."""
+    """``usv-mj capability``: 0 on success, 2 on bad input or a load not available yet, 1 when interrupted."""
+    if args.out is None:
+        from pathlib import Path
+
+        args.out = str(Path("renders") / f"capability-{args.load}")
     try:
         if args.workers is not None and args.workers < 1:
             raise SweepError(f"--workers must be >= 1, got {args.workers}")
@@ -411,11 +417,11 @@ def capability_command(args: argparse.Namespace) -> int:
                                  out=args.out, scheduler=args.scheduler, workers=args.workers,
                                  progress=not args.no_progress)
     except SweepError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"usv-mj capability: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("\ninterrupted", file=sys.stderr)
-        return 130
+        print("\nusv-mj capability: interrupted", file=sys.stderr)
+        return 1
     for r in results:
         d = "any direction" if r.direction_deg is None else f"{r.direction_deg:g} deg"
         print(f"{d}: funnel holds up to {r.holds}, lost at {r.fails}" + (f" ({'; '.join(r.notes)})" if r.notes else ""))
