@@ -76,3 +76,28 @@ def test_closed_pipe_ends_the_command_quietly():
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141, err
     assert "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_one_flag_name_per_concept_and_the_old_ones_still_work(capsys):
+    """-q/--quiet, --size, --scenario in every command that has the concept; the old spellings
+    (--no-progress, --video-size, --base) still parse, hidden from --help; bare usv-mj is a short usage."""
+    from usv_mj.cli import build_parser, main
+
+    assert main([]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: usv-mj COMMAND") and len(err.splitlines()) < 8
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command").choices
+    for name, p in sub.items():
+        flags = {o for a in p._actions for o in a.option_strings}
+        helped = {o for a in p._actions if a.help != "==SUPPRESS==" for o in a.option_strings}
+        if flags & {"--no-progress", "-q"}:
+            assert {"-q", "--quiet"} <= helped, name
+        assert not helped & {"--no-progress", "--video-size", "--base"}, name
+        assert "``" not in (p.description or "") and "issue" not in (p.description or "").lower(), name
+    assert parser.parse_args(["render", "x.mcap", "--no-progress"]).no_progress
+    assert parser.parse_args(["render", "x.mcap", "-q"]).no_progress
+    assert parser.parse_args(["env", "track", "--video-size", "64x48"]).video_size == "64x48"
+    assert parser.parse_args(["env", "track", "--size", "64x48"]).video_size == "64x48"
+    assert parser.parse_args(["capability", "--load", "current", "--scenario", "paper-limited"]).base == "paper-limited"
+    assert parser.parse_args(["sweep", "s.toml"]).out is None          # --out has a default now
