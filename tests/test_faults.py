@@ -311,18 +311,23 @@ def test_plot_of_a_bad_log_is_one_line(tmp_path, capsys, content):
 
 
 def test_crash_in_the_loop_is_one_line_recorded_with_a_traceback_file(tmp_path, capsys, monkeypatch):
-    from usv_mj.controllers.ppc import PPCController
+    from usv_mj.controllers.ppc import PPCController, PPCGains
+    from usv_mj.registry import CONTROLLERS
 
-    real = PPCController.__call__
+    class Crashing(PPCController):  # a user's controller in Python: the loop runs its __call__
+        name = "crashing"
 
-    def crashing(self, t, state, reference):
-        if t > 0.2:
-            raise ZeroDivisionError("boom in the controller")
-        return real(self, t, state, reference)
+        def __call__(self, t, state, reference):
+            if t > 0.2:
+                raise ZeroDivisionError("boom in the controller")
+            return super().__call__(t, state, reference)
 
-    monkeypatch.setattr(PPCController, "__call__", crashing)
-    out = tmp_path / "out"
-    assert main([*FAST, "--duration", "1", "--out", str(out)]) == 1
+    CONTROLLERS.register("crashing", gains=PPCGains)(Crashing)
+    try:
+        out = tmp_path / "out"
+        assert main([*FAST, "--duration", "1", "--set", "controller.kind=crashing", "--out", str(out)]) == 1
+    finally:
+        CONTROLLERS.unregister("crashing")
     line = one_line(capsys.readouterr().err)
     assert "ZeroDivisionError: boom in the controller" in line and "traceback.txt" in line
     assert "boom in the controller" in (out / "traceback.txt").read_text()

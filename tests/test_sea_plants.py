@@ -229,7 +229,7 @@ def test_relative_velocity_decays_from_rest_with_yaw_rate():
 
 def test_make_plant_builds_a_mujoco_plant_in_the_scenario_sea():
     from usv_mj.scenario import load_scenario
-    from usv_mj.simulation import make_plant
+    from usv_mj.builder import make_plant
 
     scenario = load_scenario(preset="paper", overrides={"sea": {"waves": {"hs": 0.2},
                                                                     "current": {"speed": 0.3}}})
