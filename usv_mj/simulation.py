@@ -159,13 +159,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             x = plant.state
             ex, ey = x[0] - ref[0], x[1] - ref[1]
             if state_limit_exceeded(x, ex, ey, limits):
-                t_next = k * dt
-                record.events.append(Event(t_next, "divergence",
-                    f"state left its limits at t = {t_next:.3f} s: {_which_limit(x, ex, ey, limits)}; "
-                    f"(x, y, psi, u, v, r) = ({', '.join(f'{v:.4g}' for v in x)})",
-                    {"state": [_json_number(v) for v in x]}))
-                record.status = "diverged"
-                record.stop_reason = record.events[-1].message
+                _state_diverged(record, k * dt, x, ex, ey, limits)
                 break
         if record.status == "running":
             record.status = "completed"
@@ -232,14 +226,18 @@ def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, fields) -
     if status == DIVERGED:
         row = record.data[k - 1]
         ex, ey = x[0] - row[COL["x_d"]], x[1] - row[COL["y_d"]]
-        t_next = k * dt
-        record.events.append(Event(t_next, "divergence",
-            f"state left its limits at t = {t_next:.3f} s: {_which_limit(x, ex, ey, limits)}; "
-            f"(x, y, psi, u, v, r) = ({', '.join(f'{v:.4g}' for v in x)})",
-            {"state": [_json_number(v) for v in x]}))
-        record.status = "diverged"
-        record.stop_reason = record.events[-1].message
+        _state_diverged(record, k * dt, x, ex, ey, limits)
     return k
+
+
+def _state_diverged(record: RunRecord, t_next: float, x, ex: float, ey: float, limits) -> None:
+    """Record the divergence event and the stop (both loops): which limit the state left, and the state."""
+    record.events.append(Event(t_next, "divergence",
+        f"state left its limits at t = {t_next:.3f} s: {_which_limit(x, ex, ey, limits)}; "
+        f"(x, y, psi, u, v, r) = ({', '.join(f'{v:.4g}' for v in x)})",
+        {"state": [_json_number(v) for v in x]}))
+    record.status = "diverged"
+    record.stop_reason = record.events[-1].message
 
 
 def _json_number(v) -> float | None:
