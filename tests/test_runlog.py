@@ -532,28 +532,6 @@ def test_writer_never_closed_is_closed_at_interpreter_exit(tmp_path):
     log = read_run(path)
     assert log.complete and len(log.record) == 1001 and log.record.status == "completed"
 
-
-def test_standard_library_json_fallback_round_trips(tmp_path, scenario, monkeypatch):
-    """Without orjson the same files are written and read (slower), still bit-exactly."""
-    from usv_mj.runlog import json_codec
-
-    monkeypatch.setattr(json_codec, "orjson", None)
-    rec = _handmade_record(1200, seed=7)
-    path = tmp_path / "fallback.mcap"
-    with RunLogWriter(path, scenario, background=False, rows_per_chunk=500) as writer:
-        sink = writer.sink("main")
-        sink.start(rec)
-        rec.n_rows = 1200
-        rec.events.append(Event(0.25, "probe", "with a NaN value", {"v": float("nan"), "w": 2.5}))
-        sink.rows(rec, 0, 1200)
-        sink.finish(rec)
-    got = read_run(path).record
-    assert_same_rows(got, rec)
-    assert got.events[0].values == {"v": None, "w": 2.5}
-    with open(path, "rb") as f:
-        assert sum(1 for _ in make_reader(f, validate_crcs=True).iter_messages(topics=["/usv/state"])) == 1200
-
-
 def test_template_time_stamps_are_the_log_time_in_integer_seconds_and_nanoseconds():
     """The bulk layout writes a Foxglove time {sec, nsec} from each message's log time: every digit
     count, the second boundary and the largest u64-safe stamps, parsed back by the json module."""
