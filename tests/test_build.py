@@ -181,3 +181,21 @@ transient = 1.0
     assert rows[0]["min_clearance_m"] is not None
     key = "max_abs_error_after_transient.y"
     assert rows[0][key] != rows[1][key]  # the current pushed the hull: the runs saw the sea
+
+
+@pytest.mark.parametrize("obstacles", ["none", "static"])
+def test_saturated_actuators_compose_with_the_sea_obstacles_and_both_plants(obstacles):
+    """The matrix's saturated case: paper-limited's twin thrusters in a sea (and a harbour): both
+    plants receive the same saturated forces, every applied force is inside the thrusters' box."""
+    limited = {"actuators": load_scenario(preset="paper-limited").to_dict()["actuators"]}
+    sc = _scenario(obstacles, True, duration=3.0).with_overrides(limited)
+    lo_u, hi_u, lo_r, hi_r = sc.actuators.generalized_limits()
+    recs = {k: simulate(sc, plant_kind=k) for k in ("analytic", "mujoco")}
+    for rec in recs.values():
+        assert rec.status == "completed"
+        assert np.all(rec["f_u"] <= hi_u + 1e-9) and np.all(rec["f_u"] >= lo_u - 1e-9)
+        assert np.all(np.abs(rec["f_r"]) <= hi_r + 1e-9)
+        assert np.mean(rec["sat_u"] + rec["sat_r"] > 0) > 0.0  # the start saturates the thrusters
+    a, m = recs["analytic"], recs["mujoco"]
+    assert np.array_equal(a["sat_u"], m["sat_u"]) and np.array_equal(a["sat_r"], m["sat_r"])
+    assert np.max(np.abs(a["x"] - m["x"]) + np.abs(a["y"] - m["y"])) < 1e-6

@@ -45,8 +45,9 @@ def coerce(source: str, where: str, value: Any, default: Any, error: type[Except
     if isinstance(default, float):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise bad("a number")
-        if not math.isfinite(value):
-            raise bad("a finite number")
+        if math.isnan(value) or (math.isinf(value) and not math.isinf(default)):
+            # inf only where the default is inf ("no limit": the actuators' limits)
+            raise bad("a finite number" if math.isfinite(default) else "a number or inf (no limit)")
         return float(value)
     if isinstance(default, str):
         if not isinstance(value, str):
