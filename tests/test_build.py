@@ -151,15 +151,17 @@ def test_every_feature_composes_with_every_other(plant, obstacles, controller):
 
 
 def test_compare_a_harbour_in_a_sea(tmp_path):
-    from usv_mj.compare import compare_closed_loop
+    """usv-mj compare of a harbour in a sea: the closed loop with the obstacles and the sea on both
+    plants (the open-loop thrust sequence runs in open water: it would ram the piers); every check ok."""
+    import json
 
-    sc = _scenario("static", True, duration=4.0)
-    result, hist = compare_closed_loop(sc, progress=False)
-    runs = hist if isinstance(hist, dict) else {}
-    assert result  # both plants ran the harbour in the sea
-    sea_free = _scenario("static", False, duration=4.0)
-    calm_result, _ = compare_closed_loop(sea_free, progress=False)
-    assert result != calm_result
+    from usv_mj.cli import main
+
+    out = tmp_path / "cmp"
+    assert main(["compare", "--scenario", str(SCENARIOS / "harbour_gap.toml"), "--sea", "moderate",
+                 "--duration", "4", "-q", "--out", str(out)]) == 0
+    result = json.loads((out / "compare.json").read_text())
+    assert all(result["checks"].values()) and result["closed_loop"]["max_position_m"] < 1e-3
 
 
 def test_sweep_of_the_current_in_a_harbour(tmp_path):

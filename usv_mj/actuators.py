@@ -82,7 +82,7 @@ class ActuatorSpec:
     yaw_rate_nm_s: largest rate of change of the yaw moment [N m/s] (inf: none).
     priority: twin: which channel wins when both cannot be met, "yaw" (default) or "surge".
 
-    In a scenario file a limit that is not given is none (TOML has no inf).
+    In a scenario file a limit that is not given is none (or write ``inf``).
     """
 
     kind: str = "unlimited"

@@ -20,14 +20,38 @@ message names the Debian packages to install; --no-video skips the video); 141 t
 
 from __future__ import annotations
 
-import argparse
-import importlib
 import os
+import signal
 import sys
+import threading
+
+
+def _signal_while_starting(signum, frame):
+    # nothing has been created yet: say so and end at once (no half-imported module to unwind)
+    os.write(2, f"usv-mj: interrupted ({signal.Signals(signum).name}) while starting; nothing was written\n".encode())
+    os._exit(1)
+
+
+def _early_signal(signum, frame):
+    from .errors import Terminated
+
+    raise Terminated(signal.Signals(signum).name)
+
+
+if (__name__ == "__main__" or os.path.basename(sys.argv[0] if sys.argv else "") == "usv-mj") \
+        and threading.current_thread() is threading.main_thread():
+    # the program itself, before the imports below (about a second): SIGTERM / SIGHUP while it starts
+    # end it as Ctrl-C would, exit 1, instead of the default death (143)
+    for _sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(_sig, _signal_while_starting)
+
+import argparse  # noqa: E402
+import importlib
 import time
 import tomllib
 from pathlib import Path
 
+from .errors import Terminated
 from .scenario import ScenarioError, _merge, load_scenario, preset_names
 
 EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT, EXIT_NO_GL = 0, 1, 2, 3
@@ -35,6 +59,14 @@ EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT, EXIT_NO_GL = 0, 1, 2, 3
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
     pass
+
+
+class _Parser(argparse.ArgumentParser):
+    """Bad options in one line, as every other bad input: ``usv-mj run: error: ... (see --help)``."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (usv-mj {self.prog.split()[-1]} --help)\n"
+                  if self.prog != "usv-mj" else f"usv-mj: error: {message} (usv-mj --help)\n")
 
 
 def _parse_set(items: list[str]) -> dict:
@@ -70,9 +102,15 @@ def add_scenario_arguments(p: argparse.ArgumentParser) -> None:
 
 def scenario_from_args(args):
     overrides = {}
-    if getattr(args, "sea", None):
+    if getattr(args, "sea", None) is not None:
         overrides["sea"] = {"preset": args.sea}
-    overrides = _merge(overrides, _parse_set(args.set))
+    sets = _parse_set(args.set)
+    if sets:  # every --set value is checked, even one a flag below replaces
+        try:
+            load_scenario(args.scenario, preset=args.preset, overrides=_merge(overrides, sets))
+        except ScenarioError as exc:
+            raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
+    overrides = _merge(overrides, sets)
     if args.duration is not None:
         overrides["duration"] = args.duration
     if getattr(args, "plant", None):
@@ -262,7 +300,7 @@ def _add_external(sub, name, spec):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="usv-mj", formatter_class=_Formatter, description=__doc__)
+    parser = _Parser(prog="usv-mj", formatter_class=_Formatter, description=__doc__)
     from . import __version__
 
     parser.add_argument("--version", action="version", version=f"usv-mj {__version__}")
@@ -301,12 +339,19 @@ def _harmonize(p: argparse.ArgumentParser) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if threading.current_thread() is threading.main_thread():
+        # until a command installs its own handlers: SIGTERM / SIGHUP end it as Ctrl-C would (exit 1)
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, _early_signal)
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else list(argv)
     if not argv:
         print(SHORT_USAGE, file=sys.stderr)
         return EXIT_BAD_INPUT
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0), or a bad option already said in one line (2)
+        return int(exc.code or 0)
     if not getattr(args, "func", None):
         print(SHORT_USAGE, file=sys.stderr)
         return EXIT_BAD_INPUT

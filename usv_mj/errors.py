@@ -28,3 +28,8 @@ class SweepError(ScenarioError):
 
 class UnknownKindError(ScenarioError):
     """A ``kind`` names no registered plant, controller, trajectory or disturbance."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised like Ctrl-C's KeyboardInterrupt (its text: the signal's name), so
+    that every ending by a signal is recorded as an interruption."""

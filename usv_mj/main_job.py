@@ -174,8 +174,45 @@ class RunFailed(RuntimeError):
         self.out_dir, self.summary, self.traceback = out_dir, summary, traceback
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP during a run: handled as Ctrl-C (the loop records it as interrupted)."""
+class _OutLock:
+    """One job at a time per output folder: an exclusive lock on ``.NAME.lock`` beside it, held for
+    the whole job (a second run into the same --out while one is running is refused, exit 2)."""
+
+    def __init__(self, out: Path):
+        self.path = out.parent / f".{out.name}.lock"
+        self.fd = None
+
+    def __enter__(self):
+        import fcntl
+        import os
+
+        from .errors import ScenarioError
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.fd = os.open(self.path, os.O_CREAT | os.O_RDWR, 0o644)
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            self.fd = None
+            raise ScenarioError(f"--out {self.path.parent / self.path.name[1:-5]}: another run is writing "
+                                "into it now; wait for it or choose another folder") from None
+        return self
+
+    def __exit__(self, *exc):
+        import os
+
+        if self.fd is not None:
+            try:
+                os.unlink(self.path)
+            except OSError:
+                pass
+            os.close(self.fd)
+            self.fd = None
+        return False
+
+
+from .errors import Terminated  # noqa: E402  (SIGTERM / SIGHUP as Ctrl-C)
 
 
 class _Signals:
@@ -329,7 +366,7 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     out = Path(out_dir)
     render_opts = dict(render_options or {})
     check_run(scenario, out, video=video, render_options=render_opts, overwrite=overwrite)
-    with _Signals() as signals:
+    with _OutLock(out), _Signals() as signals:
         stage = _Staging(out)
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
@@ -458,7 +495,11 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
 
     phase = "starting the video"
     video_job = None
+    # a signal whose exception was swallowed (raised inside a weakref callback, say) still stops the job
+    seen_in_loop = 1 if record.status == "interrupted" else 0
     try:
+        if len(signals.received) > seen_in_loop:
+            raise KeyboardInterrupt(signals.last)
         # The video of the main run is drawn by the render workers while this process simulates the
         # baseline and the half-step check and draws the figures (the job then uses both cores).
         video_job = _start_video(pool, record, out / "video.mp4", render_opts) if pool is not None else None
@@ -500,6 +541,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
     close_all()
     if fault and not stopped:
         stopped = fault
+    if not stopped and len(signals.received) > seen_in_loop:
+        stopped = f"interrupted ({signals.last}) while {phase}"
     try:
         if summary is None:
             summary = summarize(record)

@@ -46,6 +46,23 @@ def check_start_pose(scenario: Scenario) -> None:
     check_start_clear(scenario)
 
 
+def check_plan(scenario: Scenario) -> None:
+    """With ``[guidance] avoid``, the plan around the obstacles must exist (a start or goal inside an
+    inflated obstacle, a path the planner cannot open, a trajectory kind without start and goal):
+    decided by the inputs alone, so it is bad input."""
+    if not (scenario.obstacles and scenario.guidance.avoid):
+        return
+    from .obstacles.hooks import make_plan
+    from .obstacles.planner import PlanningError
+
+    try:
+        make_plan(scenario)
+    except (PlanningError, ValueError) as exc:
+        if isinstance(exc, ScenarioError):
+            raise
+        raise ScenarioError(f"{scenario.source}: guidance: {exc}") from None
+
+
 def check_video(render_options: dict | None) -> None:
     """The camera (and size) of the video, before any render worker starts."""
     from .render.video import _check_size, check_camera
@@ -73,8 +90,15 @@ def check_out_dir(out, overwrite: bool = False, flag: str = "--out") -> Path:
     if str(out) == "":
         raise ScenarioError(f"{flag} '': an empty path; name the output folder")
     out = Path(out)
+    check_path_names(out, flag)
     if out.exists() and not out.is_dir():
         raise ScenarioError(f"{flag} {out}: is a file, not a folder")
+    resolved = out.resolve()
+    if resolved == Path(resolved.anchor) or resolved == Path.cwd().resolve() or os.path.ismount(resolved):
+        # the run's files are moved in by renaming the folder: impossible for /, the current folder
+        # or a mount point (and replacing the current folder whole is never what was meant)
+        raise ScenarioError(f"{flag} {out}: is the current folder, the root or a mount point; name a folder "
+                            "inside it")
     ancestor = out
     while not ancestor.exists():
         if ancestor.is_symlink():
@@ -98,11 +122,40 @@ def check_out_dir(out, overwrite: bool = False, flag: str = "--out") -> Path:
     return out
 
 
+def check_path_names(path: Path, flag: str) -> None:
+    """Every part of ``path`` fits the file system's name limit (255 bytes on Linux)."""
+    for part in Path(path).parts:
+        if len(os.fsencode(part)) > 255:
+            raise ScenarioError(f"{flag} {str(path)[:80]}...: the name {part[:40]}... is over 255 bytes")
+
+
+def check_output_path(out, flag: str = "--out", *, folder: bool = True) -> Path:
+    """An output of a command other than ``run`` (sweep, capability, compare: a folder; render: a
+    file): not a file where a folder belongs, not under a file, names within limits, writable."""
+    if str(out) == "":
+        raise ScenarioError(f"{flag} '': an empty path; name the output")
+    out = Path(out)
+    check_path_names(out, flag)
+    if folder and out.exists() and not out.is_dir():
+        raise ScenarioError(f"{flag} {out}: is a file, not a folder")
+    if not folder and out.is_dir():
+        raise ScenarioError(f"{flag} {out}: is a folder; name the video file (e.g. {out / 'video.mp4'})")
+    ancestor = out if folder else out.parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ScenarioError(f"{flag} {out}: {ancestor} is a file, so nothing can be made under it")
+    if not os.access(ancestor, os.W_OK):
+        raise ScenarioError(f"{flag} {out}: {ancestor} is not writable")
+    return out
+
+
 def check_run(scenario: Scenario, out, *, video: bool, render_options: dict | None, overwrite: bool) -> Path:
     """Everything :func:`usv_mj.main_job.run_job` needs to hold before it creates anything."""
     out = check_out_dir(out, overwrite)
     check_reference(scenario)
     check_start_pose(scenario)
+    check_plan(scenario)
     if video:
         check_video(render_options)
     return out

@@ -252,6 +252,11 @@ class Scenario:
         """A new scenario: this one's TOML table with ``overrides`` merged in and validated again."""
         return from_dict(_merge(self.raw, overrides), source=self.source or "<overrides>")
 
+    def without(self, *sections: str) -> "Scenario":
+        """A new scenario without these top-level tables (e.g. ``"obstacles"``: the same run in open
+        water), validated again."""
+        return from_dict({k: v for k, v in self.raw.items() if k not in sections}, source=self.source or "<dict>")
+
     def to_dict(self) -> dict:
         """Every parameter as plain data (for metadata and summaries)."""
         return _to_plain(self)
@@ -275,7 +280,7 @@ def _parsed_preset(name: str, chain: tuple) -> dict:
     if name in chain:
         raise ScenarioError(f"preset {name!r} names itself as a base (cycle {' -> '.join(chain + (name,))})")
     path = resources.files("usv_mj.presets") / f"{name}.toml"
-    if not path.is_file():
+    if name not in preset_names():  # a name, never a path ("../x" would read any TOML file)
         hint = difflib.get_close_matches(name, preset_names(), n=1)
         raise ScenarioError(
             f"unknown preset {name!r}; presets are {', '.join(preset_names())}"

@@ -301,6 +301,32 @@ class _Flusher:
 
 
 def _finish_run(record, sinks, flush, wall0, quant_u, quant_r):
+    with _signals_held():
+        _finish_sinks(record, sinks, flush, wall0, quant_u, quant_r)
+
+
+def _signals_held():
+    """Ctrl-C, SIGTERM and SIGHUP wait while the sinks finish (a log cut in its end record has no
+    status); they are delivered when it is done."""
+    import contextlib
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return contextlib.nullcontext()
+
+    @contextlib.contextmanager
+    def held():
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+    return held()
+
+
+def _finish_sinks(record, sinks, flush, wall0, quant_u, quant_r):
     flush(record.n_rows)
     record.events.sort(key=lambda e: e.t)
     wall = time.perf_counter() - wall0

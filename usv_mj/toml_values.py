@@ -26,6 +26,8 @@ def read_toml(path: str | Path, error: type[Exception], what: str = "file") -> d
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:  # arrays or tables nested thousands deep
+        raise error(f"{path}: not valid TOML here: nested too deeply") from None
 
 
 def coerce(source: str, where: str, value: Any, default: Any, error: type[Exception]) -> Any:

@@ -482,16 +482,36 @@ def _positive(text: str) -> float:
     return v
 
 
+MAX_FPS = 240.0  # frames per video second: more is no video a player shows, and the frames fill memory
+
+
+def _frame_rate(text: str) -> float:
+    v = _positive(text)
+    if v > MAX_FPS:
+        raise argparse.ArgumentTypeError(f"{text!r} is over {MAX_FPS:g} frames per second")
+    return v
+
+
+def _worker_count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
+    return v
+
+
 def add_video_arguments(parser: argparse.ArgumentParser) -> None:
     """The video options shared by ``usv-mj run`` and ``usv-mj render`` (see :func:`video_options`)."""
     g = parser.add_argument_group("video")
     g.add_argument("--size", type=parse_size, default=(DEFAULT_WIDTH, DEFAULT_HEIGHT), metavar="WxH",
                    help="video size in pixels (default 1280x720)")
-    g.add_argument("--fps", type=_positive, default=DEFAULT_FPS, help="video frame rate (default 30)")
+    g.add_argument("--fps", type=_frame_rate, default=DEFAULT_FPS, help="video frame rate, up to 240 (default 30)")
     g.add_argument("--speedup", type=_positive, default=None,
                    help="run seconds per video second (default: the run's duration / 30 s, at least 1)")
     g.add_argument("--camera", default="top", help=CAMERAS_HELP + " (default top)")
-    g.add_argument("--workers", type=int, default=None, help="rendering processes (default: all cores)")
+    g.add_argument("--workers", type=_worker_count, default=None, help="rendering processes (default: all cores)")
     g.add_argument("--gl", choices=("auto", "egl", "osmesa", "glfw"), default=None,
                    help="OpenGL backend (default: $MUJOCO_GL, else EGL, else OSMesa)")
     g.add_argument("--shadows", action="store_true", help="draw shadows (about 2x slower on Mesa)")
@@ -548,6 +568,13 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
+    try:
+        from ..preflight import check_output_path
+
+        check_output_path(out, folder=False)
+    except ValueError as exc:
+        print(f"usv-mj render: error: {exc}", file=sys.stderr)
+        return 2
     try:
         result = render_run(record, out, progress=not args.no_progress, **video_options(args))
     except GLUnavailableError as exc:

@@ -40,6 +40,7 @@ from typing import Any
 from usv_mj.toml_values import coerce
 
 DRIFT_MODES = ("newman", "mean", "off")
+MAX_COMPONENTS = 4096  # wave components: each costs every step (128 by default; 4096 is ~30x slower)
 
 
 from usv_mj.errors import SeaSettingsError  # noqa: E402  (one error family: a ScenarioError)
@@ -186,8 +187,10 @@ class WaveSettings:
             raise SeaSettingsError(f"sea.waves.gamma must be >= 1 (1 = Pierson-Moskowitz), got {self.gamma!r}")
         if not isinstance(self.spreading, bool):
             raise SeaSettingsError(f"sea.waves.spreading must be true or false, got {self.spreading!r}")
-        if isinstance(self.components, bool) or not isinstance(self.components, int) or self.components < 1:
-            raise SeaSettingsError(f"sea.waves.components must be an integer >= 1, got {self.components!r}")
+        if isinstance(self.components, bool) or not isinstance(self.components, int) \
+                or not 1 <= self.components <= MAX_COMPONENTS:
+            raise SeaSettingsError(f"sea.waves.components must be an integer from 1 to {MAX_COMPONENTS}, "
+                                   f"got {self.components!r}")
         if self.drift not in DRIFT_MODES:
             raise SeaSettingsError(f"sea.waves.drift must be one of {DRIFT_MODES}, got {self.drift!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
@@ -382,7 +385,7 @@ def sea_preset_names() -> list[str]:
 def sea_preset_table(name: str) -> dict:
     """The raw ``[sea]`` table of a preset (to merge under a scenario's own ``[sea]`` keys)."""
     path = resources.files("usv_mj.sea.presets") / f"{name}.toml"
-    if not path.is_file():
+    if name not in sea_preset_names():  # a name, never a path
         raise SeaSettingsError(
             f"unknown sea preset {name!r}{_hint(name, sea_preset_names())}; "
             f"sea presets are {', '.join(sea_preset_names())}")

@@ -35,6 +35,8 @@ the capability search in :mod:`usv_mj.sweep.capability`.
 
 from __future__ import annotations
 
+from usv_mj.errors import ScenarioError
+
 import argparse
 
 from .spec import SweepError, SweepPlan, load_sweep, parse_path, plan_sweep
@@ -88,6 +90,9 @@ def run_command(args: argparse.Namespace) -> int:
 
         args.out = str(Path("renders") / f"sweep-{Path(args.sweep).stem}")
     try:
+        from ..preflight import check_output_path
+
+        check_output_path(args.out)
         plan = load_sweep(args.sweep)
         if args.workers is not None and args.workers < 1:
             raise SweepError(f"--workers must be >= 1, got {args.workers}")
@@ -101,7 +106,7 @@ def run_command(args: argparse.Namespace) -> int:
                            keep_logs=args.keep_logs, progress=not getattr(args, "no_progress", False),
                            max_runs=max_runs, jobqueue=getattr(args, "jobqueue", None),
                            jobs=getattr(args, "jobs", 1), retry_failed=getattr(args, "retry_failed", False))
-    except SweepError as exc:
+    except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj sweep: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

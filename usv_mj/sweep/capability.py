@@ -43,6 +43,8 @@ with its reason (exit code 2), where a diverged run counts as the funnel lost.
 
 from __future__ import annotations
 
+from usv_mj.errors import ScenarioError
+
 import argparse
 import json
 import math
@@ -410,13 +412,16 @@ def capability_command(args: argparse.Namespace) -> int:
 
         args.out = str(Path("renders") / f"capability-{args.load}")
     try:
+        from ..preflight import check_output_path
+
+        check_output_path(args.out)
         if args.workers is not None and args.workers < 1:
             raise SweepError(f"--workers must be >= 1, got {args.workers}")
         results = run_capability(args.load, base=args.base, duration=args.duration, plant=args.plant,
                                  step=args.step, load_min=args.load_min, load_max=args.load_max, tol=args.tol,
                                  out=args.out, scheduler=args.scheduler, workers=args.workers,
                                  progress=not args.no_progress)
-    except SweepError as exc:
+    except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj capability: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
