@@ -62,6 +62,16 @@ def run_command(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         print(f"usv-mj env: error: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
         return 2
+    if args.video:  # the video's size and file are checked before any episode runs
+        from usv_mj.preflight import check_output_path
+        from usv_mj.render.video import _check_size, parse_size
+
+        try:
+            _check_size(*parse_size(args.video_size))
+            check_output_path(args.video, "--video", folder=False)
+        except (ValueError, argparse.ArgumentTypeError) as exc:
+            print(f"usv-mj env: error: --video/--size: {exc}", file=sys.stderr)
+            return 2
     options = {"quantize": not args.no_quantize}
     if args.duration is not None:
         options["duration"] = args.duration
