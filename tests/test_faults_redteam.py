@@ -120,3 +120,11 @@ def test_sigterm_while_starting_up_exits_1_not_killed(tmp_path):
     assert proc.returncode in (0, 1), (proc.returncode, err)   # 0 only if the 1 s run beat the signal
     assert "Traceback" not in err, err
     assert not [p for p in tmp_path.rglob("*") if ".staging-" in p.name]
+
+
+def test_a_sweep_with_no_cluster_leaves_out_as_it_was(tmp_path, capsys):
+    out = tmp_path / "jq"
+    assert main(["sweep", str(ROOT / "examples/sweeps/quick.toml"), "--jobqueue", "nope", "-q",
+                 "--out", str(out)]) == 2
+    assert "unknown batch system" in capsys.readouterr().err
+    assert not out.exists()                      # so the corrected command is not refused

@@ -395,6 +395,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     """
     echo = echo or (lambda s: None)
     out = Path(out)
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     results = out / RESULTS_FILE
     rows: dict[int, dict] = {}
@@ -466,12 +467,26 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
             else:
                 with open_client(scheduler, workers, echo, jobqueue=jobqueue, jobs=n_jobs) as own:
                     gather_rows(own, tasks, on_row)
+        except SweepError:
+            if ran == 0:  # no cluster (a bad --jobqueue, a scheduler that does not answer): bad input,
+                state["dirty"] = False  # so --out stays as it was
+                if bar is not None:
+                    bar.close()
+                    bar = None
+                if created:
+                    import shutil
+
+                    shutil.rmtree(out, ignore_errors=True)
+                else:
+                    (out / "sweep.json").unlink(missing_ok=True)
+                state["no_cluster"] = True
+            raise
         except _StopAfter:
             echo(f"stopped after {ran} runs (max_runs); --resume runs the rest")
         finally:
             if bar is not None:
                 bar.close()
-            if state["dirty"] or not results.exists():
+            if not state.get("no_cluster") and (state["dirty"] or not results.exists()):
                 write_results(results, list(rows.values()), plan.paths, plan.fingerprint)
     elif not results.exists():
         write_results(results, [], plan.paths, plan.fingerprint)
