@@ -404,7 +404,8 @@ def _render_segments(plan, out, png, workers: RenderWorkers, encoder, fps, segme
     width, height = workers.kwargs["width"], workers.kwargs["height"]
     with workers.counter.get_lock():
         workers.counter.value = 0
-    with tempfile.TemporaryDirectory(prefix=".render-", dir=out.parent) as tmp:
+    _remove_dead_render_folders(out.parent)
+    with tempfile.TemporaryDirectory(prefix=f".render-{os.getpid()}-", dir=out.parent) as tmp:
         tasks = []
         for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
             seg = Path(tmp) / f"seg{i:05d}.mp4"
@@ -500,6 +501,20 @@ def _worker_count(text: str) -> int:
     if v < 1:
         raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
     return v
+
+
+def _remove_dead_render_folders(folder: Path) -> None:
+    """The segment folders (``.render-PID-*``) that a killed render left in ``folder``."""
+    import shutil
+
+    for p in folder.glob(".render-*-*"):
+        try:
+            pid = int(p.name.split("-")[1])
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            shutil.rmtree(p, ignore_errors=True)
+        except (ValueError, PermissionError, OSError):
+            continue
 
 
 def add_video_arguments(parser: argparse.ArgumentParser) -> None:
