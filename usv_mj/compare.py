@@ -52,7 +52,7 @@ plants' difference up to then are reported beside the whole-run maximum; the con
 (order 4 in the plants' difference) shows that the difference is truncation, not another model.
 In calm water the check is as before (``open_loop_position_below_1e-6_m`` over the whole run).
 
-Actuators (issue 18): the open loop's inputs go through the scenario's actuator model
+Actuators: the open loop's inputs go through the scenario's actuator model
 (:func:`realized_inputs`; nothing changes when they are unlimited), and a **saturated closed loop**
 (:func:`compare_closed_loop_saturated`) runs the scenario again on both plants with actuators that
 saturate (its own, or those of the ``paper-limited`` preset), at the closed-loop tolerance.
@@ -578,7 +578,7 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
         "closed_loop_saturated": saturated,
         "checks": checks,
         "passed": all(checks.values()),
-        "tolerance_note": "issue 3 asks for 1e-6 m (open loop) and 1e-3 m (closed loop) over 300 s at 1 ms",
+        "tolerance_note": "the tolerances: 1e-6 m (open loop) and 1e-3 m (closed loop) over 300 s at 1 ms",
         "wall_time_s": time.perf_counter() - wall0,
     }
     _say(progress, "plots")

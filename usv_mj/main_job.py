@@ -60,7 +60,7 @@ def progress_bar(total_s: float, desc: str, enabled: bool, dt: float):
 
 
 def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | None = None) -> dict:
-    """SPEC §5: run the first 20 s again at half the control period; how far do the errors at
+    """docs/model.md §5: run the first 20 s again at half the control period; how far do the errors at
     5 / 10 / 20 s move? (bound: 1 cm and 0.01 rad)."""
     horizon = max(CHECK_TIMES)
     dt = scenario.control_period
@@ -160,7 +160,7 @@ def _write_json(path: Path, data: dict) -> None:
         tmp.unlink(missing_ok=True)
 
 
-# --- endings: staging, signals, crashes (issue 15) ----------------------------------------------
+# --- endings: staging, signals, crashes ----------------------------------------------
 
 
 class RunFailed(RuntimeError):

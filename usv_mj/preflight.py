@@ -1,4 +1,4 @@
-"""Checks a run passes before anything is created (issue 15).
+"""Checks a run passes before anything is created.
 
 Every check raises :class:`usv_mj.scenario.ScenarioError` with one line that starts with the file or
 the flag it names, so that ``usv-mj run`` answers bad input with exit 2 and leaves ``--out`` exactly

@@ -1,4 +1,4 @@
-"""Scenarios: a preset plus overrides, as typed and validated parameters (SPEC §5 and §7).
+"""Scenarios: a preset plus overrides, as typed and validated parameters (docs/model.md §5 and §7).
 
 A scenario file is TOML::
 
@@ -81,7 +81,7 @@ class TrajectorySpec:
 
 @dataclass(frozen=True)
 class QuantizerSpec:
-    """The hysteresis quantizers of both input channels (Eq. 3, SPEC §2).
+    """The hysteresis quantizers of both input channels (Eq. 3, docs/model.md §2).
 
     Attributes
     ----------

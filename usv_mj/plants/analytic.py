@@ -35,7 +35,7 @@ def analytic_kernel(k, x, f_u, f_r, p, dp, sea, ep, waves, current_grid, wind_gr
 
 @PLANTS.register("analytic")
 class AnalyticPlant(PlantBase):
-    """RK4 integration of M nu_dot + C nu + D nu = tau + d(t) + Delta, eta_dot = J nu (SPEC §1).
+    """RK4 integration of M nu_dot + C nu + D nu = tau + d(t) + Delta, eta_dot = J nu (docs/model.md §1).
 
     Parameters
     ----------
@@ -46,7 +46,7 @@ class AnalyticPlant(PlantBase):
     substeps:
         RK4 steps per control period (>= 1).
     environment:
-        A :class:`usv_mj.sea.Environment` (waves, current, wind; SEA.md §1) or None for calm water.
+        A :class:`usv_mj.sea.Environment` (waves, current, wind; docs/sea.md §1) or None for calm water.
         Calm water takes the exact same kernels as before the sea existed (bit-identical runs).
     """
 

@@ -1,4 +1,4 @@
-"""The hydrodynamic passive-force callback of the MuJoCo plant (SPEC §1), native and Python.
+"""The hydrodynamic passive-force callback of the MuJoCo plant (docs/model.md §1), native and Python.
 
 MuJoCo carries the rigid body of :class:`usv_mj.ship.RigidBodySplit` (mass m, COM offset x_g, yaw
 inertia about the origin). This callback adds everything else of Eq. 2, so that the total is the
@@ -7,7 +7,7 @@ paper's ship:
     M_RB nu_dot + C_RB(nu) nu = tau + f_h,
     f_h = -M_A nu_dot - C_A(nu) nu - D(nu) nu + Delta(eta, nu) + d(t)           (body frame)
 
-with C_A = C - C_RB (C of SPEC §1 from :mod:`usv_mj.ship`, C_RB of the rigid body with COM offset
+with C_A = C - C_RB (C of docs/model.md §1 from :mod:`usv_mj.ship`, C_RB of the rigid body with COM offset
 x_g: C_RB nu = [-m (v + x_g r) r, m u r, m x_g u r]).
 
 Added mass is exact (no lag). With q = (x, y, psi) the joint coordinates, qvel = J(psi) nu and
@@ -22,7 +22,7 @@ matrix ``d.M`` and re-factors it (``mj_factorM``); the second joins the generali
     qfrc_passive += J(psi) (f_h' + M_A r [-v, u, 0]),   f_h' = d(t) + Delta - C nu - D nu + C_RB nu,
 
 where ``d + Delta - C nu - D nu`` is :func:`usv_mj.ship.hydrodynamic_force` (never re-written here).
-In a sea (SEA.md §6; ``d.userdata[U_SEA_ON]`` = 1) that term is :func:`usv_mj.sea.sea_force`,
+In a sea (docs/sea.md §6; ``d.userdata[U_SEA_ON]`` = 1) that term is :func:`usv_mj.sea.sea_force`,
 ``M nu_c_dot + tau_env + Delta + d - C(nu_r) nu_r - D(nu_r) nu_r``, on the four arrays of
 ``Environment.packed`` whose addresses and sizes the plant writes into ``d.userdata[U_SEA_*]`` (the
 plant keeps the arrays alive and rewrites the addresses whenever the environment's grids grow). The
@@ -76,7 +76,7 @@ U_P = U_MA + 9      # ShipParams.as_array() (N_SHIP_PARAMS)
 U_DP = U_P + N_SHIP_PARAMS  # PaperDisturbance.as_array() (N_DIST_PARAMS)
 U_CALLS = U_DP + N_DIST_PARAMS  # number of callback evaluations (diagnostic)
 U_SCRATCH = U_CALLS + 1  # 15 doubles of scratch space (eta, nu, qfrc, mass_add): no allocation per call
-# the sea (SEA.md §6): addresses and sizes of the four arrays of usv_mj.sea.Environment.packed,
+# the sea (docs/sea.md §6): addresses and sizes of the four arrays of usv_mj.sea.Environment.packed,
 # stored as doubles (addresses < 2^53 are exact); U_SEA_ON = 0 takes the calm path of today
 U_SEA_ON = U_SCRATCH + 15   # 1.0: call sea_force instead of hydrodynamic_force
 U_SEA_EP = U_SEA_ON + 1     # address of ep (N_ENV_PARAMS doubles)
@@ -156,7 +156,7 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
     ----------
     ud:
         ``d.userdata`` with the layout ``U_*`` (parameters of ship, disturbance and split; with
-        ``ud[U_SEA_ON]`` = 1 the addresses and sizes of the sea's packed arrays, SEA.md §6).
+        ``ud[U_SEA_ON]`` = 1 the addresses and sizes of the sea's packed arrays, docs/sea.md §6).
     t:
         Stage time [s]. ``qpos`` = (x, y, psi) [m, m, rad], ``qvel`` = (x_dot, y_dot, r) (world).
     qfrc:
@@ -185,14 +185,14 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
     p = ud[U_P:U_P + N_SHIP_PARAMS]
     dp = ud[U_DP:U_DP + N_DIST_PARAMS]
     if ud[U_SEA_ON] != 0.0:
-        # SEA.md §6: M nu_c_dot + tau_env + Delta + d - C(nu_r) nu_r - D(nu_r) nu_r
+        # docs/sea.md §6: M nu_c_dot + tau_env + Delta + d - C(nu_r) nu_r - D(nu_r) nu_r
         ep = carray(_f64_ptr(np.int64(ud[U_SEA_EP])), (N_ENV_PARAMS,))
         waves = carray(_f64_ptr(np.int64(ud[U_SEA_WAVES])), (N_WAVE_COLS, np.int64(ud[U_SEA_NWAVES])))
         cgrid = carray(_f64_ptr(np.int64(ud[U_SEA_CG])), (np.int64(ud[U_SEA_NCG]), 2))
         wgrid = carray(_f64_ptr(np.int64(ud[U_SEA_WG])), (np.int64(ud[U_SEA_NWG]), 1))
         f = sea_force(p, dp, ep, waves, cgrid, wgrid, t, eta, nu)
     else:
-        f = hydrodynamic_force(p, dp, t, eta, nu)  # d + Delta - C nu - D nu (SPEC §1)
+        f = hydrodynamic_force(p, dp, t, eta, nu)  # d + Delta - C nu - D nu (docs/model.md §1)
     m = ud[U_MASS]
     mxg = m * ud[U_XG]
     # + C_RB nu: MuJoCo's rigid body already produces it, so C_A nu = C nu - C_RB nu

@@ -3,7 +3,7 @@
 MuJoCo integrates the hull of ``models/usv.xml`` (joints x, y, yaw; RK4) with the rigid-body part
 of :class:`usv_mj.ship.RigidBodySplit`; the passive-force callback of
 :mod:`usv_mj.plants.mujoco_callback` adds the added mass (exactly, through the mass matrix), the
-Coriolis of the added mass, damping, the uncertainty Delta and the disturbance d(t) (SPEC §1). The
+Coriolis of the added mass, damping, the uncertainty Delta and the disturbance d(t) (docs/model.md §1). The
 thrust enters through the two body-frame motors "surge" [N] and "yaw" [N m] and is held over each
 control period (zero-order hold), exactly as in :class:`usv_mj.plants.analytic.AnalyticPlant`.
 
@@ -14,7 +14,7 @@ so any number of plants with different ships coexist; the Python callback (``cal
 a reference and fallback) looks plants up by their mjData address and hands mjData it does not
 know to the native callback.
 
-Sea state (SEA.md §6): with a non-calm :class:`usv_mj.sea.Environment` the callback's hydrodynamic
+Sea state (docs/sea.md §6): with a non-calm :class:`usv_mj.sea.Environment` the callback's hydrodynamic
 term becomes :func:`usv_mj.sea.sea_force` (current through nu_r in C and D, wave, drift and wind
 loads, M nu_c_dot); the C_RB nu and exact added-mass terms are as in calm water. Calm (None or a
 calm environment) takes exactly the path of before the sea existed (bit-identical runs).
@@ -121,7 +121,7 @@ def installed_callback() -> str | None:
 
 @PLANTS.register("mujoco", rangefinders=True)
 class MuJoCoPlant(PlantBase):
-    """The ship of SPEC §1 integrated by MuJoCo (RK4) with a hydrodynamic passive-force callback.
+    """The ship of docs/model.md §1 integrated by MuJoCo (RK4) with a hydrodynamic passive-force callback.
 
     Parameters
     ----------
@@ -148,7 +148,7 @@ class MuJoCoPlant(PlantBase):
         called from compiled code, state computed there) instead of the Python bindings; the
         result is identical, only faster.
     environment:
-        A :class:`usv_mj.sea.Environment` (waves, current, wind; SEA.md §1, §6) or None for calm
+        A :class:`usv_mj.sea.Environment` (waves, current, wind; docs/sea.md §1, §6) or None for calm
         water. The plant keeps it and its packed arrays alive, extends its OU grids ahead of the
         plant time (:data:`SEA_HORIZON_AHEAD_S`) and re-writes the arrays' addresses into
         ``d.userdata`` when they grow. A calm environment is treated as None.
@@ -290,7 +290,7 @@ class MuJoCoPlant(PlantBase):
         ud[mcb.U_MAGIC] = mcb.MAGIC
 
     def _write_sea(self, ud) -> None:
-        """Point the callback at the environment's packed arrays (SEA.md §6); calm: U_SEA_ON = 0."""
+        """Point the callback at the environment's packed arrays (docs/sea.md §6); calm: U_SEA_ON = 0."""
         env = self.environment
         if env is None:
             ud[mcb.U_SEA_ON:mcb.N_USERDATA] = 0.0

@@ -38,7 +38,7 @@ _worker_counter = None
 
 
 def _worker_init(env: dict, renderer_kwargs: dict, counter=None) -> None:
-    # A pool replaces a worker whose initializer raises, forever (issue 15): keep the worker alive and
+    # A pool replaces a worker whose initializer raises, forever: keep the worker alive and
     # hand the reason to the first task instead, which fails the render with it.
     global _worker_error
     try:

@@ -1,4 +1,4 @@
-"""Every run logged to MCAP (issue 5): a streaming writer, a reader, and ``usv-mj inspect``.
+"""Every run logged to MCAP: a streaming writer, a reader, and ``usv-mj inspect``.
 
 Public API::
 

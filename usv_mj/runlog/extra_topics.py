@@ -4,7 +4,7 @@ Both are laid out in bulk by the same numba kernel as the row topics (:class:`~u
 one message per control step, ``log_time`` = round(t * 1e9) ns, ``sequence`` = row index k, the same
 number conventions: shortest round-trip decimal, ``null`` = NaN, ``+-1e999`` = +-inf).
 
-``P/obstacles`` (issue 8; schema ``usv_mj.Obstacles``), when the run has an
+``P/obstacles`` (schema ``usv_mj.Obstacles``), when the run has an
 :class:`~usv_mj.obstacles.sink.ObstacleLog` (attached to the run's sink by
 :func:`usv_mj.obstacles.run.run_obstacle_scenario`)::
 
@@ -19,7 +19,7 @@ Foxglove: ``P/scene/obstacles`` (``foxglove.SceneUpdate``, entities "obstacle/NA
 :func:`usv_mj.obstacles.display.scene_entities`: cube / cylinder and the inflated boundary) at t = 0
 and every 10 s, and the moving obstacles again every 20 ms.
 
-``P/environment`` (issue 7, SEA.md §1; schema ``usv_mj.Environment``), when the scenario's sea is
+``P/environment`` (docs/sea.md §1; schema ``usv_mj.Environment``), when the scenario's sea is
 not calm::
 
     {"t": .., "zeta": .., "tau_wave": {"x", "y", "n"}, "tau_drift": {"x", "y", "n"},
@@ -73,7 +73,7 @@ OBSTACLES_SCHEMA = json.dumps({
 
 ENVIRONMENT_SCHEMA = json.dumps({
     "title": ENVIRONMENT_SCHEMA_NAME, "type": "object",
-    "description": "sea state at the hull at one control step (SEA.md §1; usv_mj.runlog.extra_topics)",
+    "description": "sea state at the hull at one control step (docs/sea.md §1; usv_mj.runlog.extra_topics)",
     "properties": {
         "t": {**_NUM, "description": "time [s]"},
         "zeta": {**_NUM, "description": "wave elevation at the hull origin [m]"},
@@ -142,7 +142,7 @@ def environment_layout(channel_id: int) -> TemplateLayout:
 def environment_block(env, rows: np.ndarray) -> np.ndarray:
     """(n, 15) block of :data:`ENVIRONMENT_FIELDS` for record rows (columns of :data:`usv_mj.record.COLUMNS`).
 
-    From the rows' (t, eta, nu) with ``env.loads_record`` and ``env.elevation`` (SEA.md §1);
+    From the rows' (t, eta, nu) with ``env.loads_record`` and ``env.elevation`` (docs/sea.md §1);
     current in the world frame = R(psi) nu_c. Rows with a non-finite t or state are NaN.
     """
     from ..sea import layout as lay

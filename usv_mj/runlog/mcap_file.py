@@ -362,7 +362,7 @@ class McapFileWriter:
         self._write_record(Header(profile=profile, library=library))
         self._checkpoint()
 
-    # faults (issue 15): a write that fails (disk full) cuts the file back to its last complete
+    # faults: a write that fails (disk full) cuts the file back to its last complete
     # record and closes it with a summary if there is room, so that it reads up to that record
     def _checkpoint(self):
         self._file.flush()

@@ -450,7 +450,7 @@ def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_l
                     _, _, m, width = cmd[3]
                     cmd = cmd[:3] + (ring[slot, :m * width].reshape(m, width),) + cmd[4:]
                 log.handle(cmd)
-            except OSError as exc:      # disk full, read-only: one line naming the file (issue 15)
+            except OSError as exc:      # disk full, read-only: one line naming the file
                 error = f"cannot write {path}: {exc.strerror or exc}; the log holds what was written before"
             except BaseException:
                 error = traceback.format_exc()

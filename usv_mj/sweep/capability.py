@@ -30,7 +30,7 @@ Loads
   :mod:`usv_mj.scenario` does not accept them stops with exit code 2 and says so), and a plant
   that takes the sea state. A load of 0 is calm whatever its direction: it is run once.
 
-Actuators (issue 18): a capability plot is by definition the limit that the thrusters set. With a
+Actuators: a capability plot is by definition the limit that the thrusters set. With a
 base whose ``[actuators]`` limit the force (``--base paper-limited``: twin thrusters of a 2 m USV)
 the search measures the vessel. With unlimited actuators (the ``paper`` presets) it measures only
 the control law's arithmetic, which can ask for any force: the search still runs, but the figure,
