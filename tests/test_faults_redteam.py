@@ -128,3 +128,23 @@ def test_a_sweep_with_no_cluster_leaves_out_as_it_was(tmp_path, capsys):
                  "--out", str(out)]) == 2
     assert "unknown batch system" in capsys.readouterr().err
     assert not out.exists()                      # so the corrected command is not refused
+
+
+def test_second_pass_findings(tmp_path, capsys):
+    """The second red-team pass: a bad value in the file that a flag replaces, a named pipe as an
+    input, outputs into the root or onto the input log; each is bad input in one line."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text("duration = -5.0\n")
+    assert main([*FAST, "--scenario", str(bad), "--out", str(tmp_path / "o")]) == 2   # --duration 1 hid it
+    one_line_error(capsys, "duration")
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    assert main([*FAST, "--scenario", str(fifo), "--out", str(tmp_path / "o")]) == 2   # used to hang
+    one_line_error(capsys, "not a regular file")
+    assert main(["inspect", str(fifo)]) == 2
+    one_line_error(capsys, "not a regular file")
+    assert main(["compare", "--duration", "1", "-q", "--out", "/"]) == 2
+    one_line_error(capsys, "root")
+    assert main(["env", "track", "--duration", "1", "--video", "/dev/null"]) == 2
+    one_line_error(capsys, ".mp4")
+    assert not (tmp_path / "o").exists()

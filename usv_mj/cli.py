@@ -105,11 +105,13 @@ def scenario_from_args(args):
     if getattr(args, "sea", None) is not None:
         overrides["sea"] = {"preset": args.sea}
     sets = _parse_set(args.set)
-    if sets:  # every --set value is checked, even one a flag below replaces
-        try:
-            load_scenario(args.scenario, preset=args.preset, overrides=_merge(overrides, sets))
-        except ScenarioError as exc:
-            raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
+    # every value of the file and of --set is checked, even one that a flag below replaces
+    try:
+        load_scenario(args.scenario, preset=args.preset, overrides=_merge(overrides, sets) or None)
+    except ScenarioError as exc:
+        if not sets:
+            raise
+        raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
     overrides = _merge(overrides, sets)
     if args.duration is not None:
         overrides["duration"] = args.duration
@@ -170,6 +172,11 @@ def _run_command(args) -> int:
         print(f"usv-mj run: {exc}", file=sys.stderr)
         return EXIT_STOPPED
     print(one_screen_summary(result, time.perf_counter() - t0))
+    if result.summary.get("job_stopped"):
+        print(f"usv-mj run: the job stopped early: {result.summary['job_stopped']}; missing outputs: "
+              f"{', '.join(result.summary.get('missing_outputs') or []) or 'none'}", file=sys.stderr)
+    elif result.summary["status"] != "completed":
+        print(f"usv-mj run: the run {result.summary['status']}: {result.summary.get('stop_reason')}", file=sys.stderr)
     if result.summary["status"] != "completed" or result.summary.get("job_stopped"):
         return EXIT_STOPPED
     return EXIT_OK
@@ -226,7 +233,7 @@ def _plot_command(args) -> int:
     if path.is_dir():
         path = path / "run.mcap"
     if not path.is_file():
-        raise ScenarioError(f"{path}: no such run log")
+        raise ScenarioError(f"{path}: no such run log" if not path.exists() else f"{path}: is not a regular file")
     try:
         log = read_run(path)
         record = log.record
@@ -235,6 +242,9 @@ def _plot_command(args) -> int:
     if len(record) == 0:
         raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot)")
     out = Path(args.out) if args.out else path.parent
+    from .preflight import check_output_path
+
+    check_output_path(out)
     out.mkdir(parents=True, exist_ok=True)
     draw_figures(log.record, out / "figures", log.baseline)
     summary = summarize(log.record)

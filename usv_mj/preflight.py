@@ -136,6 +136,10 @@ def check_output_path(out, flag: str = "--out", *, folder: bool = True) -> Path:
         raise ScenarioError(f"{flag} '': an empty path; name the output")
     out = Path(out)
     check_path_names(out, flag)
+    if folder and out.resolve() == Path(out.resolve().anchor):
+        raise ScenarioError(f"{flag} {out}: is the root folder; name a folder for the outputs")
+    if not folder and out.suffix.lower() != ".mp4":
+        raise ScenarioError(f"{flag} {out}: a video file ends in .mp4")
     if folder and out.exists() and not out.is_dir():
         raise ScenarioError(f"{flag} {out}: is a file, not a folder")
     if not folder and out.is_dir():

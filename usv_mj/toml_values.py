@@ -16,6 +16,8 @@ from typing import Any
 def read_toml(path: str | Path, error: type[Exception], what: str = "file") -> dict:
     """The table of a TOML file; a missing file or bad TOML raises ``error`` naming the path."""
     path = Path(path)
+    if path.exists() and not path.is_file():  # a folder, a named pipe (reading one would wait forever)
+        raise error(f"{path}: is not a regular file; name a TOML file")
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:

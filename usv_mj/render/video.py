@@ -273,6 +273,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
     if out.suffix.lower() != ".mp4":
         out = out / "run.mp4"
     out.parent.mkdir(parents=True, exist_ok=True)
+    _remove_dead_render_folders(out.parent)
     png = out.with_suffix(".png")
     kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
                   shadows=shadows, samples=samples)
@@ -404,7 +405,6 @@ def _render_segments(plan, out, png, workers: RenderWorkers, encoder, fps, segme
     width, height = workers.kwargs["width"], workers.kwargs["height"]
     with workers.counter.get_lock():
         workers.counter.value = 0
-    _remove_dead_render_folders(out.parent)
     with tempfile.TemporaryDirectory(prefix=f".render-{os.getpid()}-", dir=out.parent) as tmp:
         tasks = []
         for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):

@@ -32,6 +32,9 @@ def inspect_command(args) -> int:
     path = Path(args.run)
     if path.is_dir() and (path / "run.mcap").is_file():
         path = path / "run.mcap"
+    if path.exists() and not path.is_file():  # a folder without run.mcap, a named pipe
+        print(f"usv-mj inspect: error: {path}: is not a regular file (a run log .mcap)", file=sys.stderr)
+        return 2
     try:
         info = scan_summary(path)
     except RunLogReadError as exc:
