@@ -387,5 +387,19 @@ def main(argv: list[str] | None = None) -> int:
         raise
 
 
+def entry() -> int:
+    """The program ``usv-mj``: :func:`main`, then the exit with every signal ignored, so that a
+    Ctrl-C during the interpreter's clean-up (worker pools, the log writer) cannot turn the
+    documented exit code into a death by the signal."""
+    try:
+        code = main()
+    except KeyboardInterrupt:  # outside any command's own handling
+        print("usv-mj: interrupted", file=sys.stderr)
+        code = EXIT_STOPPED
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_IGN)
+    return code
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(entry())

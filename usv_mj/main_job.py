@@ -237,14 +237,30 @@ class _Signals:
         raise (KeyboardInterrupt if name == "Ctrl-C" else Terminated)(name)
 
     def __enter__(self):
+        import sys
+
         if self.active:
             for sig in (self.signal.SIGINT, self.signal.SIGTERM, self.signal.SIGHUP):
                 self._old[sig] = self.signal.signal(sig, self._raise)
+            # a signal that lands inside a weakref callback or a __del__ cannot propagate: Python
+            # would print "Exception ignored in ..." with a traceback. Keep it quiet; the signal is
+            # in self.received and the job stops at its next check.
+            self._old_hook = sys.unraisablehook
+
+            def hook(unraisable, previous=self._old_hook):
+                if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+                    previous(unraisable)
+
+            sys.unraisablehook = hook
         return self
 
     def __exit__(self, *exc):
+        import sys
+
         for sig, handler in self._old.items():
             self.signal.signal(sig, handler)
+        if self._old:
+            sys.unraisablehook = self._old_hook
         self._old = {}
         return False
 
