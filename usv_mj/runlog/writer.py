@@ -750,6 +750,8 @@ class RunLogSink:
             "inflation": inflation, "obstacle_log": log is not None}))
 
     def rows(self, record: RunRecord, lo: int, hi: int) -> None:
+        if lo < self._rows:  # rows it already has: the loop resends a block that an interrupt cut
+            lo = min(self._rows, hi)  # after this sink took it (simulation._Flusher)
         if hi <= lo:
             return
         if lo != self._rows:
