@@ -399,6 +399,20 @@ def native_callback():
 
 
 @njit(cache=True)
+def plant_state(qpos, qvel):
+    """(x, y, psi, u, v, r) from the joints: qvel holds the world-frame (x_dot, y_dot, r); the body
+    velocities are that rotated by -psi (the one place the plant's state is read off MuJoCo)."""
+    psi = qpos[2]
+    c, s = math.cos(psi), math.sin(psi)
+    out = np.empty(6)
+    out[0], out[1], out[2] = qpos[0], qpos[1], psi
+    out[3] = c * qvel[0] + s * qvel[1]
+    out[4] = -s * qvel[0] + c * qvel[1]
+    out[5] = qvel[2]
+    return out
+
+
+@njit(cache=True)
 def mujoco_kernel(k, x, f_u, f_r, m_addr, d_addr, t0, dt, nsub, o_time, o_qpos, o_qvel, o_ctrl, o_ud, n_words,
                   mj_step_address):
     """:meth:`MuJoCoPlant.step` natively (usv_mj.kernels): the k-th step, from t0 + k dt.
@@ -416,16 +430,8 @@ def mujoco_kernel(k, x, f_u, f_r, m_addr, d_addr, t0, dt, nsub, o_time, o_qpos, 
     dd[o_time] = t
     for _ in range(nsub):
         _call_model_data(mj_step_address, m_addr, d_addr)
-    qpos = carray(_f64_ptr(dw[o_qpos]), (3,))
-    qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
     ud = carray(_f64_ptr(dw[o_ud]), (N_USERDATA,))
-    psi = qpos[2]
-    c, s = math.cos(psi), math.sin(psi)
-    out = np.empty(6)
-    out[0], out[1], out[2] = qpos[0], qpos[1], psi
-    out[3] = c * qvel[0] + s * qvel[1]
-    out[4] = -s * qvel[0] + c * qvel[1]
-    out[5] = qvel[2]
+    out = plant_state(carray(_f64_ptr(dw[o_qpos]), (3,)), carray(_f64_ptr(dw[o_qvel]), (3,)))
     failed = ud[U_STATUS] != 0.0 or not dd[o_time] > t
     return out, failed
 
@@ -477,16 +483,8 @@ def native_stepper():
         dd[o_time] = t
         for _ in range(nsub):
             mj_step(m_addr, d_addr)
-        qpos = carray(_f64_ptr(dw[o_qpos]), (3,))
-        qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
         ud = carray(_f64_ptr(dw[o_ud]), (n_ud,))
-        psi = qpos[2]
-        c, s = math.cos(psi), math.sin(psi)
-        x = np.empty(6)
-        x[0], x[1], x[2] = qpos[0], qpos[1], psi
-        x[3] = c * qvel[0] + s * qvel[1]
-        x[4] = -s * qvel[0] + c * qvel[1]
-        x[5] = qvel[2]
+        x = plant_state(carray(_f64_ptr(dw[o_qpos]), (3,)), carray(_f64_ptr(dw[o_qvel]), (3,)))
         failed = ud[u_status] != 0.0 or not dd[o_time] > t
         return x, failed
 
