@@ -417,10 +417,7 @@ class MuJoCoPlant(PlantBase):
         """
         if self._x is not None:
             return self._x
-        q, qd = self._qpos, self._qvel
-        psi = q[2]
-        c, s = math.cos(psi), math.sin(psi)
-        return np.array((q[0], q[1], psi, c * qd[0] + s * qd[1], -s * qd[0] + c * qd[1], qd[2]))
+        return mcb.plant_state(self._qpos, self._qvel)
 
     def body_acceleration(self, tau_u: float | None = None, tau_r: float | None = None) -> np.ndarray:
         """MuJoCo's body-frame acceleration nu_dot [m/s^2, m/s^2, rad/s^2] at the current state.
