@@ -255,67 +255,96 @@ def damping_matrix(p, nu):
 
 
 @njit(cache=True)
-def uncertainty_force(p, eta, nu):
-    """Model uncertainty Delta(eta, nu) = s [0.6, 0.2 u^2, sin v + 0.15 r^2] (Sec. 4), body frame."""
-    s = p[P_UNCERTAINTY]
+def _array3(f):
+    """A 3-tuple as a new array (the array-returning faces of the tuple kernels below)."""
     out = np.empty(3)
-    out[0] = s * 0.6
-    out[1] = s * 0.2 * nu[0] * nu[0]
-    out[2] = s * (math.sin(nu[1]) + 0.15 * nu[2] * nu[2])
+    out[0], out[1], out[2] = f[0], f[1], f[2]
     return out
+
+
+# The kernels on the hot path return 3-tuples (values in registers, no heap allocation: an RK4 step
+# calls them four times); each has an array-returning face for Python and the tests.
+
+@njit(cache=True)
+def uncertainty_terms(p, eta, nu):
+    """Model uncertainty Delta(eta, nu) = s [0.6, 0.2 u^2, sin v + 0.15 r^2] (Sec. 4), body frame, a 3-tuple."""
+    s = p[P_UNCERTAINTY]
+    return s * 0.6, s * 0.2 * nu[0] * nu[0], s * (math.sin(nu[1]) + 0.15 * nu[2] * nu[2])
+
+
+@njit(cache=True)
+def uncertainty_force(p, eta, nu):
+    """:func:`uncertainty_terms` as an array."""
+    return _array3(uncertainty_terms(p, eta, nu))
+
+
+@njit(cache=True)
+def disturbance_terms(dp, t):
+    """The paper's disturbance d(t) (Sec. 4) times its scale, body frame [N, N, N m], a 3-tuple:
+    d_i = s a_i (cos(wc_i t) + sin(ws_i t))."""
+    s = dp[D_SCALE]
+    return (s * dp[D_AMP] * (math.cos(dp[D_WCOS] * t) + math.sin(dp[D_WSIN] * t)),
+            s * dp[D_AMP + 1] * (math.cos(dp[D_WCOS + 1] * t) + math.sin(dp[D_WSIN + 1] * t)),
+            s * dp[D_AMP + 2] * (math.cos(dp[D_WCOS + 2] * t) + math.sin(dp[D_WSIN + 2] * t)))
 
 
 @njit(cache=True)
 def disturbance_force(dp, t):
-    """The paper's disturbance d(t) (Sec. 4) times its scale, body frame [N, N, N m]."""
-    out = np.empty(3)
-    s = dp[D_SCALE]
-    for i in range(3):
-        out[i] = s * dp[D_AMP + i] * (math.cos(dp[D_WCOS + i] * t) + math.sin(dp[D_WSIN + i] * t))
-    return out
+    """:func:`disturbance_terms` as an array."""
+    return _array3(disturbance_terms(dp, t))
+
+
+@njit(cache=True)
+def coriolis_damping_terms(p, nu):
+    """C(nu) nu + D(nu) nu in the body frame, written out (no matrix products), a 3-tuple."""
+    u, v, r = nu[0], nu[1], nu[2]
+    d11, d22, d23, d32, d33 = damping_coefficients(p, nu)
+    c13, c23 = coriolis_terms(p, nu)
+    return c13 * r + d11 * u, c23 * r + d22 * v + d23 * r, -c13 * u - c23 * v + d32 * v + d33 * r
 
 
 @njit(cache=True)
 def coriolis_damping_force(p, nu):
-    """C(nu) nu + D(nu) nu in the body frame, written out (no matrix products) for speed."""
-    u, v, r = nu[0], nu[1], nu[2]
-    d11, d22, d23, d32, d33 = damping_coefficients(p, nu)
-    c13, c23 = coriolis_terms(p, nu)
-    out = np.empty(3)
-    out[0] = c13 * r + d11 * u
-    out[1] = c23 * r + d22 * v + d23 * r
-    out[2] = -c13 * u - c23 * v + d32 * v + d33 * r
-    return out
+    """:func:`coriolis_damping_terms` as an array."""
+    return _array3(coriolis_damping_terms(p, nu))
 
 
 @njit(cache=True)
-def hull_force(p, dp, t, eta, nu, nu_r):
-    """d(t) + Delta(eta, nu) - C(nu_r) nu_r - D(nu_r) nu_r, body frame [N, N, N m].
+def hull_terms(p, dp, t, eta, nu, nu_r):
+    """d(t) + Delta(eta, nu) - C(nu_r) nu_r - D(nu_r) nu_r, body frame [N, N, N m], a 3-tuple.
 
     The one force of the hull: ``nu_r`` is the velocity relative to the water (docs/sea.md §1: it enters
     the whole C and all damping), ``nu`` the absolute one (Delta). In calm water nu_r = nu
     (:func:`hydrodynamic_force`); :func:`usv_mj.sea.sea_force` adds the sea's loads to it."""
-    cd = coriolis_damping_force(p, nu_r)
-    dist = disturbance_force(dp, t)
-    unc = uncertainty_force(p, eta, nu)
-    return dist + unc - cd
+    c0, c1, c2 = coriolis_damping_terms(p, nu_r)
+    d0, d1, d2 = disturbance_terms(dp, t)
+    u0, u1, u2 = uncertainty_terms(p, eta, nu)
+    return d0 + u0 - c0, d1 + u1 - c1, d2 + u2 - c2
+
+
+@njit(cache=True)
+def hull_force(p, dp, t, eta, nu, nu_r):
+    """:func:`hull_terms` as an array."""
+    return _array3(hull_terms(p, dp, t, eta, nu, nu_r))
 
 
 @njit(cache=True)
 def hydrodynamic_force(p, dp, t, eta, nu):
     """Everything on the hull but the thrust: d(t) + Delta - C(nu) nu - D(nu) nu (Eq. 2), body frame."""
-    return hull_force(p, dp, t, eta, nu, nu)
+    return _array3(hull_terms(p, dp, t, eta, nu, nu))
+
+
+@njit(cache=True)
+def mass_solve_terms(p, f0, f1, f2):
+    """M^-1 f for the block-diagonal M of Eq. 2 (closed form), a 3-tuple."""
+    det = p[P_M22] * p[P_M33] - p[P_M23] * p[P_M23]
+    return f0 / p[P_M11], (p[P_M33] * f1 - p[P_M23] * f2) / det, (p[P_M22] * f2 - p[P_M23] * f1) / det
 
 
 @njit(cache=True)
 def solve_mass(p, f):
-    """M^-1 f for the block-diagonal M of Eq. 2 (closed form)."""
-    det = p[P_M22] * p[P_M33] - p[P_M23] * p[P_M23]
-    out = np.empty(3)
-    out[0] = f[0] / p[P_M11]
-    out[1] = (p[P_M33] * f[1] - p[P_M23] * f[2]) / det
-    out[2] = (p[P_M22] * f[2] - p[P_M23] * f[1]) / det
-    return out
+    """:func:`mass_solve_terms` of an array f, as an array."""
+    return _array3(mass_solve_terms(p, f[0], f[1], f[2]))
 
 
 @njit(cache=True)
@@ -330,6 +359,19 @@ def thrust_acceleration(p, f, tau_u, tau_r):
 def body_acceleration(p, dp, t, eta, nu, tau_u, tau_r):
     """nu_dot = M^-1 ([tau_u, 0, tau_r] + d(t) + Delta - C nu - D nu) (Eq. 2)."""
     return thrust_acceleration(p, hydrodynamic_force(p, dp, t, eta, nu), tau_u, tau_r)
+
+
+@njit(cache=True)
+def derivative_into(out, p, x, f0, f1, f2, tau_u, tau_r):
+    """out = d/dt of x = (eta, nu) given the non-thrust body force (f0, f1, f2): (J(psi) nu,
+    M^-1 (f + [tau_u, 0, tau_r])) (Eqs. 1-2). The one assembly of the state derivative."""
+    a0, a1, a2 = mass_solve_terms(p, f0 + tau_u, f1, f2 + tau_r)
+    c, s = math.cos(x[2]), math.sin(x[2])
+    out[0] = c * x[3] - s * x[4]
+    out[1] = s * x[3] + c * x[4]
+    out[2] = x[5]
+    out[3], out[4], out[5] = a0, a1, a2
+    return out
 
 
 @njit(cache=True)
@@ -355,7 +397,8 @@ def stack_derivative(x, nu_dot):
 @njit(cache=True)
 def state_derivative(p, dp, t, x, tau_u, tau_r):
     """d/dt of the 6-vector x = (eta, nu) under the thrust (tau_u, tau_r), calm water."""
-    return stack_derivative(x, body_acceleration(p, dp, t, x[:3], x[3:], tau_u, tau_r))
+    f0, f1, f2 = hull_terms(p, dp, t, x[:3], x[3:], x[3:])
+    return derivative_into(np.empty(6), p, x, f0, f1, f2, tau_u, tau_r)
 
 
 @njit(cache=True)
@@ -369,9 +412,9 @@ def nominal_terms(p, nu):
     phi_v = -(m11 u r + d22 v + d23 r)/m22 and phi_r = [(m11 m22 - m22^2) u v + (m11 - m22) m23 u r
     - m22 (d33 r + d32 v) + m23 (d23 r + d22 v)] / (m22 m33 - m23^2).
     """
-    f = -coriolis_damping_force(p, nu)
-    a = solve_mass(p, f)
-    return a[0], f[1] / p[P_M22], a[2]
+    c0, c1, c2 = coriolis_damping_terms(p, nu)
+    a0, _, a2 = mass_solve_terms(p, -c0, -c1, -c2)
+    return a0, -c1 / p[P_M22], a2
 
 
 def kinetic_energy(ship: ShipParams, nu) -> float:

@@ -64,6 +64,7 @@ class AnalyticPlant(PlantBase):
         self.substeps = int(substeps)
         self._h = self.control_period / self.substeps
         self._x = np.zeros(6)
+        self._t0 = 0.0
         self._t = 0.0
         self._k = 0
         self.environment = environment if environment is not None and not environment.calm else None

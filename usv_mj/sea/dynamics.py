@@ -22,8 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from usv_mj.ship import (P_M11, P_M22, P_M23, P_M33, hull_force, hydrodynamic_force, stack_derivative,
-                         state_derivative, thrust_acceleration)
+from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, derivative_into, hull_terms, thrust_acceleration
 
 from .environment import environment_loads
 from .layout import (E_CURRENT_ON, E_WAVES_ON, E_WIND_ON, L_DRIFT, L_NU_C, L_NU_C_DOT, L_WAVE1,
@@ -37,28 +36,37 @@ def is_calm(ep):
 
 
 @njit(cache=True)
-def sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
-    """Everything on the hull but the thrust, body frame [N, N, N m] (docs/sea.md §1):
+def sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
+    """Everything on the hull but the thrust, body frame [N, N, N m] (docs/sea.md §1), a 3-tuple:
 
     f = M nu_c_dot + tau_env + Delta(eta, nu) + d(t) - C(nu_r) nu_r - D(nu_r) nu_r.
 
     For the MuJoCo callback (docs/sea.md §6): f_callback = -M_A nu_dot + f + C_RB(nu) nu.
-    In a calm environment this is usv_mj.ship.hydrodynamic_force itself.
+    In a calm environment this is usv_mj.ship.hull_terms with nu_r = nu (the sea's terms absent).
     """
     if is_calm(ep):
-        return hydrodynamic_force(p, dp, t, eta, nu)
+        return hull_terms(p, dp, t, eta, nu, nu)
     env = environment_loads(ep, waves, current_grid, wind_grid, t, eta, nu)
     nu_r = np.empty(3)
     for i in range(3):
         nu_r[i] = nu[i] - env[L_NU_C + i]
-    f = hull_force(p, dp, t, eta, nu, nu_r)
+    f0, f1, f2 = hull_terms(p, dp, t, eta, nu, nu_r)
     a0 = env[L_NU_C_DOT]
     a1 = env[L_NU_C_DOT + 1]
     a2 = env[L_NU_C_DOT + 2]
-    m_a = (p[P_M11] * a0, p[P_M22] * a1 + p[P_M23] * a2, p[P_M23] * a1 + p[P_M33] * a2)
-    for i in range(3):
-        f[i] = f[i] + (m_a[i] + (env[L_WIND + i] + env[L_WAVE1 + i] + env[L_DRIFT + i]))
-    return f
+    m_a0, m_a1, m_a2 = p[P_M11] * a0, p[P_M22] * a1 + p[P_M23] * a2, p[P_M23] * a1 + p[P_M33] * a2
+    return (f0 + (m_a0 + (env[L_WIND] + env[L_WAVE1] + env[L_DRIFT])),
+            f1 + (m_a1 + (env[L_WIND + 1] + env[L_WAVE1 + 1] + env[L_DRIFT + 1])),
+            f2 + (m_a2 + (env[L_WIND + 2] + env[L_WAVE1 + 2] + env[L_DRIFT + 2])))
+
+
+@njit(cache=True)
+def sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
+    """:func:`sea_terms` as an array; in a calm environment usv_mj.ship.hydrodynamic_force itself."""
+    f0, f1, f2 = sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu)
+    out = np.empty(3)
+    out[0], out[1], out[2] = f0, f1, f2
+    return out
 
 
 @njit(cache=True)
@@ -68,36 +76,58 @@ def sea_body_acceleration(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu,
 
 
 @njit(cache=True)
+def sea_derivative_into(out, p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r):
+    """out = d/dt of x = (x, y, psi, u, v, r) with the sea (usv_mj.ship.derivative_into of sea_terms)."""
+    f0, f1, f2 = sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, x[:3], x[3:])
+    return derivative_into(out, p, x, f0, f1, f2, tau_u, tau_r)
+
+
+@njit(cache=True)
 def sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r):
     """d/dt of x = (x, y, psi, u, v, r) with the sea; calm: equal to usv_mj.ship.state_derivative."""
-    if is_calm(ep):
-        return state_derivative(p, dp, t, x, tau_u, tau_r)  # calm: the sea's terms absent
-    return stack_derivative(x, sea_body_acceleration(p, dp, ep, waves, current_grid, wind_grid, t, x[:3], x[3:],
-                                                     tau_u, tau_r))
+    return sea_derivative_into(np.empty(6), p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r)
 
 
 @njit(cache=True)
 def sea_rk4_advance(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r, h, n):
     """``n`` classic RK4 steps of size ``h`` from (t, x) under constant thrust, the sea evaluated at
-    the stage times; returns the new x. The one RK4 step: calm water is :func:`calm_rk4_advance`."""
+    the stage times; returns the new x. The one RK4 step: calm water is :func:`calm_rk4_advance`.
+
+    x_{n+1} = x_n + h/6 (k1 + 2 k2 + 2 k3 + k4), the stages in one work array (no allocation per stage)."""
+    w = np.empty((6, 6))  # rows: k1, k2, k3, k4, the stage state, the new state
+    k1, k2, k3, k4, xs, xn = w[0], w[1], w[2], w[3], w[4], w[5]
+    for i in range(6):
+        xn[i] = x[i]
+    half = 0.5 * h
+    sixth = h / 6.0
     for _ in range(n):
-        k1 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r)
-        k2 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t + 0.5 * h, x + 0.5 * h * k1,
-                                  tau_u, tau_r)
-        k3 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t + 0.5 * h, x + 0.5 * h * k2,
-                                  tau_u, tau_r)
-        k4 = sea_state_derivative(p, dp, ep, waves, current_grid, wind_grid, t + h, x + h * k3, tau_u, tau_r)
-        x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        sea_derivative_into(k1, p, dp, ep, waves, current_grid, wind_grid, t, xn, tau_u, tau_r)
+        for i in range(6):
+            xs[i] = xn[i] + half * k1[i]
+        sea_derivative_into(k2, p, dp, ep, waves, current_grid, wind_grid, t + 0.5 * h, xs, tau_u, tau_r)
+        for i in range(6):
+            xs[i] = xn[i] + half * k2[i]
+        sea_derivative_into(k3, p, dp, ep, waves, current_grid, wind_grid, t + 0.5 * h, xs, tau_u, tau_r)
+        for i in range(6):
+            xs[i] = xn[i] + h * k3[i]
+        sea_derivative_into(k4, p, dp, ep, waves, current_grid, wind_grid, t + h, xs, tau_u, tau_r)
+        for i in range(6):
+            xn[i] = xn[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
         t = t + h
-    return x
+    return xn.copy()
+
+
+_CALM_EP = np.zeros(N_ENV_PARAMS)
+_CALM_WAVES = np.zeros((N_WAVE_COLS, 0))
+_CALM_CURRENT = np.zeros((0, 2))
+_CALM_WIND = np.zeros((0, 1))
 
 
 @njit(cache=True)
 def calm_rk4_advance(p, dp, t, x, tau_u, tau_r, h, n):
     """:func:`sea_rk4_advance` in calm water (no waves, current or wind: every switch of ``ep`` off),
     i.e. RK4 of :func:`usv_mj.ship.state_derivative`, bit for bit."""
-    return sea_rk4_advance(p, dp, np.zeros(N_ENV_PARAMS), np.zeros((N_WAVE_COLS, 0)), np.zeros((0, 2)),
-                           np.zeros((0, 1)), t, x, tau_u, tau_r, h, n)
+    return sea_rk4_advance(p, dp, _CALM_EP, _CALM_WAVES, _CALM_CURRENT, _CALM_WIND, t, x, tau_u, tau_r, h, n)
 
 
 @njit(cache=True)

@@ -183,7 +183,7 @@ def ramp_factor(ramp_time, t):
 
 # fast-math flags that keep NaN/inf semantics: reassociation lets the sums vectorise. Not on
 # fast_sincos: reassociating its Cody-Waite reduction would lose the exact x - q pi/2.
-_FAST = {"reassoc", "contract", "nsz", "arcp"}
+_FAST = {"nsz", "arcp"}
 # Cody-Waite split of pi/2 in three parts (fdlibm pio2_1, pio2_2, pio2_2t; 33 + 33 + 53 bits)
 _PIO2_1 = 1.5707963267341256
 _PIO2_2 = 6.077100506303966e-11
