@@ -471,6 +471,75 @@ def test_gymnasium_render_shows_the_water():
         g.close()
 
 
+_PHYSICS_RENDER = r"""
+import sys
+import numpy as np
+from usv_mj import envs
+out = sys.argv[1]
+env = envs.load("track_waves", seed=0, duration=0.5)
+env.reset()
+env.step(np.zeros(2))
+np.save(out + "/physics.npy", env.physics.render())          # dm_control's defaults: 240 x 320, camera -1
+np.save(out + "/chase.npy", env.physics.render(90, 160, camera_id=0))
+try:
+    env.physics.render(depth=True)
+except ValueError as exc:
+    open(out + "/depth.txt", "w").write(str(exc))
+env.close()
+from shimmy.dm_control_compatibility import DmControlCompatibilityV0
+g = DmControlCompatibilityV0(envs.load("track", seed=0, duration=0.5), render_mode="rgb_array")
+g.reset(seed=0)
+np.save(out + "/shimmy.npy", g.render())
+g.close()
+"""
+
+
+def _share_of_colour(frame, rgb, max_deg=10.0, min_brightness=0.6):
+    """The share of pixels within max_deg of the colour rgb (0..1) in direction and at least
+    min_brightness times as bright: the sea as the renderer lights it."""
+    px = frame.reshape(-1, 3).astype(float)
+    ref = np.asarray(rgb[:3], float) * 255.0
+    norm = np.linalg.norm(px, axis=1)
+    cos = px @ ref / np.maximum(norm, 1e-9) / np.linalg.norm(ref)
+    return float(np.mean((cos > math.cos(math.radians(max_deg))) & (norm > min_brightness * np.linalg.norm(ref))))
+
+
+def test_physics_render_shows_the_water_headless_without_mujoco_gl(tmp_path):
+    """dm_control's physics.render() (what shimmy and dm_control's tools call) draws through the
+    project's renderer with the GL choice of usv-mj run, in a process that has no MUJOCO_GL (as a
+    user's would): the sea of track_waves (the renderer's wave-surface colour) and, through shimmy's
+    DmControlCompatibilityV0, the calm water of track (the water texture of models/scene.xml)."""
+    import os
+    import subprocess
+    import sys
+    import xml.etree.ElementTree as ET
+    from pathlib import Path
+
+    pytest.importorskip("shimmy")
+    from usv_mj.render.gl_backend import GLUnavailableError, select_backend
+
+    try:
+        select_backend()
+    except GLUnavailableError as exc:
+        pytest.skip(str(exc).splitlines()[0])
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    proc = subprocess.run([sys.executable, "-c", _PHYSICS_RENDER, str(tmp_path)], env=env, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    from usv_mj.render.replay import SEA_RGBA
+
+    frame = np.load(tmp_path / "physics.npy")
+    assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
+    assert _share_of_colour(frame, SEA_RGBA) > 0.5
+    assert np.load(tmp_path / "chase.npy").shape == (90, 160, 3)
+    assert "depth=True is not supported" in (tmp_path / "depth.txt").read_text()
+    scene = ET.parse(Path(__file__).resolve().parents[1] / "models" / "scene.xml")
+    water = next(t for t in scene.iter("texture") if t.get("name") == "water")
+    calm = np.load(tmp_path / "shimmy.npy")
+    assert calm.shape == (240, 320, 3) and calm.dtype == np.uint8
+    assert _share_of_colour(calm, [float(v) for v in water.get("rgb1").split()]) > 0.5
+
+
 def test_stable_baselines3_ppo_takes_the_gymnasium_view_as_is():
     """No wrapper: PPO("MlpPolicy", gymnasium.make(id)) builds and runs (stable-baselines3 optional)."""
     gym = pytest.importorskip("gymnasium")

@@ -282,7 +282,7 @@ _DESCRIPTIONS = {
     "inspect": "Say what a run log (.mcap) holds: its runs, topics, message counts, duration, status and\n"
                "metadata, and whether the file is complete. --json prints the same as one JSON object.",
     "render": "Draw the video of a recorded run again from its run.mcap alone: another size, frame rate,\n"
-              "speed-up or camera (top, chase, overview). Writes video.mp4 and video.png.",
+              "speed-up or camera (top, chase, overview, chart). Writes video.mp4 and video.png.",
     "sweep": "Run many variations of one scenario (a sweep file: a base scenario and what varies, by dotted\n"
              "path such as initial.eta[0] or sea.current.speed) on a Dask cluster, local by default.\n"
              "Results stream into results.parquet; report.md gives the rate of runs that kept the funnel.\n"

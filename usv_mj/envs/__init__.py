@@ -40,7 +40,10 @@ rangefinders are an option of the composed scene), so a policy sees exactly what
 --plant mujoco`` integrates, with the same hydrodynamic callback and sea;
 :class:`usv_mj.envs.physics.USVPhysics` is a ``dm_control.mujoco.Physics`` over the plant's own
 mjModel/mjData. Close environments with ``env.close()`` (the plant unmarks its mjData; the global
-callback goes with the last plant).
+callback goes with the last plant). Pictures: ``env.physics.render()`` (dm_control's signature,
+what shimmy's ``DmControlCompatibilityV0`` calls), ``env.render_frame()`` and the Gymnasium view's
+``render()`` all draw through the project's renderer (:mod:`usv_mj.envs.rendering`), headless, with
+the water.
 
 A Gymnasium view: :func:`gym_env`, and the ids of :data:`GYM_IDS` (``usv_mj/Track-v0``,
 ``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``, ``usv_mj/HarborWaves-v0``), registered when this

@@ -7,6 +7,7 @@ import collections
 import dataclasses
 import math
 import warnings
+import weakref
 
 import numpy as np
 
@@ -40,15 +41,24 @@ class USVEnvironment(control.Environment):
 
     With ``flat_observation=True`` the observation is one float64 vector ``observations``: the
     task's observations flattened and concatenated in :meth:`TrackTask.observation_shapes` order
-    (:meth:`observation_layout` gives each one's slice and shape)."""
+    (:meth:`observation_layout` gives each one's slice and shape).
+
+    It keeps the last :data:`usv_mj.envs.rendering.HISTORY_ROWS` steps of the episode (time, state,
+    reference, action, thrust: :meth:`history`) for its pictures: :meth:`render_frame`, which its
+    physics' ``render()`` and the Gymnasium view's ``render()`` draw through."""
 
     def __init__(self, physics, task, *, time_limit, n_sub_steps, rebuild=None, flat_observation=False,
                  legacy_step=True):
+        from .rendering import HISTORY_ROWS
+
         super().__init__(physics, task, time_limit=time_limit, n_sub_steps=n_sub_steps,
                          flat_observation=flat_observation, legacy_step=legacy_step)
         self._rebuild = rebuild
         self._fresh = True
         self._closed = False
+        self._history = collections.deque(maxlen=HISTORY_ROWS)
+        self._frames = None
+        physics.owner = weakref.ref(self)
 
     @property
     def flat_observation(self) -> bool:
@@ -91,9 +101,13 @@ class USVEnvironment(control.Environment):
             old = self._physics
             self._physics = self._rebuild()
             self._physics.legacy_step = old.legacy_step
+            self._physics.owner = weakref.ref(self)
             old.close()
         self._fresh = False
-        return super().reset()
+        ts = super().reset()
+        self._history.clear()
+        self._remember()
+        return ts
 
     def step(self, action):
         if self._closed:
@@ -101,12 +115,52 @@ class USVEnvironment(control.Environment):
         ts = super().step(action)
         if ts.last() and ts.discount == 1.0:
             self._task.mark_time_limit(self._physics.time())
+        self._remember()
         return ts
+
+    def _remember(self) -> None:
+        task, ph = self._task, self._physics
+        t = ph.time()
+        if self._history and self._history[-1][0] == t:   # the step that reset after the last one
+            return
+        self._history.append((t, ph.state.copy(), task.reference_at(t).copy(), task.last_action.copy(),
+                              task.last_thrust.copy()))
+
+    def history(self) -> list:
+        """The episode's last steps: (t [s], state (6), reference (7), action (2), thrust (2)) rows,
+        oldest first, as :func:`episode_record` takes them (empty before the first :meth:`reset`)."""
+        return list(self._history)
+
+    def render_frame(self, *, width: int = 320, height: int = 240, camera: str = "top",
+                     metadata=None) -> np.ndarray:
+        """The picture of the current step, (height, width, 3) uint8, by the project's renderer
+        (:mod:`usv_mj.envs.rendering`): the hull on the episode's sea, its wake, the path ahead, the
+        funnel and the harbour's obstacles, with the heads-up overlay. ``camera``: "top" (follows the
+        hull from above, north up) or a camera of models/scene.xml ("chase", "overview", "chart").
+        Before the first :meth:`reset` it shows the hull where the physics has it. ``metadata``:
+        extra record metadata (e.g. ``{"task": name}``)."""
+        from .rendering import FrameSource
+
+        if self._closed:
+            raise RuntimeError("USVEnvironment: the environment is closed")
+        rows = self.history()
+        if not rows:
+            ph = self._physics
+            rows = [(ph.time(), ph.state.copy(), np.full(7, np.nan), np.zeros(2), np.zeros(2))]
+        if self._frames is None:
+            self._frames = FrameSource()
+        record = episode_record(self, rows, metadata)
+        return self._frames.frame(record, width=width, height=height, camera=camera)
 
     def close(self):
         if not self._closed:
             self._closed = True
-            self._physics.close()
+            try:
+                if self._frames is not None:
+                    self._frames.close()
+                    self._frames = None
+            finally:
+                self._physics.close()
 
 
 def _scenario(task: str, options: dict, duration: float) -> Scenario:

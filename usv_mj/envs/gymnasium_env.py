@@ -40,8 +40,10 @@ task's termination (discount 0), ``truncated`` the time limit.
 Rendering (``render_mode="rgb_array"``): the project's renderer (:mod:`usv_mj.render`, the one
 ``usv-mj run`` uses, with the same OpenGL choice, :func:`usv_mj.render.gl_backend.select_backend`):
 the top view of the hull on the water (the sea's waves in the wave tasks), its wake, the path
-ahead, the funnel and the harbour's obstacles. When mujoco in this process is bound to another GL
-platform than the chosen one, the frames are drawn by one spawned worker process.
+ahead, the funnel and the harbour's obstacles: the frame of
+:meth:`usv_mj.envs.USVEnvironment.render_frame`, which the dm_env's ``physics.render()`` draws
+too (:mod:`usv_mj.envs.rendering`). When mujoco in this process is bound to another GL platform
+than the chosen one, the frames are drawn by one spawned worker process.
 """
 
 from __future__ import annotations
@@ -49,7 +51,6 @@ from __future__ import annotations
 import collections
 import math
 import warnings
-import weakref
 
 import numpy as np
 
@@ -110,8 +111,6 @@ class USVGymEnv(gymnasium.Env):
             self.observation_space = spaces.Box(lo, hi, lo.shape, np.float32)
         else:
             self.observation_space = spaces.Dict(boxes)
-        self._rows = []          # (t, state, reference, action, thrust) of this episode, for render()
-        self._renderer = None
 
     # --- scaling ---------------------------------------------------------------------------------
 
@@ -188,86 +187,25 @@ class USVGymEnv(gymnasium.Env):
         if seed is not None:
             self.dm_env.reseed(int(seed))
         ts = self.dm_env.reset()
-        self._rows = []
-        self._remember()
         return self._observe(ts.observation), self._info()
 
     def step(self, action):
         ts = self.dm_env.step(self.physical_action(action))
-        self._remember()
         terminated = bool(ts.last() and ts.discount == 0.0)
         truncated = bool(ts.last() and not terminated)
         return self._observe(ts.observation), float(ts.reward), terminated, truncated, self._info()
-
-    def _remember(self):
-        task, ph = self.dm_env.task, self.dm_env.physics
-        t = ph.time()
-        self._rows.append((t, ph.state.copy(), task.reference_at(t).copy(), task.last_action.copy(),
-                           task.last_thrust.copy()))
 
     def render(self):
         if self.render_mode is None:
             warnings.warn("USVGymEnv.render: no render_mode was given (use render_mode='rgb_array')",
                           UserWarning, stacklevel=2)
             return None
-        if not self._rows:
+        if not self.dm_env.history():
             raise RuntimeError("USVGymEnv.render: call reset() first")
-        from usv_mj.render.planner import plan_frames
-
-        from .environment import episode_record
-
-        if self._renderer is None:
-            self._renderer = _Renderer(*self.render_size)
-        record = episode_record(self.dm_env, self._rows[-3000:], {"task": self.task_name})
-        spec = plan_frames(record, width=self.render_size[0], height=self.render_size[1], camera="top",
-                           rows=[len(record) - 1]).frames[0]
-        return self._renderer.frame(spec)
+        w, h = self.render_size
+        return self.dm_env.render_frame(width=w, height=h, camera="top", metadata={"task": self.task_name})
 
     def close(self):
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
         if self.dm_env is not None:
             self.dm_env.close()
         super().close()
-
-
-class _Renderer:
-    """One :class:`usv_mj.render.replay.FrameRenderer`, here or in one spawned worker (module docstring)."""
-
-    def __init__(self, width: int, height: int):
-        from usv_mj.render.gl_backend import in_process_backend, select_backend
-
-        self.backend = select_backend()
-        self.kwargs = dict(width=width, height=height, camera="top", model_path=None)
-        here = in_process_backend()
-        self.local = self.pool = None
-        if here is None or here == self.backend:
-            from usv_mj.render.replay import FrameRenderer
-
-            self.local = FrameRenderer(**self.kwargs)
-        else:
-            import multiprocessing
-
-            from usv_mj.render.gl_backend import backend_environment
-            from usv_mj.render.video import _worker_init
-
-            self.pool = multiprocessing.get_context("spawn").Pool(
-                1, initializer=_worker_init, initargs=(backend_environment(self.backend), self.kwargs))
-            # an environment dropped without close() still stops its worker
-            weakref.finalize(self, self.pool.terminate)
-
-    def frame(self, spec) -> np.ndarray:
-        if self.local is not None:
-            return np.array(self.local.render(spec), dtype=np.uint8)
-        from usv_mj.render.video import _worker_render
-
-        return np.array(self.pool.apply(_worker_render, (spec,)), dtype=np.uint8)
-
-    def close(self) -> None:
-        if self.local is not None:
-            self.local.close()
-        if self.pool is not None:
-            self.pool.terminate()
-            self.pool.join()
-        self.local = self.pool = None

@@ -17,6 +17,10 @@ structs), so the environment integrates exactly what ``usv-mj run --plant mujoco
 The plant comes from :func:`usv_mj.build.make_plant` (the one constructor of plants): in the
 harbor tasks it is the composed harbour scene with the ``rangefinders`` option (a fan of MuJoCo
 ``rangefinder`` sensors on the hull, :func:`usv_mj.obstacles.compose.compose_scene`).
+
+:meth:`USVPhysics.render` (what dm_control's tools and shimmy's ``DmControlCompatibilityV0`` call)
+draws with the project's renderer, not dm_control's: the water and the sea are the renderer's
+(:mod:`usv_mj.envs.rendering`), and it runs headless with the OpenGL choice of ``usv-mj run``.
 """
 
 from __future__ import annotations
@@ -42,10 +46,13 @@ class USVPhysics(dm_mujoco.Physics):
 
     Build with :meth:`from_plant`. Attributes: ``plant`` (the plant), ``failure`` (None, or the
     message of the last :class:`HydrodynamicCallbackError` raised during :meth:`step`: the task
-    ends the episode with it as the reason).
+    ends the episode with it as the reason), ``owner`` (None, or a weak reference to the
+    :class:`usv_mj.envs.USVEnvironment` that steps it, set by the environment: :meth:`render`
+    draws its episode).
     """
 
     plant: MuJoCoPlant
+    owner = None
 
     @classmethod
     def from_plant(cls, plant: MuJoCoPlant) -> USVPhysics:
@@ -55,6 +62,8 @@ class USVPhysics(dm_mujoco.Physics):
         obj.plant = plant
         obj.failure = None
         obj._closed = False
+        obj.owner = None
+        obj._frames = None
         dm_mujoco.Physics.__init__(obj, wrapper.MjData(plant.data))
         return obj
 
@@ -94,6 +103,67 @@ class USVPhysics(dm_mujoco.Physics):
         raise NotImplementedError("USVPhysics cannot be copied: it is a view of one plant (make another "
                                   "environment with usv_mj.envs.load)")
 
+    # --- pictures -------------------------------------------------------------------------------
+
+    def render(self, height=240, width=320, camera_id=-1, overlays=(), depth=False, segmentation=False,
+               scene_option=None, render_flag_overrides=None, scene_callback=None) -> np.ndarray:
+        """A camera view as a (height, width, 3) uint8 RGB array, with ``dm_control.mujoco.Physics.render``'s
+        signature, drawn by the project's renderer (the one of ``usv-mj run``, :mod:`usv_mj.envs.rendering`)
+        rather than dm_control's: the hull on the water (the sea's waves when the episode has a sea), its
+        wake, the path ahead, the funnel, the harbour's obstacles and the heads-up overlay. It works
+        headless with the OpenGL choice of ``usv-mj run`` (``MUJOCO_GL`` if set, else EGL, else OSMesa),
+        whatever GL platform dm_control picked when it was imported.
+
+        What it draws: the episode of the environment that owns this physics
+        (:meth:`usv_mj.envs.USVEnvironment.render_frame`; the same frame as the Gymnasium view's
+        ``render()``); a physics that belongs to no environment draws its hull on calm water.
+
+        ``camera_id``: -1 (dm_control's free camera) is the renderer's ``"top"`` view (straight down,
+        north up, following the hull); a camera index of this model or a camera name (``"chase"``,
+        ``"overview"``, ``"chart"``, ``"top"``) is that camera of models/scene.xml.
+
+        Not supported (each raises ValueError naming the argument, so that nothing is silently
+        ignored): ``depth``, ``segmentation``, ``overlays``, ``scene_option``, ``render_flag_overrides``
+        and ``scene_callback``. dm_control's own renderer is still there for them, as
+        ``dm_control.mujoco.Physics.render(physics, ...)``: it draws this model (the hull without the
+        water) and needs ``MUJOCO_GL`` set before dm_control is imported.
+        """
+        for name, value, asked in (("depth", depth, bool(depth)), ("segmentation", segmentation, bool(segmentation)),
+                                   ("overlays", overlays, bool(overlays)),
+                                   ("scene_option", scene_option, scene_option is not None),
+                                   ("render_flag_overrides", render_flag_overrides, bool(render_flag_overrides)),
+                                   ("scene_callback", scene_callback, scene_callback is not None)):
+            if asked:
+                raise ValueError(f"USVPhysics.render: {name}={value!r} is not supported: the project's renderer "
+                                 "draws RGB frames of its own scene (call dm_control.mujoco.Physics.render("
+                                 "physics, ...) for dm_control's renderer, with MUJOCO_GL set)")
+        camera = self._camera_name(camera_id)
+        env = self.owner() if self.owner is not None else None
+        if env is not None and env.physics is self:
+            return env.render_frame(width=width, height=height, camera=camera)
+        from .rendering import FrameSource, pose_record
+
+        if self._closed:
+            raise RuntimeError("USVPhysics.render: the physics is closed")
+        if self._frames is None:
+            self._frames = FrameSource()
+        return self._frames.frame(pose_record(self.state, self.time()), width=width, height=height, camera=camera)
+
+    def _camera_name(self, camera_id) -> str:
+        if isinstance(camera_id, str):
+            return camera_id
+        try:
+            i = int(camera_id)
+        except (TypeError, ValueError):
+            raise ValueError(f"USVPhysics.render: camera_id must be a camera name or index, got {camera_id!r}") from None
+        if i == -1:
+            return "top"
+        n = int(self.model.ncam)
+        if not 0 <= i < n:
+            raise ValueError(f"USVPhysics.render: camera_id = {i}: this model has {n} cameras "
+                             f"(0..{n - 1}); -1 is the free top view")
+        return self.model.id2name(i, "camera")
+
     # --- state in the plant's conventions -------------------------------------------------------
 
     @property
@@ -110,6 +180,9 @@ class USVPhysics(dm_mujoco.Physics):
         if not self._closed:
             self._closed = True
             try:
+                if self._frames is not None:
+                    self._frames.close()
+                    self._frames = None
                 self.free()
             finally:
                 self.plant.close()

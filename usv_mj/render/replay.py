@@ -21,7 +21,8 @@ These extra shapes are user geoms appended to ``renderer.scene`` after ``update_
 Cameras: ``"top"`` is a free camera looking straight down (image right = world +x, image up = world
 +y) whose look-at point and distance follow a :class:`TopView` (centre [m], half-height of the visible
 water [m]) computed per frame by the planner to keep ship, reference and funnel in view; any other
-name is a camera of the model (``"chase"`` rides behind the hull, ``"overview"`` is fixed).
+name is a camera of the model (``"chase"`` rides behind the hull, ``"overview"`` is fixed, ``"chart"``
+is fixed straight down over the origin, image right = east, image up = north).
 
 Speed (docs/model.md §1: shadows and multisampling dominate on Mesa's software rasteriser): shadows and
 reflections are off and multisampling is reduced unless asked for.
@@ -52,7 +53,7 @@ REPO_MODELS = models_dir()
 DEFAULT_SCENE = REPO_MODELS / "scene.xml"
 
 #: A small stand-in scene with the same contract as models/scene.xml (hull on joints x, y, yaw;
-#: cameras chase and top; a textured water plane at z = 0). Used only when no scene file is found.
+#: cameras chase, top and chart; a textured water plane at z = 0). Used only when no scene file is found.
 STANDIN_SCENE_XML = """
 <mujoco model="usv stand-in scene">
   <compiler angle="radian"/>
@@ -81,6 +82,7 @@ STANDIN_SCENE_XML = """
       <camera name="chase" pos="-5.0 0 2.2" xyaxes="0 -1 0 0.40 0 0.92" fovy="50"/>
       <camera name="top" mode="trackcom" pos="0 0 25" xyaxes="1 0 0 0 1 0" fovy="45"/>
     </body>
+    <camera name="chart" pos="0 0 40" xyaxes="1 0 0 0 1 0" fovy="45"/>
   </worldbody>
 </mujoco>
 """

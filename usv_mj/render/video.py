@@ -28,7 +28,9 @@ from .gl_backend import GLUnavailableError, in_process_backend, renderer_name, s
 from .planner import LAYERS, Plan, plan_frames
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT, DEFAULT_FPS = 1280, 720, 30
-CAMERAS_HELP = "top (follows ship and reference from above), chase (behind the hull), or a camera of the model"
+CAMERAS_HELP = ("top (follows ship and reference from above, north up), chase (behind the hull), overview (fixed, "
+                "looking north over the start), chart (fixed, straight down over the origin: north up, east "
+                "right), or another camera of the model")
 
 
 # --- workers -------------------------------------------------------------------------------------
@@ -245,7 +247,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
         with the same stem.
     width, height: pixels (even). fps: frames per second of the video.
     speedup: run seconds per video second; default max(1, duration / 30 s) (a 300 s run -> 30 s).
-    camera: "top", "chase" or another camera of the model.
+    camera: "top", "chase", "overview", "chart" or another camera of the model (:data:`CAMERAS_HELP`).
     workers: rendering processes (default: the usable cores). With more than one, each worker renders
         and encodes contiguous blocks of ``segment_frames`` frames into its own H.264 segment, and
         the segments are joined without re-encoding (ffmpeg's concat demuxer): no frame crosses a

@@ -1,0 +1,106 @@
+"""Frames of an environment through the project's renderer: the one place where the dm_env
+(:meth:`usv_mj.envs.USVEnvironment.render_frame`), its physics (:meth:`USVPhysics.render`, what
+dm_control tools and shimmy's ``DmControlCompatibilityV0`` call) and the Gymnasium view
+(``USVGymEnv.render``) draw a picture.
+
+A frame is the last row of a :class:`~usv_mj.record.RunRecord` of the episode so far
+(:func:`usv_mj.envs.episode_record`: its metadata carry the episode's scenario, so the frame has the
+sea and the harbour), planned by :func:`usv_mj.render.planner.plan_frames` and drawn by a
+:class:`usv_mj.render.replay.FrameRenderer`, the renderer of ``usv-mj run``, with the same OpenGL
+choice (:func:`usv_mj.render.gl_backend.select_backend`: ``MUJOCO_GL`` if set, else EGL, else
+OSMesa). mujoco binds its GL platform when it is first imported, and dm_control imports it before
+anyone chose: when the platform it was bound to is not the chosen one (``MUJOCO_GL`` was unset,
+say), the frames are drawn by one spawned worker process that imports mujoco with the right one.
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+
+#: Rows of an episode an environment keeps for its frames (the wake trail is the last 10 s or so).
+HISTORY_ROWS = 3000
+
+
+class _Drawer:
+    """One :class:`usv_mj.render.replay.FrameRenderer`, here or in one spawned worker (module docstring)."""
+
+    def __init__(self, width: int, height: int, camera: str):
+        from usv_mj.render.gl_backend import in_process_backend, select_backend
+        from usv_mj.render.video import check_camera
+
+        self.backend = select_backend()
+        check_camera(camera)          # a bad name is one ValueError here, not a failed worker
+        self.key = (int(width), int(height), camera)
+        self.kwargs = dict(width=int(width), height=int(height), camera=camera, model_path=None)
+        here = in_process_backend()
+        self.local = self.pool = None
+        if here is None or here == self.backend:
+            from usv_mj.render.replay import FrameRenderer
+
+            self.local = FrameRenderer(**self.kwargs)
+        else:
+            import multiprocessing
+
+            from usv_mj.render.gl_backend import backend_environment
+            from usv_mj.render.video import _worker_init
+
+            self.pool = multiprocessing.get_context("spawn").Pool(
+                1, initializer=_worker_init, initargs=(backend_environment(self.backend), self.kwargs))
+            # an environment dropped without close() still stops its worker
+            weakref.finalize(self, self.pool.terminate)
+
+    def frame(self, spec) -> np.ndarray:
+        if self.local is not None:
+            return np.array(self.local.render(spec), dtype=np.uint8)
+        from usv_mj.render.video import _worker_render
+
+        return np.array(self.pool.apply(_worker_render, (spec,)), dtype=np.uint8)
+
+    def close(self) -> None:
+        if self.local is not None:
+            self.local.close()
+        if self.pool is not None:
+            self.pool.terminate()
+            self.pool.join()
+        self.local = self.pool = None
+
+
+class FrameSource:
+    """Draws the last row of a record at a size and camera; keeps its renderer (and worker) while
+    they stay the same, and starts another when they change. :meth:`close` stops it."""
+
+    def __init__(self):
+        self._drawer = None
+
+    def frame(self, record, *, width: int, height: int, camera: str = "top") -> np.ndarray:
+        """The (height, width, 3) uint8 frame of the last row of ``record``."""
+        from usv_mj.render.planner import plan_frames
+
+        for name, v in (("width", width), ("height", height)):
+            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or not 16 <= v <= 8192:
+                raise ValueError(f"render: {name} = {v!r} must be a whole number of pixels in [16, 8192]")
+        key = (int(width), int(height), camera)
+        if self._drawer is None or self._drawer.key != key:
+            self.close()
+            self._drawer = _Drawer(*key)
+        spec = plan_frames(record, width=key[0], height=key[1], camera=camera, rows=[len(record) - 1]).frames[0]
+        return self._drawer.frame(spec)
+
+    def close(self) -> None:
+        if self._drawer is not None:
+            self._drawer.close()
+            self._drawer = None
+
+
+def pose_record(state, t: float = 0.0):
+    """A one-row record of a pose (x, y, psi, u, v, r) at t [s], with no reference and no scenario
+    (calm water): what a physics that belongs to no environment can draw."""
+    from usv_mj.record import RunRecord
+
+    x = np.asarray(state, dtype=float)
+    cols = {"t": np.array([float(t)])}
+    for j, name in enumerate(("x", "y", "psi", "u", "v", "r")):
+        cols[name] = x[j:j + 1].copy()
+    return RunRecord.from_arrays(cols, metadata={"plant": "mujoco", "controller": "env"})
