@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-SEA_NODES = 101          # hfield nodes per side: docs/sea.md §6 suggests ~201; 101 measured 2x faster a frame (upload)
-SEA_BASE_EXTENT = 20.0   # m, the hfield's smallest side (docs/sea.md §6: about 201 x 201 nodes over 20 m)
+SEA_NODES = 101          # hfield nodes per side: 201 measured 2x slower a frame on Mesa (upload)
+SEA_BASE_EXTENT = 20.0   # m, the hfield's smallest side (docs/sea.md §6)
 SEA_EXTENT_STEP = 5.0    # m, the hfield's side is a multiple of this
 
 

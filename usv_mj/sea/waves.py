@@ -181,8 +181,8 @@ def ramp_factor(ramp_time, t):
     return 1.0 - math.exp(-t / ramp_time)
 
 
-# fast-math flags that keep NaN/inf semantics: reassociation lets the sums vectorise. Not on
-# fast_sincos: reassociating its Cody-Waite reduction would lose the exact x - q pi/2.
+# fast-math flags that keep NaN/inf semantics and a fixed order of operations (no reassoc or contract:
+# a kernel inlined into the compiled loop must round as it does alone). Not on fast_sincos.
 _FAST = {"nsz", "arcp"}
 # Cody-Waite split of pi/2 in three parts (fdlibm pio2_1, pio2_2, pio2_2t; 33 + 33 + 53 bits)
 _PIO2_1 = 1.5707963267341256
