@@ -121,31 +121,28 @@ def main(argv=None) -> int:
     simulate(short.with_overrides({"duration": 1.0}), plant_kind="mujoco")  # compile / cache load
     simulate(short.with_overrides({"duration": 1.0}), plant_kind="analytic")
     for kind in ("mujoco", "analytic"):
-        best = None
-        for _ in range(max(1, rep - 1)):
-            c0 = time.thread_time()
-            rec = simulate(short, plant_kind=kind)
-            cpu = time.thread_time() - c0
-            if best is None or cpu < best[0]:
-                best = (cpu, rec.metadata["wall_time_s"], rec.n_rows - 1)
-        loops[f"simulate, {kind} plant"] = best
-        rows.append((f"closed-loop step, simulate(paper), {kind} plant", best[0] / best[2]))
-    fused = fused_paper_loop(short)
-    loops["compiled loop (prototype), mujoco plant"] = fused[:3]
-    rows.append(("closed-loop step, compiled loop (prototype), mujoco", fused[0] / fused[2]))
+        for loop in ("python", "auto"):
+            best = None
+            for _ in range(max(1, rep - 1)):
+                c0 = time.thread_time()
+                rec = simulate(short, plant_kind=kind, loop=loop)
+                cpu = time.thread_time() - c0
+                if best is None or cpu < best[0]:
+                    best = (cpu, rec.metadata["wall_time_s"], rec.n_rows - 1)
+            name = "Python loop" if loop == "python" else "compiled loop"
+            loops[f"simulate, {kind} plant, {name}"] = best
+            rows.append((f"closed-loop step, simulate(paper), {kind}, {name}", best[0] / best[2]))
 
     yard = rows[0][1]
     print(f"\n{'per 1 ms control step (CPU time)':56s} {'us':>9s} {'x bare':>8s}")
     for name, sec in rows:
         print(f"{name:56s} {sec * 1e6:9.2f} {sec / yard:8.2f}")
     ctrl_us = dict(rows)["PPC controller call"]
-    loop_us = dict(rows)["closed-loop step, simulate(paper), mujoco plant"]
+    loop_us = dict(rows)["closed-loop step, simulate(paper), mujoco, Python loop"]
     plant_us = dict(rows)["MuJoCoPlant.step + .state (native)"]
-    print(f"\nshares of the simulate() step on the MuJoCo plant: plant {plant_us / loop_us:.0%}, controller "
+    print(f"\nshares of the Python loop's step on the MuJoCo plant: plant {plant_us / loop_us:.0%}, controller "
           f"{ctrl_us / loop_us:.0%}, rest of the loop (reference, quantizers, recording, checks) "
           f"{1 - (plant_us + ctrl_us) / loop_us:.0%}")
-    print(f"compiled-loop prototype vs simulate on the MuJoCo plant: max |state difference| over the run "
-          f"{fused[3]:.1e} (the same computation)")
     for label, (cpu, wall, steps) in loops.items():
         sim = steps * scenario.control_period
         print(f"paper preset, {sim:.0f} s, {label}: {cpu:.2f} s CPU ({sim / cpu:.0f}x realtime), "
@@ -241,79 +238,7 @@ def sea_section(args) -> int:
         print(f"paper preset in the moderate sea, {sim:.0f} s, simulate, {kind} plant ({status}): {cpu:.2f} s CPU "
               f"({sim / cpu:.0f}x realtime), {wall:.2f} s wall ({sim / wall:.0f}x); projected 300 s run: "
               f"{cpu * 300.0 / sim:.1f} s CPU")
-    from usv_mj.simulation import make_environment
-
-    env = make_environment(short)
-    cpu, wall, steps, diff = fused_paper_loop(short, env)
-    sim = steps * dt
-    print(f"paper preset in the moderate sea, {sim:.0f} s, compiled loop (prototype), mujoco plant: {cpu:.2f} s CPU "
-          f"({sim / cpu:.0f}x realtime), {wall:.2f} s wall ({sim / wall:.0f}x); max |state - simulate's| {diff:.1e}")
     return 0
-
-
-def fused_paper_loop(scenario, environment=None):
-    """A prototype of the closed loop compiled as one numba function (paper reference, PPC, quantizer,
-    MuJoCo plant through ``native_stepper``), to measure what the Python loop of ``simulate`` costs.
-
-    Records only the state. Returns (CPU time [s], wall time [s], steps, max |state - simulate's state|).
-    ``environment``: the sea of ``scenario`` (its grids must already cover the run: the compiled loop
-    does not extend them).
-    """
-    from numba import njit
-
-    from usv_mj.controllers.hysteresis_quantizer import quantize_step
-    from usv_mj.controllers.ppc import ppc_law
-    from usv_mj.plants import mujoco_callback as mcb
-    from usv_mj.plants.mujoco_plant import MuJoCoPlant
-    from usv_mj.simulation import make_controller, make_quantizers, make_reference, simulate
-    from usv_mj.trajectories import _paper_evaluate
-
-    stepper = mcb.native_stepper()
-
-    @njit
-    def loop(n, dt, m_addr, d_addr, x0, rx, ry, rpsi, rgrid, rspeed, rturn, rphase, ramp, rper, rout,
-             p, g, funnel, centres, w, s2, diag, s_buf, z_buf, du, umu, dr, umr, states):
-        x = x0.copy()
-        ku, kr = 0, 0
-        states[0] = x
-        for k in range(n):
-            t = k * dt
-            ref = _paper_evaluate(rx, ry, rpsi, rgrid, rspeed, rturn, rphase, ramp, rper, t, rout)
-            tau_u, tau_r = ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf)
-            qu, ku = quantize_step(du, umu, ku, tau_u)
-            qr, kr = quantize_step(dr, umr, kr, tau_r)
-            x, failed = stepper(m_addr, d_addr, t, qu, qr, 1)
-            if failed:
-                return k
-            states[k + 1] = x
-        return n
-
-    ctrl = make_controller(scenario)
-    ref = make_reference(scenario)
-    qu, qr = make_quantizers(scenario)
-    n = int(round(scenario.duration / scenario.control_period))
-    states = np.empty((n + 1, 6))
-
-    def run():
-        ctrl.reset()
-        with MuJoCoPlant(scenario.ship, scenario.disturbance, scenario.control_period,
-                         environment=environment) as plant:
-            plant.reset(scenario.initial.eta, scenario.initial.nu)
-            x0 = plant.state.copy()
-            c0, t0 = time.thread_time(), time.perf_counter()
-            done = loop(n, scenario.control_period, plant.model._address, plant.data._address, x0,
-                        ref._x, ref._y, ref._psi, ref.GRID, ref.speed, ref.t_turn, ref.t_phase, ref.amplitude,
-                        ref.period, ref._out, ctrl._p, ctrl._g, ctrl._funnel, ctrl._centres, ctrl.weights,
-                        ctrl._s2, ctrl._diag, ctrl._s_buf, ctrl._z_buf, qu.params.delta,
-                        qu.params.u_min, qr.params.delta, qr.params.u_min, states)
-            return time.thread_time() - c0, time.perf_counter() - t0, done
-
-    run()  # compile
-    cpu, wall, done = run()
-    rec = simulate(scenario, plant_kind="mujoco")
-    sim_states = np.stack([rec[c] for c in ("x", "y", "psi", "u", "v", "r")], axis=1)
-    m = min(len(sim_states), done + 1)
-    return cpu, wall, done, float(np.max(np.abs(sim_states[:m] - states[:m])))
 
 
 if __name__ == "__main__":
