@@ -21,8 +21,8 @@ matrix ``d.M`` and re-factors it (``mj_factorM``); the second joins the generali
 
     qfrc_passive += J(psi) (f_h' + M_A r [-v, u, 0]),   f_h' = d(t) + Delta - C nu - D nu + C_RB nu,
 
-where ``d + Delta - C nu - D nu`` is :func:`usv_mj.ship.hydrodynamic_force` (never re-written here).
-In a sea (docs/sea.md §6; ``d.userdata[U_SEA_ON]`` = 1) that term is :func:`usv_mj.sea.sea_force`,
+where ``d + Delta - C nu - D nu`` is :func:`usv_mj.ship.hull_terms` (never re-written here).
+In a sea (docs/sea.md §6; ``d.userdata[U_SEA_ON]`` = 1) that term is :func:`usv_mj.sea.dynamics.sea_terms`,
 ``M nu_c_dot + tau_env + Delta + d - C(nu_r) nu_r - D(nu_r) nu_r``, on the four arrays of
 ``Environment.packed`` whose addresses and sizes the plant writes into ``d.userdata[U_SEA_*]`` (the
 plant keeps the arrays alive and rewrites the addresses whenever the environment's grids grow). The
@@ -56,9 +56,9 @@ from llvmlite import ir as llvmlite_ir
 from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
-from usv_mj.sea.dynamics import sea_force
+from usv_mj.sea.dynamics import sea_terms
 from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
-from usv_mj.ship import N_DIST_PARAMS, N_SHIP_PARAMS, hydrodynamic_force
+from usv_mj.ship import N_DIST_PARAMS, N_SHIP_PARAMS, hull_terms
 
 from usv_mj.assets import models_dir
 
@@ -78,7 +78,7 @@ U_CALLS = U_DP + N_DIST_PARAMS  # number of callback evaluations (diagnostic)
 U_SCRATCH = U_CALLS + 1  # 15 doubles of scratch space (eta, nu, qfrc, mass_add): no allocation per call
 # the sea (docs/sea.md §6): addresses and sizes of the four arrays of usv_mj.sea.Environment.packed,
 # stored as doubles (addresses < 2^53 are exact); U_SEA_ON = 0 takes the calm path of today
-U_SEA_ON = U_SCRATCH + 15   # 1.0: call sea_force instead of hydrodynamic_force
+U_SEA_ON = U_SCRATCH + 15   # 1.0: call sea_terms instead of hull_terms
 U_SEA_EP = U_SEA_ON + 1     # address of ep (N_ENV_PARAMS doubles)
 U_SEA_WAVES = U_SEA_ON + 2  # address of waves, (N_WAVE_COLS, n) C order
 U_SEA_NWAVES = U_SEA_ON + 3  # n: wave components
@@ -190,9 +190,9 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
         waves = carray(_f64_ptr(np.int64(ud[U_SEA_WAVES])), (N_WAVE_COLS, np.int64(ud[U_SEA_NWAVES])))
         cgrid = carray(_f64_ptr(np.int64(ud[U_SEA_CG])), (np.int64(ud[U_SEA_NCG]), 2))
         wgrid = carray(_f64_ptr(np.int64(ud[U_SEA_WG])), (np.int64(ud[U_SEA_NWG]), 1))
-        f = sea_force(p, dp, ep, waves, cgrid, wgrid, t, eta, nu)
+        f = sea_terms(p, dp, ep, waves, cgrid, wgrid, t, eta, nu)
     else:
-        f = hydrodynamic_force(p, dp, t, eta, nu)  # d + Delta - C nu - D nu (docs/model.md §1)
+        f = hull_terms(p, dp, t, eta, nu, nu)  # d + Delta - C nu - D nu (docs/model.md §1)
     m = ud[U_MASS]
     mxg = m * ud[U_XG]
     # + C_RB nu: MuJoCo's rigid body already produces it, so C_A nu = C nu - C_RB nu

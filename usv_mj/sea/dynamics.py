@@ -47,9 +47,7 @@ def sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
     if is_calm(ep):
         return hull_terms(p, dp, t, eta, nu, nu)
     env = environment_loads(ep, waves, current_grid, wind_grid, t, eta, nu)
-    nu_r = np.empty(3)
-    for i in range(3):
-        nu_r[i] = nu[i] - env[L_NU_C + i]
+    nu_r = (nu[0] - env[L_NU_C], nu[1] - env[L_NU_C + 1], nu[2] - env[L_NU_C + 2])
     f0, f1, f2 = hull_terms(p, dp, t, eta, nu, nu_r)
     a0 = env[L_NU_C_DOT]
     a1 = env[L_NU_C_DOT + 1]
