@@ -235,16 +235,27 @@ def message_record(channel_id: int, log_time: int, data: bytes, sequence: int = 
 @njit(cache=True)
 def _gather_records(src, starts, lengths, order, out):
     """out = the records src[starts[i]:starts[i] + lengths[i]] for i in ``order``; returns the new
-    start of each record (in the order of ``order``)."""
-    new = np.empty(order.shape[0], np.int64)
+    start of each record (in the order of ``order``). Records that follow each other in ``src`` as
+    in ``order`` (most of them: a topic's rows are already in time order) are copied as one run."""
+    n = order.shape[0]
+    new = np.empty(n, np.int64)
     p = 0
-    for j in range(order.shape[0]):
+    run_src = 0
+    run_len = 0
+    for j in range(n):
         i = order[j]
-        new[j] = p
+        new[j] = p + run_len
         a = starts[i]
-        for b in range(lengths[i]):
-            out[p + b] = src[a + b]
-        p += lengths[i]
+        if run_len > 0 and a == run_src + run_len:
+            run_len += lengths[i]
+            continue
+        if run_len > 0:
+            out[p:p + run_len] = src[run_src:run_src + run_len]
+            p += run_len
+        run_src = a
+        run_len = lengths[i]
+    if run_len > 0:
+        out[p:p + run_len] = src[run_src:run_src + run_len]
     return new
 
 
