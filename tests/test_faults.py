@@ -58,7 +58,7 @@ def test_bad_camera_is_refused_up_front_not_retried_forever(tmp_path):
     assert proc.returncode == 2, proc.stderr
     line = one_line(proc.stderr)
     assert "--camera" in line and "'nope'" in line
-    assert line.endswith("top, overview, chase")          # cause 9: each camera once
+    assert line.endswith("top, overview, chart, chase")   # cause 9: each camera once
     assert not (tmp_path / "o").exists() and time.perf_counter() - t0 < 60
 
 
