@@ -12,6 +12,7 @@ classmethod, registered with ``@TRAJECTORIES.register(kind)`` (:mod:`usv_mj.regi
 from __future__ import annotations
 
 import bisect
+import functools
 import math
 
 import numpy as np
@@ -140,6 +141,26 @@ def waypoint_kernel(t, speed, starts, pieces, out):
                          pc[4] * speed / pc[5], speed)
 
 
+@functools.lru_cache(maxsize=8)
+def _paper_table(n, grid, speed, t_turn, t_phase, amplitude, period):
+    """x_d, y_d, psi_d of :class:`PaperReference` on ``n`` points of ``grid`` [s], and the last time."""
+    times = np.arange(n) * grid
+    nodes, weights = np.polynomial.legendre.leggauss(8)
+
+    def heading(t):
+        return paper_heading(t, speed, t_turn, t_phase, amplitude, period)[0]
+
+    psi = np.array([heading(t) for t in times])
+    dx = np.zeros(n)
+    dy = np.zeros(n)
+    for i in range(n - 1):
+        tq = times[i] + (nodes + 1) * 0.5 * grid
+        pq = np.array([heading(t) for t in tq])
+        dx[i + 1] = 0.5 * grid * speed * np.dot(weights, np.cos(pq))
+        dy[i + 1] = 0.5 * grid * speed * np.dot(weights, np.sin(pq))
+    return np.cumsum(dx), np.cumsum(dy), psi, times[-1]
+
+
 class PaperReference(Reference):
     """The paper's reference (docs/model.md §4): u_d = 0.6 m/s, straight until 110 s, then
     r_d = -0.006 sin(pi (t - 100)/500) (the jump of r_d at 110 s is as printed).
@@ -158,18 +179,10 @@ class PaperReference(Reference):
         self.speed, self.t_turn, self.t_phase = speed, t_turn, t_phase
         self.amplitude, self.period = amplitude, period
         n = int(math.ceil((max(duration, 1.0) + 10.0) / self.GRID)) + 1
-        times = np.arange(n) * self.GRID
-        nodes, weights = np.polynomial.legendre.leggauss(8)
-        psi = np.array([self._heading(t)[0] for t in times])
-        dx = np.zeros(n)
-        dy = np.zeros(n)
-        for i in range(n - 1):
-            tq = times[i] + (nodes + 1) * 0.5 * self.GRID
-            pq = np.array([self._heading(t)[0] for t in tq])
-            dx[i + 1] = 0.5 * self.GRID * speed * np.dot(weights, np.cos(pq))
-            dy[i + 1] = 0.5 * self.GRID * speed * np.dot(weights, np.sin(pq))
-        self._x, self._y, self._psi = np.cumsum(dx), np.cumsum(dy), psi
-        self.t_max = times[-1]
+        # the table is the same for every reference of these values (a sweep builds one per run):
+        # made once per process, each reference its own copy
+        x, y, psi, self.t_max = _paper_table(n, self.GRID, speed, t_turn, t_phase, amplitude, period)
+        self._x, self._y, self._psi = x.copy(), y.copy(), psi.copy()
 
     def _heading(self, t):
         return paper_heading(t, self.speed, self.t_turn, self.t_phase, self.amplitude, self.period)

@@ -436,13 +436,20 @@ def mujoco_kernel(k, x, f_u, f_r, m_addr, d_addr, t0, dt, nsub, o_time, o_qpos, 
     return out, failed
 
 
+_CONSTANTS = None
+
+
 def kernel_constants() -> tuple:
     """The trailing arguments of :func:`mujoco_kernel`: (o_time, o_qpos, o_qvel, o_ctrl, o_ud,
-    n_words, address of mj_step) for this process's libmujoco."""
-    off = struct_offsets()
-    words = tuple(off[name] // 8 for name in ("time", "qpos", "qvel", "ctrl", "userdata"))
-    address = ctypes.cast(_libmujoco().mj_step, ctypes.c_void_p).value
-    return words + (max(words[1:]) + 1, int(address))
+    n_words, address of mj_step) for this process's libmujoco (found once per process: the
+    compiled loop asks every block, and loading the library through ctypes costs about 1 ms)."""
+    global _CONSTANTS
+    if _CONSTANTS is None:
+        off = struct_offsets()
+        words = tuple(off[name] // 8 for name in ("time", "qpos", "qvel", "ctrl", "userdata"))
+        address = ctypes.cast(_libmujoco().mj_step, ctypes.c_void_p).value
+        _CONSTANTS = words + (max(words[1:]) + 1, int(address))
+    return _CONSTANTS
 
 
 _STEPPER = None

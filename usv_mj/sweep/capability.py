@@ -49,6 +49,7 @@ import argparse
 import json
 import math
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -326,7 +327,7 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
     probe = {load.path: hi}
     if load.direction_path:
         probe[load.direction_path] = 0.0
-    apply_values(scenario, probe, source)  # a bad base scenario or range stops here with its message
+    probe = apply_values(scenario, probe, source)  # a bad base scenario or range stops here with its message
     directions = [None] if load.direction_path is None else [
         round(i * step, 9) for i in range(int(math.floor(360.0 / step + 1e-9)))]
     try:
@@ -335,15 +336,23 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
         raise SweepError(f"{source}: the base's reference path cannot be built: {exc}") from None
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    from .runner import open_client
+    from .runner import describe_startup, open_client, warm_up, warm_workers
 
     bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(unit="run", desc=f"capability {load.name}", file=sys.stderr, dynamic_ncols=True)
+    t_start = time.perf_counter()
+    # here first (a loop not in the disk cache yet is compiled once, not by every worker at once),
+    # then on every worker before the first round: the start-up, said apart from the search
+    startup = {"here": warm_up(probe), "cluster_s": 0.0}
     try:
         def search(cl):
+            nonlocal bar
+            startup["workers"] = warm_workers(cl, probe)
+            startup["total_s"] = time.perf_counter() - t_start
+            echo(describe_startup(startup))
+            if progress:
+                from tqdm import tqdm
+
+                bar = tqdm(unit="run", desc=f"capability {load.name}", file=sys.stderr, dynamic_ncols=True)
             slots = max(1, sum(cl.nthreads().values()))
             evaluator = _Evaluator(cl, scenario, load, heading, source, bar)
             return evaluator, search_capability(evaluator, directions, lo, hi, load.spacing, tol, slots)
@@ -351,7 +360,9 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
         if client is not None:
             evaluator, results = search(client)
         else:
+            t_cluster = time.perf_counter()
             with open_client(scheduler, workers, echo) as cl:
+                startup["cluster_s"] = time.perf_counter() - t_cluster
                 evaluator, results = search(cl)
     finally:
         if bar is not None:

@@ -144,6 +144,57 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
     return row
 
 
+def warm_up(scenario, steps: int = 5) -> dict:
+    """Simulate ``scenario`` for ``steps`` control periods in this process, so that the runs after it
+    pay neither the imports (numba, mujoco, the package) nor the compiled loop of its combination
+    (:mod:`usv_mj.compiled_loop`: compiled into the disk cache when it is not there yet, loaded from
+    it otherwise). Returns ``{"loop", "loop_reason", "seconds"}``, or ``{"error", "seconds"}``:
+    it never raises (a scenario that cannot run says so in its own task's row).
+    A scenario with obstacles runs the Python loop (its hooks) and plans its path in the build:
+    only the modules are imported for it.
+    """
+    t0 = time.perf_counter()
+    try:
+        from ..simulation import simulate
+
+        if scenario.obstacles:
+            import usv_mj.obstacles.hooks  # noqa: F401
+            return {"loop": "python", "loop_reason": "the run has hooks with Python logic (obstacles)",
+                    "seconds": time.perf_counter() - t0}
+        record = simulate(scenario, duration=steps * scenario.control_period)
+        if record.status == "interrupted":  # a Ctrl-C (or SIGTERM) in the warm-up stops the sweep as anywhere
+            raise KeyboardInterrupt(record.stop_reason)
+        return {"loop": record.metadata.get("loop"), "loop_reason": record.metadata.get("loop_reason"),
+                "seconds": time.perf_counter() - t0}
+    except Exception as exc:
+        return {"error": f"{type(exc).__name__}: {exc}", "seconds": time.perf_counter() - t0}
+
+
+def warm_workers(client, scenario) -> dict:
+    """:func:`warm_up` on every worker of ``client`` (at once); returns ``{"seconds", "loops": {worker: loop}}``.
+    A worker that joins later pays its warm-up in its first task."""
+    t0 = time.perf_counter()
+    try:
+        done = client.run(warm_up, scenario, on_error="return")
+    except Exception as exc:  # no workers yet, a scheduler that went away: the tasks will say
+        return {"seconds": time.perf_counter() - t0, "loops": {}, "error": f"{type(exc).__name__}: {exc}"}
+    loops = {w: (r.get("loop") or r.get("error")) if isinstance(r, dict) else f"{type(r).__name__}: {r}"
+             for w, r in done.items()}
+    return {"seconds": time.perf_counter() - t0, "loops": loops}
+
+
+def describe_startup(startup: dict) -> str:
+    """One line: this process's warm-up, the cluster's start and the workers' warm-up, in seconds."""
+    here = startup.get("here", {})
+    loops = sorted({str(v) for v in startup.get("workers", {}).get("loops", {}).values()})
+    loop = here.get("loop") or here.get("error") or "?"
+    if here.get("loop_reason"):
+        loop += f" ({here['loop_reason']})"
+    return (f"start-up {startup.get('total_s', 0.0):.1f} s: loop warmed here {here.get('seconds', 0.0):.1f} s "
+            f"[{loop} loop], cluster {startup.get('cluster_s', 0.0):.1f} s, workers warmed "
+            f"{startup.get('workers', {}).get('seconds', 0.0):.1f} s [{', '.join(loops) or 'no workers yet'}]")
+
+
 # --- results on disk ------------------------------------------------------------------------------
 
 
@@ -365,13 +416,15 @@ class _StopAfter(Exception):
 
 class SweepResult:
     """What :func:`run_sweep` did: ``rows`` (all, sorted), ``ran`` (this call), ``failed``, ``out``,
-    ``complete`` (every run of the plan is in the table)."""
+    ``complete`` (every run of the plan is in the table), ``timing`` (``startup``: the warm-ups and
+    the cluster's start, see :func:`describe_startup`; ``runs_s``: first submission to last result)."""
 
-    def __init__(self, rows, ran, out, complete=True):
+    def __init__(self, rows, ran, out, complete=True, timing=None):
         self.rows = rows
         self.ran = ran
         self.out = out
         self.complete = complete
+        self.timing = timing or {}
 
     @property
     def failed(self) -> int:
@@ -433,14 +486,10 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
             opts["log_path"] = str(log_dir / f"run-{run.run_id:06d}.mcap")
         tasks.append((run, opts))
     ran = 0
+    timing: dict = {}
     if todo:
         echo(f"{len(plan.runs)} runs in the sweep, {len(rows)} already in {results}, {len(todo)} to run")
         bar = None
-        if progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=len(plan.runs), initial=len(rows), unit="run", dynamic_ncols=True,
-                       file=sys.stderr)
         state = {"last_flush": time.monotonic(), "failed": sum(r["status"] != "ok" for r in rows.values()),
                  "dirty": False}
 
@@ -461,12 +510,37 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
             if max_runs is not None and ran >= max_runs:
                 raise _StopAfter()
 
+        def run_on(cl, t_start):
+            nonlocal bar
+            # the start-up, apart from the runs: every worker imports the package and loads the compiled
+            # loop of the first run's combination before the first task
+            startup["workers"] = warm_workers(cl, todo[0].scenario)
+            startup["total_s"] = time.perf_counter() - t_start
+            timing["startup"] = startup
+            echo(describe_startup(startup))
+            if progress:
+                from tqdm import tqdm
+
+                bar = tqdm(total=len(plan.runs), initial=len(rows), unit="run", dynamic_ncols=True,
+                           file=sys.stderr)
+            t_runs = time.perf_counter()
+            try:
+                gather_rows(cl, tasks, on_row)
+            finally:
+                timing["runs_s"] = time.perf_counter() - t_runs  # first submission to last result
+
+        startup: dict = {"cluster_s": 0.0}
         try:
+            t_start = time.perf_counter()
+            # here first: a loop not in the disk cache yet is compiled once, not by every worker at once
+            startup["here"] = warm_up(todo[0].scenario)
             if client is not None:
-                gather_rows(client, tasks, on_row)
+                run_on(client, t_start)
             else:
+                t_cluster = time.perf_counter()
                 with open_client(scheduler, workers, echo, jobqueue=jobqueue, jobs=n_jobs) as own:
-                    gather_rows(own, tasks, on_row)
+                    startup["cluster_s"] = time.perf_counter() - t_cluster
+                    run_on(own, t_start)
         except SweepError:
             if ran == 0:  # no cluster (a bad --jobqueue, a scheduler that does not answer): bad input,
                 state["dirty"] = False  # so --out stays as it was
@@ -488,6 +562,9 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
                 bar.close()
             if not state.get("no_cluster") and (state["dirty"] or not results.exists()):
                 write_results(results, list(rows.values()), plan.paths, plan.fingerprint)
+        if timing.get("runs_s") and ran:
+            echo(f"{ran} runs in {timing['runs_s']:.1f} s from the first submission to the last result: "
+                 f"{60 * ran / timing['runs_s']:.0f} runs/min (start-up apart)")
     elif not results.exists():
         write_results(results, [], plan.paths, plan.fingerprint)
     all_rows = sorted(rows.values(), key=lambda r: r["run_id"])
@@ -496,4 +573,4 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
         from .report import write_report
 
         write_report(out, all_rows, plan)
-    return SweepResult(all_rows, ran, out, complete)
+    return SweepResult(all_rows, ran, out, complete, timing)
