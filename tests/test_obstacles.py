@@ -204,6 +204,54 @@ def test_geometric_kernels_match_shapely_and_mujoco_at_random_poses():
             np.testing.assert_allclose(a[sep], c[sep], atol=2e-3)
 
 
+def _clearance_on_the_bindings(monitor):
+    """MuJoCoClearance.update (but the contacts) as written on the Python bindings: the reference
+    of its native kernel. (clearance, exact, witness rows of the exact entries)."""
+    m, d = monitor.model, monitor.data
+    mujoco.mj_kinematics(m, d)
+    n = len(monitor.obstacle_geoms)
+    clearance, exact, witness, fromto = np.full(n, np.inf), np.ones(n, dtype=bool), np.zeros((n, 6)), np.zeros(6)
+    if math.isfinite(monitor.exact_within) and n >= monitor.PREFILTER_FROM:
+        rel = d.geom_xpos[monitor.obstacle_geoms, :2] - d.qpos[:2]
+        lower = np.sqrt(rel[:, 0] ** 2 + rel[:, 1] ** 2) - monitor._bound
+        exact = lower < monitor.exact_within
+        clearance[:] = lower
+    for i in np.flatnonzero(exact):
+        best = math.inf
+        for hg in monitor.hull_geoms:
+            dist = mujoco.mj_geomDistance(m, d, hg, monitor.obstacle_geoms[i], monitor.distmax, fromto)
+            if dist < best:
+                best = dist
+                witness[i] = fromto
+        clearance[i] = best
+    return clearance, exact, witness[exact]
+
+
+@pytest.mark.parametrize("exact_within", [math.inf, 3.0])
+def test_native_mujoco_clearance_is_the_bindings_bit_for_bit(exact_within):
+    """The native update (mj_kinematics and mj_geomDistance called from compiled code, the
+    bounding-circle prefilter of 8 or more obstacles) gives exactly what the bindings give."""
+    tables = [{"kind": "box", "center": [6, 1], "size": [3, 5], "yaw": 0.4}, {"center": [-3, 3], "radius": 0.7},
+              {"kind": "box", "center": [0, -6], "size": [4, 1.6], "velocity": [0.2, 0.1]}]
+    tables += [{"center": [-8.0 + 3.0 * i, 8.0 - (i % 3)], "radius": 0.4 + 0.1 * i} for i in range(6)]
+    rng = np.random.default_rng(5)
+    for n in (3, len(tables)):  # without and with the prefilter
+        with HarbourPlant(SHIP, CALM, from_tables(tables[:n])) as plant:
+            monitor = MuJoCoClearance(plant, exact_within=exact_within)
+            assert (n >= monitor.PREFILTER_FROM) == (n == len(tables))
+            bounded = 0
+            for _ in range(60):
+                plant.reset((rng.uniform(-8, 9), rng.uniform(-8, 8), rng.uniform(-4, 4)), (0, 0, 0))
+                plant.move_obstacles(rng.uniform(0, 10))
+                c, exact, witness = _clearance_on_the_bindings(monitor)
+                native = monitor.update(0.0).copy()
+                assert np.array_equal(native, c) and np.array_equal(monitor.exact, exact)
+                assert np.array_equal(monitor.witness[exact], witness)
+                bounded += int(np.sum(~exact))
+            # the prefilter left some far obstacles to their bound exactly when it is on
+            assert (bounded > 0) == (math.isfinite(exact_within) and n >= monitor.PREFILTER_FROM)
+
+
 # --- planner ------------------------------------------------------------------------------------
 
 
