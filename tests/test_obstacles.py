@@ -456,6 +456,43 @@ def test_head_on_boat_gets_a_starboard_detour_that_keeps_clear():
     assert np.max(np.abs(np.diff(ref[:, 5]) / dt)) <= g.max_yaw_accel * 1.01
 
 
+@pytest.mark.parametrize("case", ["detour", "retiming"])
+def test_guided_kernel_is_evaluate_bit_for_bit_after_the_guidance_changed_the_reference(case):
+    """GuidedReference.kernel (its evaluate natively, usv_mj.kernels) on a reference the guidance
+    changed during the run (a head-on boat: a switched path; the crossing boat: a re-timed speed
+    profile): the same 7 numbers as evaluate at every 0.01 s, before the start and past the path's
+    end included; kernel_key says when a kernel's snapshot is stale."""
+    from usv_mj.obstacles import Guidance
+
+    if case == "detour":
+        osc = load_scenario(SCENARIOS / "crossing_boat.toml", overrides={
+            "duration": 80.0, "obstacles": [{"kind": "box", "center": [40.0, 0.0], "size": [4.0, 1.6],
+                                             "velocity": [-0.5, 0.0], "name": "head_on"}]})
+    else:
+        osc = load_scenario(SCENARIOS / "crossing_boat.toml")
+    plan = make_plan(osc)
+    reference = plan.reference
+    guidance = Guidance(reference, osc.obstacles, plan.envelope, osc.guidance, osc.trajectory.speed,
+                        goal=plan.polyline[-1])
+    key0, kernel0 = reference.kernel_key(), reference.kernel()
+    for t in np.arange(0.0, osc.duration, 0.01):
+        guidance.update(float(t))
+    assert any(e.kind == "replan" for e in guidance.events)
+    assert reference.kernel_key() != key0
+    kernel = reference.kernel()
+    assert len(reference.segments) > 1 if case == "detour" else len(reference.profile.pieces) > 1
+    times = np.arange(-0.5, osc.duration + 200.0, 0.01)
+    path_end = max(seg[1] + seg[2].length for seg in reference.segments)
+    assert reference.profile.state(times[-1])[0] > path_end  # past the end of the last path
+    out = np.empty(7)
+    for t in times:
+        want = reference.evaluate(float(t)).copy()
+        got = kernel.fn(float(t), *kernel.args[:-1], out)
+        assert np.array_equal(got, want), (t, got, want)
+    stale = kernel0.fn(float(times[-1]), *kernel0.args[:-1], out)
+    assert not np.array_equal(stale, reference.evaluate(float(times[-1])))
+
+
 def test_an_obstacle_that_cannot_be_avoided_is_reported():
     """A 200 m wide barge sweeping down the path: neither re-timing nor a detour helps."""
     osc = load_scenario(SCENARIOS / "crossing_boat.toml", overrides={
