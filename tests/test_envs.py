@@ -162,6 +162,87 @@ def test_observations_match_their_definitions():
         env.close()
 
 
+def _by_definition(task, physics):
+    """The observation dict and the reward at the physics' state from the definitions of
+    usv_mj.envs.tasks, computed independently of its kernels: the reference's Python evaluate,
+    ``math``, the Python angle wrap and dm_control's own ``rewards.tolerance``; the harbor's
+    rangefinders through the bindings (mj_kinematics, mj_sensorPos)."""
+    import mujoco
+    from dm_control.utils import rewards
+
+    def tol(v, lo, hi, margin, sigmoid, at_margin):
+        return float(rewards.tolerance(v, bounds=(lo, hi), margin=margin, sigmoid=sigmoid, value_at_margin=at_margin))
+
+    def wrap(a):
+        return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+    x = np.nan_to_num(physics.state, nan=0.0, posinf=0.0, neginf=0.0)
+    t = physics.time()
+    ref = task.reference.evaluate(t).copy()
+    c, s = math.cos(x[2]), math.sin(x[2])
+
+    def body(px, py):
+        return [c * px + s * py, -s * px + c * py]
+
+    preview = [task.reference.evaluate(t + tau).copy() for tau in task.preview_times]
+    obs = {"position_error": body(x[0] - ref[0], x[1] - ref[1]), "heading_error": [wrap(x[2] - ref[2])],
+           "heading": [c, s], "velocity": [x[3], x[4], x[5]],
+           "velocity_error": [c * ref[3] + s * ref[4] - x[3], -s * ref[3] + c * ref[4] - x[4], ref[5] - x[5]],
+           "reference_preview": [body(r[0] - x[0], r[1] - x[1]) for r in preview],
+           "funnel": [(f.rho_0 - f.rho_inf) * math.exp(-f.rate * t) + f.rho_inf
+                      for f in (task.funnel_xy, task.funnel_psi)],
+           "time": [t]}
+    reward = (2.0 * tol(math.hypot(x[0] - ref[0], x[1] - ref[1]), 0.0, 0.25, 2.0, "gaussian", 0.1)
+              + tol(abs(wrap(x[2] - ref[2])), 0.0, 0.1, 0.5, "gaussian", 0.1)) / 3.0
+    if isinstance(task, envs.HarbourTask):
+        g, m, d = task.layout.goal, physics.plant.model, physics.plant.data
+        obs["goal"] = body(g[0] - x[0], g[1] - x[1]) + [wrap(task.layout.psi_goal - x[2])]
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_sensorPos(m, d)
+        adr = [m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, f"range_{i}")] for i in range(task.n_rays)]
+        r = d.sensordata[adr]
+        obs["rangefinder"] = np.where((r < 0) | (r > task.max_range), task.max_range, r)
+        r_goal = tol(math.hypot(x[0] - g[0], x[1] - g[1]), 0.0, task.goal_radius, task._start_distance, "linear", 0.0)
+        r_clear = tol(float(np.min(task.monitor.clearance)), task.margin_m, math.inf, task.margin_m, "linear", 0.0)
+        reward = r_clear * 0.5 * (r_goal + reward)
+    return obs, reward
+
+
+@pytest.mark.parametrize("task", ["track", "harbor"])
+def test_observations_and_rewards_equal_their_definitions_bit_for_bit(task):
+    """Every observation entry and every reward of a rollout (actions beyond the bounds clipped,
+    the quantizer on) equal the definitions computed independently (``_by_definition``) to the
+    last bit; the thrust is the Python quantizer's."""
+    from usv_mj.builder import make_quantizers
+
+    env = envs.load(task, seed=4, duration=1.5)
+    try:
+        rng = np.random.RandomState(9)
+        spec = env.observation_spec()
+        high = env.action_spec().maximum
+        q_u, q_r = make_quantizers(env.task.scenario)
+        policy = envs.PPCPolicy(env) if task == "harbor" else None
+        ts = env.reset()
+        n = 0
+        while True:
+            want, reward = _by_definition(env.task, env.physics)
+            assert list(ts.observation) == list(spec) == list(want)
+            for name, value in ts.observation.items():
+                assert value.dtype == np.float64 and value.shape == spec[name].shape, name
+                assert np.array_equal(value, np.reshape(want[name], value.shape)), (n, name, value, want[name])
+            assert ts.first() or ts.reward == reward, (n, ts.reward, reward)
+            if ts.last():
+                break
+            a = policy(ts) if policy is not None else rng.uniform(-1.5, 1.5, size=2) * high
+            ts = env.step(a)
+            clipped = np.clip(a, -high, high)
+            assert np.array_equal(env.task.info["thrust"], [q_u.step(clipped[0]), q_r.step(clipped[1])])
+            n += 1
+        assert n == 150 and env.task.info["kind"] == "time_limit"
+    finally:
+        env.close()
+
+
 def test_ppc_trajectory_equals_simulate_on_the_mujoco_plant():
     """PPCPolicy in the environment = simulate() with the same scenario, start and reference on a
     fresh MuJoCoPlant (quantizer on): the environment is the plant, not a copy."""

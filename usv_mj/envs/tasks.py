@@ -53,20 +53,20 @@ from __future__ import annotations
 import collections
 import math
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.obstacles.compose)
     from dm_control.suite import base
-    from dm_control.utils import rewards
 from dm_env import specs
 
 from usv_mj.builder import make_quantizers
-from usv_mj.controllers.hysteresis_quantizer import quantize_step
-from usv_mj.controllers.performance_funnel import funnel_bound, funnels_of
-from usv_mj.controllers.tracking_errors import wrap
-from usv_mj.simulation import _which_limit, make_reference, state_limit_exceeded
+from usv_mj.controllers.performance_funnel import funnels_of
+from usv_mj.simulation import _which_limit, make_reference
+
+from . import native
 
 DEFAULT_PREVIEW = (0.5, 1.0, 2.0, 4.0)
 
@@ -86,12 +86,49 @@ def action_bounds(scenario, max_surge_force: float = DEFAULT_FORCE, max_yaw_mome
     return low, high
 
 
+#: dm_control's Gaussian sigmoid scale for value_at_margin = 0.1, computed as it computes it (numpy)
+_GAUSS_SCALE = np.sqrt(-2 * np.log(0.1))
+
+
+def _tol_gaussian(x: float, lower: float, upper: float, margin: float) -> float:
+    """``rewards.tolerance(x, (lower, upper), margin, "gaussian", value_at_margin=0.1)`` of a float,
+    with dm_control's own numpy operations where they define the result (the power and the exp)."""
+    if lower <= x <= upper:
+        return 1.0
+    d = np.float64(lower - x if x < lower else x - upper) / margin
+    return float(np.exp(-0.5 * (d * _GAUSS_SCALE) ** 2))
+
+
+def _tol_linear(x: float, lower: float, upper: float, margin: float) -> float:
+    """``rewards.tolerance(x, (lower, upper), margin, "linear", value_at_margin=0.0)`` of a float."""
+    if lower <= x <= upper:
+        return 1.0
+    d = (lower - x if x < lower else x - upper) / margin
+    return 1 - d if abs(d) < 1 else 0.0
+
+
 def _tol_pos(d: float) -> float:
-    return float(rewards.tolerance(d, bounds=(0.0, 0.25), margin=2.0, sigmoid="gaussian", value_at_margin=0.1))
+    return _tol_gaussian(d, 0.0, 0.25, 2.0)
 
 
 def _tol_psi(e: float) -> float:
-    return float(rewards.tolerance(abs(e), bounds=(0.0, 0.1), margin=0.5, sigmoid="gaussian", value_at_margin=0.1))
+    return _tol_gaussian(abs(e), 0.0, 0.1, 0.5)
+
+
+class _Step(NamedTuple):
+    """One evaluation of the task at a state (:meth:`TrackTask._evaluate`)."""
+
+    refs: np.ndarray        # reference rows: at t, then at t + each preview time
+    obs: np.ndarray         # the observation vector (observation_shapes order)
+    ex: float               # position error x - x_d, y - y_d [m] of the state read finite (non-finite -> 0)
+    ey: float
+    e_psi: float            # wrap(psi - psi_d) [rad]
+    diverged: bool          # the raw state left scenario.limits or is not finite
+    x: np.ndarray           # the key: the state array, time, physics and reference it is for
+    t: float
+    physics: object
+    reference: object
+    handed: list            # [True] once obs was handed out (the next one gets a copy)
 
 
 class TrackTask(base.Task):
@@ -135,12 +172,21 @@ class TrackTask(base.Task):
         self.funnel_xy, self.funnel_psi = funnels_of(scenario)
         q_u, q_r = make_quantizers(scenario)
         self._qp = ((q_u.params.delta, q_u.params.u_min), (q_r.params.delta, q_r.params.u_min))
-        self._k = [0, 0]
+        self._act_p = np.array([*self._bounds_t, *self._qp[0], *self._qp[1]], dtype=np.float64)
+        self._k = np.zeros(2, dtype=np.int64)  # the quantizers' signed level indices
         self.last_action = np.zeros(2)      # clipped action [N, N m]
         self.last_thrust = np.zeros(2)      # after the quantizer: what the plant got
         self.termination_reason: str | None = None
         self.termination_kind: str | None = None
         self.episode_scenario = scenario  # what the plant was built from (harbor: with the layout's obstacles)
+        # per-step evaluation (usv_mj.envs.native): one call for the observation vector, the
+        # reference rows and the reward's and termination's numbers, kept for the step's state
+        self._params = np.zeros(native.N_PARAMS)
+        self._n_obs = native.N_HEAD + 2 * preview.size + native.N_TAIL
+        self._evaluator = None
+        self._ev = None
+        self._ctrl_of = (None, None)  # (physics, its data.ctrl)
+        TrackTask._fill_params(self, self._params)
 
     # --- episode -------------------------------------------------------------------------------
 
@@ -151,8 +197,10 @@ class TrackTask(base.Task):
         return np.array([ref[0] + d[0], ref[1] + d[1], ref[2] + d[2]]), np.zeros(3)
 
     def initialize_episode(self, physics):
-        self._k = [0, 0]
+        self._k[:] = 0
         self._ref_t = None
+        self._ev = None
+        self._fill_params(self._params)
         self.last_action[:] = 0.0
         self.last_thrust[:] = 0.0
         self.termination_reason = None
@@ -168,22 +216,17 @@ class TrackTask(base.Task):
         if a.shape != (2,):
             raise ValueError(f"{type(self).__name__}: action must be (tau_u [N], tau_r [N m]), shape (2,), "
                              f"got shape {a.shape}")
-        a0, a1 = float(a[0]), float(a[1])
+        a0, a1 = a
         if not (math.isfinite(a0) and math.isfinite(a1)):
             raise ValueError(f"{type(self).__name__}: action must be finite, got {a.tolist()}")
-        lo0, hi0, lo1, hi1 = self._bounds_t
-        a0 = min(max(a0, lo0), hi0)
-        a1 = min(max(a1, lo1), hi1)
-        self.last_action[0], self.last_action[1] = a0, a1
-        if self.quantize:
-            (d0, m0), (d1, m1) = self._qp
-            q0, self._k[0] = quantize_step(d0, m0, self._k[0], a0)
-            q1, self._k[1] = quantize_step(d1, m1, self._k[1], a1)
-        else:
-            q0, q1 = a0, a1
-        self.last_thrust[0], self.last_thrust[1] = q0, q1
-        ctrl = physics.plant.data.ctrl
-        ctrl[0], ctrl[1] = q0, q1
+        self._ev = None  # the state is about to change
+        of, ctrl = self._ctrl_of
+        if of is not physics:
+            ctrl = physics.plant.data.ctrl
+            self._ctrl_of = (physics, ctrl)
+        # clip, quantize (Eq. 3) and write last_action, last_thrust and ctrl in one native call
+        native.act_kernel(float(a0), float(a1), self._act_p, self.quantize, self._k, self.last_action,
+                          self.last_thrust, ctrl)
 
     def after_step(self, physics):
         if self.termination_reason is not None:
@@ -192,14 +235,15 @@ class TrackTask(base.Task):
         if physics.failure is not None:
             self._terminate("diverged", physics.failure)
             return
-        x = physics.state
-        lim = self.scenario.limits
-        ref = self.reference_at(t)
-        ex, ey = x[0] - ref[0], x[1] - ref[1]
-        dist = math.hypot(ex, ey)
-        if state_limit_exceeded(x, ex, ey, lim) or not all(math.isfinite(v) for v in x):
+        ev = self._evaluate(physics)
+        if ev.diverged:  # usv_mj.simulation.state_limit_exceeded, or not finite
+            x, ref = physics.state, ev.refs[0]
+            ex, ey = x[0] - ref[0], x[1] - ref[1]
+            lim = self.scenario.limits
             self._terminate("diverged", f"state left its limits at t = {t:.3f} s: {_which_limit(x, ex, ey, lim)}")
-        elif dist >= self.max_distance:
+            return
+        dist = math.hypot(ev.ex, ev.ey)  # the state is finite here: ex, ey are those of the raw state
+        if dist >= self.max_distance:
             self._terminate("lost", f"distance to the reference {dist:.3g} m reached max_distance = "
                                     f"{self.max_distance:g} m at t = {t:.3f} s")
 
@@ -232,35 +276,84 @@ class TrackTask(base.Task):
         return self._ref
 
     def _frame(self, physics):
+        x = self._finite_state(physics)
+        return x, math.cos(x[2]), math.sin(x[2])
+
+    @staticmethod
+    def _finite_state(physics):
+        """The state with non-finite entries read as 0 (what the observations and rewards see)."""
         x = physics.state
         if not (math.isfinite(x[0]) and math.isfinite(x[1]) and math.isfinite(x[2]) and math.isfinite(x[3])
                 and math.isfinite(x[4]) and math.isfinite(x[5])):
             x = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
-        return x, math.cos(x[2]), math.sin(x[2])
+        return x
+
+    # --- the per-step evaluation ---------------------------------------------------------------
+    #
+    # One native call per step (usv_mj.envs.native) gives the reference rows, the observation
+    # vector and the numbers of the reward and the termination; after_step, get_reward and
+    # get_observation share it. It is kept for the state it was computed at: the same state array
+    # (the plant hands a new one at every step, and a reset a fresh one at every read), the same
+    # time, physics and reference, and it is dropped at before_step and at every episode.
+
+    _has_goal = False  # harbor: the observation vector carries the goal after the time
+
+    def _fill_params(self, p) -> None:
+        """The task's constant numbers for :func:`native.track_observe` (filled at every episode)."""
+        fx, fp, lim = self.funnel_xy, self.funnel_psi, self.scenario.limits
+        p[native.P_RHO_XY0], p[native.P_RHO_XYINF], p[native.P_RATE_XY] = fx.rho_0, fx.rho_inf, fx.rate
+        p[native.P_RHO_P0], p[native.P_RHO_PINF], p[native.P_RATE_P] = fp.rho_0, fp.rho_inf, fp.rate
+        p[native.P_MAX_SPEED], p[native.P_MAX_YAW_RATE] = lim.max_speed, lim.max_yaw_rate
+        p[native.P_MAX_DISTANCE] = lim.max_distance
+
+    def _n_observed(self) -> int:
+        """Length of the observation vector."""
+        return self._n_obs
+
+    def _evaluate(self, physics) -> _Step:
+        """The task at the physics' state and time (:class:`native.StepEvaluator`, then
+        :meth:`_complete`), or the evaluation already made there."""
+        x = physics.state
+        t = physics.time()
+        ev = self._ev
+        if ev is not None and ev.x is x and ev.t == t and ev.physics is physics and ev.reference is self.reference:
+            return ev
+        evaluator = self._evaluator
+        if evaluator is None or evaluator.reference is not self.reference:
+            evaluator = self._evaluator = native.StepEvaluator(self.reference, self.preview_times)
+        refs, obs, ex, ey, e_psi, diverged = evaluator(x, t, self._params, self._n_observed(), self._has_goal)
+        self._ref, self._ref_t = refs[0], t
+        self._complete(obs, physics)
+        ev = self._ev = _Step(refs, obs, ex, ey, e_psi, diverged, x, t, physics, self.reference, [False])
+        return ev
+
+    def _complete(self, obs, physics) -> None:
+        """Fill what the native evaluation left of the observation vector (harbor: the rangefinders)."""
+
+    def _observation_vector(self, physics) -> np.ndarray:
+        """The step's observation vector (a fresh array for every observation handed out)."""
+        ev = self._evaluate(physics)
+        if ev.handed[0]:
+            return ev.obs.copy()
+        ev.handed[0] = True
+        return ev.obs
 
     def get_observation(self, physics):
-        t = physics.time()
-        x, c, s = self._frame(physics)
-        ref = self.reference_at(t)
-        dx, dy = x[0] - ref[0], x[1] - ref[1]
-        fx, fp = self.funnel_xy, self.funnel_psi
+        return self._split(self._observation_vector(physics))
+
+    def _split(self, v):
+        """The observation dict of the vector ``v`` (views of it, in observation_shapes order)."""
+        n = self.preview_times.size
+        j = native.N_HEAD + 2 * n
         obs = collections.OrderedDict()
-        obs["position_error"] = np.array([c * dx + s * dy, -s * dx + c * dy])
-        obs["heading_error"] = np.array([wrap(x[2] - ref[2])])
-        obs["heading"] = np.array([c, s])
-        obs["velocity"] = np.array([x[3], x[4], x[5]])
-        obs["velocity_error"] = np.array([c * ref[3] + s * ref[4] - x[3], -s * ref[3] + c * ref[4] - x[4],
-                                          ref[5] - x[5]])
-        prev = np.empty((self.preview_times.size, 2))
-        for k, tau in enumerate(self.preview_times):
-            r = self.reference.evaluate(t + tau)
-            px, py = r[0] - x[0], r[1] - x[1]
-            prev[k, 0] = c * px + s * py
-            prev[k, 1] = -s * px + c * py
-        obs["reference_preview"] = prev
-        obs["funnel"] = np.array([funnel_bound(fx.rho_0, fx.rho_inf, fx.rate, t),
-                                  funnel_bound(fp.rho_0, fp.rho_inf, fp.rate, t)])
-        obs["time"] = np.array([t])
+        obs["position_error"] = v[0:2]
+        obs["heading_error"] = v[2:3]
+        obs["heading"] = v[3:5]
+        obs["velocity"] = v[5:8]
+        obs["velocity_error"] = v[8:11]
+        obs["reference_preview"] = v[11:j].reshape(n, 2)
+        obs["funnel"] = v[j:j + 2]
+        obs["time"] = v[j + 2:j + 3]
         return obs
 
     def observation_spec(self, physics):
@@ -291,11 +384,8 @@ class TrackTask(base.Task):
                 "funnel": (np.array(lo_f), np.array(hi_f)), "time": (0.0, t_hi)}
 
     def tracking_reward(self, physics) -> float:
-        t = physics.time()
-        x, _, _ = self._frame(physics)
-        ref = self.reference_at(t)
-        d = math.hypot(x[0] - ref[0], x[1] - ref[1])
-        return (2.0 * _tol_pos(d) + _tol_psi(wrap(x[2] - ref[2]))) / 3.0
+        ev = self._evaluate(physics)
+        return (2.0 * _tol_pos(math.hypot(ev.ex, ev.ey)) + _tol_psi(ev.e_psi)) / 3.0
 
     def get_reward(self, physics):
         return self.tracking_reward(physics)
@@ -338,7 +428,9 @@ class HarbourTask(TrackTask):
         self.episode_scenario = episode_scenario if episode_scenario is not None else self.scenario
         self.reference = layout.plan.reference
         self._ref_t = None
+        self._ev = None
         self.monitor = monitor
+        self._fill_params(self._params)
 
     def start_pose(self):
         lay = self.layout
@@ -356,9 +448,9 @@ class HarbourTask(TrackTask):
 
     def _clearance(self, physics) -> float:
         c = self.monitor.update(physics.time(), physics.plant)
-        self._contact = bool(np.any(self.monitor.in_contact)) or bool(np.any(c <= 0.0))
-        self._nearest = int(np.argmin(c)) if c.size else -1
-        return float(np.min(c)) if c.size else math.inf
+        # any contact or c <= 0, np.argmin(c) and np.min(c) in one native call
+        self._contact, self._nearest, c_min = native.clearance_summary(c, self.monitor.in_contact)
+        return c_min
 
     def after_step(self, physics):
         super().after_step(physics)
@@ -374,14 +466,26 @@ class HarbourTask(TrackTask):
         elif math.hypot(x[0] - self.layout.goal[0], x[1] - self.layout.goal[1]) < self.goal_radius:
             self._terminate("goal", f"reached the goal at t = {t:.3f} s")
 
-    def get_observation(self, physics):
-        obs = super().get_observation(physics)
-        x, c, s = self._frame(physics)
+    _has_goal = True
+
+    def _n_observed(self) -> int:
+        return self._n_obs + 3 + self.n_rays
+
+    def _fill_params(self, p) -> None:
+        super()._fill_params(p)
+        if self.layout is None:
+            return
         g = self.layout.goal
-        gx, gy = g[0] - x[0], g[1] - x[1]
-        obs["goal"] = np.array([c * gx + s * gy, -s * gx + c * gy, wrap(self.layout.psi_goal - x[2])])
-        r = physics.plant.rangefinders()
-        obs["rangefinder"] = np.where((r < 0) | (r > self.max_range), self.max_range, r)
+        p[native.P_GOAL_X], p[native.P_GOAL_Y], p[native.P_PSI_GOAL] = g[0], g[1], self.layout.psi_goal
+
+    def _complete(self, obs, physics) -> None:
+        native.clip_ranges(obs, self._n_obs + 3, physics.plant.rangefinders(), self.max_range)
+
+    def _split(self, v):
+        obs = super()._split(v)
+        j = self._n_obs
+        obs["goal"] = v[j:j + 3]
+        obs["rangefinder"] = v[j + 3:]
         return obs
 
     def observation_shapes(self):
@@ -391,14 +495,12 @@ class HarbourTask(TrackTask):
         return {**super().observation_bounds(), "rangefinder": (0.0, self.max_range)}
 
     def get_reward(self, physics):
-        x, _, _ = self._frame(physics)
+        x = self._finite_state(physics)
         g = self.layout.goal
         d_goal = math.hypot(x[0] - g[0], x[1] - g[1])
-        r_goal = float(rewards.tolerance(d_goal, bounds=(0.0, self.goal_radius), margin=self._start_distance,
-                                         sigmoid="linear", value_at_margin=0.0))
+        r_goal = _tol_linear(d_goal, 0.0, self.goal_radius, self._start_distance)
         if self.margin_m > 0:
-            r_clear = float(rewards.tolerance(self.min_clearance, bounds=(self.margin_m, math.inf),
-                                              margin=self.margin_m, sigmoid="linear", value_at_margin=0.0))
+            r_clear = _tol_linear(self.min_clearance, self.margin_m, math.inf, self.margin_m)
         else:
             r_clear = 1.0 if self.min_clearance > 0 else 0.0
         return r_clear * 0.5 * (r_goal + self.tracking_reward(physics))
