@@ -243,6 +243,42 @@ def test_observations_and_rewards_equal_their_definitions_bit_for_bit(task):
         env.close()
 
 
+@pytest.mark.parametrize("task, flat", [("track", False), ("harbor", True)])
+def test_the_fused_step_is_the_step_method_by_method(task, flat):
+    """USVEnvironment.step's fused path (TrackTask.fused_step: the action, the plant's kernel and the
+    evaluation in one native call) and dm_control's sequence of before_step, physics.step,
+    after_step, get_reward, get_observation give the same time steps, info and state bit for bit,
+    through a plant failure (MuJoCo's reset on a huge velocity) and into the next episode."""
+    runs = []
+    for fused in (True, False):
+        env = envs.load(task, seed=2, duration=0.6, flat_observation=flat)
+        env._fusable = fused
+        calls = []
+        real = env.task.fused_step
+        env.task.fused_step = lambda *a: calls.append(1) or real(*a)
+        try:
+            policy, rows = envs.PPCPolicy(env), []
+            ts = env.reset()
+            for i in range(100):
+                if i == 20:
+                    env.physics.plant.data.qvel[:] = (3e10, -3e10, 1e9)  # MuJoCo resets: the plant fails
+                ts = env.step(policy(ts))
+                obs = {k: np.array(v) for k, v in ts.observation.items()}
+                rows.append((ts.step_type, ts.reward, ts.discount, obs, env.task.info["kind"], env.task.info["reason"],
+                             env.physics.failure, env.physics.state.copy(), env.task.last_thrust.copy()))
+        finally:
+            env.close()
+        assert bool(calls) == fused
+        runs.append(rows)
+    kinds = [r[4] for r in runs[0] if r[0] == 2]  # the ends: the failure, then a time limit
+    assert kinds[:2] == ["diverged", "time_limit"] and runs[0][20][6], kinds
+    for a, b in zip(*runs):
+        assert a[0] == b[0] and a[2] == b[2] and a[4:7] == b[4:7], (a[4:7], b[4:7])
+        assert a[1] == b[1] or (a[1] is None and b[1] is None) or (math.isnan(a[1]) and math.isnan(b[1]))
+        assert list(a[3]) == list(b[3]) and all(np.array_equal(a[3][k], b[3][k], equal_nan=True) for k in a[3])
+        assert np.array_equal(a[7], b[7], equal_nan=True) and np.array_equal(a[8], b[8])
+
+
 def test_ppc_trajectory_equals_simulate_on_the_mujoco_plant():
     """PPCPolicy in the environment = simulate() with the same scenario, start and reference on a
     fresh MuJoCoPlant (quantizer on): the environment is the plant, not a copy."""

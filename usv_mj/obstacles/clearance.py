@@ -156,30 +156,43 @@ class MuJoCoClearance:
     def update(self, t: float = 0.0, plant_or_state=None) -> np.ndarray:
         """Clearance [m] per obstacle at the plant's current state (``t`` and the argument are
         accepted for interface symmetry; the plant's mjData is read)."""
-        m, d = self.model, self.data
+        mujoco_clearance_kernel(*self.kernel_args())
+        self.add_contacts()
+        return self.clearance
+
+    def kernel_args(self) -> tuple:
+        """The arguments of :func:`mujoco_clearance_kernel` for this monitor (the distances, the
+        exact flags and witnesses written into its arrays; contacts cleared): a caller that runs
+        the kernel itself (the harbor task, fused with its other per-step work) then calls
+        :meth:`add_contacts`."""
         m_addr, d_addr, kinematics, geom_distance = self._addresses
-        clearance = self.clearance
         prefilter = math.isfinite(self.exact_within) and len(self._ogeoms) >= self.PREFILTER_FROM
-        mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, self._hgeoms, self._ogeoms, self._bound,
-                                self.exact_within, prefilter, self.distmax, self._qpos, self._geom_xpos, clearance,
-                                self.exact, self.witness, self._fromto, self.normal_force, self.in_contact)
+        return (m_addr, d_addr, kinematics, geom_distance, self._hgeoms, self._ogeoms, self._bound, self.exact_within,
+                prefilter, self.distmax, self._qpos, self._geom_xpos, self.clearance, self.exact, self.witness,
+                self._fromto, self.normal_force, self.in_contact)
+
+    def add_contacts(self) -> bool:
+        """The hull's contacts in ``d.contact`` into :attr:`normal_force` and :attr:`in_contact`
+        (after the kernel cleared them); True when there was any contact to look at."""
+        m, d = self.model, self.data
         ncon = d.ncon
-        if ncon:
-            geoms = d.contact.geom[:ncon]
-            for c in range(ncon):
-                g1, g2 = geoms[c]
-                if self._is_hull[g1]:
-                    i = self._obstacle_of[g2]
-                elif self._is_hull[g2]:
-                    i = self._obstacle_of[g1]
-                else:
-                    continue
-                if i < 0:
-                    continue
-                mujoco.mj_contactForce(m, d, c, self._force)
-                self.normal_force[i] += abs(self._force[0])
-                self.in_contact[i] = True
-        return clearance
+        if not ncon:
+            return False
+        geoms = d.contact.geom[:ncon]
+        for c in range(ncon):
+            g1, g2 = geoms[c]
+            if self._is_hull[g1]:
+                i = self._obstacle_of[g2]
+            elif self._is_hull[g2]:
+                i = self._obstacle_of[g1]
+            else:
+                continue
+            if i < 0:
+                continue
+            mujoco.mj_contactForce(m, d, c, self._force)
+            self.normal_force[i] += abs(self._force[0])
+            self.in_contact[i] = True
+        return True
 
 # --- numba kernels: signed distances between convex polygons (the hull footprint is convex) -----
 
