@@ -171,6 +171,18 @@ def harbor_sense(obs, start, max_range, m_addr, d_addr, sensor_pos, sensordata, 
     return clearance_summary(monitor[12], monitor[17])
 
 
+def entry_point(dispatcher):
+    """The compiled entry point of an njit function with exactly one compiled signature, or None.
+
+    Calling it skips the dispatcher's type resolution (about 1.5 us with the fused step's ~50
+    arguments); the caller must keep passing arguments of that signature's types (the fused step
+    does: the same arrays, tuples and scalar kinds at every step of an episode)."""
+    overloads = getattr(dispatcher, "overloads", None)
+    if not overloads or len(overloads) != 1:
+        return None
+    return getattr(next(iter(overloads.values())), "entry_point", None)
+
+
 _SENSOR_POS = None
 
 

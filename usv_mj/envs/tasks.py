@@ -306,7 +306,8 @@ class TrackTask(base.Task):
         k = plant.step_count
         t = plant.time_at(k + 1)
         f = self._fused
-        # (plant, reference, t_end, t0, plant kernel, step function, reference key function, key)
+        # (plant, reference, t_end, t0, plant kernel, step function, reference key function, key,
+        #  the step function is its entry point)
         if (f is None or f[0] is not plant or f[1] is not self.reference or t > f[2] or f[3] != plant.time_at(0)
                 or (f[6] is not None and f[6]() != f[7])):
             f = self._fused = self._fused_setup(plant, t)
@@ -319,6 +320,8 @@ class TrackTask(base.Task):
         self._before_physics(physics)
         pk = f[4]
         ev = self._native_step(f[5], a0, a1, physics, k, t, pk.args)
+        if not f[8]:  # compiled (or loaded) now: call its entry point from here on (native.entry_point)
+            self._fused = f[:5] + (native.entry_point(f[5]) or f[5],) + f[6:8] + (True,)
         pk.sync(k + 1, ev.x)
         if ev.failed:  # as USVPhysics.step: the plant's error is the physics' failure
             try:
@@ -349,7 +352,7 @@ class TrackTask(base.Task):
         if mod is None:
             return None
         return (plant, self.reference, t_end, plant.time_at(0), pk, self._step_function(mod), evaluator.key_fn,
-                evaluator.key)
+                evaluator.key, False)
 
     @staticmethod
     def _step_function(mod):
