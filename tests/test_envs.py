@@ -162,6 +162,123 @@ def test_observations_match_their_definitions():
         env.close()
 
 
+def _by_definition(task, physics):
+    """The observation dict and the reward at the physics' state from the definitions of
+    usv_mj.envs.tasks, computed independently of its kernels: the reference's Python evaluate,
+    ``math``, the Python angle wrap and dm_control's own ``rewards.tolerance``; the harbor's
+    rangefinders through the bindings (mj_kinematics, mj_sensorPos)."""
+    import mujoco
+    from dm_control.utils import rewards
+
+    def tol(v, lo, hi, margin, sigmoid, at_margin):
+        return float(rewards.tolerance(v, bounds=(lo, hi), margin=margin, sigmoid=sigmoid, value_at_margin=at_margin))
+
+    def wrap(a):
+        return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+    x = np.nan_to_num(physics.state, nan=0.0, posinf=0.0, neginf=0.0)
+    t = physics.time()
+    ref = task.reference.evaluate(t).copy()
+    c, s = math.cos(x[2]), math.sin(x[2])
+
+    def body(px, py):
+        return [c * px + s * py, -s * px + c * py]
+
+    preview = [task.reference.evaluate(t + tau).copy() for tau in task.preview_times]
+    obs = {"position_error": body(x[0] - ref[0], x[1] - ref[1]), "heading_error": [wrap(x[2] - ref[2])],
+           "heading": [c, s], "velocity": [x[3], x[4], x[5]],
+           "velocity_error": [c * ref[3] + s * ref[4] - x[3], -s * ref[3] + c * ref[4] - x[4], ref[5] - x[5]],
+           "reference_preview": [body(r[0] - x[0], r[1] - x[1]) for r in preview],
+           "funnel": [(f.rho_0 - f.rho_inf) * math.exp(-f.rate * t) + f.rho_inf
+                      for f in (task.funnel_xy, task.funnel_psi)],
+           "time": [t]}
+    reward = (2.0 * tol(math.hypot(x[0] - ref[0], x[1] - ref[1]), 0.0, 0.25, 2.0, "gaussian", 0.1)
+              + tol(abs(wrap(x[2] - ref[2])), 0.0, 0.1, 0.5, "gaussian", 0.1)) / 3.0
+    if isinstance(task, envs.HarbourTask):
+        g, m, d = task.layout.goal, physics.plant.model, physics.plant.data
+        obs["goal"] = body(g[0] - x[0], g[1] - x[1]) + [wrap(task.layout.psi_goal - x[2])]
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_sensorPos(m, d)
+        adr = [m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, f"range_{i}")] for i in range(task.n_rays)]
+        r = d.sensordata[adr]
+        obs["rangefinder"] = np.where((r < 0) | (r > task.max_range), task.max_range, r)
+        r_goal = tol(math.hypot(x[0] - g[0], x[1] - g[1]), 0.0, task.goal_radius, task._start_distance, "linear", 0.0)
+        r_clear = tol(float(np.min(task.monitor.clearance)), task.margin_m, math.inf, task.margin_m, "linear", 0.0)
+        reward = r_clear * 0.5 * (r_goal + reward)
+    return obs, reward
+
+
+@pytest.mark.parametrize("task", ["track", "harbor"])
+def test_observations_and_rewards_equal_their_definitions_bit_for_bit(task):
+    """Every observation entry and every reward of a rollout (actions beyond the bounds clipped,
+    the quantizer on) equal the definitions computed independently (``_by_definition``) to the
+    last bit; the thrust is the Python quantizer's."""
+    from usv_mj.builder import make_quantizers
+
+    env = envs.load(task, seed=4, duration=1.5)
+    try:
+        rng = np.random.RandomState(9)
+        spec = env.observation_spec()
+        high = env.action_spec().maximum
+        q_u, q_r = make_quantizers(env.task.scenario)
+        policy = envs.PPCPolicy(env) if task == "harbor" else None
+        ts = env.reset()
+        n = 0
+        while True:
+            want, reward = _by_definition(env.task, env.physics)
+            assert list(ts.observation) == list(spec) == list(want)
+            for name, value in ts.observation.items():
+                assert value.dtype == np.float64 and value.shape == spec[name].shape, name
+                assert np.array_equal(value, np.reshape(want[name], value.shape)), (n, name, value, want[name])
+            assert ts.first() or ts.reward == reward, (n, ts.reward, reward)
+            if ts.last():
+                break
+            a = policy(ts) if policy is not None else rng.uniform(-1.5, 1.5, size=2) * high
+            ts = env.step(a)
+            clipped = np.clip(a, -high, high)
+            assert np.array_equal(env.task.info["thrust"], [q_u.step(clipped[0]), q_r.step(clipped[1])])
+            n += 1
+        assert n == 150 and env.task.info["kind"] == "time_limit"
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("task, flat", [("track", False), ("harbor", True)])
+def test_the_fused_step_is_the_step_method_by_method(task, flat):
+    """USVEnvironment.step's fused path (TrackTask.fused_step: the action, the plant's kernel and the
+    evaluation in one native call) and dm_control's sequence of before_step, physics.step,
+    after_step, get_reward, get_observation give the same time steps, info and state bit for bit,
+    through a plant failure (MuJoCo's reset on a huge velocity) and into the next episode."""
+    runs = []
+    for fused in (True, False):
+        env = envs.load(task, seed=2, duration=0.6, flat_observation=flat)
+        env._fusable = fused
+        calls = []
+        real = env.task.fused_step
+        env.task.fused_step = lambda *a: calls.append(1) or real(*a)
+        try:
+            policy, rows = envs.PPCPolicy(env), []
+            ts = env.reset()
+            for i in range(100):
+                if i == 20:
+                    env.physics.plant.data.qvel[:] = (3e10, -3e10, 1e9)  # MuJoCo resets: the plant fails
+                ts = env.step(policy(ts))
+                obs = {k: np.array(v) for k, v in ts.observation.items()}
+                rows.append((ts.step_type, ts.reward, ts.discount, obs, env.task.info["kind"], env.task.info["reason"],
+                             env.physics.failure, env.physics.state.copy(), env.task.last_thrust.copy()))
+        finally:
+            env.close()
+        assert bool(calls) == fused
+        runs.append(rows)
+    kinds = [r[4] for r in runs[0] if r[0] == 2]  # the ends: the failure, then a time limit
+    assert kinds[:2] == ["diverged", "time_limit"] and runs[0][20][6], kinds
+    for a, b in zip(*runs):
+        assert a[0] == b[0] and a[2] == b[2] and a[4:7] == b[4:7], (a[4:7], b[4:7])
+        assert a[1] == b[1] or (a[1] is None and b[1] is None) or (math.isnan(a[1]) and math.isnan(b[1]))
+        assert list(a[3]) == list(b[3]) and all(np.array_equal(a[3][k], b[3][k], equal_nan=True) for k in a[3])
+        assert np.array_equal(a[7], b[7], equal_nan=True) and np.array_equal(a[8], b[8])
+
+
 def test_ppc_trajectory_equals_simulate_on_the_mujoco_plant():
     """PPCPolicy in the environment = simulate() with the same scenario, start and reference on a
     fresh MuJoCoPlant (quantizer on): the environment is the plant, not a copy."""

@@ -204,6 +204,54 @@ def test_geometric_kernels_match_shapely_and_mujoco_at_random_poses():
             np.testing.assert_allclose(a[sep], c[sep], atol=2e-3)
 
 
+def _clearance_on_the_bindings(monitor):
+    """MuJoCoClearance.update (but the contacts) as written on the Python bindings: the reference
+    of its native kernel. (clearance, exact, witness rows of the exact entries)."""
+    m, d = monitor.model, monitor.data
+    mujoco.mj_kinematics(m, d)
+    n = len(monitor.obstacle_geoms)
+    clearance, exact, witness, fromto = np.full(n, np.inf), np.ones(n, dtype=bool), np.zeros((n, 6)), np.zeros(6)
+    if math.isfinite(monitor.exact_within) and n >= monitor.PREFILTER_FROM:
+        rel = d.geom_xpos[monitor.obstacle_geoms, :2] - d.qpos[:2]
+        lower = np.sqrt(rel[:, 0] ** 2 + rel[:, 1] ** 2) - monitor._bound
+        exact = lower < monitor.exact_within
+        clearance[:] = lower
+    for i in np.flatnonzero(exact):
+        best = math.inf
+        for hg in monitor.hull_geoms:
+            dist = mujoco.mj_geomDistance(m, d, hg, monitor.obstacle_geoms[i], monitor.distmax, fromto)
+            if dist < best:
+                best = dist
+                witness[i] = fromto
+        clearance[i] = best
+    return clearance, exact, witness[exact]
+
+
+@pytest.mark.parametrize("exact_within", [math.inf, 3.0])
+def test_native_mujoco_clearance_is_the_bindings_bit_for_bit(exact_within):
+    """The native update (mj_kinematics and mj_geomDistance called from compiled code, the
+    bounding-circle prefilter of 8 or more obstacles) gives exactly what the bindings give."""
+    tables = [{"kind": "box", "center": [6, 1], "size": [3, 5], "yaw": 0.4}, {"center": [-3, 3], "radius": 0.7},
+              {"kind": "box", "center": [0, -6], "size": [4, 1.6], "velocity": [0.2, 0.1]}]
+    tables += [{"center": [-8.0 + 3.0 * i, 8.0 - (i % 3)], "radius": 0.4 + 0.1 * i} for i in range(6)]
+    rng = np.random.default_rng(5)
+    for n in (3, len(tables)):  # without and with the prefilter
+        with HarbourPlant(SHIP, CALM, from_tables(tables[:n])) as plant:
+            monitor = MuJoCoClearance(plant, exact_within=exact_within)
+            assert (n >= monitor.PREFILTER_FROM) == (n == len(tables))
+            bounded = 0
+            for _ in range(60):
+                plant.reset((rng.uniform(-8, 9), rng.uniform(-8, 8), rng.uniform(-4, 4)), (0, 0, 0))
+                plant.move_obstacles(rng.uniform(0, 10))
+                c, exact, witness = _clearance_on_the_bindings(monitor)
+                native = monitor.update(0.0).copy()
+                assert np.array_equal(native, c) and np.array_equal(monitor.exact, exact)
+                assert np.array_equal(monitor.witness[exact], witness)
+                bounded += int(np.sum(~exact))
+            # the prefilter left some far obstacles to their bound exactly when it is on
+            assert (bounded > 0) == (math.isfinite(exact_within) and n >= monitor.PREFILTER_FROM)
+
+
 # --- planner ------------------------------------------------------------------------------------
 
 
@@ -406,6 +454,43 @@ def test_head_on_boat_gets_a_starboard_detour_that_keeps_clear():
     assert np.max(np.hypot(np.diff(ref[:, 0]), np.diff(ref[:, 1]))) <= 0.6 * dt * 1.001
     assert np.max(np.abs(ref[:, 5])) <= g.max_yaw_rate + 1e-9
     assert np.max(np.abs(np.diff(ref[:, 5]) / dt)) <= g.max_yaw_accel * 1.01
+
+
+@pytest.mark.parametrize("case", ["detour", "retiming"])
+def test_guided_kernel_is_evaluate_bit_for_bit_after_the_guidance_changed_the_reference(case):
+    """GuidedReference.kernel (its evaluate natively, usv_mj.kernels) on a reference the guidance
+    changed during the run (a head-on boat: a switched path; the crossing boat: a re-timed speed
+    profile): the same 7 numbers as evaluate at every 0.01 s, before the start and past the path's
+    end included; kernel_key says when a kernel's snapshot is stale."""
+    from usv_mj.obstacles import Guidance
+
+    if case == "detour":
+        osc = load_scenario(SCENARIOS / "crossing_boat.toml", overrides={
+            "duration": 80.0, "obstacles": [{"kind": "box", "center": [40.0, 0.0], "size": [4.0, 1.6],
+                                             "velocity": [-0.5, 0.0], "name": "head_on"}]})
+    else:
+        osc = load_scenario(SCENARIOS / "crossing_boat.toml")
+    plan = make_plan(osc)
+    reference = plan.reference
+    guidance = Guidance(reference, osc.obstacles, plan.envelope, osc.guidance, osc.trajectory.speed,
+                        goal=plan.polyline[-1])
+    key0, kernel0 = reference.kernel_key(), reference.kernel()
+    for t in np.arange(0.0, osc.duration, 0.01):
+        guidance.update(float(t))
+    assert any(e.kind == "replan" for e in guidance.events)
+    assert reference.kernel_key() != key0
+    kernel = reference.kernel()
+    assert len(reference.segments) > 1 if case == "detour" else len(reference.profile.pieces) > 1
+    times = np.arange(-0.5, osc.duration + 200.0, 0.01)
+    path_end = max(seg[1] + seg[2].length for seg in reference.segments)
+    assert reference.profile.state(times[-1])[0] > path_end  # past the end of the last path
+    out = np.empty(7)
+    for t in times:
+        want = reference.evaluate(float(t)).copy()
+        got = kernel.fn(float(t), *kernel.args[:-1], out)
+        assert np.array_equal(got, want), (t, got, want)
+    stale = kernel0.fn(float(times[-1]), *kernel0.args[:-1], out)
+    assert not np.array_equal(stale, reference.evaluate(float(times[-1])))
 
 
 def test_an_obstacle_that_cannot_be_avoided_is_reported():

@@ -9,6 +9,7 @@ import math
 import warnings
 import weakref
 
+import dm_env
 import numpy as np
 
 with warnings.catch_warnings():
@@ -59,6 +60,7 @@ class USVEnvironment(control.Environment):
         self._history = collections.deque(maxlen=HISTORY_ROWS)
         self._frames = None
         physics.owner = weakref.ref(self)
+        self._fusable = hasattr(task, "fused_step") and hasattr(task, "observation_dict")
 
     @property
     def flat_observation(self) -> bool:
@@ -110,13 +112,40 @@ class USVEnvironment(control.Environment):
         return ts
 
     def step(self, action):
+        """``dm_control.rl.control.Environment.step``, written out so that the task can do its part
+        (before_step, the physics step, after_step, the reward and the observation vector) in one
+        call (:meth:`TrackTask.fused_step`, when it applies; else the same calls one by one, as
+        there); then the time limit is noted in the task's :attr:`~TrackTask.info`."""
         if self._closed:
             raise RuntimeError("USVEnvironment: the environment is closed")
-        ts = super().step(action)
-        if ts.last() and ts.discount == 1.0:
-            self._task.mark_time_limit(self._physics.time())
+        if self._reset_next_step:
+            return self.reset()
+        task, physics = self._task, self._physics
+        fused = task.fused_step(action, physics, self._n_sub_steps) if self._fusable else None
+        if fused is not None:
+            reward, vector = fused
+            observation = collections.OrderedDict([(control.FLAT_OBSERVATION_KEY, vector)]) \
+                if self._flat_observation else task.observation_dict(vector)
+        else:
+            task.before_step(action, physics)
+            physics.step(self._n_sub_steps)
+            task.after_step(physics)
+            reward = task.get_reward(physics)
+            observation = task.get_observation(physics)
+            if self._flat_observation:
+                observation = control.flatten_observation(observation)
+        self._step_count += 1
+        if self._step_count >= self._step_limit:
+            discount = 1.0
+        else:
+            discount = task.get_termination(physics)
         self._remember()
-        return ts
+        if discount is None:
+            return dm_env.TimeStep(dm_env.StepType.MID, reward, 1.0, observation)
+        self._reset_next_step = True
+        if discount == 1.0:
+            task.mark_time_limit(physics.time())
+        return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)
 
     def _remember(self) -> None:
         task, ph = self._task, self._physics

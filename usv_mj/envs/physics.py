@@ -64,6 +64,7 @@ class USVPhysics(dm_mujoco.Physics):
         obj._closed = False
         obj.owner = None
         obj._frames = None
+        obj._ctrl = plant.data.ctrl  # a view of the mjData's ctrl (read at every step)
         dm_mujoco.Physics.__init__(obj, wrapper.MjData(plant.data))
         return obj
 
@@ -78,11 +79,12 @@ class USVPhysics(dm_mujoco.Physics):
             raise ValueError(f"USVPhysics.step: nstep = {nstep} is not a multiple of the plant's substeps ({sub})")
         if self.failure is not None:
             return
-        ctrl = self.plant.data.ctrl
+        ctrl = self._ctrl
         tau_u, tau_r = float(ctrl[0]), float(ctrl[1])
+        plant = self.plant
         try:
             for _ in range(nstep // sub):
-                self.plant.step(tau_u, tau_r)
+                plant.step(tau_u, tau_r)
         except HydrodynamicCallbackError as exc:
             self.failure = str(exc)
 

@@ -46,6 +46,13 @@ Termination (``get_termination`` -> discount 0, reason in ``task.termination_rea
 (distance to the reference >= ``max_distance``); in harbor also ``contact`` with an obstacle
 (MuJoCo contact or clearance <= 0) and ``goal`` (|p - p_goal| < goal_radius). The time limit ends
 the episode with discount 1 and kind ``time_limit``.
+
+Speed: a step's arithmetic runs compiled (:mod:`usv_mj.envs.native`): one evaluation per state
+gives the reference rows, the observation vector (the dict's entries are views of it), the
+reward's and the termination's numbers (harbor: with the clearance monitor's update and the
+rangefinders), and :meth:`TrackTask.fused_step` does the action, the plant's step and that
+evaluation in one native call for :meth:`usv_mj.envs.USVEnvironment.step`. The results are those
+of the definitions above bit for bit (tests/test_envs.py).
 """
 
 from __future__ import annotations
@@ -53,20 +60,25 @@ from __future__ import annotations
 import collections
 import math
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.obstacles.compose)
     from dm_control.suite import base
-    from dm_control.utils import rewards
 from dm_env import specs
 
 from usv_mj.builder import make_quantizers
-from usv_mj.controllers.hysteresis_quantizer import quantize_step
-from usv_mj.controllers.performance_funnel import funnel_bound, funnels_of
-from usv_mj.controllers.tracking_errors import wrap
-from usv_mj.simulation import _which_limit, make_reference, state_limit_exceeded
+from usv_mj.controllers.performance_funnel import funnels_of
+from usv_mj.plants.mujoco_callback import HydrodynamicCallbackError
+from usv_mj.simulation import _which_limit, make_reference
+
+from . import native
+from .physics import USVPhysics
+
+_PHYSICS_STEP = USVPhysics.step
+FUSED_HORIZON = 60.0  # s: the fused step asks the plant for its kernel this far ahead (the sea's grids)
 
 DEFAULT_PREVIEW = (0.5, 1.0, 2.0, 4.0)
 
@@ -86,12 +98,59 @@ def action_bounds(scenario, max_surge_force: float = DEFAULT_FORCE, max_yaw_mome
     return low, high
 
 
-def _tol_pos(d: float) -> float:
-    return float(rewards.tolerance(d, bounds=(0.0, 0.25), margin=2.0, sigmoid="gaussian", value_at_margin=0.1))
+#: dm_control's Gaussian sigmoid scale for value_at_margin = 0.1, computed as it computes it (numpy)
+_GAUSS_SCALE = np.sqrt(-2 * np.log(0.1))
 
 
-def _tol_psi(e: float) -> float:
-    return float(rewards.tolerance(abs(e), bounds=(0.0, 0.1), margin=0.5, sigmoid="gaussian", value_at_margin=0.1))
+def _tol_gaussian(x: float, lower: float, upper: float, margin: float) -> float:
+    """``rewards.tolerance(x, (lower, upper), margin, "gaussian", value_at_margin=0.1)`` of a float,
+    with dm_control's own numpy operations where they define the result (the power and the exp)."""
+    if lower <= x <= upper:
+        return 1.0
+    d = np.float64(lower - x if x < lower else x - upper) / margin
+    return float(np.exp(-0.5 * (d * _GAUSS_SCALE) ** 2))
+
+
+def _tol_linear(x: float, lower: float, upper: float, margin: float) -> float:
+    """``rewards.tolerance(x, (lower, upper), margin, "linear", value_at_margin=0.0)`` of a float."""
+    if lower <= x <= upper:
+        return 1.0
+    d = (lower - x if x < lower else x - upper) / margin
+    return 1 - d if abs(d) < 1 else 0.0
+
+
+class _Step(NamedTuple):
+    """One evaluation of the track task at a state (:meth:`TrackTask._evaluate`): what the native
+    step returns, as it returns it."""
+
+    x: np.ndarray           # the state (x, y, psi, u, v, r)
+    failed: bool            # the plant's step failed (the fused step only)
+    refs: np.ndarray        # reference rows: at t, then at t + each preview time
+    obs: np.ndarray         # the observation vector (observation_shapes order)
+    ex: float               # position error x - x_d, y - y_d [m] of the state read finite (non-finite -> 0)
+    ey: float
+    e_psi: float            # wrap(psi - psi_d) [rad]
+    diverged: bool          # the raw state left scenario.limits or is not finite
+    gx: float               # harbor: x - x_goal, y - y_goal [m] of the state read finite (track: 0)
+    gy: float
+
+
+class _HarbourStep(NamedTuple):
+    """:class:`_Step` and the harbor's clearance update made with it."""
+
+    x: np.ndarray
+    failed: bool
+    refs: np.ndarray
+    obs: np.ndarray
+    ex: float
+    ey: float
+    e_psi: float
+    diverged: bool
+    gx: float
+    gy: float
+    contact: bool           # a contact or a clearance <= 0
+    nearest: int            # np.argmin of the clearances (-1: no obstacle)
+    c_min: float            # their minimum [m]
 
 
 class TrackTask(base.Task):
@@ -131,16 +190,30 @@ class TrackTask(base.Task):
         self.time_limit = float(time_limit)
         self._ref_t = None          # cache: the reference at the last time asked for
         self._ref = None
+        self._ref_rows = None       # the last evaluation's reference rows (at _ref_t first)
         self.reference = reference if reference is not None else make_reference(scenario)
         self.funnel_xy, self.funnel_psi = funnels_of(scenario)
         q_u, q_r = make_quantizers(scenario)
         self._qp = ((q_u.params.delta, q_u.params.u_min), (q_r.params.delta, q_r.params.u_min))
-        self._k = [0, 0]
+        self._act_p = np.array([*self._bounds_t, *self._qp[0], *self._qp[1]], dtype=np.float64)
+        self._k = np.zeros(2, dtype=np.int64)  # the quantizers' signed level indices
         self.last_action = np.zeros(2)      # clipped action [N, N m]
         self.last_thrust = np.zeros(2)      # after the quantizer: what the plant got
         self.termination_reason: str | None = None
         self.termination_kind: str | None = None
         self.episode_scenario = scenario  # what the plant was built from (harbor: with the layout's obstacles)
+        # per-step evaluation (usv_mj.envs.native): one call for the observation vector, the
+        # reference rows and the reward's and termination's numbers, kept for the step's state
+        self._params = np.zeros(native.N_PARAMS)
+        self._n_obs = native.N_HEAD + 2 * preview.size + native.N_TAIL
+        self._evaluator = None
+        self._ev = None             # the last evaluation, for the state ...
+        self._ev_key = None         # ... (state array, time, physics, reference)
+        self._ev_handed = False     # its observation vector was handed out (the next one gets a copy)
+        self._act_of = (None, None)  # (physics, act_kernel's arguments with its data.ctrl)
+        self._fused = None          # the fused step's kernels (fused_step)
+        TrackTask._fill_params(self, self._params)
+        self._fusable = self._fusable_class()
 
     # --- episode -------------------------------------------------------------------------------
 
@@ -151,8 +224,10 @@ class TrackTask(base.Task):
         return np.array([ref[0] + d[0], ref[1] + d[1], ref[2] + d[2]]), np.zeros(3)
 
     def initialize_episode(self, physics):
-        self._k = [0, 0]
+        self._k[:] = 0
         self._ref_t = None
+        self._ev = None
+        self._fill_params(self._params)
         self.last_action[:] = 0.0
         self.last_thrust[:] = 0.0
         self.termination_reason = None
@@ -164,44 +239,139 @@ class TrackTask(base.Task):
         return specs.BoundedArray((2,), np.float64, self.action_low.copy(), self.action_high.copy(), name="thrust")
 
     def before_step(self, action, physics):
+        self._act(action, physics)
+
+    def _act(self, action, physics):
+        """Check the action, clip it, quantize it (Eq. 3) and write last_action, last_thrust and
+        ``ctrl`` (one native call); returns the thrust (q_u [N], q_r [N m])."""
+        a0, a1 = self._checked(action)
+        self._ev = None  # the state is about to change
+        return native.act_kernel(a0, a1, *self._act_args(physics))
+
+    def _checked(self, action) -> tuple[float, float]:
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (2,):
             raise ValueError(f"{type(self).__name__}: action must be (tau_u [N], tau_r [N m]), shape (2,), "
                              f"got shape {a.shape}")
-        a0, a1 = float(a[0]), float(a[1])
+        a0, a1 = a.tolist()
         if not (math.isfinite(a0) and math.isfinite(a1)):
             raise ValueError(f"{type(self).__name__}: action must be finite, got {a.tolist()}")
-        lo0, hi0, lo1, hi1 = self._bounds_t
-        a0 = min(max(a0, lo0), hi0)
-        a1 = min(max(a1, lo1), hi1)
-        self.last_action[0], self.last_action[1] = a0, a1
-        if self.quantize:
-            (d0, m0), (d1, m1) = self._qp
-            q0, self._k[0] = quantize_step(d0, m0, self._k[0], a0)
-            q1, self._k[1] = quantize_step(d1, m1, self._k[1], a1)
-        else:
-            q0, q1 = a0, a1
-        self.last_thrust[0], self.last_thrust[1] = q0, q1
-        ctrl = physics.plant.data.ctrl
-        ctrl[0], ctrl[1] = q0, q1
+        return a0, a1
+
+    def _act_args(self, physics) -> tuple:
+        """:func:`native.act_kernel`'s arguments after the action (``ctrl`` of this physics)."""
+        of, args = self._act_of
+        if of is not physics or args[1] != self.quantize:
+            args = (self._act_p, self.quantize, self._k, self.last_action, self.last_thrust, physics.plant.data.ctrl)
+            self._act_of = (physics, args)
+        return args
 
     def after_step(self, physics):
+        self._check(physics, None)
+
+    def _check(self, physics, ev) -> None:
+        """after_step's termination checks, with the step's evaluation ``ev`` (None: made when needed)."""
         if self.termination_reason is not None:
             return
-        t = physics.time()
         if physics.failure is not None:
             self._terminate("diverged", physics.failure)
             return
-        x = physics.state
-        lim = self.scenario.limits
-        ref = self.reference_at(t)
-        ex, ey = x[0] - ref[0], x[1] - ref[1]
-        dist = math.hypot(ex, ey)
-        if state_limit_exceeded(x, ex, ey, lim) or not all(math.isfinite(v) for v in x):
-            self._terminate("diverged", f"state left its limits at t = {t:.3f} s: {_which_limit(x, ex, ey, lim)}")
-        elif dist >= self.max_distance:
+        if ev is None:
+            ev = self._evaluate(physics)
+        if ev.diverged:  # usv_mj.simulation.state_limit_exceeded, or not finite
+            x, ref = physics.state, ev.refs[0]
+            ex, ey = x[0] - ref[0], x[1] - ref[1]
+            lim = self.scenario.limits
+            self._terminate("diverged", f"state left its limits at t = {physics.time():.3f} s: "
+                                        f"{_which_limit(x, ex, ey, lim)}")
+            return
+        dist = math.hypot(ev.ex, ev.ey)  # the state is finite here: ex, ey are those of the raw state
+        if dist >= self.max_distance:
             self._terminate("lost", f"distance to the reference {dist:.3g} m reached max_distance = "
-                                    f"{self.max_distance:g} m at t = {t:.3f} s")
+                                    f"{self.max_distance:g} m at t = {physics.time():.3f} s")
+
+    # --- one step in fewer layers (USVEnvironment.step) -------------------------------------------
+
+    def fused_step(self, action, physics, n_sub_steps: int):
+        """``before_step(action)``, ``physics.step(n_sub_steps)``, ``after_step``, ``get_reward``
+        and the observation vector, as dm_control's ``Environment.step`` calls them, in one method
+        (what :meth:`USVEnvironment.step` calls) with one native call for the action, the plant's
+        step (its :meth:`~usv_mj.plants.mujoco_plant.MuJoCoPlant.kernel`) and the evaluation;
+        returns (reward, observation vector), or None with nothing done when it does not apply
+        (a subclass overriding one of those methods, another physics, a step that is not one
+        control period, a physics that failed, a plant or reference without a kernel)."""
+        if not self._fusable or physics.failure is not None or type(physics).step is not _PHYSICS_STEP:
+            return None
+        plant = physics.plant
+        k = plant.step_count
+        t = plant.time_at(k + 1)
+        f = self._fused
+        # (plant, reference, t_end, t0, plant kernel, step function, reference key function, key,
+        #  the step function is its entry point)
+        if (f is None or f[0] is not plant or f[1] is not self.reference or t > f[2] or f[3] != plant.time_at(0)
+                or (f[6] is not None and f[6]() != f[7])):
+            f = self._fused = self._fused_setup(plant, t)
+            if f is None:
+                return None
+        if n_sub_steps != plant.substeps:
+            return None
+        a0, a1 = self._checked(action)
+        self._ev = None
+        self._before_physics(physics)
+        pk = f[4]
+        ev = self._native_step(f[5], a0, a1, physics, k, t, pk.args)
+        if not f[8]:  # compiled (or loaded) now: call its entry point from here on (native.entry_point)
+            self._fused = f[:5] + (native.entry_point(f[5]) or f[5],) + f[6:8] + (True,)
+        pk.sync(k + 1, ev.x)
+        if ev.failed:  # as USVPhysics.step: the plant's error is the physics' failure
+            try:
+                pk.fail(k)
+            except HydrodynamicCallbackError as exc:
+                physics.failure = str(exc)
+        self._keep(ev, ev.x, t, physics)
+        self._check(physics, ev)
+        reward = self._reward(ev)
+        self._ev_handed = True
+        return reward, ev.obs
+
+    def _fused_setup(self, plant, t):
+        """The fused step's kernels for steps up to t [s] and beyond (FUSED_HORIZON), or None."""
+        make = getattr(plant, "kernel", None)
+        evaluator = self._evaluator_now()
+        if make is None or not evaluator.native:
+            return None
+        t_end = t + FUSED_HORIZON
+        if evaluator.t_max is not None:  # the reference's table: the preview must stay in it
+            t_end = min(t_end, evaluator.t_max - evaluator.horizon)
+            if t > t_end:
+                return None
+        pk = make(t_end)
+        if pk is None:
+            return None
+        mod = evaluator.module(pk)
+        if mod is None:
+            return None
+        return (plant, self.reference, t_end, plant.time_at(0), pk, self._step_function(mod), evaluator.key_fn,
+                evaluator.key, False)
+
+    @staticmethod
+    def _step_function(mod):
+        return mod.step_track
+
+    def _native_step(self, step, a0, a1, physics, k, t, plant_args) -> _Step:
+        ev = self._evaluator
+        return _Step._make(step(a0, a1, self._act_args(physics), k, physics.state, t, plant_args, ev.preview,
+                                self._params, self._n_obs, ev.ref_args))
+
+    def _before_physics(self, physics) -> None:
+        """What happens between the action and the physics step (harbor: obstacles move)."""
+
+    @classmethod
+    def _fusable_class(cls) -> bool:
+        base = HarbourTask if issubclass(cls, HarbourTask) else TrackTask
+        return all(getattr(cls, name) is getattr(base, name)
+                   for name in ("before_step", "after_step", "get_reward", "get_observation", "_check", "_reward",
+                                "_before_physics"))
 
     def _terminate(self, kind: str, reason: str) -> None:
         self.termination_kind = kind
@@ -227,40 +397,79 @@ class TrackTask(base.Task):
     def reference_at(self, t: float) -> np.ndarray:
         """The reference vector (REF_FIELDS) at t [s] (cached for the current step; do not modify)."""
         if t != self._ref_t or self._ref is None:
-            self._ref = self.reference.evaluate(t).copy()
-            self._ref_t = t
+            if t == self._ref_t and self._ref_rows is not None:  # the step's evaluation has it
+                self._ref = self._ref_rows[0]
+            else:
+                self._ref = self.reference.evaluate(t).copy()
+                self._ref_t, self._ref_rows = t, None
         return self._ref
 
-    def _frame(self, physics):
+    # --- the per-step evaluation ---------------------------------------------------------------
+    #
+    # One native call per step (usv_mj.envs.native) gives the reference rows, the observation
+    # vector and the numbers of the reward and the termination; after_step, get_reward and
+    # get_observation share it. It is kept for the state it was computed at: the same state array
+    # (the plant hands a new one at every step, and a reset a fresh one at every read), the same
+    # time, physics and reference, and it is dropped at before_step and at every episode.
+
+    def _fill_params(self, p) -> None:
+        """The task's constant numbers for :func:`native.track_observe` (filled at every episode)."""
+        fx, fp, lim = self.funnel_xy, self.funnel_psi, self.scenario.limits
+        p[native.P_RHO_XY0], p[native.P_RHO_XYINF], p[native.P_RATE_XY] = fx.rho_0, fx.rho_inf, fx.rate
+        p[native.P_RHO_P0], p[native.P_RHO_PINF], p[native.P_RATE_P] = fp.rho_0, fp.rho_inf, fp.rate
+        p[native.P_MAX_SPEED], p[native.P_MAX_YAW_RATE] = lim.max_speed, lim.max_yaw_rate
+        p[native.P_MAX_DISTANCE] = lim.max_distance
+
+    def _evaluator_now(self) -> native.StepEvaluator:
+        evaluator = self._evaluator
+        if evaluator is None or evaluator.reference is not self.reference:
+            evaluator = self._evaluator = native.StepEvaluator(self.reference, self.preview_times)
+        return evaluator
+
+    def _evaluate(self, physics):
+        """The task at the physics' state and time (:class:`native.StepEvaluator`), or the
+        evaluation already made there."""
         x = physics.state
-        if not (math.isfinite(x[0]) and math.isfinite(x[1]) and math.isfinite(x[2]) and math.isfinite(x[3])
-                and math.isfinite(x[4]) and math.isfinite(x[5])):
-            x = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
-        return x, math.cos(x[2]), math.sin(x[2])
+        t = physics.time()
+        key = self._ev_key
+        if self._ev is not None and key[0] is x and key[1] == t and key[2] is physics and key[3] is self.reference:
+            return self._ev
+        ev = self._run_evaluator(self._evaluator_now(), x, t, physics)
+        self._keep(ev, x, t, physics)
+        return ev
+
+    def _keep(self, ev, x, t, physics) -> None:
+        """Keep ``ev`` as the evaluation at (x, t) (reference_at(t) reads its reference rows)."""
+        self._ev, self._ev_key, self._ev_handed = ev, (x, t, physics, self.reference), False
+        self._ref, self._ref_t, self._ref_rows = None, t, ev.refs
+
+    def _run_evaluator(self, evaluator, x, t, physics):
+        return _Step._make((x, False) + evaluator.track(x, t, self._params, self._n_obs, False))
+
+    def _observation_vector(self, physics) -> np.ndarray:
+        """The step's observation vector (a fresh array for every observation handed out)."""
+        ev = self._evaluate(physics)
+        if self._ev_handed:
+            return ev.obs.copy()
+        self._ev_handed = True
+        return ev.obs
 
     def get_observation(self, physics):
-        t = physics.time()
-        x, c, s = self._frame(physics)
-        ref = self.reference_at(t)
-        dx, dy = x[0] - ref[0], x[1] - ref[1]
-        fx, fp = self.funnel_xy, self.funnel_psi
+        return self.observation_dict(self._observation_vector(physics))
+
+    def observation_dict(self, v):
+        """The observation dict of the vector ``v`` (views of it, in observation_shapes order)."""
+        n = self.preview_times.size
+        j = native.N_HEAD + 2 * n
         obs = collections.OrderedDict()
-        obs["position_error"] = np.array([c * dx + s * dy, -s * dx + c * dy])
-        obs["heading_error"] = np.array([wrap(x[2] - ref[2])])
-        obs["heading"] = np.array([c, s])
-        obs["velocity"] = np.array([x[3], x[4], x[5]])
-        obs["velocity_error"] = np.array([c * ref[3] + s * ref[4] - x[3], -s * ref[3] + c * ref[4] - x[4],
-                                          ref[5] - x[5]])
-        prev = np.empty((self.preview_times.size, 2))
-        for k, tau in enumerate(self.preview_times):
-            r = self.reference.evaluate(t + tau)
-            px, py = r[0] - x[0], r[1] - x[1]
-            prev[k, 0] = c * px + s * py
-            prev[k, 1] = -s * px + c * py
-        obs["reference_preview"] = prev
-        obs["funnel"] = np.array([funnel_bound(fx.rho_0, fx.rho_inf, fx.rate, t),
-                                  funnel_bound(fp.rho_0, fp.rho_inf, fp.rate, t)])
-        obs["time"] = np.array([t])
+        obs["position_error"] = v[0:2]
+        obs["heading_error"] = v[2:3]
+        obs["heading"] = v[3:5]
+        obs["velocity"] = v[5:8]
+        obs["velocity_error"] = v[8:11]
+        obs["reference_preview"] = v[11:j].reshape(n, 2)
+        obs["funnel"] = v[j:j + 2]
+        obs["time"] = v[j + 2:j + 3]
         return obs
 
     def observation_spec(self, physics):
@@ -291,14 +500,18 @@ class TrackTask(base.Task):
                 "funnel": (np.array(lo_f), np.array(hi_f)), "time": (0.0, t_hi)}
 
     def tracking_reward(self, physics) -> float:
-        t = physics.time()
-        x, _, _ = self._frame(physics)
-        ref = self.reference_at(t)
-        d = math.hypot(x[0] - ref[0], x[1] - ref[1])
-        return (2.0 * _tol_pos(d) + _tol_psi(wrap(x[2] - ref[2]))) / 3.0
+        return self._tracking_reward(self._evaluate(physics))
+
+    @staticmethod
+    def _tracking_reward(ev) -> float:
+        return (2.0 * _tol_gaussian(math.hypot(ev.ex, ev.ey), 0.0, 0.25, 2.0)      # r_pos
+                + _tol_gaussian(abs(ev.e_psi), 0.0, 0.1, 0.5)) / 3.0               # r_psi
 
     def get_reward(self, physics):
-        return self.tracking_reward(physics)
+        return self._reward(self._evaluate(physics))
+
+    def _reward(self, ev) -> float:
+        return self._tracking_reward(ev)
 
 
 class HarbourTask(TrackTask):
@@ -328,6 +541,8 @@ class HarbourTask(TrackTask):
         self.margin_m = float(margin_m)
         self.layout = None          # set by the environment before each episode
         self.monitor = None
+        self._sense_of = (None, None)  # (monitor, harbor_sense's arguments)
+        self._moving = True            # the layout has moving obstacles (set with the layout)
         self.min_clearance = math.inf
         self._start_distance = 1.0
 
@@ -338,7 +553,12 @@ class HarbourTask(TrackTask):
         self.episode_scenario = episode_scenario if episode_scenario is not None else self.scenario
         self.reference = layout.plan.reference
         self._ref_t = None
+        self._ev = None
         self.monitor = monitor
+        self._fill_params(self._params)
+        plant = getattr(monitor, "plant", None)
+        mocap = getattr(plant, "obstacle_mocap", None)
+        self._moving = mocap is None or bool(np.any(np.asarray(mocap) >= 0))  # (unknown: move them)
 
     def start_pose(self):
         lay = self.layout
@@ -352,36 +572,91 @@ class HarbourTask(TrackTask):
 
     def before_step(self, action, physics):
         super().before_step(action, physics)
-        physics.plant.move_obstacles(physics.time())
+        self._before_physics(physics)
+
+    def _before_physics(self, physics) -> None:
+        if self._moving:
+            physics.plant.move_obstacles(physics.time())
 
     def _clearance(self, physics) -> float:
         c = self.monitor.update(physics.time(), physics.plant)
-        self._contact = bool(np.any(self.monitor.in_contact)) or bool(np.any(c <= 0.0))
-        self._nearest = int(np.argmin(c)) if c.size else -1
-        return float(np.min(c)) if c.size else math.inf
+        # any contact or c <= 0, np.argmin(c) and np.min(c) in one native call
+        self._contact, self._nearest, c_min = native.clearance_summary(c, self.monitor.in_contact)
+        return c_min
 
     def after_step(self, physics):
-        super().after_step(physics)
-        self.min_clearance = self._clearance(physics)
+        # observation, clearance and rangefinders at the new state, in one native call
+        self._check(physics, self._evaluate(physics))
+
+    def _check(self, physics, ev) -> None:
+        if ev is None:
+            ev = self._evaluate(physics)
+        super()._check(physics, ev)
+        self._contact, self._nearest, self.min_clearance = ev.contact, ev.nearest, ev.c_min  # made with ev
         if self.termination_reason is not None:
             return
-        t = physics.time()
-        x = physics.state
         if self._contact:
             name = self.layout.obstacles[self._nearest].name if self._nearest >= 0 else "?"
-            self._terminate("contact", f"hull touched obstacle {name!r} at t = {t:.3f} s "
+            self._terminate("contact", f"hull touched obstacle {name!r} at t = {physics.time():.3f} s "
                                        f"(clearance {self.min_clearance:.3f} m)")
-        elif math.hypot(x[0] - self.layout.goal[0], x[1] - self.layout.goal[1]) < self.goal_radius:
-            self._terminate("goal", f"reached the goal at t = {t:.3f} s")
+        elif math.hypot(ev.gx, ev.gy) < self.goal_radius:  # the state is finite here
+            self._terminate("goal", f"reached the goal at t = {physics.time():.3f} s")
 
-    def get_observation(self, physics):
-        obs = super().get_observation(physics)
-        x, c, s = self._frame(physics)
+    def _fill_params(self, p) -> None:
+        super()._fill_params(p)
+        if self.layout is None:
+            return
         g = self.layout.goal
-        gx, gy = g[0] - x[0], g[1] - x[1]
-        obs["goal"] = np.array([c * gx + s * gy, -s * gx + c * gy, wrap(self.layout.psi_goal - x[2])])
-        r = physics.plant.rangefinders()
-        obs["rangefinder"] = np.where((r < 0) | (r > self.max_range), self.max_range, r)
+        p[native.P_GOAL_X], p[native.P_GOAL_Y], p[native.P_PSI_GOAL] = g[0], g[1], self.layout.psi_goal
+
+    def _sense_args(self, physics) -> tuple:
+        """:func:`native.harbor_sense`'s arguments but the observation vector, for this episode's
+        plant and monitor (made once per episode)."""
+        of, args = self._sense_of
+        if of is not self.monitor or self.monitor.plant is not physics.plant:
+            plant = physics.plant
+            args = (self._n_obs + 3, self.max_range, plant.model._address, plant.data._address,
+                    native.sensor_pos_address(), plant.data.sensordata, plant.rangefinder_adr,
+                    self.monitor.kernel_args())
+            self._sense_of = (self.monitor, args)
+        return args
+
+    def _run_evaluator(self, evaluator, x, t, physics):
+        out = evaluator.harbor(x, t, self._params, self._n_obs + 3 + self.n_rays, self._sense_args(physics))
+        return self._with_contacts(_HarbourStep._make((x, False) + out))
+
+    @staticmethod
+    def _step_function(mod):
+        return mod.step_harbor
+
+    def _native_step(self, step, a0, a1, physics, k, t, plant_args):
+        ev = self._evaluator
+        return self._with_contacts(_HarbourStep._make(step(
+            a0, a1, self._act_args(physics), k, physics.state, t, plant_args, ev.preview, self._params,
+            self._n_obs + 3 + self.n_rays, ev.ref_args, self._sense_args(physics))))
+
+    def _with_contacts(self, ev):
+        """``ev`` with the monitor's contacts added (``d.ncon`` > 0: the summary again)."""
+        monitor = self.monitor
+        if not monitor.add_contacts():
+            return ev
+        contact, nearest, c_min = native.clearance_summary(monitor.clearance, monitor.in_contact)
+        return ev._replace(contact=contact, nearest=nearest, c_min=c_min)
+
+    def observation_dict(self, v):
+        n = self.preview_times.size
+        j = native.N_HEAD + 2 * n
+        obs = collections.OrderedDict()  # as TrackTask's, then the goal and the rangefinders
+        obs["position_error"] = v[0:2]
+        obs["heading_error"] = v[2:3]
+        obs["heading"] = v[3:5]
+        obs["velocity"] = v[5:8]
+        obs["velocity_error"] = v[8:11]
+        obs["reference_preview"] = v[11:j].reshape(n, 2)
+        obs["funnel"] = v[j:j + 2]
+        obs["time"] = v[j + 2:j + 3]
+        obs["goal"] = v[j + 3:j + 6]
+        obs["rangefinder"] = v[j + 6:]
         return obs
 
     def observation_shapes(self):
@@ -390,15 +665,10 @@ class HarbourTask(TrackTask):
     def observation_bounds(self) -> dict:
         return {**super().observation_bounds(), "rangefinder": (0.0, self.max_range)}
 
-    def get_reward(self, physics):
-        x, _, _ = self._frame(physics)
-        g = self.layout.goal
-        d_goal = math.hypot(x[0] - g[0], x[1] - g[1])
-        r_goal = float(rewards.tolerance(d_goal, bounds=(0.0, self.goal_radius), margin=self._start_distance,
-                                         sigmoid="linear", value_at_margin=0.0))
+    def _reward(self, ev) -> float:
+        r_goal = _tol_linear(math.hypot(ev.gx, ev.gy), 0.0, self.goal_radius, self._start_distance)
         if self.margin_m > 0:
-            r_clear = float(rewards.tolerance(self.min_clearance, bounds=(self.margin_m, math.inf),
-                                              margin=self.margin_m, sigmoid="linear", value_at_margin=0.0))
+            r_clear = _tol_linear(self.min_clearance, self.margin_m, math.inf, self.margin_m)
         else:
             r_clear = 1.0 if self.min_clearance > 0 else 0.0
-        return r_clear * 0.5 * (r_goal + self.tracking_reward(physics))
+        return r_clear * 0.5 * (r_goal + self._tracking_reward(ev))

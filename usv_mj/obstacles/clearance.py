@@ -25,16 +25,87 @@ from __future__ import annotations
 
 import math
 
+import ctypes
+
 import mujoco
 import numpy as np
 import shapely
-from numba import njit
+from llvmlite import ir as llvmlite_ir
+from numba import njit, types
+from numba.extending import intrinsic
 from shapely import affinity
+
+from usv_mj.plants.mujoco_callback import _call_model_data, _libmujoco
 
 from .compose import HULL_RADIUS, hull_footprint
 
 ANALYTIC_NOTE = ("the analytic plant has no contact physics: clearance is computed from the geometry, "
                  "a collision is recorded when it reaches zero, and the hull passes through obstacles")
+
+
+@intrinsic
+def _call_geom_distance(typingctx, fn_address, m_addr, d_addr, geom1, geom2, distmax, fromto_addr):
+    """Call ``mjtNum mj_geomDistance(const mjModel*, mjData*, int, int, mjtNum, mjtNum*)`` at
+    ``fn_address`` (numba intrinsic; the address is an argument so that callers can be cached)."""
+    sig = types.float64(types.int64, types.int64, types.int64, types.int32, types.int32, types.float64,
+                        types.int64)
+
+    def codegen(context, builder, signature, args):
+        i64, i32, f64 = llvmlite_ir.IntType(64), llvmlite_ir.IntType(32), llvmlite_ir.DoubleType()
+        fnty = llvmlite_ir.FunctionType(f64, [i64, i64, i32, i32, f64, i64])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        return builder.call(fn, list(args[1:]))
+
+    return sig, codegen
+
+
+@njit(cache=True)
+def mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, hull, obstacles, bound, exact_within,
+                            prefilter, distmax, qpos, geom_xpos, clearance, exact, witness, fromto, normal_force,
+                            in_contact):
+    """:meth:`MuJoCoClearance.update` but the contacts, natively: ``mj_kinematics`` (at address
+    ``kinematics``), the bounding-circle prefilter (when ``prefilter``) and ``mj_geomDistance`` (at
+    ``geom_distance``) of every hull geom against every obstacle left to do, in the same order."""
+    _call_model_data(kinematics, m_addr, d_addr)
+    n = obstacles.shape[0]
+    for i in range(n):
+        if prefilter:  # np.sqrt(rel_x ** 2 + rel_y ** 2) - bound < exact_within
+            rx = geom_xpos[obstacles[i], 0] - qpos[0]
+            ry = geom_xpos[obstacles[i], 1] - qpos[1]
+            lower = math.sqrt(rx * rx + ry * ry) - bound[i]
+            clearance[i] = lower
+            exact[i] = lower < exact_within
+        else:
+            exact[i] = True
+    address = fromto.ctypes.data
+    for i in range(n):
+        if not exact[i]:
+            continue
+        best = math.inf
+        for h in range(hull.shape[0]):
+            dist = _call_geom_distance(geom_distance, m_addr, d_addr, np.int32(hull[h]), np.int32(obstacles[i]),
+                                       distmax, address)
+            if dist < best:
+                best = dist
+                for j in range(6):
+                    witness[i, j] = fromto[j]
+        clearance[i] = best
+    for i in range(n):
+        normal_force[i] = 0.0
+        in_contact[i] = False
+
+
+_MJ_ADDRESSES = None
+
+
+def _mujoco_addresses() -> tuple[int, int]:
+    """Addresses of mj_kinematics and mj_geomDistance in this process's libmujoco."""
+    global _MJ_ADDRESSES
+    if _MJ_ADDRESSES is None:
+        lib = _libmujoco()
+        _MJ_ADDRESSES = tuple(int(ctypes.cast(getattr(lib, name), ctypes.c_void_p).value)
+                              for name in ("mj_kinematics", "mj_geomDistance"))
+    return _MJ_ADDRESSES
 
 
 class MuJoCoClearance:
@@ -71,52 +142,57 @@ class MuJoCoClearance:
         self._ogeoms = np.array(self.obstacle_geoms, dtype=np.int64)
         self._bound = HULL_RADIUS + np.array([o.bounding_radius for o in plant.obstacles], dtype=float)
         self.exact = np.ones(n, dtype=bool)  # which entries of the last update are exact
+        # the native update (mujoco_clearance_kernel): views of the mjData's arrays, the libmujoco
+        # addresses; every (hull geom, obstacle geom) pair is asked once through the bindings
+        # first, so that a pair MuJoCo cannot measure raises here, not inside compiled code
+        self._qpos, self._geom_xpos = self.data.qpos, self.data.geom_xpos
+        self._hgeoms = np.array(self.hull_geoms, dtype=np.int64)
+        self._addresses = (self.model._address, self.data._address, *_mujoco_addresses())
+        mujoco.mj_kinematics(self.model, self.data)
+        for og in self.obstacle_geoms:
+            for hg in self.hull_geoms:
+                mujoco.mj_geomDistance(self.model, self.data, hg, og, self.distmax, None)
 
     def update(self, t: float = 0.0, plant_or_state=None) -> np.ndarray:
         """Clearance [m] per obstacle at the plant's current state (``t`` and the argument are
         accepted for interface symmetry; the plant's mjData is read)."""
+        mujoco_clearance_kernel(*self.kernel_args())
+        self.add_contacts()
+        return self.clearance
+
+    def kernel_args(self) -> tuple:
+        """The arguments of :func:`mujoco_clearance_kernel` for this monitor (the distances, the
+        exact flags and witnesses written into its arrays; contacts cleared): a caller that runs
+        the kernel itself (the harbor task, fused with its other per-step work) then calls
+        :meth:`add_contacts`."""
+        m_addr, d_addr, kinematics, geom_distance = self._addresses
+        prefilter = math.isfinite(self.exact_within) and len(self._ogeoms) >= self.PREFILTER_FROM
+        return (m_addr, d_addr, kinematics, geom_distance, self._hgeoms, self._ogeoms, self._bound, self.exact_within,
+                prefilter, self.distmax, self._qpos, self._geom_xpos, self.clearance, self.exact, self.witness,
+                self._fromto, self.normal_force, self.in_contact)
+
+    def add_contacts(self) -> bool:
+        """The hull's contacts in ``d.contact`` into :attr:`normal_force` and :attr:`in_contact`
+        (after the kernel cleared them); True when there was any contact to look at."""
         m, d = self.model, self.data
-        mujoco.mj_kinematics(m, d)
-        fromto = self._fromto
-        clearance = self.clearance
-        if math.isfinite(self.exact_within) and len(self._ogeoms) >= self.PREFILTER_FROM:
-            rel = d.geom_xpos[self._ogeoms, :2] - d.qpos[:2]
-            lower = np.sqrt(rel[:, 0] ** 2 + rel[:, 1] ** 2) - self._bound
-            exact = lower < self.exact_within
-            clearance[:] = lower
-            self.exact[:] = exact
-            todo = np.flatnonzero(exact).tolist()
-        else:
-            self.exact[:] = True
-            todo = range(len(self.obstacle_geoms))
-        for i in todo:
-            og = self.obstacle_geoms[i]
-            best = math.inf
-            for hg in self.hull_geoms:
-                dist = mujoco.mj_geomDistance(m, d, hg, og, self.distmax, fromto)
-                if dist < best:
-                    best = dist
-                    self.witness[i] = fromto
-            clearance[i] = best
-        self.normal_force[:] = 0.0
-        self.in_contact[:] = False
         ncon = d.ncon
-        if ncon:
-            geoms = d.contact.geom[:ncon]
-            for c in range(ncon):
-                g1, g2 = geoms[c]
-                if self._is_hull[g1]:
-                    i = self._obstacle_of[g2]
-                elif self._is_hull[g2]:
-                    i = self._obstacle_of[g1]
-                else:
-                    continue
-                if i < 0:
-                    continue
-                mujoco.mj_contactForce(m, d, c, self._force)
-                self.normal_force[i] += abs(self._force[0])
-                self.in_contact[i] = True
-        return clearance
+        if not ncon:
+            return False
+        geoms = d.contact.geom[:ncon]
+        for c in range(ncon):
+            g1, g2 = geoms[c]
+            if self._is_hull[g1]:
+                i = self._obstacle_of[g2]
+            elif self._is_hull[g2]:
+                i = self._obstacle_of[g1]
+            else:
+                continue
+            if i < 0:
+                continue
+            mujoco.mj_contactForce(m, d, c, self._force)
+            self.normal_force[i] += abs(self._force[0])
+            self.in_contact[i] = True
+        return True
 
 # --- numba kernels: signed distances between convex polygons (the hull footprint is convex) -----
 

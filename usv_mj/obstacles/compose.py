@@ -294,6 +294,11 @@ class HarbourPlant(MuJoCoPlant):
         self._sensor_adr = np.array([m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, f"range_{i}")]
                                      for i in range(self.ray_angles.size)], dtype=np.int64)
 
+    @property
+    def rangefinder_adr(self) -> np.ndarray:
+        """Where each rangefinder's reading is in ``data.sensordata`` (int64, :attr:`ray_angles` order)."""
+        return self._sensor_adr
+
     def rangefinders(self) -> np.ndarray:
         """Rangefinder readings [m] along :attr:`ray_angles` (-1: nothing hit) at the current state:
         kinematics, then MuJoCo's position-stage sensors (after ``mj_step`` the sensor data are

@@ -57,6 +57,7 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 import shapely
+from numba import njit
 
 from usv_mj.controllers.performance_funnel import PerformanceFunnel
 from usv_mj.record import Event
@@ -292,6 +293,57 @@ def retimed_pieces(t: float, s: float, u: float, u_low: float, hold: float, u_cr
     return pieces
 
 
+@njit(cache=True)
+def _path_at(path, a, n, ds, s):
+    """:meth:`PathTable.at` on rows a .. a + n of ``path`` (columns x, y, psi, kappa), term by term."""
+    if s <= 0.0:
+        return path[a, 0] + s * math.cos(path[a, 2]), path[a, 1] + s * math.sin(path[a, 2]), path[a, 2], 0.0
+    f = s / ds
+    i = int(f)
+    if i >= n:
+        extra = s - n * ds
+        p = path[a + n, 2]
+        return path[a + n, 0] + extra * math.cos(p), path[a + n, 1] + extra * math.sin(p), p, 0.0
+    w = f - i
+    r0, r1 = a + i, a + i + 1
+    k0, k1 = path[r0, 3], path[r1, 3]
+    w2 = w * w
+    w3 = w2 * w
+    h00, h10, h01, h11 = 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w, -2 * w3 + 3 * w2, w3 - w2
+    p0, p1 = path[r0, 2], path[r1, 2]
+    x = h00 * path[r0, 0] + h10 * ds * math.cos(p0) + h01 * path[r1, 0] + h11 * ds * math.cos(p1)
+    y = h00 * path[r0, 1] + h10 * ds * math.sin(p0) + h01 * path[r1, 1] + h11 * ds * math.sin(p1)
+    return x, y, p0 + ds * w * (k0 + 0.5 * (k1 - k0) * w), k0 + (k1 - k0) * w
+
+
+@njit(cache=True)
+def guided_kernel(t, prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path, out):
+    """:meth:`GuidedReference.evaluate` natively (usv_mj.kernels), on a snapshot of its profile
+    (``prof_t0`` and the (t0, s0, u0, a) rows ``prof_pieces``) and segments (start time, start arc
+    length, the path's ds and first row in ``path``; ``seg_row`` has one more entry, the end)."""
+    lo, hi = 0, prof_t0.shape[0]  # bisect.bisect_right(profile.t0, t)
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if t < prof_t0[mid]:
+            hi = mid
+        else:
+            lo = mid + 1
+    i = max(lo - 1, 0)
+    t0, s0, u0, a = prof_pieces[i, 0], prof_pieces[i, 1], prof_pieces[i, 2], prof_pieces[i, 3]
+    dt = t - t0
+    s = s0 + u0 * dt + 0.5 * a * dt * dt
+    u = u0 + a * dt
+    j = seg_t.shape[0] - 1
+    while j > 0 and seg_t[j] > t:
+        j -= 1
+    x, y, psi, kappa = _path_at(path, seg_row[j], seg_row[j + 1] - seg_row[j] - 1, seg_ds[j], s - seg_s[j])
+    r = kappa * u
+    out[0], out[1], out[2] = x, y, psi
+    out[3], out[4] = u * math.cos(psi), u * math.sin(psi)
+    out[5], out[6] = r, u
+    return out
+
+
 class GuidedReference(Reference):
     """A planned path run with a speed profile (:class:`usv_mj.trajectories.Reference`):
     pose(t) = (x(s), y(s), psi(s), kappa(s) u, u) with (s, u) = profile(t) (module docstring).
@@ -355,6 +407,30 @@ class GuidedReference(Reference):
 
     def switch_path(self, t: float, path: PathTable) -> None:
         self.segments = self.segments_with(t, path)
+
+    def kernel_key(self) -> tuple:
+        """What :meth:`kernel`'s snapshot was taken of: a kernel made when the key was equal is
+        current (a detour rebinds ``segments``, a re-timing the profile's lists)."""
+        p = self.profile
+        return (id(self.segments), len(self.segments), id(p), id(p.t0), len(p.t0), id(p.pieces), len(p.pieces))
+
+    def kernel(self):
+        """:func:`guided_kernel` on a snapshot of the profile and the segments (taken now: make a
+        new kernel when :meth:`kernel_key` changes). The snapshot keeps the lists it was taken of
+        alive, so their ids in the key are not reused."""
+        from usv_mj.kernels import Kernel
+
+        p = self.profile
+        prof_t0 = np.array(p.t0, dtype=np.float64)
+        prof_pieces = np.array(p.pieces, dtype=np.float64).reshape(-1, 4)
+        seg_t = np.array([seg[0] for seg in self.segments], dtype=np.float64)
+        seg_s = np.array([seg[1] for seg in self.segments], dtype=np.float64)
+        seg_ds = np.array([seg[2].ds for seg in self.segments], dtype=np.float64)
+        tables = [np.column_stack([seg[2].x, seg[2].y, seg[2].psi, seg[2].kappa]) for seg in self.segments]
+        seg_row = np.cumsum([0] + [len(tb) for tb in tables]).astype(np.int64)
+        path = np.ascontiguousarray(np.vstack(tables), dtype=np.float64)
+        self._kernel_snapshot = (self.segments, p, p.t0, p.pieces)
+        return Kernel(guided_kernel, (prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path, self._out))
 
 
 # --- static planning ----------------------------------------------------------------------------

@@ -409,6 +409,15 @@ class MuJoCoPlant(PlantBase):
         return self._t0 + self._k * self.control_period
 
     @property
+    def step_count(self) -> int:
+        """Control periods stepped since the last :meth:`reset` (the ``k`` of :meth:`kernel`'s steps)."""
+        return self._k
+
+    def time_at(self, k: int) -> float:
+        """The plant's :attr:`time` [s] after ``k`` steps from the last reset (t0 + k control periods)."""
+        return self._t0 + k * self.control_period
+
+    @property
     def state(self) -> np.ndarray:
         """(x, y, psi, u, v, r): pose [m, m, rad, psi unwrapped] and body velocity [m/s, m/s, rad/s].
 
