@@ -37,40 +37,18 @@ def test_mirror_flips_the_even_sway_and_yaw_terms_of_delta():
     assert np.allclose(d_mirror[1:], -d[1:]) and np.all(d[1:] > 0)
 
 
-def test_a_current_toward_north_moves_the_hull_north_in_the_record_the_log_and_foxglove(tmp_path):
+def test_a_current_toward_north_moves_the_hull_north_in_the_record_the_log_and_foxglove(tmp_path, drift_scenario):
     """The convention by eye: an unpowered hull in a current setting toward the chart's north
     (compass 0 deg) drifts along +y (north) in the record, in the log's /usv/state and in Foxglove's
     map -> base_link transform; x does not change."""
-    import numpy as np
-
-    from usv_mj import CONTROLLERS, load_scenario, simulate
+    from usv_mj import simulate
     from usv_mj.runlog import RunLogWriter
     from usv_mj.runlog.reader import load_topic
 
-    class Idle:
-        name, diagnostic_fields = "idle", ()
-
-        @classmethod
-        def from_scenario(cls, gains, scenario):
-            return cls()
-
-        def reset(self):
-            pass
-
-        def __call__(self, t, x, ref):
-            return 0.0, 0.0, np.zeros(0)
-
-    CONTROLLERS.register("idle")(Idle)
-    try:
-        sc = load_scenario(preset="paper", overrides={
-            "duration": 20.0, "plant": {"kind": "analytic"}, "controller": {"kind": "idle"},
-            "disturbance": {"scale": 0.0}, "initial": {"eta": [0.0, 0.0, 0.0]},
-            "sea": {"current": {"speed": 0.5, "toward_deg": 0.0}}})
-        path = tmp_path / "north.mcap"
-        with RunLogWriter(path, sc) as writer:
-            rec = simulate(sc, sinks=[writer.sink("main")])
-    finally:
-        CONTROLLERS.unregister("idle")
+    sc = drift_scenario(20.0, 0.5, 0.0)
+    path = tmp_path / "north.mcap"
+    with RunLogWriter(path, sc) as writer:
+        rec = simulate(sc, sinks=[writer.sink("main")])
     assert rec.status == "completed"
     assert rec["y"][-1] > 2.0 and abs(rec["x"][-1]) < 0.05 * rec["y"][-1]   # north is +y
     state = load_topic(path, "/usv/state")

@@ -40,33 +40,12 @@ def _chart_pixels_per_metre() -> float:
     return (HEIGHT / 2) / (z * math.tan(math.radians(float(cam.get("fovy"))) / 2))
 
 
-def _drift(toward_deg: float):
+def _drift(drift_scenario, toward_deg: float):
     """The record of an unpowered hull at the origin, heading east, in a 1 m/s current setting toward
     ``toward_deg`` (compass)."""
-    from usv_mj import CONTROLLERS, load_scenario, simulate
+    from usv_mj import simulate
 
-    class Idle:
-        name, diagnostic_fields = "idle", ()
-
-        @classmethod
-        def from_scenario(cls, gains, scenario):
-            return cls()
-
-        def reset(self):
-            pass
-
-        def __call__(self, t, x, ref):
-            return 0.0, 0.0, np.zeros(0)
-
-    CONTROLLERS.register("idle")(Idle)
-    try:
-        sc = load_scenario(preset="paper", overrides={
-            "duration": DURATION, "plant": {"kind": "analytic"}, "controller": {"kind": "idle"},
-            "disturbance": {"scale": 0.0}, "initial": {"eta": [0.0, 0.0, 0.0]},
-            "sea": {"current": {"speed": 1.0, "toward_deg": toward_deg}}})
-        rec = simulate(sc)
-    finally:
-        CONTROLLERS.unregister("idle")
+    rec = simulate(drift_scenario(DURATION, 1.0, toward_deg))
     assert rec.status == "completed"
     return rec
 
@@ -82,13 +61,14 @@ def _hull_centroid(frame: np.ndarray) -> tuple[float, float]:
 
 
 @pytest.mark.parametrize("toward_deg, screen", [(0.0, "up"), (90.0, "right")])
-def test_a_current_moves_the_hull_the_same_way_on_the_screen_as_on_the_chart(tmp_path, toward_deg, screen):
+def test_a_current_moves_the_hull_the_same_way_on_the_screen_as_on_the_chart(tmp_path, drift_scenario, toward_deg,
+                                                                           screen):
     _gl_or_skip()
     import imageio.v3 as iio
 
     from usv_mj.render import render_run
 
-    rec = _drift(toward_deg)
+    rec = _drift(drift_scenario, toward_deg)
     info = render_run(rec, tmp_path / "drift.mp4", width=WIDTH, height=HEIGHT, fps=5, speedup=2.0, camera="chart",
                       workers=1, progress=False, layers=())
     frames = list(iio.imiter(info["mp4"]))

@@ -181,19 +181,27 @@ def compiled_block(kernels: dict):
         **{f"c_{c}": COL[c] for c in ("t", "x", "x_d", "y_d", "tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r",
                                       "f_u", "f_r", "sat_u", "sat_r")},
         c_q_u=COL["q_tau_u"], c_q_r=COL["q_tau_r"], c_s_u=COL["sat_u"], c_s_r=COL["sat_r"], **fields)
+    module = load_generated("usv_mj_loop", source)
+    _LOOPS[key] = module.run_block
+    return module.run_block
+
+
+def load_generated(prefix: str, source: str):
+    """Import generated ``source`` as a module of the cache directory named ``prefix`` + a digest of
+    the source and of the package's source fingerprint (so numba's ``cache=True`` compiles it once
+    and an edited package never loads a stale one). Used by the compiled loop and usv_mj.envs.native."""
     digest = hashlib.sha256((source + _source_fingerprint()).encode()).hexdigest()[:20]
-    module_name = f"usv_mj_loop_{digest}"
+    module_name = f"{prefix}_{digest}"
     path = cache_dir() / f"{module_name}.py"
     if not path.exists() or path.read_text() != source:
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
-        os.replace(tmp, path)  # atomic: parallel workers may write the same loop
+        os.replace(tmp, path)  # atomic: parallel workers may write the same module
     spec = importlib.util.spec_from_file_location(module_name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module
     spec.loader.exec_module(module)
-    _LOOPS[key] = module.run_block
-    return module.run_block
+    return module
 
 
 def kernels_of(parts, hooks=None) -> tuple[dict | None, str]:

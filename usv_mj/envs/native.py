@@ -27,11 +27,7 @@ which may be a SIMD routine rather than libm's).
 
 from __future__ import annotations
 
-import hashlib
-import importlib.util
 import math
-import os
-import sys
 
 import numpy as np
 from numba import njit
@@ -261,7 +257,7 @@ def _generated(ref_fn, n_ref: int, plant_fn, n_plant: int):
     observation; ``step_track``, ``step_harbor``: the action, the plant's step and that) for these
     kernels, written to the compiled loop's cache directory under a name that carries the
     package's source fingerprint, as there (compiled once, then loaded from disk)."""
-    from usv_mj.compiled_loop import _fn_name, _source_fingerprint, cache_dir
+    from usv_mj.compiled_loop import _fn_name, load_generated
 
     key = (ref_fn, n_ref, plant_fn, n_plant)
     found = _GENERATED.get(key)
@@ -272,17 +268,7 @@ def _generated(ref_fn, n_ref: int, plant_fn, n_plant: int):
     source = _TEMPLATE.format(ref_module=ref_module, ref_name=ref_name, plant_module=plant_module,
                               plant_name=plant_name, ref_args=", ".join(f"ref_a[{i}]" for i in range(n_ref)),
                               plant_args=", ".join(f"plant_a[{i}]" for i in range(n_plant)))
-    digest = hashlib.sha256((source + _source_fingerprint()).encode()).hexdigest()[:20]
-    module_name = f"usv_mj_envstep_{digest}"
-    path = cache_dir() / f"{module_name}.py"
-    if not path.exists() or path.read_text() != source:
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(source)
-        os.replace(tmp, path)  # atomic: parallel workers may write the same file
-    spec = importlib.util.spec_from_file_location(module_name, path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[module_name] = mod
-    spec.loader.exec_module(mod)
+    mod = load_generated("usv_mj_envstep", source)
     _GENERATED[key] = mod
     return mod
 

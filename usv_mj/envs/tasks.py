@@ -644,17 +644,8 @@ class HarbourTask(TrackTask):
         return ev._replace(contact=contact, nearest=nearest, c_min=c_min)
 
     def observation_dict(self, v):
-        n = self.preview_times.size
-        j = native.N_HEAD + 2 * n
-        obs = collections.OrderedDict()  # as TrackTask's, then the goal and the rangefinders
-        obs["position_error"] = v[0:2]
-        obs["heading_error"] = v[2:3]
-        obs["heading"] = v[3:5]
-        obs["velocity"] = v[5:8]
-        obs["velocity_error"] = v[8:11]
-        obs["reference_preview"] = v[11:j].reshape(n, 2)
-        obs["funnel"] = v[j:j + 2]
-        obs["time"] = v[j + 2:j + 3]
+        j = native.N_HEAD + 2 * self.preview_times.size
+        obs = super().observation_dict(v)  # TrackTask's, then the goal and the rangefinders
         obs["goal"] = v[j + 3:j + 6]
         obs["rangefinder"] = v[j + 6:]
         return obs
