@@ -46,8 +46,11 @@ class _Drawer:
             from usv_mj.render.gl_backend import backend_environment
             from usv_mj.render.video import _worker_init
 
-            self.pool = multiprocessing.get_context("spawn").Pool(
-                1, initializer=_worker_init, initargs=(backend_environment(self.backend), self.kwargs))
+            from usv_mj.spawning import no_main_import
+
+            with no_main_import():
+                self.pool = multiprocessing.get_context("spawn").Pool(
+                    1, initializer=_worker_init, initargs=(backend_environment(self.backend), self.kwargs))
             # an environment dropped without close() still stops its worker
             weakref.finalize(self, self.pool.terminate)
 

@@ -154,9 +154,12 @@ class _FrameSource:
         else:
             from .gl_backend import backend_environment
 
+            from usv_mj.spawning import no_main_import
+
             ctx = multiprocessing.get_context("spawn")
-            self.pool = ctx.Pool(self.workers, initializer=_worker_init,
-                                 initargs=(backend_environment(self.backend), self.kwargs))
+            with no_main_import():
+                self.pool = ctx.Pool(self.workers, initializer=_worker_init,
+                                     initargs=(backend_environment(self.backend), self.kwargs))
         return self
 
     def frames(self, specs):
@@ -374,7 +377,10 @@ class RenderWorkers:
             # one llvmpipe thread per worker: with a process per core, more threads only contend
             # (measured 60 vs 70 ms of CPU a 720p frame with 2 workers on 2 cores)
             env["LP_NUM_THREADS"] = "1"
-        self.pool = ctx.Pool(self.workers, initializer=_worker_init, initargs=(env, self.kwargs, self.counter))
+        from usv_mj.spawning import no_main_import
+
+        with no_main_import():
+            self.pool = ctx.Pool(self.workers, initializer=_worker_init, initargs=(env, self.kwargs, self.counter))
 
     def matches(self, kwargs: dict) -> bool:
         return kwargs == self.kwargs

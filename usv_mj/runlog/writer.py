@@ -565,7 +565,10 @@ class RunLogWriter:
             self._proc = ctx.Process(target=_worker_main, args=(*args, self._queue, child_reply, os.getpid(),
                                                                 self._ring_shm.name, shape, self._free_slots),
                                      name="usv_mj-runlog", daemon=True)
-            self._proc.start()
+            from usv_mj.spawning import no_main_import
+
+            with no_main_import():
+                self._proc.start()
             child_reply.close()
             # a writer never closed (no with-block) is closed at interpreter exit, before
             # multiprocessing ends its children (atexit runs the later registration first)
