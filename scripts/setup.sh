@@ -30,3 +30,13 @@ if ! "$PYTHON" -c 'import torch' 2>/dev/null; then
 fi
 "$PYTHON" -m pip install --disable-pip-version-check -q -e ".[test,gym,hpc,rl]" 2>&1 | grep -v "Running pip as the 'root' user" || true
 "$PYTHON" -c "import usv_mj, mujoco; print(f'setup: usv_mj {usv_mj.__version__} with mujoco {mujoco.__version__} ready')"
+# numba compiles the kernels and the main job's loop combinations once per checkout (about 15 s on
+# a fresh machine): done here, with a stamp per source fingerprint, so that the main job starts warm
+warm_stamp=$("$PYTHON" -c "from usv_mj.compiled_loop import _source_fingerprint, cache_dir; print(cache_dir() / ('warm-' + _source_fingerprint()))")
+if [ ! -e "$warm_stamp" ]; then
+  echo "setup: compiling the simulation kernels (once per checkout)"
+  warm_dir=$(mktemp -d)
+  "$PYTHON" -m usv_mj.cli run --duration 0.05 --no-video --no-log -q --out "$warm_dir/warm" >/dev/null
+  rm -rf "$warm_dir"
+  touch "$warm_stamp"
+fi
