@@ -36,7 +36,7 @@ warm_stamp=$("$PYTHON" -c "from usv_mj.compiled_loop import _source_fingerprint,
 if [ ! -e "$warm_stamp" ]; then
   echo "setup: compiling the simulation kernels (once per checkout)"
   warm_dir=$(mktemp -d)
-  "$PYTHON" -m usv_mj.cli run --duration 0.05 --no-video --no-log -q --out "$warm_dir/warm" >/dev/null
+  "$PYTHON" -m usv_mj.cli run --duration 0.05 --no-video -q --out "$warm_dir/warm" >/dev/null
   rm -rf "$warm_dir"
   touch "$warm_stamp"
 fi
