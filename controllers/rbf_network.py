@@ -66,19 +66,19 @@ def rbf_activations3(z, centres, sig_u, sig_v, sig_r, out):
     for j in range(n):
         a2 = acc[j]
         e = -a2 * inv_u
-        a = math.exp(e) if e > EXP_UNDERFLOW else 0.0
+        a = math.exp(e) if not e <= EXP_UNDERFLOW else 0.0  # NaN stays NaN
         if v_is_u:
             b = a
         else:
             e = -a2 * inv_v
-            b = math.exp(e) if e > EXP_UNDERFLOW else 0.0
+            b = math.exp(e) if not e <= EXP_UNDERFLOW else 0.0  # NaN stays NaN
         if r_is_u:
             c = a
         elif r_is_v:
             c = b
         else:
             e = -a2 * inv_r
-            c = math.exp(e) if e > EXP_UNDERFLOW else 0.0
+            c = math.exp(e) if not e <= EXP_UNDERFLOW else 0.0  # NaN stays NaN
         out[0, j] = a
         out[1, j] = b
         out[2, j] = c

@@ -67,3 +67,12 @@ def test_the_paper_network_peaks_at_the_nearest_centre():
     assert out3[0, 25] == 1.0 and out3[2, 25] == 1.0
     assert out3[0, 24] == pytest.approx(math.exp(-9 * h * h / 0.49), rel=1e-12)
     assert out3[2, 26] == pytest.approx(math.exp(-9 * h * h / 2.25), rel=1e-12)
+
+
+def test_a_nan_input_gives_nan_activations_as_the_formula_does():
+    # a diverged state must not be hidden from the controller: exp(NaN) is NaN, not the underflow's 0
+    centres = node_centres()
+    out3 = np.empty((3, centres.size))
+    z = np.array([math.nan, 0.1, 0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    rbf_activations3(z, centres, 0.7, 0.9, 1.5, out3)
+    assert np.isnan(out3).all() and np.isnan(_by_hand(z, centres, 0.7)).all()

@@ -49,3 +49,34 @@ def test_workers_start_from_an_unguarded_script_and_from_stdin(tmp_path, how):
     assert proc.returncode == 0, proc.stderr[-2000:]
     done = [line for line in proc.stdout.splitlines() if line.startswith("DONE")]
     assert done == ["DONE (36, 64, 3) 30 True"], proc.stdout   # printed once: the script ran once
+
+
+LATER = """\
+import threading, time
+import multiprocessing
+from usv_mj.spawning import spawn_context
+
+def start(ctx, out):
+    p = ctx.Process(target=time.sleep, args=(0,))
+    p.start()
+    p.join(60)
+    out.append(p.exitcode)
+
+codes = []
+for ctx in (spawn_context(), multiprocessing.get_context("spawn")):
+    t = threading.Thread(target=start, args=(ctx, codes))   # as a pool's thread starts a replacement
+    t.start()
+    t.join()
+print("EXIT CODES", codes)
+"""
+
+
+def test_a_process_started_later_from_another_thread_skips_the_main_module_too():
+    """A pool replaces a dead worker from its own thread, long after it was made: every process of
+    spawn_context() starts without the main module, whenever and from wherever it is started (the
+    stdlib's spawn context, beside it, fails from stdin: its child cannot find '<stdin>')."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run([sys.executable, "-"], input=LATER, env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "EXIT CODES [0, 1]" in proc.stdout, (proc.stdout, proc.stderr[-2000:])

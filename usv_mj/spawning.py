@@ -6,13 +6,18 @@ video's renderers, the run log's writer) run functions of this package only, and
 does harm: a script without an ``if __name__ == "__main__":`` guard runs again in every worker
 (and its render or log there cannot start a process while bootstrapping), and a main module with no
 file (``python -`` reading stdin) makes every worker fail before it starts, which a ``Pool``
-answers by starting another, forever. :func:`no_main_import` hides the main module from the
-preparation data while such workers are started; the children then import only what they unpickle.
+answers by starting another, forever. :func:`spawn_context` is a "spawn" context whose processes
+(a Pool's first workers and every replacement it starts later) are launched under
+:func:`no_main_import`, which hides the main module from the preparation data for the moment of
+the launch; the children then import only what they unpickle. (A process another library launches
+in that same moment from another thread would miss the main module too: the window is the
+launch's few milliseconds.)
 """
 
 from __future__ import annotations
 
 import contextlib
+import multiprocessing.context
 import sys
 import threading
 
@@ -41,3 +46,25 @@ def no_main_import():
                 main.__dict__.pop("__spec__", None)
             else:
                 main.__spec__ = saved_spec
+
+
+class _Process(multiprocessing.context.SpawnProcess):
+    """A spawned process launched without the main module's import (module docstring)."""
+
+    @staticmethod
+    def _Popen(process_obj):
+        with no_main_import():
+            return multiprocessing.context.SpawnProcess._Popen(process_obj)
+
+
+class _Context(multiprocessing.context.SpawnContext):
+    Process = _Process
+
+
+_CONTEXT = _Context()
+
+
+def spawn_context():
+    """The "spawn" multiprocessing context of the package's workers: ``spawn_context().Pool(...)``,
+    ``.Process(...)``, ``.Queue()`` as with ``multiprocessing.get_context("spawn")``."""
+    return _CONTEXT

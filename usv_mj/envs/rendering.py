@@ -41,16 +41,13 @@ class _Drawer:
 
             self.local = FrameRenderer(**self.kwargs)
         else:
-            import multiprocessing
-
             from usv_mj.render.gl_backend import backend_environment
             from usv_mj.render.video import _worker_init
 
-            from usv_mj.spawning import no_main_import
+            from usv_mj.spawning import spawn_context
 
-            with no_main_import():
-                self.pool = multiprocessing.get_context("spawn").Pool(
-                    1, initializer=_worker_init, initargs=(backend_environment(self.backend), self.kwargs))
+            self.pool = spawn_context().Pool(
+                1, initializer=_worker_init, initargs=(backend_environment(self.backend), self.kwargs))
             # an environment dropped without close() still stops its worker
             weakref.finalize(self, self.pool.terminate)
 

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import multiprocessing
 import os
 import sys
 import time
@@ -154,12 +153,10 @@ class _FrameSource:
         else:
             from .gl_backend import backend_environment
 
-            from usv_mj.spawning import no_main_import
+            from usv_mj.spawning import spawn_context
 
-            ctx = multiprocessing.get_context("spawn")
-            with no_main_import():
-                self.pool = ctx.Pool(self.workers, initializer=_worker_init,
-                                     initargs=(backend_environment(self.backend), self.kwargs))
+            self.pool = spawn_context().Pool(self.workers, initializer=_worker_init,
+                                             initargs=(backend_environment(self.backend), self.kwargs))
         return self
 
     def frames(self, specs):
@@ -370,17 +367,16 @@ class RenderWorkers:
         self.workers = _default_workers(1 << 30) if workers is None else max(1, int(workers))
         self.kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
                            shadows=shadows, samples=samples)
-        ctx = multiprocessing.get_context("spawn")
+        from usv_mj.spawning import spawn_context
+
+        ctx = spawn_context()
         self.counter = ctx.Value("i", 0)
         env = backend_environment(self.backend)
         if "LP_NUM_THREADS" not in os.environ:
             # one llvmpipe thread per worker: with a process per core, more threads only contend
             # (measured 60 vs 70 ms of CPU a 720p frame with 2 workers on 2 cores)
             env["LP_NUM_THREADS"] = "1"
-        from usv_mj.spawning import no_main_import
-
-        with no_main_import():
-            self.pool = ctx.Pool(self.workers, initializer=_worker_init, initargs=(env, self.kwargs, self.counter))
+        self.pool = ctx.Pool(self.workers, initializer=_worker_init, initargs=(env, self.kwargs, self.counter))
 
     def matches(self, kwargs: dict) -> bool:
         return kwargs == self.kwargs

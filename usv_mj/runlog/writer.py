@@ -38,7 +38,6 @@ from __future__ import annotations
 import atexit
 import math
 import mimetypes
-import multiprocessing
 import os
 import platform
 import queue
@@ -556,7 +555,9 @@ class RunLogWriter:
                 background = False
         self._background = background
         if background:
-            ctx = multiprocessing.get_context("spawn")
+            from usv_mj.spawning import spawn_context
+
+            ctx = spawn_context()  # the writer never imports the user's __main__ (usv_mj.spawning)
             self._ring = np.ndarray(shape, dtype=np.float64, buffer=self._ring_shm.buf)
             self._next_slot = 0
             self._free_slots = ctx.Semaphore(slots)
@@ -565,10 +566,7 @@ class RunLogWriter:
             self._proc = ctx.Process(target=_worker_main, args=(*args, self._queue, child_reply, os.getpid(),
                                                                 self._ring_shm.name, shape, self._free_slots),
                                      name="usv_mj-runlog", daemon=True)
-            from usv_mj.spawning import no_main_import
-
-            with no_main_import():
-                self._proc.start()
+            self._proc.start()
             child_reply.close()
             # a writer never closed (no with-block) is closed at interpreter exit, before
             # multiprocessing ends its children (atexit runs the later registration first)
