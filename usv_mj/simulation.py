@@ -43,9 +43,10 @@ def make_reference(scenario: Scenario, duration: float | None = None):
 def state_limit_exceeded(x, ex: float, ey: float, limits) -> bool:
     """True when the state left :class:`usv_mj.scenario.LimitsSpec` (or is not finite): the one check
     of divergence, used by the loop and by the dm_control tasks."""
-    return not (abs(x[3]) < limits.max_speed and abs(x[4]) < limits.max_speed
-                and abs(x[5]) < limits.max_yaw_rate and abs(ex) + abs(ey) < limits.max_distance
-                and math.isfinite(x[2]))
+    from .limits import within_limits
+
+    return not within_limits(x, float(ex), float(ey), float(limits.max_speed), float(limits.max_yaw_rate),
+                             float(limits.max_distance))
 
 
 def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_kind: str | None = None,

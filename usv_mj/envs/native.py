@@ -34,6 +34,7 @@ from numba import njit
 
 from usv_mj.controllers.hysteresis_quantizer import quantize_step
 from usv_mj.controllers.performance_funnel import funnel_bound
+from usv_mj.limits import within_limits
 from usv_mj.obstacles.clearance import mujoco_clearance_kernel
 from usv_mj.plants.mujoco_callback import _call_model_data
 from usv_mj.ship import wrap_angle
@@ -78,16 +79,15 @@ def track_observe(x, t, refs, params, n_out, goal):
     k + 1 at t + preview k), and (e_x, e_y, e_psi, diverged, g_x, g_y) for the reward and
     termination: e_x, e_y = the position error of the state with non-finite entries read as 0 (as
     the observation), e_psi = wrap(psi - psi_d), diverged = the raw state left the limits
-    (:func:`usv_mj.simulation.state_limit_exceeded`) or is not finite; ``goal``: also fill the
+    (:func:`usv_mj.limits.within_limits`) or is not finite; ``goal``: also fill the
     harbor's goal entries (after the time), and g_x, g_y = that state minus the goal (else 0)."""
     x0, x1, x2, x3, x4, x5 = x[0], x[1], x[2], x[3], x[4], x[5]
     finite = (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)
               and math.isfinite(x4) and math.isfinite(x5))
     r = refs[0]
     ex, ey = x0 - r[0], x1 - r[1]
-    diverged = not (abs(x3) < params[P_MAX_SPEED] and abs(x4) < params[P_MAX_SPEED]
-                    and abs(x5) < params[P_MAX_YAW_RATE] and abs(ex) + abs(ey) < params[P_MAX_DISTANCE]
-                    and math.isfinite(x2)) or not finite
+    diverged = not within_limits(x, ex, ey, params[P_MAX_SPEED], params[P_MAX_YAW_RATE],
+                                 params[P_MAX_DISTANCE]) or not finite
     if not finite:  # np.nan_to_num(x, nan=0, posinf=0, neginf=0)
         x0 = x0 if math.isfinite(x0) else 0.0
         x1 = x1 if math.isfinite(x1) else 0.0
