@@ -2,8 +2,9 @@
 
 The references here are independent of the code under test: the in-memory RunRecord (values compared
 bit for bit), the mcap library's readers (SeekingReader / NonSeekingReader / StreamReader with CRC
-checks, its summary statistics and chunk indexes), closed forms (quaternion of a yaw), and the
-JSON schemas checked with the jsonschema package.
+checks, its summary statistics and chunk indexes), the mcap project's protobuf decoder
+(``mcap-protobuf-support``, which builds the message classes from the schema in the file), closed
+forms (quaternion of a yaw), and the JSON schemas checked with the jsonschema package.
 """
 
 from __future__ import annotations
@@ -30,6 +31,33 @@ from usv_mj.summary import summarize
 
 ROOT = Path(__file__).resolve().parents[1]
 DURATION = 8.0
+PER_STEP_SCHEMAS = {"usv_mj.State", "usv_mj.Reference", "usv_mj.Control", "usv_mj.Errors", "usv_mj.Diagnostics"}
+
+
+def _decoded(path, topics=None):
+    """(channel, message, decoded protobuf message) of the per-step topics, by the mcap project's
+    own protobuf decoder: nothing of usv_mj.runlog's reader is involved."""
+    from mcap_protobuf.decoder import DecoderFactory
+
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        if topics is None:
+            topics = [c.topic for c in reader.get_summary().channels.values() if c.message_encoding == "protobuf"]
+        return [(c, m, d) for _, c, m, d in reader.iter_decoded_messages(topics=topics)]
+
+
+def _descriptor(summary, topic):
+    """The message descriptor (DescriptorProto) and {field name: doc comment} of a protobuf topic."""
+    from google.protobuf import descriptor_pb2
+
+    channel = next(c for c in summary.channels.values() if c.topic == topic)
+    schema = summary.schemas[channel.schema_id]
+    assert schema.encoding == "protobuf"
+    fd = descriptor_pb2.FileDescriptorSet.FromString(schema.data).file[0]
+    msg = fd.message_type[0]
+    assert f"{fd.package}.{msg.name}" == schema.name
+    docs = {tuple(loc.path): loc.leading_comments.strip() for loc in fd.source_code_info.location}
+    return msg, {f.name: docs.get((4, 0, 2, i), "") for i, f in enumerate(msg.field)}, docs.get((4, 0), "")
 
 
 def _norm(obj):
@@ -44,8 +72,7 @@ def assert_same_rows(a: RunRecord, b: RunRecord, n: int | None = None):
     assert a.diagnostic_events == b.diagnostic_events
     for c in b.column_names:
         x, y = a[c], b[c][:n]
-        assert np.array_equal(x.view(np.uint64)[~np.isnan(x)], y.view(np.uint64)[~np.isnan(y)]), c
-        assert np.array_equal(np.isnan(x), np.isnan(y)), c
+        assert np.array_equal(x.view(np.uint64), y.view(np.uint64)), c     # NaN payloads too (protobuf)
 
 
 @pytest.fixture(scope="module")
@@ -123,22 +150,21 @@ def test_every_float_bit_pattern_round_trips(tmp_path, scenario, background):
            [(e.t, e.kind, e.message, _norm(e.values)) for e in rec.events]
 
 
-def test_infinities_are_written_as_json_numbers_that_parse_to_infinity(tmp_path, scenario):
-    rec = _handmade_record(3)
-    rec.data[:, COL["x"]] = [np.inf, -np.inf, np.nan]
+def test_infinities_nan_payloads_and_negative_zero_keep_their_bits_in_protobuf(tmp_path, scenario):
+    rec = _handmade_record(4)
+    odd_nan = np.uint64(0x7FF4_0000_DEAD_BEEF).view(np.float64)        # a signalling NaN with a payload
+    rec.data[:, COL["x"]] = [np.inf, -np.inf, odd_nan, -0.0]
     path = tmp_path / "inf.mcap"
     with RunLogWriter(path, scenario, background=False) as writer:
         sink = writer.sink("main")
         sink.start(rec)
-        rec.n_rows = 3
-        sink.rows(rec, 0, 3)
+        rec.n_rows = 4
+        sink.rows(rec, 0, 4)
         sink.finish(rec)
-    with open(path, "rb") as f:
-        reader = make_reader(f)
-        texts = [m.data for _, c, m in reader.iter_messages(topics=["/usv/state"])]
-    assert [json.loads(t)["x"] for t in texts][:2] == [math.inf, -math.inf]   # standard library's json
-    assert json.loads(texts[2])["x"] is None
-    assert b'"x":1e999' in texts[0] and b'"x":-1e999' in texts[1]
+    xs = np.array([d.x for _, _, d in _decoded(path, ["/usv/state"])])
+    assert np.array_equal(xs.view(np.uint64), rec.data[:4, COL["x"]].view(np.uint64))
+    got = read_run(path).record["x"]
+    assert np.array_equal(got.view(np.uint64), rec.data[:4, COL["x"]].view(np.uint64))
 
 
 # --- the mcap library's own checks ------------------------------------------------------------------
@@ -167,8 +193,10 @@ def test_file_passes_the_mcap_library_validation(logged):
         assert n == summary.statistics.message_count
         assert last_state_time == round(main["t"][-1] * 1e9)
         assert {s.name for s in summary.schemas.values()} >= {"foxglove.FrameTransform", "foxglove.SceneUpdate"}
-        assert all(s.encoding == "jsonschema" for s in summary.schemas.values())
-        assert all(c.message_encoding == "json" for c in summary.channels.values())
+        for c in summary.channels.values():     # per step: protobuf; events and Foxglove's: JSON
+            per_step = summary.schemas[c.schema_id].name in PER_STEP_SCHEMAS
+            assert (c.message_encoding, summary.schemas[c.schema_id].encoding) == \
+                (("protobuf", "protobuf") if per_step else ("json", "jsonschema")), c.topic
     # the sequential reader, with every chunk CRC and the data-section CRC checked
     with open(path, "rb") as f:
         records = list(StreamReader(f, validate_crcs=True).records)
@@ -179,22 +207,35 @@ def test_file_passes_the_mcap_library_validation(logged):
     assert sum(1 for _ in make_reader(stream, validate_crcs=True).iter_messages()) == n
 
 
-def test_messages_follow_their_json_schemas(logged):
+def test_messages_follow_their_schemas(logged):
+    """JSON messages validate against their JSON schemas; protobuf messages decode, by the mcap
+    project's decoder, to the record's values at their row (field by field, bit for bit)."""
     jsonschema = pytest.importorskip("jsonschema")
-    path, _, _ = logged
+    path, main, base = logged
     seen = {}
     with open(path, "rb") as f:
         reader = make_reader(f)
         n_topics = len(reader.get_summary().channels)
         assert n_topics == 2 * 11      # 5 row topics, events, 5 Foxglove topics per run
         for schema, channel, message in reader.iter_messages():
-            if channel.topic not in seen:
+            if channel.topic not in seen and channel.message_encoding == "json":
                 seen[channel.topic] = (json.loads(schema.data), json.loads(message.data))
-                if len(seen) == n_topics:
-                    break
-    assert len(seen) == n_topics
+    assert len(seen) == 2 * 6
     for topic, (schema, msg) in seen.items():
         jsonschema.validate(msg, schema)
+    checked = set()
+    for channel, message, decoded in _decoded(path):
+        rec = main if channel.topic.startswith("/usv/") else base
+        k = message.sequence
+        assert message.log_time == round(rec["t"][k] * 1e9)
+        fields = [f.name for f in decoded.DESCRIPTOR.fields]
+        assert tuple(fields) == next(f for name, _, f in row_topics(rec.column_names)
+                                     if channel.topic.endswith("/" + name))
+        for name in fields:
+            assert np.float64(getattr(decoded, name)).view(np.uint64) == rec[name][k].view(np.uint64), \
+                (channel.topic, k, name)
+        checked.add(channel.topic)
+    assert len(checked) == 2 * 5
 
 
 class _NonSeekable(io.RawIOBase):
@@ -616,9 +657,9 @@ def test_a_controller_with_its_own_fields_round_trips_on_its_own_topic(tmp_path,
     assert np.array_equal(diag["speed_gap"], rec["speed_gap"])
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
-    schemas = {c.topic: json.loads(summary.schemas[c.schema_id].data) for c in summary.channels.values()}
-    assert list(schemas["/usv/diagnostics"]["properties"]) == ["t", "heading_gap", "speed_gap"]
-    assert "two_fields" in schemas["/usv/diagnostics"]["description"]
+    msg, _, doc = _descriptor(summary, "/usv/diagnostics")
+    assert [f.name for f in msg.field] == ["t", "heading_gap", "speed_gap"]
+    assert "two_fields" in doc
 
 
 def test_pi_baseline_record_keeps_its_own_fields(logged):
@@ -743,10 +784,9 @@ def test_state_schema_says_the_axes_conventions(logged):
     path, _, _ = logged
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
-    state = next(json.loads(summary.schemas[c.schema_id].data) for c in summary.channels.values()
-                 if c.topic == "/usv/state")["properties"]
-    assert "east" in state["x"]["description"] and "ENU" in state["x"]["description"]
-    assert "north" in state["y"]["description"]
-    assert "counter-clockwise from east" in state["psi"]["description"]
-    assert "forward" in state["u"]["description"] and "port" in state["v"]["description"]
-    assert "north position" not in state["x"]["description"] and "east position" not in state["y"]["description"]
+    _, state, _ = _descriptor(summary, "/usv/state")       # the fields' comments in the descriptor
+    assert "east" in state["x"] and "ENU" in state["x"]
+    assert "north" in state["y"]
+    assert "counter-clockwise from east" in state["psi"]
+    assert "forward" in state["u"] and "port" in state["v"]
+    assert "north position" not in state["x"] and "east position" not in state["y"]

@@ -1,8 +1,8 @@
 """The per-step topics a run log has only when the run has them: ``P/obstacles`` and ``P/environment``.
 
-Both are laid out in bulk by the same numba kernel as the row topics (:class:`~usv_mj.runlog.mcap_file.TemplateLayout`,
-one message per control step, ``log_time`` = round(t * 1e9) ns, ``sequence`` = row index k, the same
-number conventions: shortest round-trip decimal, ``null`` = NaN, ``+-1e999`` = +-inf).
+Both are protobuf messages laid out in bulk like the row topics (:mod:`usv_mj.runlog.protobuf_rows`,
+one message per control step, ``log_time`` = round(t * 1e9) ns, ``sequence`` = row index k, every
+float64 bit for bit). Shown as the JSON form of the message (what ``mcap cat --json`` prints):
 
 ``P/obstacles`` (schema ``usv_mj.Obstacles``), when the run has an
 :class:`~usv_mj.obstacles.sink.ObstacleLog` (attached to the run's sink by
@@ -11,7 +11,7 @@ number conventions: shortest round-trip decimal, ``null`` = NaN, ``+-1e999`` = +
     {"t": 0.0, "obstacles": [{"name": "buoy", "clearance_m": 3.2, "normal_force_N": 0.0,
                                "center": {"x": 12.0, "y": 4.0}}, ...]}
 
-clearance_m: signed distance hull <-> obstacle [m] (negative: penetration; null before the first
+clearance_m: signed distance hull <-> obstacle [m] (negative: penetration; NaN before the first
 measurement); normal_force_N: summed normal contact force [N]; center: the obstacle's centre in
 the world frame [m] at t (moving obstacles move). The obstacles' fixed shapes (kind, radius, size,
 yaw, velocity, inflation) are in the run's ``run_start`` metadata under ``obstacles``.
@@ -31,77 +31,60 @@ current [m/s] in the world frame; wind speed [m/s] and going-to direction [rad] 
 They are computed by the writer (off the simulation loop) from the recorded (t, eta, nu) with
 :meth:`usv_mj.sea.Environment.loads_record`: the environment is a pure function of (t, eta, nu),
 so these are the loads the plant saw at the start of each control step. Rows whose state is not
-finite (a divergence) get null.
+finite (a divergence) get NaN.
 """
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 from numba import njit
 
 from ..record import COL
-from . import json_codec
-from .mcap_file import TemplateLayout
+from .protobuf_rows import Field, FixedLayout, Message, file_descriptor_set, message_class
 
 OBSTACLES_SCHEMA_NAME = "usv_mj.Obstacles"
 ENVIRONMENT_SCHEMA_NAME = "usv_mj.Environment"
 
-_NUM = {"type": ["number", "null"], "$comment": "float64; null = NaN, 1e999 = +inf, -1e999 = -inf"}
+_POINT = Message("Point2", (Field("x", doc="east [m]"), Field("y", doc="north [m]")),
+                 "a point in the world frame (REP-103 ENU) [m]")
+_OBSTACLE = Message("Obstacle", (
+    Field("name", "string", "the obstacle's name from the scenario"),
+    Field("clearance_m", doc="signed distance hull <-> obstacle [m] (negative: penetration; NaN before the first "
+                             "measurement)"),
+    Field("normal_force_N", doc="summed normal contact force [N]"),
+    Field("center", _POINT, "obstacle centre in the world frame [m] at t")))
+OBSTACLES_MESSAGE = Message(OBSTACLES_SCHEMA_NAME, (
+    Field("t", doc="time [s]"), Field("obstacles", _OBSTACLE, "one per obstacle, in the scenario's order",
+                                      repeated=True)),
+    "clearance and contact force per obstacle at one control step (usv_mj.runlog.extra_topics)")
+OBSTACLES_SCHEMA = file_descriptor_set(OBSTACLES_MESSAGE)
 
-
-def _xyz(desc, names=("x", "y", "n")):
-    return {"type": "object", "description": desc, "properties": {k: _NUM for k in names}, "required": list(names)}
-
-
-OBSTACLES_SCHEMA = json.dumps({
-    "title": OBSTACLES_SCHEMA_NAME, "type": "object",
-    "description": "clearance and contact force per obstacle at one control step (usv_mj.runlog.extra_topics)",
-    "properties": {
-        "t": {**_NUM, "description": "time [s]"},
-        "obstacles": {"type": "array", "items": {"type": "object", "properties": {
-            "name": {"type": "string"},
-            "clearance_m": {**_NUM, "description": "signed distance hull <-> obstacle [m]"},
-            "normal_force_N": {**_NUM, "description": "summed normal contact force [N]"},
-            "center": _xyz("obstacle centre in the world frame [m]", ("x", "y"))},
-            "required": ["name", "clearance_m", "normal_force_N", "center"]}},
-    },
-    "required": ["t", "obstacles"],
-}, indent=1).encode()
-
-ENVIRONMENT_SCHEMA = json.dumps({
-    "title": ENVIRONMENT_SCHEMA_NAME, "type": "object",
-    "description": "sea state at the hull at one control step (docs/sea.md §1; usv_mj.runlog.extra_topics)",
-    "properties": {
-        "t": {**_NUM, "description": "time [s]"},
-        "zeta": {**_NUM, "description": "wave elevation at the hull origin [m]"},
-        "tau_wave": _xyz("first-order wave load, body frame, ramp applied [N, N, N m]"),
-        "tau_drift": _xyz("wave drift load, body frame, ramp applied [N, N, N m]"),
-        "tau_wind": _xyz("wind load, body frame [N, N, N m]"),
-        "current": _xyz("current velocity, world frame [m/s]", ("x", "y")),
-        "wind": {"type": "object", "properties": {
-            "speed": {**_NUM, "description": "wind speed incl. gusts [m/s]"},
-            "direction": {**_NUM, "description": "going-to direction, world frame [rad]"}},
-            "required": ["speed", "direction"]},
-    },
-    "required": ["t", "zeta", "tau_wave", "tau_drift", "tau_wind", "current", "wind"],
-}, indent=1).encode()
+_LOAD = Message("BodyLoad", (Field("x", doc="surge force [N]"), Field("y", doc="sway force [N] (to port)"),
+                             Field("n", doc="yaw moment [N m] (counter-clockwise)")), "a load in the body frame")
+_VELOCITY = Message("Velocity2", (Field("x", doc="east [m/s]"), Field("y", doc="north [m/s]")),
+                    "a velocity in the world frame [m/s]")
+_WIND = Message("Wind", (Field("speed", doc="wind speed incl. gusts [m/s]"),
+                         Field("direction", doc="going-to direction, world frame, counter-clockwise from east [rad]")))
+ENVIRONMENT_MESSAGE = Message(ENVIRONMENT_SCHEMA_NAME, (
+    Field("t", doc="time [s]"), Field("zeta", doc="wave elevation at the hull origin [m]"),
+    Field("tau_wave", _LOAD, "first-order wave load, body frame, ramp applied [N, N, N m]"),
+    Field("tau_drift", _LOAD, "wave drift load, body frame, ramp applied [N, N, N m]"),
+    Field("tau_wind", _LOAD, "wind load, body frame [N, N, N m]"),
+    Field("current", _VELOCITY, "current velocity, world frame [m/s]"), Field("wind", _WIND, "the wind")),
+    "sea state at the hull at one control step (docs/sea.md §1; usv_mj.runlog.extra_topics)")
+ENVIRONMENT_SCHEMA = file_descriptor_set(ENVIRONMENT_MESSAGE)
 
 
 # --- obstacles -----------------------------------------------------------------------------------
 
 
-def obstacle_layout(channel_id: int, names) -> TemplateLayout:
-    """Layout of ``P/obstacles``: the block is [t, (clearance, force, cx, cy) per obstacle]."""
-    pieces = [b'{"t":']
-    for i, name in enumerate(names):
-        lead = b',"obstacles":[' if i == 0 else b"}},"
-        pieces += [lead + b'{"name":' + json_codec.dumps(str(name)) + b',"clearance_m":', b',"normal_force_N":',
-                   b',"center":{"x":', b',"y":']
-    closing = b"}}]}" if len(names) else b',"obstacles":[]}'
-    return TemplateLayout(channel_id, pieces, closing)
+def obstacle_layout(names) -> FixedLayout:
+    """Layout of ``P/obstacles``; its values are the columns of :func:`obstacle_block`:
+    [t, (clearance, force, cx, cy) per obstacle]."""
+    return FixedLayout(message_class(OBSTACLES_SCHEMA, OBSTACLES_SCHEMA_NAME),
+                       {"obstacles": [{"name": str(name)} for name in names]})
 
 
 def obstacle_block(t: np.ndarray, clearance: np.ndarray, normal_force: np.ndarray, center: np.ndarray) -> np.ndarray:
@@ -111,17 +94,22 @@ def obstacle_block(t: np.ndarray, clearance: np.ndarray, normal_force: np.ndarra
     return np.concatenate([np.asarray(t, float).reshape(n, 1), per], axis=1)
 
 
-def obstacle_arrays(msgs: list) -> dict:
-    """``P/obstacles`` messages -> {"t" (n,), "names" [m], "clearance_m" (n, m), "normal_force_N" (n, m),
-    "center" (n, m, 2)} (float64; null -> NaN)."""
-    n = len(msgs)
-    names = [o["name"] for o in msgs[0]["obstacles"]] if n else []
-    m = len(names)
-    t = np.array([msg["t"] for msg in msgs], dtype=np.float64)
-    vals = np.array([[(o["clearance_m"], o["normal_force_N"], o["center"]["x"], o["center"]["y"])
-                      for o in msg["obstacles"]] for msg in msgs], dtype=np.float64).reshape(n, m, 4)
-    return {"t": t, "names": names, "clearance_m": vals[:, :, 0].copy(), "normal_force_N": vals[:, :, 1].copy(),
-            "center": vals[:, :, 2:4].copy()}
+def obstacle_arrays(cols: dict) -> dict:
+    """Flattened ``P/obstacles`` columns ("t", "obstacles.I.name", "obstacles.I.clearance_m",
+    "obstacles.I.normal_force_N", "obstacles.I.center.x" / ".y") -> {"t" (n,), "names" [m],
+    "clearance_m" (n, m), "normal_force_N" (n, m), "center" (n, m, 2)} (float64)."""
+    t = np.asarray(cols["t"], np.float64)
+    m = 0
+    while f"obstacles.{m}.clearance_m" in cols:
+        m += 1
+
+    def take(key):
+        return np.stack([np.asarray(cols[f"obstacles.{i}.{key}"], np.float64) for i in range(m)], axis=1) \
+            if m else np.zeros((len(t), 0))
+
+    names = [str(cols[f"obstacles.{i}.name"][0]) for i in range(m)] if len(t) else []
+    return {"t": t, "names": names, "clearance_m": take("clearance_m"), "normal_force_N": take("normal_force_N"),
+            "center": np.stack([take("center.x"), take("center.y")], axis=2)}
 
 
 # --- environment ---------------------------------------------------------------------------------
@@ -131,12 +119,12 @@ ENVIRONMENT_FIELDS = ("t", "zeta", "tau_wave.x", "tau_wave.y", "tau_wave.n", "ta
                       "wind.speed", "wind.direction")
 
 
-def environment_layout(channel_id: int) -> TemplateLayout:
-    """Layout of ``P/environment``: the block columns are :data:`ENVIRONMENT_FIELDS`."""
-    pieces = [b'{"t":', b',"zeta":', b',"tau_wave":{"x":', b',"y":', b',"n":', b'},"tau_drift":{"x":', b',"y":',
-              b',"n":', b'},"tau_wind":{"x":', b',"y":', b',"n":', b'},"current":{"x":', b',"y":',
-              b'},"wind":{"speed":', b',"direction":']
-    return TemplateLayout(channel_id, pieces, b"}}")
+def environment_layout() -> FixedLayout:
+    """Layout of ``P/environment``; its values are the columns of :func:`environment_block`
+    (:data:`ENVIRONMENT_FIELDS`)."""
+    layout = FixedLayout(message_class(ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME))
+    assert layout.paths == ENVIRONMENT_FIELDS, layout.paths
+    return layout
 
 
 def environment_block(env, rows: np.ndarray) -> np.ndarray:

@@ -1,10 +1,11 @@
 """A streaming MCAP writer for long runs: chunks built in bulk, the rest through the mcap library.
 
 Why not ``mcap.writer.Writer`` for everything: its ``add_message`` costs about 6.5 us per message in
-Python, and a 300 s run at 1 ms has 300,001 rows x 6 topics = 1.8 million messages (12 s, more than
-the simulation itself). Here the message records of a whole chunk are laid out by one numba kernel
-from a block of rows (the numbers formatted by orjson in one call), and the chunk is compressed with
-zstd; every other record (header, schemas, channels, chunk, message and chunk indexes, metadata,
+Python, and a 300 s run at 1 ms has 300,001 rows x 5 topics = 1.5 million messages (10 s, more than
+the simulation itself). Here the message records of a whole chunk are laid out in bulk from a block
+of rows: the per-step protobuf topics by :class:`usv_mj.runlog.protobuf_rows.BinaryRows` (a
+template copy and one strided copy per field), the JSON Foxglove topics by one numba kernel (the
+numbers formatted by orjson in one call); the chunk is compressed with zstd; every other record (header, schemas, channels, chunk, message and chunk indexes, metadata,
 attachments, statistics, summary offsets, footer) is serialized by ``mcap.records``. The result is
 checked by the mcap library's own readers in tests/test_runlog.py (summary, indexes, CRCs).
 
@@ -134,30 +135,32 @@ def encode_row_messages(text, special, n_rows, log_time, seq, topic_start, keys,
     return pos
 
 
-class RowLayout:
-    """How a block of record rows becomes messages: which columns go to which topic, with which keys."""
+class TemplateLayout:
+    """One JSON topic whose messages are a fixed template with float64 holes (the Foxglove frames and
+    funnel, every 20 ms: the per-step topics are protobuf, :mod:`usv_mj.runlog.protobuf_rows`).
 
-    def __init__(self, columns: tuple, topics: list[tuple[int, tuple]]):
-        """``columns``: the block's column names; ``topics``: (channel id, field names) pairs."""
-        col = {c: i for i, c in enumerate(columns)}
-        self.n_cols = len(columns)
-        self.channel_ids = np.array([ch for ch, _ in topics], np.int64)
-        cols, starts, keys, key_start = [], [0], bytearray(), [0]
-        for _, fields in topics:
-            for q, f in enumerate(fields):
-                cols.append(col[f])
-                keys += (b"{" if q == 0 else b",") + json_codec.dumps(f) + b":"
-                key_start.append(len(keys))
-            starts.append(len(cols))
-        self.topic_cols = np.array(cols, np.int64)
-        self.topic_start = np.array(starts, np.int64)
-        self.keys = np.frombuffer(bytes(keys), np.uint8)
-        self.key_start = np.array(key_start, np.int64)
-        self.closing = np.frombuffer(b"}", np.uint8)
-        self.bytes_per_row = len(topics) * (MESSAGE_HEADER + 1) + len(keys) + len(cols) * MAX_TOKEN
+    ``pieces[q]`` is the JSON text written before value q (the first starts the message, e.g.
+    b'{"t":'), ``closing`` the text after the last value (e.g. b'}}]}'). The block handed to
+    :meth:`encode` has exactly ``len(pieces)`` columns, value q in column q. Numbers: the shortest
+    round-trip decimal, null = NaN, +-1e999 = +-inf.
+    """
 
-    time_holes = np.zeros(0, np.int64)    # columns written as log-time seconds (3) / nanoseconds (4)
-    time_codes = np.zeros(0, np.int8)
+    def __init__(self, channel_id: int, pieces: list[bytes], closing: bytes, sec_hole: int | None = None,
+                 nsec_hole: int | None = None):
+        """``sec_hole`` / ``nsec_hole``: the values written as the message's log time in whole seconds /
+        the nanoseconds past them (integers, as a Foxglove ``time`` wants; their block column is ignored)."""
+        self.n_cols = len(pieces)
+        holes = [(q, code) for q, code in ((sec_hole, 3), (nsec_hole, 4)) if q is not None]
+        self.time_holes = np.array([q for q, _ in holes], np.int64)
+        self.time_codes = np.array([c for _, c in holes], np.int8)
+        self.channel_ids = np.array([channel_id], np.int64)
+        self.topic_cols = np.arange(len(pieces), dtype=np.int64)
+        self.topic_start = np.array([0, len(pieces)], np.int64)
+        keys = b"".join(pieces)
+        self.keys = np.frombuffer(keys, np.uint8)
+        self.key_start = np.concatenate([[0], np.cumsum([len(p) for p in pieces])]).astype(np.int64)
+        self.closing = np.frombuffer(closing, np.uint8)
+        self.bytes_per_row = MESSAGE_HEADER + len(closing) + len(keys) + len(pieces) * MAX_TOKEN
 
     def encode(self, block: np.ndarray, log_time: np.ndarray, seq) -> tuple[np.ndarray, np.ndarray]:
         """Message records (uint8 array) and record offsets (rows x topics) for a float64 block.
@@ -179,33 +182,6 @@ class RowLayout:
                                    self.keys, self.key_start, self.closing, self.channel_ids, _INF, _NINF, out,
                                    offsets)
         return out[:size], offsets
-
-
-class TemplateLayout(RowLayout):
-    """One topic whose messages are a fixed JSON template with float64 holes (nested objects, arrays).
-
-    ``pieces[q]`` is the JSON text written before value q (the first starts the message, e.g.
-    b'{"t":'), ``closing`` the text after the last value (e.g. b'}}]}'). The block handed to
-    :meth:`encode` has exactly ``len(pieces)`` columns, value q in column q. Same kernel, same number
-    conventions (shortest round-trip decimal, null = NaN, +-1e999 = +-inf) as the row topics.
-    """
-
-    def __init__(self, channel_id: int, pieces: list[bytes], closing: bytes, sec_hole: int | None = None,
-                 nsec_hole: int | None = None):
-        """``sec_hole`` / ``nsec_hole``: the values written as the message's log time in whole seconds /
-        the nanoseconds past them (integers, as a Foxglove ``time`` wants; their block column is ignored)."""
-        self.n_cols = len(pieces)
-        holes = [(q, code) for q, code in ((sec_hole, 3), (nsec_hole, 4)) if q is not None]
-        self.time_holes = np.array([q for q, _ in holes], np.int64)
-        self.time_codes = np.array([c for _, c in holes], np.int8)
-        self.channel_ids = np.array([channel_id], np.int64)
-        self.topic_cols = np.arange(len(pieces), dtype=np.int64)
-        self.topic_start = np.array([0, len(pieces)], np.int64)
-        keys = b"".join(pieces)
-        self.keys = np.frombuffer(keys, np.uint8)
-        self.key_start = np.concatenate([[0], np.cumsum([len(p) for p in pieces])]).astype(np.int64)
-        self.closing = np.frombuffer(closing, np.uint8)
-        self.bytes_per_row = MESSAGE_HEADER + len(closing) + len(keys) + len(pieces) * MAX_TOKEN
 
 
 def template_layout(channel_id: int, example: dict, holes: tuple[str, ...]) -> TemplateLayout:
@@ -232,45 +208,21 @@ def message_record(channel_id: int, log_time: int, data: bytes, sequence: int = 
                        log_time, log_time) + data
 
 
-@njit(cache=True)
-def _gather_records(src, starts, lengths, order, out):
-    """out = the records src[starts[i]:starts[i] + lengths[i]] for i in ``order``; returns the new
-    start of each record (in the order of ``order``). Records that follow each other in ``src`` as
-    in ``order`` (most of them: a topic's rows are already in time order) are copied as one run."""
-    n = order.shape[0]
-    new = np.empty(n, np.int64)
-    p = 0
-    run_src = 0
-    run_len = 0
-    for j in range(n):
-        i = order[j]
-        new[j] = p + run_len
-        a = starts[i]
-        if run_len > 0 and a == run_src + run_len:
-            run_len += lengths[i]
-            continue
-        if run_len > 0:
-            out[p:p + run_len] = src[run_src:run_src + run_len]
-            p += run_len
-        run_src = a
-        run_len = lengths[i]
-    if run_len > 0:
-        out[p:p + run_len] = src[run_src:run_src + run_len]
-    return new
-
-
 class ChunkBuffer:
     """The message records of one chunk being assembled. :meth:`finish` puts them in log-time order
     (a stable sort: messages of one log time keep the order they were added in), so that a reader
-    that goes through the file front to back sees log time never go back inside a chunk."""
+    that goes through the file front to back sees log time never go back inside a chunk.
+
+    What is sorted are units: one row's messages of a block (all its topics, one log time) or one
+    single message; a chunk of 1000 rows has about 1000 units, not 5000 messages."""
 
     def __init__(self):
         self.parts: list = []
         self.size = 0
-        self._lt: list = []           # per added piece: log time, channel, start, length of each message
-        self._ch: list = []
+        self._lt: list = []           # per added piece: log time, start and length of each unit
         self._start: list = []
         self._len: list = []
+        self._blocks: list = []       # per added piece: (channel ids, offsets of its messages in each unit)
         self.count: dict[int, int] = {}
         self.start_time = None
         self.end_time = None
@@ -278,59 +230,72 @@ class ChunkBuffer:
     def __len__(self):
         return sum(self.count.values())
 
-    def _times(self, lo, hi):
+    def _add(self, lt, start, length, channels, intra, part, nbytes):
+        self._lt.append(lt)
+        self._start.append(start + self.size)
+        self._len.append(length)
+        self._blocks.append((channels, intra))
+        self.parts.append(part)
+        self.size += nbytes
+        for ch in channels:
+            self.count[int(ch)] = self.count.get(int(ch), 0) + len(lt)
+        lo, hi = int(lt.min()), int(lt.max())
         self.start_time = lo if self.start_time is None else min(self.start_time, lo)
         self.end_time = hi if self.end_time is None else max(self.end_time, hi)
 
     def add_rows(self, records: np.ndarray, offsets: np.ndarray, log_time: np.ndarray, channel_ids):
-        """Records laid out by a :class:`RowLayout` (row-major: row i's messages, topic by topic)."""
+        """Records laid out row-major (row i's messages, topic by topic; ``offsets[i, j]`` = where
+        row i's topic j starts), as :class:`TemplateLayout` and ``BinaryRows`` give them."""
         if len(log_time) == 0:
             return
-        base = self.size
-        n, k = offsets.shape
-        starts = offsets.reshape(-1).astype(np.int64)
-        lengths = np.diff(np.append(starts, len(records)))
-        lt = np.asarray(log_time, np.int64)
-        self._lt.append(np.repeat(lt, k))
-        self._ch.append(np.tile(np.asarray(channel_ids, np.int64), n))
-        self._start.append(starts + base)
-        self._len.append(lengths)
-        self.parts.append(records)
-        self.size += len(records)
-        for ch in channel_ids:
-            self.count[int(ch)] = self.count.get(int(ch), 0) + n
-        self._times(int(lt.min()), int(lt.max()))
+        offsets = np.asarray(offsets, np.int64)
+        start = offsets[:, 0]
+        length = np.diff(np.append(start, len(records)))
+        self._add(np.asarray(log_time, np.int64), start, length, np.asarray(channel_ids, np.int64),
+                  offsets - start[:, None], records, len(records))
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, sequence: int = 0):
         rec = message_record(channel_id, log_time, data, sequence)
-        self._lt.append(np.array([log_time], np.int64))
-        self._ch.append(np.array([channel_id], np.int64))
-        self._start.append(np.array([self.size], np.int64))
-        self._len.append(np.array([len(rec)], np.int64))
-        self.count[channel_id] = self.count.get(channel_id, 0) + 1
-        self.parts.append(rec)
-        self.size += len(rec)
-        self._times(log_time, log_time)
+        self._add(np.array([log_time], np.int64), np.zeros(1, np.int64), np.array([len(rec)], np.int64),
+                  np.array([channel_id], np.int64), np.zeros((1, 1), np.int64), rec, len(rec))
 
     def finish(self) -> tuple[list, dict]:
         """(the chunk's data as parts, {channel: (log times, record offsets)}), messages in log-time order."""
         lt = np.concatenate(self._lt)
-        ch = np.concatenate(self._ch)
         start = np.concatenate(self._start)
+        parts = self.parts
         if lt.size > 1 and np.any(np.diff(lt) < 0):
             order = np.argsort(lt, kind="stable")
-            src = np.concatenate([np.frombuffer(p, np.uint8) if isinstance(p, (bytes, bytearray)) else p
-                                  for p in self.parts])
-            out = np.empty(self.size, np.uint8)
-            start = _gather_records(src, start, np.concatenate(self._len), order, out)
-            lt, ch = lt[order], ch[order]
-            parts = [out]
-        else:
-            parts = self.parts
+            s_o = start[order]
+            l_o = np.concatenate(self._len)[order]
+            start = np.empty_like(start)
+            start[order] = np.cumsum(l_o) - l_o
+            # runs of units that follow each other in one part are copied as one slice
+            arrays = [np.frombuffer(p, np.uint8) if isinstance(p, (bytes, bytearray)) else p for p in self.parts]
+            bases = np.cumsum([0] + [len(a) for a in arrays])
+            pid = np.searchsorted(bases, s_o, side="right") - 1
+            cut = np.ones(len(s_o), bool)
+            cut[1:] = (s_o[1:] != s_o[:-1] + l_o[:-1]) | (pid[1:] != pid[:-1])
+            first = np.flatnonzero(cut)
+            last = np.append(first[1:], len(s_o)) - 1
+            lo = (s_o[first] - bases[pid[first]]).tolist()
+            hi = (s_o[last] + l_o[last] - bases[pid[first]]).tolist()
+            parts = [np.concatenate([arrays[p][a:b] for p, a, b in zip(pid[first].tolist(), lo, hi)])]
+        found: dict = {}
+        u = 0
+        for (channels, intra), times in zip(self._blocks, self._lt):
+            units = start[u:u + len(times)]
+            for j, ch in enumerate(channels.tolist()):
+                found.setdefault(ch, []).append((times, units + intra[:, j]))
+            u += len(times)
         index = {}
-        for c in np.unique(ch):
-            sel = ch == c
-            index[int(c)] = (lt[sel].astype(np.uint64), start[sel].astype(np.uint64))
+        for ch, pieces in found.items():
+            times = np.concatenate([t for t, _ in pieces])
+            offs = np.concatenate([o for _, o in pieces])
+            if len(pieces) > 1:          # the final places are in log-time order
+                order = np.argsort(offs, kind="stable")
+                times, offs = times[order], offs[order]
+            index[ch] = (times.astype(np.uint64), offs.astype(np.uint64))
         return parts, index
 
 
@@ -498,11 +463,10 @@ class McapFileWriter:
         pieces = []
         pos = index_start
         for ch in sorted(index):
-            lt, off = index[ch]
-            order = np.argsort(lt, kind="stable")      # already in order after finish(): kept for safety
+            lt, off = index[ch]                        # in log-time order (finish)
             pairs = np.empty(2 * len(lt), "<u8")
-            pairs[0::2] = lt[order]
-            pairs[1::2] = off[order]
+            pairs[0::2] = lt
+            pairs[1::2] = off
             body = pairs.tobytes()
             rec = struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 6 + len(body), ch, len(body)) + body
             index_offsets[ch] = pos

@@ -22,7 +22,7 @@ from mcap.records import Attachment, Channel, Chunk, Footer, Header, Metadata, S
 from mcap.stream_reader import StreamReader
 from numba import njit
 
-from . import json_codec
+from . import json_codec, protobuf_rows
 
 from ..record import COL, CORE_COLUMNS, Event, RunRecord
 from .extra_topics import environment_arrays, obstacle_arrays
@@ -154,6 +154,8 @@ class _Scan:
     start_time: int | None = None
     size: int = 0
     flat: object = None                               # predicate: channel holds flat numeric objects
+    protobuf: dict = field(default_factory=dict)      # channel id -> (message class, FixedLayout or None)
+    strings: dict = field(default_factory=dict)       # channel id -> the fixed strings of its messages
 
 
 def _open(source):
@@ -291,6 +293,10 @@ def _take_chunk(scan: _Scan, data: bytes, want, decode: bool):
         if not decode or (want is not None and not want(ch)):
             continue
         s, e = start[sel], end[sel]
+        channel = scan.channels.get(ch)
+        if channel is not None and channel.message_encoding == "protobuf":
+            _take_protobuf(scan, ch, data, buf, lt[sel], s, e)
+            continue
         if scan.flat is not None and scan.flat(scan, ch):
             # a row topic: keys of the first message, then values only, one orjson call per chunk
             out = np.empty(int((e - s).sum()) + 2 * len(sel) + 2, np.uint8)
@@ -311,32 +317,83 @@ def _take_chunk(scan: _Scan, data: bytes, want, decode: bool):
         scan.pieces.setdefault(ch, []).append((lt[sel], None, out[:n + 2].tobytes()))
 
 
+def _take_protobuf(scan: _Scan, ch: int, data: bytes, buf: np.ndarray, lt, s, e):
+    """A chunk's messages of a protobuf channel: in bulk when they share one fixed layout (what
+    usv_mj writes: :func:`usv_mj.runlog.protobuf_rows.decode_payloads`), else one by one with the
+    protobuf library, flattened to {path: value}."""
+    if ch not in scan.protobuf:
+        schema = scan.schemas.get(scan.channels[ch].schema_id)
+        try:
+            cls = protobuf_rows.message_class(schema.data, schema.name)
+        except Exception as exc:  # noqa: BLE001 - a schema we cannot use: the topic is skipped, said why
+            scan.problem = scan.problem or f"topic {scan.channels[ch].topic}: unreadable protobuf schema ({exc})"
+            scan.protobuf[ch] = (None, None)
+            return
+        scan.protobuf[ch] = (cls, None)
+    cls, layout = scan.protobuf[ch]
+    if cls is None:
+        return
+    if layout is None:
+        try:
+            layout = protobuf_rows.FixedLayout(cls, protobuf_rows.shape_of(cls.FromString(data[s[0]:e[0]])))
+        except Exception:  # noqa: BLE001 - no fixed layout (repeated doubles, ...): message by message
+            layout = False
+        scan.protobuf[ch] = (cls, layout)
+        if layout:
+            scan.strings[ch] = layout.strings
+    values = protobuf_rows.decode_payloads(buf, s, e, layout) if layout else None
+    if values is not None:
+        scan.pieces.setdefault(ch, []).append((lt, layout.paths, values))
+    else:
+        msgs = [protobuf_rows.flatten(cls.FromString(data[a:b])) for a, b in zip(s.tolist(), e.tolist())]
+        scan.pieces.setdefault(ch, []).append((lt, None, msgs))
+
+
 def _decode_array(text: bytes):
     return json_codec.loads(text)
 
 
 def _messages(scan: _Scan, ch: int) -> tuple[np.ndarray, list]:
-    """All messages of a channel as dicts (row-topic chunks decoded to arrays are turned back)."""
+    """All messages of a channel as dicts (chunks decoded to arrays are turned back; protobuf
+    messages are flat {path: value} dicts)."""
     times, msgs = [], []
+    strings = scan.strings.get(ch, {})
     for lt, keys, data in scan.pieces.get(ch, []):
         times.append(lt)
         if keys is None:
-            msgs += _decode_array(data)
+            msgs += data if isinstance(data, list) else _decode_array(data)
         else:
-            msgs += [dict(zip(keys, row)) for row in data.tolist()]
+            msgs += [{**strings, **dict(zip(keys, row))} for row in data.tolist()]
     return (np.concatenate(times) if times else np.zeros(0, np.int64)), msgs
 
 
 def _columns(scan: _Scan, ch: int) -> tuple[np.ndarray, dict]:
-    """A channel of flat numeric messages as (log_time, {field: float64 array})."""
+    """A channel of flat messages as (log_time, {field: float64 array, or object array for strings})."""
     pieces = scan.pieces.get(ch, [])
     if pieces and all(keys is not None for _, keys, _ in pieces) and len({keys for _, keys, _ in pieces}) == 1:
         keys = pieces[0][1]
         values = np.concatenate([v for _, _, v in pieces]) if len(pieces) > 1 else pieces[0][2]
-        return np.concatenate([lt for lt, _, _ in pieces]), {k: values[:, i].copy() for i, k in enumerate(keys)}
+        cols = {k: values[:, i].copy() for i, k in enumerate(keys)}
+        for k, text in scan.strings.get(ch, {}).items():
+            cols[k] = np.full(len(values), text, dtype=object)
+        return np.concatenate([lt for lt, _, _ in pieces]), cols
     log_time, msgs = _messages(scan, ch)
-    names = list(dict.fromkeys(k for m in msgs for k in m))
-    return log_time, {k: _float_column(msgs, k) for k in names}
+    cols = _arrays(msgs, log_time)
+    del cols["log_time"]
+    return log_time, cols
+
+
+def _topic_columns(scan: _Scan, ch: int, lists: bool = False, with_log_time: bool = False) -> dict:
+    """Any channel as {path: array} (float64; object arrays for strings): the row topics and the
+    protobuf topics from their decoded arrays, other JSON topics flattened (``lists``: arrays of
+    objects too, as an older log's ``P/obstacles``)."""
+    channel = scan.channels.get(ch)
+    if _is_row_channel(scan, ch) or (channel is not None and channel.message_encoding == "protobuf"):
+        log_time, cols = _columns(scan, ch)
+        return {"log_time": log_time.astype(np.int64), **cols} if with_log_time else cols
+    log_time, msgs = _messages(scan, ch)
+    cols = _arrays(msgs, log_time, lists)
+    return cols if with_log_time else {k: v for k, v in cols.items() if k != "log_time"}
 
 
 def _is_row_channel(scan: _Scan, ch: int) -> bool:
@@ -345,22 +402,23 @@ def _is_row_channel(scan: _Scan, ch: int) -> bool:
     return (c is not None and c.metadata.get("kind") == "rows") or (schema is not None and schema.name in ROW_SCHEMAS)
 
 
-def _float_column(msgs: list, name: str) -> np.ndarray:
-    return np.array([m.get(name) for m in msgs], dtype=np.float64)
-
-
-def _flatten(msg: dict, prefix: str = "", out=None) -> dict:
+def _flatten(msg: dict, prefix: str = "", out=None, lists: bool = False) -> dict:
+    """A JSON message as {path: value}: objects with dots ("translation.x"), and with ``lists``
+    arrays of objects too ("obstacles.0.name", as the protobuf topics are flattened)."""
     out = {} if out is None else out
     for k, v in msg.items():
         if isinstance(v, dict):
-            _flatten(v, f"{prefix}{k}.", out)
+            _flatten(v, f"{prefix}{k}.", out, lists)
+        elif lists and isinstance(v, list) and all(isinstance(item, dict) for item in v):
+            for i, item in enumerate(v):
+                _flatten(item, f"{prefix}{k}.{i}.", out, lists)
         else:
             out[prefix + k] = v
     return out
 
 
-def _arrays(msgs: list, log_time: np.ndarray) -> dict:
-    flat = [_flatten(m) for m in msgs]
+def _arrays(msgs: list, log_time: np.ndarray, lists: bool = False) -> dict:
+    flat = [_flatten(m, lists=lists) for m in msgs]
     names = []
     for m in flat:
         for k in m:
@@ -584,12 +642,12 @@ def _read_one(path) -> RunLog:
         runs[run] = rec
         cid = by_topic.get(f"{p}/obstacles")
         if cid is not None:
-            obstacles_by_run[run] = obstacle_arrays(_messages(scan, cid)[1])
+            obstacles_by_run[run] = obstacle_arrays(_topic_columns(scan, cid, lists=True))
         cid = by_topic.get(f"{p}/environment")
         if cid is not None:
-            log_time, msgs = _messages(scan, cid)
-            if msgs:
-                environment_by_run[run] = environment_arrays(_arrays(msgs, log_time))
+            cols = _topic_columns(scan, cid)
+            if len(cols.get("t", ())):
+                environment_by_run[run] = environment_arrays(cols)
     file_meta["runs"] = runs_meta
     counts = {scan.channels[cid].topic: c for cid, c in scan.counts.items() if cid in scan.channels}
     for cid, c in scan.channels.items():
@@ -605,8 +663,9 @@ def _read_one(path) -> RunLog:
 def load_topic(path, topic: str) -> dict:
     """Arrays by field of one topic: ``{"log_time": int64 ns, field: float64 or object array}``.
 
-    Nested objects are flattened with dots ("translation.x"); numbers become float64 (null -> NaN),
-    anything else an object array. Reads a cut file up to its last complete chunk.
+    Nested objects are flattened with dots ("translation.x"; a protobuf topic's repeated
+    sub-messages as "obstacles.0.name"); numbers become float64 (null -> NaN), anything else an
+    object array. Reads a cut file up to its last complete chunk.
     """
     holder = {}
 
@@ -621,11 +680,7 @@ def load_topic(path, topic: str) -> dict:
         known = ", ".join(sorted(c.topic for c in stream_meta.channels.values()))
         raise RunLogReadError(f"{path}: no topic {topic!r}; topics are {known}")
     scan = _scan(path, want=want, flat=_is_row_channel)
-    if _is_row_channel(scan, holder["cid"]):
-        log_time, cols = _columns(scan, holder["cid"])
-        return {"log_time": log_time.astype(np.int64), **cols}
-    log_time, msgs = _messages(scan, holder["cid"])
-    return _arrays(msgs, log_time)
+    return _topic_columns(scan, holder["cid"], with_log_time=True)
 
 
 def scan_summary(path) -> dict:

@@ -1,4 +1,4 @@
-"""The topics of a run log (``run.mcap``), their JSON schemas and the number conventions.
+"""The topics of a run log (``run.mcap``), their schemas and the number conventions.
 
 A file holds the runs given to its writer; the main job writes one run per file: the main run to
 ``run.mcap`` and the PI baseline to ``baseline.mcap`` beside it (a companion: ``read_run`` of the
@@ -7,18 +7,20 @@ main controller's run ``"main"`` uses ``/usv``, the PI baseline ``"baseline"`` u
 ``/baseline/usv``, any other run name ``NAME`` uses ``/NAME/usv``. Under a prefix ``P``:
 
 Per control step (one message per row of the :class:`~usv_mj.record.RunRecord`, ``log_time`` =
-``publish_time`` = round(t * 1e9) ns, ``sequence`` = row index k; schema encoding ``jsonschema``,
-message encoding ``json``), laid out from the run's own columns (:func:`row_topics`):
+``publish_time`` = round(t * 1e9) ns, ``sequence`` = row index k; message encoding ``protobuf``,
+schema a ``FileDescriptorSet`` of the proto3 message named in the table, every field a ``double``
+numbered in the order shown, documented (units, conventions) in the descriptor's comments:
+:mod:`usv_mj.runlog.protobuf_rows`), laid out from the run's own columns (:func:`row_topics`):
 
 =====================  ==========================================================================
-``P/state``            t, x, y, psi, u, v, r (psi unwrapped; conventions below)
-``P/reference``        t, x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d
-``P/control``          t, tau_u, tau_r (the law's output), q_tau_u, q_tau_r (the quantized command),
+``P/state``            ``usv_mj.State``: t, x, y, psi, u, v, r (psi unwrapped; conventions below)
+``P/reference``        ``usv_mj.Reference``: t, x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d
+``P/control``          ``usv_mj.Control``: t, tau_u, tau_r (the law's output), q_tau_u, q_tau_r (the quantized command),
                        k_u, k_r (the quantizers' signed level indices), f_u, f_r (the force the
                        actuators realize, what the plant gets), sat_u, sat_r (1 where a limit cut it)
-``P/errors``           t, e1, e2, e3 (Eq. 14), rho1, rho2, rho3 (Eq. 9), z1, z2, z3: only when the
+``P/errors``           ``usv_mj.Errors``: t, e1, e2, e3 (Eq. 14), rho1, rho2, rho3 (Eq. 9), z1, z2, z3: only when the
                        controller declares this funnel block (the PPC law, the PI baseline)
-``P/diagnostics``      t and the rest of the controller's declared ``diagnostic_fields`` in their
+``P/diagnostics``      ``usv_mj.Diagnostics``: t and the rest of the controller's declared ``diagnostic_fields`` in their
                        order (schema ``usv_mj.Diagnostics``, generated from the names: the PPC law's
                        e1s..e3s, psi_a, u_e.., alpha_*, w_*_norm, s2, s2_clamped; the PI baseline's
                        e1s..e3s, psi_a, u_e, r_e, integral_u, integral_r; a user's controller's own)
@@ -65,11 +67,14 @@ t, zeta, tau_wave, tau_drift, tau_wind {x, y, n} body frame, current {x, y} worl
 Inside each chunk the messages are in log-time order, and chunks follow each other in time, so a
 reader going through a one-run file front to back sees log time never go back.
 
-Numbers: every float64 is written as the shortest decimal that reads back to the same double
-(orjson's float formatting, ``repr``-equivalent), so values round-trip bit-exactly. JSON has no NaN or
-infinity: NaN is written ``null`` (read back as NaN; NaN payload bits are not kept), +inf as
-``1e999`` and -inf as ``-1e999`` (valid JSON numbers that IEEE parsers, JavaScript's JSON.parse and
-Python's json, read as +-Infinity).
+Numbers: in the protobuf topics (the per-step ones) a float64 is a protobuf ``double``, its IEEE
+bits as they are (NaN payloads, -0.0 and +-inf included), so the record is rebuilt bit for bit.
+The events and the Foxglove topics are JSON (schema encoding ``jsonschema``; Foxglove's published
+schemas for its own): a float64 is the shortest decimal that reads back to the same double
+(orjson's formatting, ``repr``-equivalent); JSON has no NaN or infinity, so NaN is ``null`` and
++-inf is ``1e999`` / ``-1e999`` in the frames and the funnel (valid JSON numbers that IEEE
+parsers, JavaScript's JSON.parse and Python's json, read as +-Infinity), ``null`` in an event's
+values. Logs of schema version 2 (the per-step topics in JSON, same fields) still read.
 """
 
 from __future__ import annotations
@@ -78,8 +83,9 @@ import json
 
 from ..controllers.base import FUNNEL_FIELDS, REF_FIELDS
 from ..record import COLUMNS, CONTROL_FIELDS, CORE_COLUMNS, STATE_FIELDS
+from .protobuf_rows import Message, file_descriptor_set, flat_message
 
-SCHEMA_VERSION = "usv_mj.runlog/2"
+SCHEMA_VERSION = "usv_mj.runlog/3"   # 3: per-step topics in protobuf (2: JSON)
 FRAME_PERIOD = 0.02      # s of simulated time between FrameTransform / funnel SceneUpdate messages
 SLOW_PERIOD = 10.0       # s between the path and hull SceneUpdate messages
 PATH_SAMPLE = 0.5        # s between the points of the drawn reference path
@@ -154,9 +160,6 @@ FIELD_DOC = {
     "integral_u": "PI baseline: integral of u_c - u [m]", "integral_r": "PI baseline: integral of e3 [rad s]",
 }
 
-_NUMBER = {"type": ["number", "null"],
-           "$comment": "float64, shortest round-trip decimal; null = NaN, 1e999 = +inf, -1e999 = -inf"}
-
 
 def prefix_for(run: str) -> str:
     """Topic prefix of a run: "/usv" for "main", "/baseline/usv" for "baseline", "/NAME/usv" else."""
@@ -179,14 +182,15 @@ def reference_frame_for(run: str) -> str:
     return "reference" if run == "main" else f"{run}/reference"
 
 
+def row_message(title: str, fields: tuple, description: str = "") -> Message:
+    """The protobuf message of a row topic: ``fields`` as doubles, documented from :data:`FIELD_DOC`."""
+    return flat_message(title, fields, FIELD_DOC,
+                        description or "one control step of a usv_mj run (see usv_mj.runlog.topics)")
+
+
 def row_topic_schema(title: str, fields: tuple, description: str = "") -> bytes:
-    schema = {
-        "title": title, "type": "object",
-        "description": description or "one control step of a usv_mj run (see usv_mj.runlog.topics)",
-        "properties": {f: {**_NUMBER, "description": FIELD_DOC.get(f, f)} for f in fields},
-        "required": list(fields),
-    }
-    return json.dumps(schema, indent=1).encode()
+    """The MCAP schema data of a row topic (a serialized protobuf ``FileDescriptorSet``)."""
+    return file_descriptor_set(row_message(title, fields, description))
 
 
 EVENT_SCHEMA = json.dumps({

@@ -9,15 +9,15 @@ Usage (what the main job does)::
 The simulation loop hands the sink a block of rows every ``block`` steps (``rows(record, lo, hi)``).
 The sink copies the block into a slot of a shared-memory ring (one memcpy, no pickling) and sends
 the slot number, with the events added since the last call, to a background process
-(``multiprocessing`` spawn context) that formats the JSON, lays out the MCAP chunks, compresses them
-(zstd), writes them and frees the slot; so the second core does the logging while the loop runs.
+(``multiprocessing`` spawn context) that lays out the messages (protobuf per step, JSON for the
+Foxglove frames) and the MCAP chunks, compresses them (zstd), writes them and frees the slot; so the second core does the logging while the loop runs.
 Memory stays bounded: the ring has ``queue_blocks`` slots of ``SLOT_ROWS`` rows (the loop waits when
 all are full), and the file is written chunk by chunk (``rows_per_chunk`` rows per chunk).
 
 What is in the file (topics: :mod:`usv_mj.runlog.topics`):
 
 - metadata ``usv_mj`` (at open): schema version, preset, every parameter (``scenario.to_dict()``),
-  package versions (python, numpy, numba, mujoco, mcap, orjson, zstandard, usv_mj), the project's
+  package versions (python, numpy, numba, mujoco, mcap, orjson, protobuf, zstandard, usv_mj), the project's
   git commit ("unknown" outside a checkout) and whether the tree had uncommitted changes;
 - attachments: ``models/<name>.xml`` for every model XML of the project, ``scenario/<file>`` when
   ``scenario.source`` is a file, and any ``attachments`` passed in;
@@ -59,7 +59,8 @@ import numpy as np
 from ..record import COL, COLUMNS, RunRecord
 from ..assets import model_files
 from . import json_codec
-from .mcap_file import ChunkBuffer, McapFileWriter, RowLayout, TemplateLayout, template_layout
+from .mcap_file import ChunkBuffer, McapFileWriter, TemplateLayout, template_layout
+from .protobuf_rows import BinaryRows, FixedLayout, message_class
 from .extra_topics import (ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME, OBSTACLES_SCHEMA, OBSTACLES_SCHEMA_NAME,
                            environment_block, environment_layout, obstacle_layout)
 from .topics import (EVENT_SCHEMA, FRAME_PERIOD, FRAME_TRANSFORM_SCHEMA, HULL_SIZE, PATH_SAMPLE,
@@ -101,7 +102,7 @@ def _json(obj) -> str:
 def package_versions() -> dict:
     """Versions of the packages a run depends on ("not installed" when absent)."""
     out = {"python": platform.python_version()}
-    for name in ("usv_mj", "numpy", "numba", "mujoco", "dm-control", "mcap", "orjson", "zstandard"):
+    for name in ("usv_mj", "numpy", "numba", "mujoco", "dm-control", "mcap", "orjson", "protobuf", "zstandard"):
         try:
             out[name] = importlib_metadata.version(name)
         except importlib_metadata.PackageNotFoundError:
@@ -143,10 +144,10 @@ class RunLogFile:
         self.schema_ids: dict[tuple, int] = {}
         self.runs: dict[str, dict] = {}
 
-    def _schema(self, name: str, data: bytes) -> int:
-        # keyed by the text too: two controllers' usv_mj.Diagnostics differ (one file may hold both)
+    def _schema(self, name: str, data: bytes, encoding: str = "jsonschema") -> int:
+        # keyed by the data too: two controllers' usv_mj.Diagnostics differ (one file may hold both)
         if (name, data) not in self.schema_ids:
-            self.schema_ids[(name, data)] = self.mcap.register_schema(name, "jsonschema", data)
+            self.schema_ids[(name, data)] = self.mcap.register_schema(name, encoding, data)
         return self.schema_ids[(name, data)]
 
     def handle(self, cmd: tuple):
@@ -161,13 +162,14 @@ class RunLogFile:
         chans = {}
         rows = []
         topics = row_topics(columns)
+        col = {c: i for i, c in enumerate(columns)}
         for name, title, fields in topics:
             desc = (f"the declared diagnostics of controller {controller!r}, one control step"
                     if name == "diagnostics" else "")
-            cid = self.mcap.register_channel(f"{p}/{name}", "json",
-                                             self._schema(title, row_topic_schema(title, fields, desc)),
+            schema = row_topic_schema(title, fields, desc)
+            cid = self.mcap.register_channel(f"{p}/{name}", "protobuf", self._schema(title, schema, "protobuf"),
                                              {"run": run, "kind": "rows"})
-            rows.append((cid, fields))
+            rows.append((cid, FixedLayout(message_class(schema, title)), [col[f] for f in fields]))
         funnel = any(name == "errors" for name, _, _ in topics)
         chans["events"] = self.mcap.register_channel(f"{p}/events", "json", self._schema("usv_mj.Event", EVENT_SCHEMA),
                                                      {"run": run})
@@ -179,14 +181,13 @@ class RunLogFile:
             if key == "funnel" and not funnel:
                 continue
             chans[key] = self.mcap.register_channel(f"{p}/{topic}", "json", self._schema(schema, data), {"run": run})
-        extra = self._extra_topics(run, p, info)
+        extra = self._extra_topics(run, p, info, rows, len(columns))
         extra.update(tf_hull=frame_layout(chans["tf_hull"], frame_for(run)),
                      tf_ref=frame_layout(chans["tf_ref"], reference_frame_for(run)),
                      funnel=funnel_layout(chans["funnel"]) if funnel else None)
         dt = float(info["control_period_s"])
         self.runs[run] = {**extra,
-            "layout": RowLayout(columns, rows), "chans": chans, "dt": dt, "width": len(columns),
-            "col": {c: i for i, c in enumerate(columns)},
+            "layout": BinaryRows(rows), "n_values": max(c for _, _, cols in rows for c in cols) + 1, "chans": chans, "dt": dt, "width": len(columns), "col": col,
             "decim": max(1, int(round(FRAME_PERIOD / dt))), "slow": max(1, int(round(SLOW_PERIOD / dt))),
             "frame": frame_for(run), "path": list(info.get("path") or ()), "rows": 0,
             "last_ns": 0, "ended": False,
@@ -200,25 +201,33 @@ class RunLogFile:
                if info.get("obstacles") else {}),
         })
 
-    def _extra_topics(self, run: str, p: str, info: dict) -> dict:
-        """Channels and layouts of P/obstacles, P/scene/obstacles and P/environment (extra_topics)."""
+    def _extra_topics(self, run: str, p: str, info: dict, per_step: list, width: int) -> dict:
+        """Channels of P/obstacles, P/scene/obstacles and P/environment (extra_topics); the per-step
+        ones are appended to ``per_step`` (channel, layout, columns), their values in the columns
+        after the record's ``width``: the obstacles' (extra_topics.obstacle_block), then the sea's."""
         out = {"obstacles": tuple(info.get("obstacles") or ()), "inflation": info.get("inflation"),
-               "obs_layout": None, "env": None, "env_layout": None, "obs_scene": None}
+               "obs_values": 0, "env": None, "obs_scene": None}
         if out["obstacles"]:
             out["obs_scene"] = self.mcap.register_channel(f"{p}/scene/obstacles", "json",
                                                           self._schema("foxglove.SceneUpdate", SCENE_UPDATE_SCHEMA),
                                                           {"run": run})
             out["any_moving"] = any(o.moving for o in out["obstacles"])
             if info.get("obstacle_log"):
-                cid = self.mcap.register_channel(f"{p}/obstacles", "json",
-                                                 self._schema(OBSTACLES_SCHEMA_NAME, OBSTACLES_SCHEMA), {"run": run})
-                out["obs_layout"] = obstacle_layout(cid, [o.name for o in out["obstacles"]])
+                cid = self.mcap.register_channel(f"{p}/obstacles", "protobuf",
+                                                 self._schema(OBSTACLES_SCHEMA_NAME, OBSTACLES_SCHEMA, "protobuf"),
+                                                 {"run": run})
+                layout = obstacle_layout([o.name for o in out["obstacles"]])
+                per_step.append((cid, layout, range(width, width + len(layout.paths))))
+                out["obs_values"] = len(layout.paths)
         env = self.environment if self.environment is not None else info.get("environment")
         if env is not None and not env.calm:
             out["env"] = env
-            cid = self.mcap.register_channel(f"{p}/environment", "json",
-                                             self._schema(ENVIRONMENT_SCHEMA_NAME, ENVIRONMENT_SCHEMA), {"run": run})
-            out["env_layout"] = environment_layout(cid)
+            cid = self.mcap.register_channel(f"{p}/environment", "protobuf",
+                                             self._schema(ENVIRONMENT_SCHEMA_NAME, ENVIRONMENT_SCHEMA, "protobuf"),
+                                             {"run": run})
+            layout = environment_layout()
+            at = width + out["obs_values"]
+            per_step.append((cid, layout, range(at, at + len(layout.paths))))
         return out
 
     def cmd_rows(self, run: str, lo: int, block: np.ndarray, events: list, obstacles: np.ndarray | None = None):
@@ -235,16 +244,19 @@ class RunLogFile:
             sub = block[a:a + step]
             buf = ChunkBuffer()
             log_time = block_time[a:a + step]
-            records, offsets = st["layout"].encode(sub, log_time, lo + a)
+            values = sub
+            if st["n_values"] > st["width"]:     # the obstacles' and the sea's values after the record's
+                values = np.full((sub.shape[0], st["n_values"]), np.nan)
+                values[:, :st["width"]] = sub
+                if st["obs_values"]:
+                    if obstacles is not None:
+                        values[:, st["width"]:st["width"] + st["obs_values"]] = obstacles[a:a + step]
+                    else:
+                        values[:, st["width"]] = sub[:, COL["t"]]
+                if st["env"] is not None:
+                    values[:, st["width"] + st["obs_values"]:] = environment_block(st["env"], sub)
+            records, offsets = st["layout"].encode(values, log_time, lo + a)
             buf.add_rows(records, offsets, log_time, st["layout"].channel_ids)
-            if obstacles is not None and st["obs_layout"] is not None:
-                lay = st["obs_layout"]
-                records, offsets = lay.encode(obstacles[a:a + step], log_time, lo + a)
-                buf.add_rows(records, offsets, log_time, lay.channel_ids)
-            if st["env"] is not None:
-                lay = st["env_layout"]
-                records, offsets = lay.encode(environment_block(st["env"], sub), log_time, lo + a)
-                buf.add_rows(records, offsets, log_time, lay.channel_ids)
             self._foxglove(st, buf, sub, lo + a, log_time)
             # each event in the chunk of its time (the rest in the last one)
             if a + step >= n:
@@ -492,8 +504,10 @@ class RunLogWriter:
     ``path``: the file to write (its folder must exist); ``scenario``: the
     :class:`~usv_mj.scenario.Scenario` being run (the file's metadata and the scenario file);
     ``attachments``: extra files to carry, name -> bytes or text. ``background=False`` writes in the
-    calling process (same file, slower loop). ``rows_per_chunk`` bounds a chunk (~1.8 kB per row
-    before compression); ``queue_blocks`` bounds the blocks waiting for the background writer.
+    calling process (same file, slower loop). ``rows_per_chunk`` bounds a chunk (~0.7 kB per row
+    before compression); ``compression_level``: zstd's level for the chunks (default -3, a fast
+    level: on these binary rows it takes half the CPU of level 1 for a file 5 % larger);
+    ``queue_blocks`` bounds the blocks waiting for the background writer.
     ``environment``: an :class:`usv_mj.sea.Environment` to log on ``P/environment`` instead of
     each run's own (``record.statics.environment``, the sea its plant saw: the writer builds none;
     a calm sea or a record without statics writes no environment topic). The drawn reference path
@@ -506,7 +520,7 @@ class RunLogWriter:
     """
 
     def __init__(self, path, scenario, attachments: dict | None = None, *, background: bool = True,
-                 rows_per_chunk: int = 1000, compression_level: int = 1, queue_blocks: int = 32,
+                 rows_per_chunk: int = 2000, compression_level: int = -3, queue_blocks: int = 32,
                  environment=None, companion_of: "RunLogWriter | None" = None):
         self.path = Path(path)
         self.log_id = uuid.uuid4().hex
