@@ -240,7 +240,8 @@ def _plot_command(args) -> int:
     except (ValueError, KeyError, OSError) as exc:
         raise ScenarioError(f"{path}: not a readable run log ({exc})") from None
     if len(record) == 0:
-        raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot)")
+        why = f": {log.problem}" if log.problem else ""
+        raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot){why}")
     out = Path(args.out) if args.out else path.parent
     from .preflight import check_output_path
 

@@ -88,10 +88,11 @@ def inspect_command(args) -> int:
         else:
             desc += "; no end record (the run was cut off)"
         print(desc)
-    print("topics:")
+    print("topics (messages, schema, encoding):")
     width = max((len(t) for t in info["topics"]), default=10)
+    swidth = max((len(t["schema"]) for t in info["topics"].values()), default=10)
     for topic, t in info["topics"].items():
-        print(f"  {topic:<{width}}  {t['count']:>9}  {t['schema']}")
+        print(f"  {topic:<{width}}  {t['count']:>9}  {t['schema']:<{swidth}}  {t['encoding']}")
     for c in companions:
         print(f"companion log beside it: {c.name} (read with it by usv-mj plot / read_run; inspect it on its own)")
     if meta.get("companion_of"):
