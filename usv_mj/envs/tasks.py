@@ -617,7 +617,7 @@ class HarbourTask(TrackTask):
             plant = physics.plant
             args = (self._n_obs + 3, self.max_range, plant.model._address, plant.data._address,
                     native.sensor_pos_address(), plant.data.sensordata, plant.rangefinder_adr,
-                    self.monitor.kernel_args())
+                    self.monitor.kernel_args(min_only=True))
             self._sense_of = (self.monitor, args)
         return args
 
