@@ -230,6 +230,7 @@ class TrackTask(base.Task):
         self._ev_handed = False     # its observation vector was handed out (the next one gets a copy)
         self._act_of = (None, None)  # (physics, act_kernel's arguments with its data.ctrl)
         self._fused = None          # the fused step's kernels (fused_step)
+        self._views = None          # observation_views, once made
         TrackTask._fill_params(self, self._params)
         self._fusable = self._fusable_class()
 
@@ -477,18 +478,24 @@ class TrackTask(base.Task):
 
     def observation_dict(self, v):
         """The observation dict of the vector ``v`` (views of it, in observation_shapes order)."""
-        n = self.preview_times.size
-        j = native.N_HEAD + 2 * n
         obs = collections.OrderedDict()
-        obs["position_error"] = v[0:2]
-        obs["heading_error"] = v[2:3]
-        obs["heading"] = v[3:5]
-        obs["velocity"] = v[5:8]
-        obs["velocity_error"] = v[8:11]
-        obs["reference_preview"] = v[11:j].reshape(n, 2)
-        obs["funnel"] = v[j:j + 2]
-        obs["time"] = v[j + 2:j + 3]
+        for name, part, shape, flat in self.observation_views():
+            obs[name] = v[part] if flat else v[part].reshape(shape)
         return obs
+
+    def observation_views(self) -> tuple:
+        """(name, slice of the vector, shape, the shape is 1-d) per observation in
+        :meth:`observation_shapes` order: where each one lies in the vector (made once, the
+        shapes are fixed at construction)."""
+        views = self._views
+        if views is None:
+            out, i = [], 0
+            for name, shape in self.observation_shapes():
+                n = int(np.prod(shape))
+                out.append((name, slice(i, i + n), tuple(shape), len(shape) == 1))
+                i += n
+            views = self._views = tuple(out)
+        return views
 
     def observation_spec(self, physics):
         spec = collections.OrderedDict()
@@ -660,13 +667,6 @@ class HarbourTask(TrackTask):
             return ev
         contact, nearest, c_min = native.clearance_summary(monitor.clearance, monitor.in_contact)
         return ev._replace(contact=contact, nearest=nearest, c_min=c_min)
-
-    def observation_dict(self, v):
-        j = native.N_HEAD + 2 * self.preview_times.size
-        obs = super().observation_dict(v)  # TrackTask's, then the goal and the rangefinders
-        obs["goal"] = v[j + 3:j + 6]
-        obs["rangefinder"] = v[j + 6:]
-        return obs
 
     def observation_shapes(self):
         return super().observation_shapes() + [("goal", (3,)), ("rangefinder", (self.n_rays,))]
