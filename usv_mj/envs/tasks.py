@@ -547,7 +547,10 @@ class HarbourTask(TrackTask):
     that plan) and builds the harbour physics with rangefinders (the environment rebuilds the model
     when the layout changes: see :class:`usv_mj.envs.USVEnvironment`). Observations add ``goal`` and
     ``rangefinder``; the reward adds the goal distance and the clearance; contact ends the episode
-    (module docstring).
+    (module docstring). Only the minimum clearance, its obstacle and the contact test are read, so
+    the per-step update skips obstacles provably farther than the nearest
+    (``MuJoCoClearance.kernel_args(min_only=True)``): after a step, ``monitor.clearance`` holds
+    their bounds there (``monitor.exact`` False).
     """
 
     def __init__(self, scenario, *, n_rays: int = 16, max_range: float = 20.0, goal_radius: float = 1.5,
