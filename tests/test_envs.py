@@ -243,6 +243,39 @@ def test_observations_and_rewards_equal_their_definitions_bit_for_bit(task):
         env.close()
 
 
+def test_gaussian_tolerance_is_dm_controls_numpy_scalars_bit_for_bit():
+    """tasks._tol_gaussian (Python floats, libm's pow and exp) equals the Gaussian sigmoid on
+    numpy float64 scalars (what it replaced: numpy's ``** 2`` is libm's pow, its exp may be a SIMD
+    routine) and dm_control's rewards.tolerance, over random, tiny, huge, overflowing and NaN inputs."""
+    import warnings
+
+    from dm_control.utils import rewards
+
+    from usv_mj.envs import tasks
+
+    scale = np.sqrt(-2 * np.log(0.1))
+
+    def numpy_scalars(x, lower, upper, margin):
+        if lower <= x <= upper:
+            return 1.0
+        d = np.float64(lower - x if x < lower else x - upper) / margin
+        return float(np.exp(-0.5 * (d * scale) ** 2))
+
+    rng = np.random.default_rng(11)
+    xs = np.concatenate([rng.uniform(0.0, 6.0, 20000), np.abs(rng.standard_normal(5000)) * 1e3,
+                         10.0 ** rng.uniform(-300, 300, 2000), [0.0, 0.25, 0.1, 1e154, 2e154, 1e300, np.inf, np.nan]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for x in xs.tolist():
+            for lower, upper, margin in ((0.0, 0.25, 2.0), (0.0, 0.1, 0.5)):
+                got = tasks._tol_gaussian(x, lower, upper, margin)
+                want = numpy_scalars(x, lower, upper, margin)
+                assert type(got) is float and (got == want or (math.isnan(got) and math.isnan(want))), (x, got, want)
+        for x in xs[:3000].tolist():
+            assert tasks._tol_gaussian(x, 0.0, 0.25, 2.0) == float(
+                rewards.tolerance(x, bounds=(0.0, 0.25), margin=2.0, sigmoid="gaussian", value_at_margin=0.1))
+
+
 @pytest.mark.parametrize("task, flat", [("track", False), ("harbor", True)])
 def test_the_fused_step_is_the_step_method_by_method(task, flat):
     """USVEnvironment.step's fused path (TrackTask.fused_step: the action, the plant's kernel and the

@@ -252,6 +252,39 @@ def test_native_mujoco_clearance_is_the_bindings_bit_for_bit(exact_within):
             assert (bounded > 0) == (math.isfinite(exact_within) and n >= monitor.PREFILTER_FROM)
 
 
+def test_min_only_clearance_keeps_the_minimum_its_index_and_the_contact_test():
+    """The branch and bound of the harbor task (kernel_args(min_only=True)): the summary (contact,
+    first argmin, minimum) is the full update's bit for bit, measured entries are exact, skipped
+    ones keep a true lower bound above the minimum; poses near and inside obstacles included."""
+    from usv_mj.envs.native import clearance_summary
+    from usv_mj.obstacles.clearance import mujoco_clearance_kernel
+
+    tables = [{"kind": "box", "center": [6, 1], "size": [3, 5], "yaw": 0.4}, {"center": [-3, 3], "radius": 0.7},
+              {"kind": "box", "center": [0, -6], "size": [4, 1.6], "velocity": [0.2, 0.1]}]
+    tables += [{"center": [-8.0 + 3.0 * i, 8.0 - (i % 3)], "radius": 0.4 + 0.1 * i} for i in range(6)]
+    rng = np.random.default_rng(7)
+    for n, exact_within in ((3, 10.0), (6, 10.0), (len(tables), 10.0), (len(tables), math.inf)):
+        with HarbourPlant(SHIP, CALM, from_tables(tables[:n])) as plant:
+            monitor = MuJoCoClearance(plant, exact_within=exact_within)
+            skipped = contacts = 0
+            for _ in range(80):
+                plant.reset((rng.uniform(-8, 9), rng.uniform(-8, 8), rng.uniform(-4, 4)), (0, 0, 0))
+                plant.move_obstacles(rng.uniform(0, 10))
+                full = monitor.update(0.0).copy()
+                full_exact = monitor.exact.copy()
+                mujoco_clearance_kernel(*monitor.kernel_args(min_only=True))
+                c = monitor.clearance
+                no_contact = np.zeros(n, dtype=bool)
+                assert clearance_summary(c, no_contact) == clearance_summary(full, no_contact)
+                assert np.array_equal(c[monitor.exact], full[monitor.exact])
+                assert np.all(monitor.exact <= full_exact)
+                far = full_exact & ~monitor.exact
+                assert np.all(c[far] <= full[far]) and np.all(c[far] > np.min(full))
+                skipped += int(np.sum(far))
+                contacts += int(np.min(full) <= 0.0)
+            assert skipped > 0 and contacts > 0
+
+
 # --- planner ------------------------------------------------------------------------------------
 
 

@@ -68,12 +68,7 @@ class USVEnvironment(control.Environment):
 
     def observation_layout(self) -> dict:
         """name -> (slice, shape) of each observation in the flat vector."""
-        out, i = {}, 0
-        for name, shape in self._task.observation_shapes():
-            n = int(np.prod(shape))
-            out[name] = (slice(i, i + n), shape)
-            i += n
-        return out
+        return {name: (part, shape) for name, part, shape, _ in self._task.observation_views()}
 
     def unflatten(self, observation) -> dict:
         """The observation as a dict of arrays (a flat ``observations`` vector is split by

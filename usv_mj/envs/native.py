@@ -155,7 +155,8 @@ def clearance_summary(c, in_contact):
 def harbor_sense(obs, start, max_range, m_addr, d_addr, sensor_pos, sensordata, sensor_adr, monitor):
     """The harbor's sensing at the current state in one call: the clearance monitor's distances
     (:func:`usv_mj.obstacles.clearance.mujoco_clearance_kernel` with ``monitor`` =
-    ``MuJoCoClearance.kernel_args()``, which runs ``mj_kinematics``), then ``mj_sensorPos`` (at
+    ``MuJoCoClearance.kernel_args(min_only=True)``: its branch and bound, as only the summary
+    is read; it runs ``mj_kinematics``), then ``mj_sensorPos`` (at
     address ``sensor_pos``) and the rangefinder readings into ``obs[start:]``, ``max_range``
     where nothing was hit (-1) or beyond it; returns :func:`clearance_summary` (before the contacts, which the
     caller adds when ``d.ncon`` > 0)."""

@@ -59,27 +59,53 @@ def _call_geom_distance(typingctx, fn_address, m_addr, d_addr, geom1, geom2, dis
     return sig, codegen
 
 
+#: [m] a skipped obstacle's bound must beat the best distance so far by this much (min_only): far
+#: above the error of MuJoCo's convex distance (its tolerance, 1e-6) and of the bounding circles
+SKIP_MARGIN = 1e-2
+
+
 @njit(cache=True)
 def mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, hull, obstacles, bound, exact_within,
                             prefilter, distmax, qpos, geom_xpos, clearance, exact, witness, fromto, normal_force,
-                            in_contact):
+                            in_contact, min_only, order):
     """:meth:`MuJoCoClearance.update` but the contacts, natively: ``mj_kinematics`` (at address
     ``kinematics``), the bounding-circle prefilter (when ``prefilter``) and ``mj_geomDistance`` (at
-    ``geom_distance``) of every hull geom against every obstacle left to do, in the same order."""
+    ``geom_distance``) of every hull geom against every obstacle left to do, in the same order.
+
+    ``min_only`` (branch and bound, for a caller that reads only the minimum, its argmin and
+    whether any entry is <= 0): the obstacles are visited by increasing bound (``order``, scratch
+    of n int64) and one whose bound exceeds the least clearance so far by :data:`SKIP_MARGIN` keeps
+    its bound (not exact): its distance is larger than that least one, so the minimum, its first
+    index and the contact test are those of the full update."""
     _call_model_data(kinematics, m_addr, d_addr)
     n = obstacles.shape[0]
     for i in range(n):
-        if prefilter:  # np.sqrt(rel_x ** 2 + rel_y ** 2) - bound < exact_within
+        if prefilter or min_only:  # np.sqrt(rel_x ** 2 + rel_y ** 2) - bound < exact_within
             rx = geom_xpos[obstacles[i], 0] - qpos[0]
             ry = geom_xpos[obstacles[i], 1] - qpos[1]
             lower = math.sqrt(rx * rx + ry * ry) - bound[i]
             clearance[i] = lower
-            exact[i] = lower < exact_within
+            exact[i] = lower < exact_within if prefilter else True
         else:
             exact[i] = True
+    least = math.inf  # the least final entry so far (min_only)
+    for j in range(n):  # min_only: insertion sort of the indices by bound (a NaN stays in place)
+        order[j] = j
+        if min_only:
+            if not exact[j] and clearance[j] < least:
+                least = clearance[j]
+            i = j
+            while i > 0 and clearance[j] < clearance[order[i - 1]]:
+                order[i] = order[i - 1]
+                i -= 1
+            order[i] = j
     address = fromto.ctypes.data
-    for i in range(n):
+    for j in range(n):
+        i = order[j]
         if not exact[i]:
+            continue
+        if min_only and clearance[i] - SKIP_MARGIN > least:
+            exact[i] = False
             continue
         best = math.inf
         for h in range(hull.shape[0]):
@@ -87,9 +113,11 @@ def mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, hull, obs
                                        distmax, address)
             if dist < best:
                 best = dist
-                for j in range(6):
-                    witness[i, j] = fromto[j]
+                for k in range(6):
+                    witness[i, k] = fromto[k]
         clearance[i] = best
+        if best < least:
+            least = best
     for i in range(n):
         normal_force[i] = 0.0
         in_contact[i] = False
@@ -142,6 +170,7 @@ class MuJoCoClearance:
         self._ogeoms = np.array(self.obstacle_geoms, dtype=np.int64)
         self._bound = HULL_RADIUS + np.array([o.bounding_radius for o in plant.obstacles], dtype=float)
         self.exact = np.ones(n, dtype=bool)  # which entries of the last update are exact
+        self._order = np.zeros(n, dtype=np.int64)  # the kernel's visiting order (min_only)
         # the native update (mujoco_clearance_kernel): views of the mjData's arrays, the libmujoco
         # addresses; every (hull geom, obstacle geom) pair is asked once through the bindings
         # first, so that a pair MuJoCo cannot measure raises here, not inside compiled code
@@ -160,16 +189,18 @@ class MuJoCoClearance:
         self.add_contacts()
         return self.clearance
 
-    def kernel_args(self) -> tuple:
+    def kernel_args(self, min_only: bool = False) -> tuple:
         """The arguments of :func:`mujoco_clearance_kernel` for this monitor (the distances, the
         exact flags and witnesses written into its arrays; contacts cleared): a caller that runs
         the kernel itself (the harbor task, fused with its other per-step work) then calls
-        :meth:`add_contacts`."""
+        :meth:`add_contacts`. ``min_only``: the kernel's branch and bound, for a caller that reads
+        only the minimum of :attr:`clearance`, its first index and the contact test (entries of
+        obstacles farther than the nearest are then their bounds, :attr:`exact` False)."""
         m_addr, d_addr, kinematics, geom_distance = self._addresses
         prefilter = math.isfinite(self.exact_within) and len(self._ogeoms) >= self.PREFILTER_FROM
         return (m_addr, d_addr, kinematics, geom_distance, self._hgeoms, self._ogeoms, self._bound, self.exact_within,
                 prefilter, self.distmax, self._qpos, self._geom_xpos, self.clearance, self.exact, self.witness,
-                self._fromto, self.normal_force, self.in_contact)
+                self._fromto, self.normal_force, self.in_contact, bool(min_only), self._order)
 
     def add_contacts(self) -> bool:
         """The hull's contacts in ``d.contact`` into :attr:`normal_force` and :attr:`in_contact`
