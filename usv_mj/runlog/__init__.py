@@ -11,11 +11,28 @@ Public API::
 Topics, schemas and number conventions: :mod:`usv_mj.runlog.topics`.
 """
 
-from .inspect_cli import add_inspect_arguments, inspect_command
-from .reader import RunLog, RunLogReadError, load_topic, read_run, scan_summary
-from .topics import ROW_TOPICS, SCHEMA_VERSION, WORLD_FRAME, frame_for, prefix_for, reference_frame_for, row_topics, topic_table
-from .writer import RunLogError, RunLogSink, RunLogWriter
+from importlib import import_module
 
-__all__ = ["RunLogWriter", "RunLogSink", "RunLogError", "read_run", "load_topic", "scan_summary", "RunLog",
-           "RunLogReadError", "add_inspect_arguments", "inspect_command", "ROW_TOPICS", "SCHEMA_VERSION",
-           "prefix_for", "frame_for", "reference_frame_for", "row_topics", "topic_table", "WORLD_FRAME"]
+# name -> submodule, imported on first use: the log writer's process needs the writer, not the
+# reader (numba) nor the inspect command
+_WHERE = {
+    "add_inspect_arguments": "inspect_cli", "inspect_command": "inspect_cli",
+    "RunLog": "reader", "RunLogReadError": "reader", "load_topic": "reader", "read_run": "reader",
+    "scan_summary": "reader",
+    "ROW_TOPICS": "topics", "SCHEMA_VERSION": "topics", "WORLD_FRAME": "topics", "frame_for": "topics",
+    "prefix_for": "topics", "reference_frame_for": "topics", "row_topics": "topics", "topic_table": "topics",
+    "RunLogError": "writer", "RunLogSink": "writer", "RunLogWriter": "writer",
+}
+__all__ = list(_WHERE)
+
+
+def __getattr__(name):
+    if name in _WHERE:
+        value = getattr(import_module(f"{__name__}.{_WHERE[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_WHERE))

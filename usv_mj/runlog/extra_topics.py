@@ -36,10 +36,8 @@ finite (a divergence) get NaN.
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
-from numba import njit
 
 from ..record import COL
 from .protobuf_rows import Field, FixedLayout, Message, file_descriptor_set, message_class
@@ -146,7 +144,7 @@ def environment_block(env, rows: np.ndarray) -> np.ndarray:
     ts, etas, nus = t[ok], eta[ok], nu[ok]
     loads = env.loads_record(ts, etas, nus)
     sel = out[ok]
-    sel[:, 1] = hull_elevation(env, etas[:, 0], etas[:, 1], ts)
+    sel[:, 1] = env.elevation(etas[:, 0], etas[:, 1], ts)
     sel[:, 2:5] = loads[:, lay.L_WAVE1:lay.L_WAVE1 + 3]
     sel[:, 5:8] = loads[:, lay.L_DRIFT:lay.L_DRIFT + 3]
     sel[:, 8:11] = loads[:, lay.L_WIND:lay.L_WIND + 3]
@@ -158,31 +156,6 @@ def environment_block(env, rows: np.ndarray) -> np.ndarray:
     sel[:, 14] = np.radians(env.settings.wind.direction_deg)
     out[ok] = sel
     return out
-
-
-@njit(cache=True)
-def _wave_sum(a, w, kx, ky, eps, ts, xs, ys):
-    """sum_j a_j cos(w_j t - kx_j x - ky_j y + eps_j) per point (the terms of Environment.elevation)."""
-    out = np.empty(ts.shape[0])
-    for i in range(ts.shape[0]):
-        acc = 0.0
-        for j in range(a.shape[0]):
-            acc += a[j] * math.cos(ts[i] * w[j] - xs[i] * kx[j] - ys[i] * ky[j] + eps[j])
-        out[i] = acc
-    return out
-
-
-def hull_elevation(env, xs, ys, ts) -> np.ndarray:
-    """zeta(x_i, y_i, t_i) [m] = s(t) sum_j a_j cos(theta_j): :meth:`usv_mj.sea.Environment.elevation`
-    (same components, same phase terms, same ramp) as one numba loop, about 10x faster per point than
-    its numpy outer products for the per-row points of a log."""
-    c = env.components
-    xs, ys, ts = (np.ascontiguousarray(v, dtype=np.float64) for v in (xs, ys, ts))
-    if c.n == 0:
-        return np.zeros(ts.shape[0])
-    kx, ky = c.k * np.cos(c.beta), c.k * np.sin(c.beta)
-    return _wave_sum(np.ascontiguousarray(c.a, float), np.ascontiguousarray(c.w, float), np.ascontiguousarray(kx),
-                     np.ascontiguousarray(ky), np.ascontiguousarray(c.eps, float), ts, xs, ys) * env.ramp(ts)
 
 
 def environment_arrays(cols: dict) -> dict:

@@ -33,106 +33,11 @@ from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (Attachment, AttachmentIndex, Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Metadata,
                           MetadataIndex, Schema, Statistics, SummaryOffset)
-from numba import njit
 
 from . import json_codec
 
 MAGIC = b"\x89MCAP0\r\n"
 MESSAGE_HEADER = 31         # opcode 1 + length 8 + channel 2 + sequence 4 + log_time 8 + publish_time 8
-MAX_TOKEN = 24              # longest float64 token orjson writes ("-1.7976931348623157e308" is 23)
-_INF = np.frombuffer(b"1e999", np.uint8)
-_NINF = np.frombuffer(b"-1e999", np.uint8)
-
-
-# --- bulk encoding of row messages --------------------------------------------------------------
-
-
-@njit(cache=True)
-def _put_u64(out, pos, value):
-    for i in range(8):
-        out[pos + i] = (value >> (8 * i)) & 0xFF
-
-
-@njit(cache=True)
-def _put_uint(out, pos, value):
-    """Decimal digits of a non-negative integer at out[pos:]; returns the position after them."""
-    n = 1
-    probe = value
-    while probe >= 10:
-        probe //= 10
-        n += 1
-    for i in range(n - 1, -1, -1):
-        out[pos + i] = 48 + value % 10
-        value //= 10
-    return pos + n
-
-
-@njit(cache=True)
-def encode_row_messages(text, special, n_rows, log_time, seq, topic_start, keys, key_start, closing, channel_ids,
-                        inf_tok, ninf_tok, out, offsets):
-    """Lay out MCAP message records for ``n_rows`` rows x len(channel_ids) topics into ``out``.
-
-    ``text``: the orjson dump (uint8) of the (n_rows, n_fields) float64 block whose columns are the
-    topics' fields one topic after the other, flattened row-major: "[v,v,...]", so the tokens come in
-    the order they are written. ``special``: int8 per value, 1 = +inf, 2 = -inf (written 1e999 /
-    -1e999), 3 / 4 = the row's log time in whole seconds / the nanoseconds past them (integers, for
-    Foxglove time stamps; the value's own token is skipped), 0 = orjson's token. ``seq[i]``: the
-    sequence number of row i's messages. Topic j has fields ``topic_start[j]:topic_start[j+1]``; field q is
-    preceded by ``keys[key_start[q]:key_start[q+1]]`` ('{"t":' or ',"x":'), a message ends with
-    ``closing`` ('}'). ``offsets[i, j]`` receives the record offset of row i, topic j. Returns the
-    number of bytes written. Rows are laid out row-major, so log times do not decrease.
-    """
-    n_topics = channel_ids.shape[0]
-    pos = 0
-    p = 1                                             # after '['
-    v = 0
-    for i in range(n_rows):
-        lt = log_time[i]
-        sq = seq[i]
-        for j in range(n_topics):
-            start = pos
-            out[pos] = 5
-            pos += 9                                  # length filled below
-            ch = channel_ids[j]
-            out[pos] = ch & 0xFF
-            out[pos + 1] = (ch >> 8) & 0xFF
-            for b in range(4):
-                out[pos + 2 + b] = (sq >> (8 * b)) & 0xFF
-            _put_u64(out, pos + 6, lt)
-            _put_u64(out, pos + 14, lt)
-            pos += 22
-            for q in range(topic_start[j], topic_start[j + 1]):
-                for b in range(key_start[q], key_start[q + 1]):
-                    out[pos] = keys[b]
-                    pos += 1
-                s = special[v]
-                if s == 0:
-                    c = text[p]
-                    while c != 44 and c != 93:        # ',' or ']'
-                        out[pos] = c
-                        pos += 1
-                        p += 1
-                        c = text[p]
-                else:
-                    while text[p] != 44 and text[p] != 93:
-                        p += 1
-                    if s == 3:
-                        pos = _put_uint(out, pos, lt // 1_000_000_000)
-                    elif s == 4:
-                        pos = _put_uint(out, pos, lt % 1_000_000_000)
-                    else:
-                        tok = inf_tok if s == 1 else ninf_tok
-                        for b in range(tok.shape[0]):
-                            out[pos] = tok[b]
-                            pos += 1
-                p += 1
-                v += 1
-            for b in range(closing.shape[0]):
-                out[pos] = closing[b]
-                pos += 1
-            _put_u64(out, start + 1, pos - start - 9)
-            offsets[i, j] = start
-    return pos
 
 
 class TemplateLayout:
@@ -142,7 +47,7 @@ class TemplateLayout:
     ``pieces[q]`` is the JSON text written before value q (the first starts the message, e.g.
     b'{"t":'), ``closing`` the text after the last value (e.g. b'}}]}'). The block handed to
     :meth:`encode` has exactly ``len(pieces)`` columns, value q in column q. Numbers: the shortest
-    round-trip decimal, null = NaN, +-1e999 = +-inf.
+    round-trip decimal (orjson, one call per block), null = NaN, +-1e999 = +-inf.
     """
 
     def __init__(self, channel_id: int, pieces: list[bytes], closing: bytes, sec_hole: int | None = None,
@@ -150,38 +55,37 @@ class TemplateLayout:
         """``sec_hole`` / ``nsec_hole``: the values written as the message's log time in whole seconds /
         the nanoseconds past them (integers, as a Foxglove ``time`` wants; their block column is ignored)."""
         self.n_cols = len(pieces)
-        holes = [(q, code) for q, code in ((sec_hole, 3), (nsec_hole, 4)) if q is not None]
-        self.time_holes = np.array([q for q, _ in holes], np.int64)
-        self.time_codes = np.array([c for _, c in holes], np.int8)
+        # the message as one bytes %-format: pieces and closing around a %s per value
+        self.format = b"%s".join(bytes(p).replace(b"%", b"%%") for p in list(pieces) + [closing])
+        self.sec_hole, self.nsec_hole = sec_hole, nsec_hole
+        self.channel_id = int(channel_id)
         self.channel_ids = np.array([channel_id], np.int64)
-        self.topic_cols = np.arange(len(pieces), dtype=np.int64)
-        self.topic_start = np.array([0, len(pieces)], np.int64)
-        keys = b"".join(pieces)
-        self.keys = np.frombuffer(keys, np.uint8)
-        self.key_start = np.concatenate([[0], np.cumsum([len(p) for p in pieces])]).astype(np.int64)
-        self.closing = np.frombuffer(closing, np.uint8)
-        self.bytes_per_row = MESSAGE_HEADER + len(closing) + len(keys) + len(pieces) * MAX_TOKEN
 
     def encode(self, block: np.ndarray, log_time: np.ndarray, seq) -> tuple[np.ndarray, np.ndarray]:
-        """Message records (uint8 array) and record offsets (rows x topics) for a float64 block.
+        """Message records (uint8 array) and record offsets (rows x 1) for a float64 block.
 
         ``seq``: the first row's sequence number (the rows count up from it) or one per row."""
-        n = block.shape[0]
-        flat = np.ascontiguousarray(np.asarray(block, dtype=np.float64)[:, self.topic_cols]).reshape(-1)
-        text = np.frombuffer(json_codec.dumps_floats(flat), np.uint8)
-        special = np.zeros(flat.size, np.int8)
-        inf = np.isinf(flat)
-        if inf.any():
-            special[inf] = np.where(flat[inf] > 0, 1, 2)
-        if self.time_holes.size:
-            special.reshape(n, -1)[:, self.time_holes] = self.time_codes
+        n, k = block.shape[0], self.n_cols
+        flat = np.ascontiguousarray(np.asarray(block, dtype=np.float64)).reshape(-1)
+        tokens = json_codec.dumps_floats(flat)[1:-1].split(b",") if flat.size else []
+        for i in np.flatnonzero(np.isinf(flat)).tolist():
+            tokens[i] = b"1e999" if flat[i] > 0 else b"-1e999"
+        lt = np.asarray(log_time, np.int64).tolist()
         seq = (np.arange(n, dtype=np.int64) + int(seq)) if np.ndim(seq) == 0 else np.asarray(seq, np.int64)
-        out = np.empty(n * self.bytes_per_row + 16, np.uint8)
-        offsets = np.empty((n, len(self.channel_ids)), np.int64)
-        size = encode_row_messages(text, special, n, log_time.astype(np.int64), seq, self.topic_start,
-                                   self.keys, self.key_start, self.closing, self.channel_ids, _INF, _NINF, out,
-                                   offsets)
-        return out[:size], offsets
+        records, fmt, ch, head = [], self.format, self.channel_id, struct.Struct("<BQHIQQ").pack
+        sec, nsec = self.sec_hole, self.nsec_hole
+        for i, (t, sq) in enumerate(zip(lt, seq.tolist())):
+            row = tokens[i * k:(i + 1) * k]
+            if sec is not None:
+                row[sec] = b"%d" % (t // 1_000_000_000)
+            if nsec is not None:
+                row[nsec] = b"%d" % (t % 1_000_000_000)
+            data = fmt % tuple(row)
+            records.append(head(Opcode.MESSAGE, 22 + len(data), ch, sq & 0xFFFFFFFF, t, t))
+            records.append(data)
+        sizes = np.fromiter(map(len, records), np.int64, len(records)).reshape(-1, 2).sum(axis=1)
+        offsets = (np.cumsum(sizes) - sizes).reshape(n, 1)
+        return np.frombuffer(b"".join(records), np.uint8), offsets
 
 
 def template_layout(channel_id: int, example: dict, holes: tuple[str, ...]) -> TemplateLayout:

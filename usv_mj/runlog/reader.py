@@ -136,6 +136,20 @@ def _gather_values(buf, starts, ends, out):
     return p
 
 
+class _DataReader(StreamReader):
+    """mcap's StreamReader without the index records (message, chunk, attachment and metadata
+    indexes, statistics, summary offsets), which it parses pair by pair in Python (four fifths of
+    reading a run log) and which a front-to-back reader does not need: their bytes are skipped.
+    If a later mcap has no ``_read_record`` to override, every record is parsed as before."""
+
+    _SKIP = frozenset({0x07, 0x08, 0x0A, 0x0B, 0x0D, 0x0E})
+
+    def _read_record(self, opcode, length):
+        if opcode in self._SKIP:
+            return None
+        return super()._read_record(opcode, length)
+
+
 @dataclass
 class _Scan:
     schemas: dict = field(default_factory=dict)       # id -> Schema
@@ -211,7 +225,7 @@ def _scan(source, want=None, decode=True, flat=None) -> _Scan:
     scan = _Scan(size=size, flat=flat)
     dctx = zstandard.ZstdDecompressor()
     try:
-        reader = StreamReader(stream, emit_chunks=True, record_size_limit=None)
+        reader = _DataReader(stream, emit_chunks=True, record_size_limit=None)
         it = reader.records
         while True:
             try:

@@ -429,6 +429,20 @@ def _scene(stamp, frame_id, entity_id, frame_locked=False, lines=(), cubes=(), e
     return json_codec.dumps(message) if encode else message
 
 
+def _keep_freed_pages():
+    """Let glibc's malloc keep the chunk-sized buffers it frees (mmap threshold 64 MB, trim at 256
+    MB) instead of giving them back and page-faulting them in again for the next chunk: that was a
+    third of the writer's CPU (sys time, 140 k page faults a 300 s run). Elsewhere: nothing."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None)
+        libc.mallopt(-3, 64 << 20)      # M_MMAP_THRESHOLD
+        libc.mallopt(-1, 256 << 20)     # M_TRIM_THRESHOLD
+    except (OSError, AttributeError):
+        pass
+
+
 def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_level, environment, commands, reply,
                  parent_pid, ring_name, ring_shape, free_slots):
     """The background writer: consume commands until "close" (or until the parent process is gone).
@@ -436,6 +450,7 @@ def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_l
     A "rows" command names its block as ("slot", i, n): rows 0..n of slot i of the shared ring,
     handed back (``free_slots.release()``) once the command is done with it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C stops the run, not the file
+    _keep_freed_pages()
     error = None
     log = None
     ring_shm = shared_memory.SharedMemory(name=ring_name)

@@ -33,6 +33,19 @@ DEFAULT_RAMP_TIME = 2.0  # s, tau_ramp of docs/sea.md §3 (as VRX)
 _DRIFT_CODES = {"off": lay.DRIFT_OFF, "mean": lay.DRIFT_MEAN, "newman": lay.DRIFT_NEWMAN}
 
 
+
+@njit(cache=True)
+def _elevation_sum(a, w, kx, ky, eps, ts, xs, ys):
+    """sum_j a_j cos(w_j t - kx_j x - ky_j y + eps_j) per point (one loop: about 10x faster per
+    point than numpy's outer products, e.g. for every row of a log)."""
+    out = np.empty(ts.shape[0])
+    for i in range(ts.shape[0]):
+        acc = 0.0
+        for j in range(a.shape[0]):
+            acc += a[j] * math.cos(ts[i] * w[j] - xs[i] * kx[j] - ys[i] * ky[j] + eps[j])
+        out[i] = acc
+    return out
+
 class PackedEnvironment(NamedTuple):
     """The four arrays the kernels take (layout in :mod:`usv_mj.sea.layout`)."""
 
@@ -271,18 +284,14 @@ class Environment:
         shape = x.shape
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y)) and np.all(np.isfinite(t))):
             raise ValueError("Environment.elevation: x, y and t must be finite")
-        xf, yf, tf = x.ravel(), y.ravel(), t.ravel()
+        xf, yf, tf = (np.ascontiguousarray(v.ravel()) for v in (x, y, t))
         out = np.zeros(xf.shape)
         c = self.components
         if c.n:
             kx, ky = c.k * np.cos(c.beta), c.k * np.sin(c.beta)
-            block = max(1, 1 << 19 // max(c.n, 1))
-            for lo in range(0, xf.size, block):
-                hi = min(lo + block, xf.size)
-                theta = (np.outer(tf[lo:hi], c.w) - np.outer(xf[lo:hi], kx) - np.outer(yf[lo:hi], ky)
-                         + c.eps)
-                out[lo:hi] = np.cos(theta) @ c.a
-            out *= self.ramp(tf)
+            out = _elevation_sum(np.ascontiguousarray(c.a, float), np.ascontiguousarray(c.w, float),
+                                 np.ascontiguousarray(kx), np.ascontiguousarray(ky),
+                                 np.ascontiguousarray(c.eps, float), tf, xf, yf) * self.ramp(tf)
         out = out.reshape(shape)
         return float(out) if out.ndim == 0 else out
 
