@@ -39,8 +39,8 @@ def per_call(fn, n):
     return (time.perf_counter() - t0) / n * 1e6
 
 
-def obstacle_field(count, seed=0):
-    from usv_mj.obstacles import from_tables
+def obstacle_field(count, seed=0, tables_only=False):
+    from usv_mj.obstacle_tables import from_tables
 
     rng = np.random.default_rng(seed)
     tables = []
@@ -53,7 +53,7 @@ def obstacle_field(count, seed=0):
         else:
             tables.append({"kind": "box", "center": [float(x), float(y)], "size": [float(rng.uniform(2, 10)),
                            float(rng.uniform(1, 4))], "yaw": float(rng.uniform(-3, 3))})
-    return from_tables(tables)
+    return tables if tables_only else from_tables(tables)
 
 
 def main():
@@ -64,7 +64,8 @@ def main():
     args = ap.parse_args()
     n = args.steps
 
-    from usv_mj.obstacles import GeometricClearance, HarbourPlant, MuJoCoClearance, from_tables
+    from usv_mj.obstacle_tables import from_tables
+    from usv_mj.obstacles import GeometricClearance, HarbourPlant, MuJoCoClearance
     from usv_mj.plants.analytic import AnalyticPlant
     from usv_mj.plants.mujoco_plant import MuJoCoPlant
     from usv_mj.scenario import load_scenario
@@ -116,9 +117,9 @@ def main():
         clear = per_call(lambda: monitor.update(0.0), n)
         print(f"{'1, contact':>10} {step:13.1f} {step / plant_step:7.2f} | {clear:17.1f} {clear / bare:7.2f} "
               f"  ({plant.data.ncon} contact(s) active, {ncon} at the start)")
-    # the whole closed loop (PPC, quantizers, recording): open water against the harbour runner
-    from usv_mj.obstacles import ObstacleScenario, run_obstacle_scenario
-    from usv_mj.obstacle_tables import GuidanceSpec
+    # the whole closed loop (PPC, quantizers, recording): open water against the same scenario
+    # with the obstacle field (the one build composes the harbour; guidance off)
+    from usv_mj import build
     from usv_mj.simulation import simulate
 
     loop = sc.with_overrides({"duration": args.loop_seconds, "plant": {"kind": "mujoco"},
@@ -130,11 +131,14 @@ def main():
     open_loop = (time.perf_counter() - t0) / loop.steps * 1e6
     print(f"closed loop ({args.loop_seconds:g} s, PPC, MuJoCo) per step: open water {open_loop:.1f}", end="")
     for count in args.counts:
-        osc = ObstacleScenario(loop, obstacle_field(count), GuidanceSpec(avoid=False))
+        osc = loop.with_overrides({"obstacles": obstacle_field(count, tables_only=True), "guidance": {"avoid": False}})
         t0 = time.perf_counter()
-        run_obstacle_scenario(osc)
-        per = (time.perf_counter() - t0) / loop.steps * 1e6
-        print(f"; {count} obstacles {per:.1f} (x{per / open_loop:.2f})", end="")
+        parts = build(osc)           # composes the harbour model (dm_control.mjcf): shown apart
+        t1 = time.perf_counter()
+        rec = simulate(parts)
+        per = (time.perf_counter() - t1) / loop.steps * 1e6
+        print(f"; {count} obstacles {per:.1f} (x{per / open_loop:.2f}, {rec.metadata['loop'].split(' ')[0]} loop, "
+              f"build {t1 - t0:.2f} s)", end="")
     print()
     with MuJoCoPlant(ship, dist, 1e-3, 1) as open_water:
         open_water.reset((0, 0, 0), (0.5, 0, 0))

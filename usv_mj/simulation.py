@@ -19,6 +19,7 @@ from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
+from .limits import within_limits
 from .builder import Parts, build, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from .record import COL, SL_REF, SL_STATE, Event, RunRecord
 from .scenario import Scenario
@@ -43,8 +44,6 @@ def make_reference(scenario: Scenario, duration: float | None = None):
 def state_limit_exceeded(x, ex: float, ey: float, limits) -> bool:
     """True when the state left :class:`usv_mj.scenario.LimitsSpec` (or is not finite): the one check
     of divergence, used by the loop and by the dm_control tasks."""
-    from .limits import within_limits
-
     return not within_limits(x, float(ex), float(ey), float(limits.max_speed), float(limits.max_yaw_rate),
                              float(limits.max_distance))
 
