@@ -12,9 +12,10 @@ controllers use) can be imported without the rest of the package.
 """
 
 import sys
-from importlib import import_module
 from importlib.machinery import PathFinder
 from pathlib import Path
+
+from .lazy_names import lazy_names
 
 __version__ = "0.1.0"
 
@@ -59,10 +60,5 @@ _API = {
     "summarize": "usv_mj.summary",
     "run_job": "usv_mj.main_job",
 }
+__getattr__, __dir__, _ = lazy_names(__name__, _API)
 __all__ = [*_API, "__version__"]
-
-
-def __getattr__(name):
-    if name in _API:
-        return getattr(import_module(_API[name]), name)
-    raise AttributeError(f"module 'usv_mj' has no attribute {name!r}")

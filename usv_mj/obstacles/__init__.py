@@ -16,29 +16,16 @@ MuJoCo, dm_control, shapely or networkx.
 
 from __future__ import annotations
 
-import importlib
+from usv_mj.lazy_names import lazy_names
 
-_WHERE = {
-    "GeometricClearance": "clearance", "MuJoCoClearance": "clearance", "make_clearance_monitor": "clearance",
-    "HULL_RADIUS": "compose", "ContactParams": "compose", "HarbourPlant": "compose", "compose_scene": "compose",
-    "export_scene": "compose", "hull_footprint": "compose", "place_moving_obstacles": "compose",
-    "Guidance": "planner", "GuidedReference": "planner", "Plan": "planner", "PlanningError": "planner",
-    "SafetyEnvelope": "planner", "plan_reference": "planner",
-    "ObstacleHook": "hooks", "make_plan": "hooks",
-    "ObstacleLog": "sink",
-    "draw_obstacles": "display", "scene_entities": "display", "obstacles_message": "display",
-}
-
-__all__ = sorted(_WHERE)
-
-
-def __getattr__(name: str):
-    if name not in _WHERE:
-        raise AttributeError(f"module 'usv_mj.obstacles' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return __all__
+__getattr__, __dir__, _ = lazy_names(__name__, {
+    "GeometricClearance": ".clearance", "MuJoCoClearance": ".clearance", "make_clearance_monitor": ".clearance",
+    "HULL_RADIUS": ".compose", "ContactParams": ".compose", "HarbourPlant": ".compose", "compose_scene": ".compose",
+    "export_scene": ".compose", "hull_footprint": ".compose", "place_moving_obstacles": ".compose",
+    "Guidance": ".planner", "GuidedReference": ".planner", "Plan": ".planner", "PlanningError": ".planner",
+    "SafetyEnvelope": ".planner", "plan_reference": ".planner",
+    "ObstacleHook": ".hooks", "make_plan": ".hooks",
+    "ObstacleLog": ".sink",
+    "draw_obstacles": ".display", "scene_entities": ".display", "obstacles_message": ".display",
+})
+__all__ = sorted(_)

@@ -11,28 +11,15 @@ Public API::
 Topics, schemas and number conventions: :mod:`usv_mj.runlog.topics`.
 """
 
-from importlib import import_module
+from usv_mj.lazy_names import lazy_names
 
-# name -> submodule, imported on first use: the log writer's process needs the writer, not the
-# reader (numba) nor the inspect command
-_WHERE = {
-    "add_inspect_arguments": "inspect_cli", "inspect_command": "inspect_cli",
-    "RunLog": "reader", "RunLogReadError": "reader", "load_topic": "reader", "read_run": "reader",
-    "scan_summary": "reader",
-    "ROW_TOPICS": "topics", "SCHEMA_VERSION": "topics", "WORLD_FRAME": "topics", "frame_for": "topics",
-    "prefix_for": "topics", "reference_frame_for": "topics", "row_topics": "topics", "topic_table": "topics",
-    "RunLogError": "writer", "RunLogSink": "writer", "RunLogWriter": "writer",
-}
-__all__ = list(_WHERE)
-
-
-def __getattr__(name):
-    if name in _WHERE:
-        value = getattr(import_module(f"{__name__}.{_WHERE[name]}"), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_WHERE))
+# imported on first use: the log writer's process needs the writer, not the reader (numba) nor
+# the inspect command
+__getattr__, __dir__, __all__ = lazy_names(__name__, {
+    "add_inspect_arguments": ".inspect_cli", "inspect_command": ".inspect_cli",
+    "RunLog": ".reader", "RunLogReadError": ".reader", "load_topic": ".reader", "read_run": ".reader",
+    "scan_summary": ".reader",
+    "ROW_TOPICS": ".topics", "SCHEMA_VERSION": ".topics", "WORLD_FRAME": ".topics", "frame_for": ".topics",
+    "prefix_for": ".topics", "reference_frame_for": ".topics", "row_topics": ".topics", "topic_table": ".topics",
+    "RunLogError": ".writer", "RunLogSink": ".writer", "RunLogWriter": ".writer",
+})
