@@ -1,7 +1,7 @@
-"""JSON for run logs, through orjson (a dependency: a whole block of rows in one call).
+"""JSON for run logs (events, Foxglove topics, metadata), through orjson (a block's numbers in one call).
 
 Floats are written as the shortest decimal that reads back to the same double (orjson's Ryu-based
-formatting), NaN as ``null``, +-inf as ``1e999`` / ``-1e999`` in the row topics (see
+formatting), NaN as ``null``, +-inf as ``1e999`` / ``-1e999`` in the Foxglove frames (see
 :mod:`usv_mj.runlog.topics`). In other messages (events, Foxglove) a non-finite float is ``null``.
 """
 

@@ -4,8 +4,9 @@ Why not ``mcap.writer.Writer`` for everything: its ``add_message`` costs about 6
 Python, and a 300 s run at 1 ms has 300,001 rows x 5 topics = 1.5 million messages (10 s, more than
 the simulation itself). Here the message records of a whole chunk are laid out in bulk from a block
 of rows: the per-step protobuf topics by :class:`usv_mj.runlog.protobuf_rows.BinaryRows` (a
-template copy and one strided copy per field), the JSON Foxglove topics by one numba kernel (the
-numbers formatted by orjson in one call); the chunk is compressed with zstd; every other record (header, schemas, channels, chunk, message and chunk indexes, metadata,
+template copy and one strided copy per field), the JSON Foxglove topics by :class:`TemplateLayout` (the
+numbers formatted by orjson in one call); the chunk is compressed with zstd; every other record
+(header, schemas, channels, chunk, message and chunk indexes, metadata,
 attachments, statistics, summary offsets, footer) is serialized by ``mcap.records``. The result is
 checked by the mcap library's own readers in tests/test_runlog.py (summary, indexes, CRCs).
 

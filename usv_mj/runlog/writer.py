@@ -17,8 +17,8 @@ all are full), and the file is written chunk by chunk (``rows_per_chunk`` rows p
 What is in the file (topics: :mod:`usv_mj.runlog.topics`):
 
 - metadata ``usv_mj`` (at open): schema version, preset, every parameter (``scenario.to_dict()``),
-  package versions (python, numpy, numba, mujoco, mcap, orjson, protobuf, zstandard, usv_mj), the project's
-  git commit ("unknown" outside a checkout) and whether the tree had uncommitted changes;
+  package versions (python, numpy, numba, mujoco, mcap, orjson, protobuf, zstandard, usv_mj), the
+  project's git commit ("unknown" outside a checkout) and whether the tree had uncommitted changes;
 - attachments: ``models/<name>.xml`` for every model XML of the project, ``scenario/<file>`` when
   ``scenario.source`` is a file, and any ``attachments`` passed in;
 - metadata ``run_start/<run>`` (at ``start``): topic prefix, the record's metadata, the columns;
@@ -90,8 +90,8 @@ def _mark_inf(obj):
 
 
 def _json(obj) -> str:
-    """Metadata JSON text; +-inf (an unlimited actuator's limit) as 1e999 / -1e999, as in the row
-    topics, so that ``json.loads`` gives the record's metadata back (NaN stays null)."""
+    """Metadata JSON text; +-inf (an unlimited actuator's limit) as 1e999 / -1e999, as in the
+    Foxglove topics, so that ``json.loads`` gives the record's metadata back (NaN stays null)."""
     text = json_codec.dumps(_mark_inf(obj)).decode()
     if "\\u0000" in text:
         for mark, token in ((_POS_INF, "1e999"), (_NEG_INF, "-1e999")):
