@@ -103,3 +103,18 @@ def test_calm_run_has_no_environment_topic(tmp_path):
     log = read_run(path)
     assert "/usv/environment" not in log.topic_counts and log.environment is None
     assert "/usv/obstacles" not in log.topic_counts and log.obstacles is None
+
+
+def test_an_obstacle_log_cut_before_its_first_chunk_still_reads(tmp_path):
+    """A harbour run killed within its first 2000 rows leaves channels but no obstacle message:
+    the log reads (no rows, no obstacle arrays) instead of failing on the missing topic data."""
+    osc = load_scenario(SCENARIOS / "crossing_boat.toml", overrides={"duration": 0.5})
+    path = tmp_path / "obs.mcap"
+    with RunLogWriter(path, osc) as writer:
+        _run_through_build(osc, plant_kind="analytic", sinks=[writer.sink("main")])
+    data = path.read_bytes()
+    first_chunk = data.find(b"\x06", data.find(b"usv_mj.Obstacles"))   # after the channels
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:first_chunk + 20])
+    log = read_run(cut)
+    assert log.truncated and len(log.record) == 0 and log.obstacles is None

@@ -126,3 +126,86 @@ def test_a_version_2_log_with_json_rows_still_reads(tmp_path):
     rec = read_run(path).record
     assert np.array_equal(rec["x"], [1.5, np.inf, np.nan, -0.25], equal_nan=True)
     assert np.array_equal(rec["t"], np.arange(4) * 0.001)
+
+
+def test_columns_that_are_not_protobuf_names_round_trip(tmp_path):
+    """A controller may name its fields "speed gap" or "2nd-try": the protobuf fields are renamed
+    (field_names) and the reader gives the record back under the declared names."""
+    from usv_mj.record import RunRecord
+    from usv_mj.runlog import RunLogWriter
+    from usv_mj.runlog.protobuf_rows import field_names
+    from usv_mj.scenario import load_scenario
+
+    assert field_names(["t", "speed gap", "2nd-try", "speed_gap", "ψ"]) == ["t", "speed_gap", "_2nd_try",
+                                                                            "speed_gap_2", "_"]
+    odd = ("speed gap", "2nd-try", "speed_gap")
+    rec = RunRecord(5, metadata={"control_period_s": 0.001}, diagnostic_fields=odd)
+    rec.data[:] = np.random.default_rng(2).normal(size=rec.data.shape)
+    rec.data[:, 0] = np.arange(5) * 0.001
+    path = tmp_path / "odd.mcap"
+    with RunLogWriter(path, load_scenario(preset="paper"), background=False) as writer:
+        sink = writer.sink("main")
+        sink.start(rec)
+        rec.n_rows = 5
+        sink.rows(rec, 0, 5)
+        sink.finish(rec)
+    got = read_run(path).record
+    assert got.diagnostic_fields == odd
+    for name in odd:
+        assert np.array_equal(got[name], rec[name]), name
+
+
+def test_a_damaged_message_is_left_out_with_the_reason(tmp_path):
+    """A message that the protobuf library cannot parse (its chunk CRC set to 0, so nothing else
+    notices) is skipped and named in the log's problem; the reader does not raise."""
+    from mcap.writer import CompressionType
+
+    name, title, fields = ROW_TOPICS[0]
+    schema = row_topic_schema(title, fields)
+    path = tmp_path / "bad.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f, compression=CompressionType.NONE, enable_crcs=False)
+        w.start()
+        sid = w.register_schema(title, "protobuf", schema)
+        cid = w.register_channel("/usv/state", "protobuf", sid, {"kind": "rows"})
+        layout = FixedLayout(message_class(schema, title))
+        for k in range(3):
+            data = layout.encode_one(np.full(len(fields), 1.0 + k)) if k != 1 else b"\x0a\xff\xff"
+            w.add_message(cid, log_time=k, publish_time=k, data=data, sequence=k)
+        w.finish()
+    log = read_run(path)
+    assert "/usv/state" in log.problem and "left out" in log.problem
+    assert np.array_equal(log.record["x"], [1.0, 3.0])
+
+
+def test_message_class_takes_a_descriptor_set_in_any_file_order():
+    from google.protobuf import descriptor_pb2, timestamp_pb2
+
+    dep = descriptor_pb2.FileDescriptorProto()
+    timestamp_pb2.DESCRIPTOR.CopyToProto(dep)
+    main = descriptor_pb2.FileDescriptorProto(name="stamped.proto", package="demo", syntax="proto3",
+                                              dependency=[dep.name])
+    msg = main.message_type.add(name="Stamped")
+    msg.field.add(name="stamp", number=1, type=descriptor_pb2.FieldDescriptorProto.TYPE_MESSAGE,
+                  type_name=".google.protobuf.Timestamp", label=descriptor_pb2.FieldDescriptorProto.LABEL_OPTIONAL)
+    schema = descriptor_pb2.FileDescriptorSet(file=[main, dep]).SerializeToString()   # the user first
+    cls = message_class(schema, "demo.Stamped")
+    assert cls.FromString(cls(stamp={"seconds": 7}).SerializeToString()).stamp.seconds == 7
+
+
+def test_chunk_index_is_in_time_order_whatever_order_the_rows_came_in():
+    from usv_mj.runlog.mcap_file import ChunkBuffer
+
+    name, title, fields = ROW_TOPICS[0]
+    layout = FixedLayout(message_class(row_topic_schema(title, fields), title))
+    rows = BinaryRows([(3, layout, range(len(fields)))])
+    lt = np.array([30, 10, 20], np.int64)
+    records, offsets = rows.encode(np.zeros((3, len(fields))), lt, 0)
+    buf = ChunkBuffer()
+    buf.add_rows(records, offsets, lt, rows.channel_ids)
+    parts, index = buf.finish()
+    times, offs = index[3]
+    assert times.tolist() == [10, 20, 30]
+    data = np.concatenate([np.frombuffer(p, np.uint8) if isinstance(p, bytes) else p for p in parts])
+    got = [int.from_bytes(data[o + 15:o + 23].tobytes(), "little") for o in offs.tolist()]
+    assert got == [10, 20, 30]

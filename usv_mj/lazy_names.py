@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import sys
 from importlib import import_module
+from importlib.util import find_spec
 
 
 def lazy_names(package: str, where: dict[str, str]):
@@ -23,6 +24,8 @@ def lazy_names(package: str, where: dict[str, str]):
 
     def __getattr__(name):
         if name not in where:
+            if not name.startswith("__") and find_spec(f"{package}.{name}") is not None:
+                return import_module(f"{package}.{name}")     # a submodule, as if imported eagerly
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
         value = getattr(import_module(where[name], package), name)
         setattr(sys.modules[package], name, value)    # later lookups are plain attribute reads

@@ -197,7 +197,7 @@ class ChunkBuffer:
         for ch, pieces in found.items():
             times = np.concatenate([t for t, _ in pieces])
             offs = np.concatenate([o for _, o in pieces])
-            if len(pieces) > 1:          # the final places are in log-time order
+            if len(pieces) > 1 or parts is not self.parts:   # the final places are in log-time order
                 order = np.argsort(offs, kind="stable")
                 times, offs = times[order], offs[order]
             index[ch] = (times.astype(np.uint64), offs.astype(np.uint64))

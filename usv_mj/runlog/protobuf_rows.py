@@ -28,6 +28,7 @@ the descriptor's ``source_code_info``.
 from __future__ import annotations
 
 import dataclasses
+import re
 import struct
 
 import numpy as np
@@ -57,10 +58,31 @@ class Message:
     doc: str = ""
 
 
+def field_names(names) -> list[str]:
+    """Protobuf field names for column names, in order: a name that is not an identifier
+    ([A-Za-z_][A-Za-z0-9_]*: a controller may declare "speed gap" or "psi-err") gets "_" for each
+    other character (and a leading "_" before a digit), then "_2", "_3", ... until unique. The
+    field's comment keeps the original, and the reader maps the fields back by position."""
+    out, seen = [], set()
+    for name in names:
+        base = re.sub(r"[^A-Za-z0-9_]", "_", str(name)) or "_"
+        base = "_" + base if base[0].isdigit() else base
+        candidate, k = base, 1
+        while candidate in seen:
+            k += 1
+            candidate = f"{base}_{k}"
+        seen.add(candidate)
+        out.append(candidate)
+    return out
+
+
 def flat_message(full_name: str, fields, docs: dict | None = None, doc: str = "") -> Message:
-    """A message of float64 fields only (the row topics), each documented from ``docs``."""
+    """A message of float64 fields only (the row topics), each documented from ``docs``; fields
+    named by :func:`field_names` (a renamed one says its column's name in its comment)."""
     docs = docs or {}
-    return Message(full_name, tuple(Field(f, "double", docs.get(f, "")) for f in fields), doc)
+    return Message(full_name, tuple(
+        Field(p, "double", (docs.get(f, "") if p == f else f"column {f!r}" + (f": {docs[f]}" if f in docs else "")))
+        for f, p in zip(fields, field_names(fields))), doc)
 
 
 def file_descriptor_set(message: Message) -> bytes:
@@ -102,8 +124,14 @@ def file_descriptor_set(message: Message) -> bytes:
 def message_class(schema_data: bytes, full_name: str):
     """The protobuf message class of ``full_name`` from a serialized ``FileDescriptorSet``."""
     pool = descriptor_pool.DescriptorPool()
-    for fd in descriptor_pb2.FileDescriptorSet.FromString(schema_data).file:
-        pool.Add(fd)
+    files = list(descriptor_pb2.FileDescriptorSet.FromString(schema_data).file)
+    added: set = set()
+    while files:               # every file after the files it depends on (a set may list them in any order)
+        ready = [fd for fd in files if set(fd.dependency) <= added] or files[:1]
+        for fd in ready:
+            pool.Add(fd)
+            added.add(fd.name)
+            files.remove(fd)
     return message_factory.GetMessageClass(pool.FindMessageTypeByName(full_name))
 
 
@@ -167,7 +195,7 @@ class FixedLayout:
         self.paths = tuple(holes)
         self.offsets = np.array(offsets, np.int64)
         self.size = len(data)
-        self.strings = _strings(example)
+        self.strings = {k: v for k, v in flatten(example).items() if isinstance(v, str)}
         fixed = np.ones(self.size, bool)
         for at in offsets:
             fixed[at:at + 8] = False
@@ -179,18 +207,6 @@ class FixedLayout:
         out = self.template.copy()
         out[self.value_bytes] = np.asarray(values, "<f8").view(np.uint8)
         return out.tobytes()
-
-
-def _strings(msg, prefix: str = "", out=None) -> dict:
-    out = {} if out is None else out
-    for fd, value in msg.ListFields():
-        path = prefix + fd.name
-        if fd.type == fd.TYPE_MESSAGE:
-            for i, item in enumerate(value) if _repeated(fd) else [(None, value)]:
-                _strings(item, f"{path}.{i}." if i is not None else path + ".", out)
-        elif fd.type == fd.TYPE_STRING:
-            out[path] = value
-    return out
 
 
 def shape_of(msg) -> dict:

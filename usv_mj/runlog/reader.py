@@ -26,7 +26,7 @@ from . import json_codec, protobuf_rows
 
 from ..record import COL, CORE_COLUMNS, Event, RunRecord
 from .extra_topics import environment_arrays, obstacle_arrays
-from .topics import ROW_SCHEMAS, prefix_for
+from .topics import ROW_SCHEMAS, prefix_for, row_topics
 
 MAGIC = b"\x89MCAP0\r\n"
 
@@ -359,8 +359,15 @@ def _take_protobuf(scan: _Scan, ch: int, data: bytes, buf: np.ndarray, lt, s, e)
     if values is not None:
         scan.pieces.setdefault(ch, []).append((lt, layout.paths, values))
     else:
-        msgs = [protobuf_rows.flatten(cls.FromString(data[a:b])) for a, b in zip(s.tolist(), e.tolist())]
-        scan.pieces.setdefault(ch, []).append((lt, None, msgs))
+        msgs, times = [], []
+        for a, b, t in zip(s.tolist(), e.tolist(), lt.tolist()):
+            try:
+                msgs.append(protobuf_rows.flatten(cls.FromString(data[a:b])))
+                times.append(t)
+            except Exception as exc:  # noqa: BLE001 - protobuf's DecodeError: said, and the message skipped
+                scan.problem = scan.problem or f"topic {scan.channels[ch].topic}: a message is not a valid " \
+                                               f"{cls.DESCRIPTOR.full_name} ({exc}); such messages are left out"
+        scan.pieces.setdefault(ch, []).append((np.array(times, np.int64), None, msgs))
 
 
 def _decode_array(text: bytes):
@@ -496,6 +503,15 @@ class RunLog:
         return dict(self.topic_counts)
 
 
+def _declared_fields(start: dict) -> dict:
+    """Row topic name -> its fields, from a run's ``run_start`` columns ({} without them)."""
+    names = start.get("columns")
+    try:
+        return {name: fields for name, _, fields in row_topics(tuple(names))} if isinstance(names, list) else {}
+    except ValueError:
+        return {}
+
+
 def _maybe_json(value: str):
     try:
         return json.loads(value)
@@ -609,10 +625,14 @@ def _read_one(path) -> RunLog:
         # adaptation and internal), fields by name: the record's columns come from the run's metadata
         columns, n = {}, None
         t_ref = None
+        declared = _declared_fields((runs_meta.get(run) or {}).get("start") or {})
         for cid, c in sorted(scan.channels.items()):
             if not (c.topic.startswith(p + "/") and "/" not in c.topic[len(p) + 1:] and _is_row_channel(scan, cid)):
                 continue
             _, cols = _columns(scan, cid)
+            fields = declared.get(c.topic[len(p) + 1:])
+            if fields and list(cols) != list(fields) and list(cols) == protobuf_rows.field_names(fields):
+                cols = dict(zip(fields, cols.values()))     # columns whose names are not protobuf names
             m = len(cols.get("t", ()))
             n = m if n is None else min(n, m)
             for f, values in cols.items():
@@ -656,7 +676,9 @@ def _read_one(path) -> RunLog:
         runs[run] = rec
         cid = by_topic.get(f"{p}/obstacles")
         if cid is not None:
-            obstacles_by_run[run] = obstacle_arrays(_topic_columns(scan, cid, lists=True))
+            cols = _topic_columns(scan, cid, lists=True)
+            if len(cols.get("t", ())):      # none before the first complete chunk
+                obstacles_by_run[run] = obstacle_arrays(cols)
         cid = by_topic.get(f"{p}/environment")
         if cid is not None:
             cols = _topic_columns(scan, cid)
@@ -694,6 +716,8 @@ def load_topic(path, topic: str) -> dict:
         known = ", ".join(sorted(c.topic for c in stream_meta.channels.values()))
         raise RunLogReadError(f"{path}: no topic {topic!r}; topics are {known}")
     scan = _scan(path, want=want, flat=_is_row_channel)
+    if scan.protobuf.get(holder["cid"], (True,))[0] is None:
+        raise RunLogReadError(f"{path}: {scan.problem}")
     return _topic_columns(scan, holder["cid"], with_log_time=True)
 
 

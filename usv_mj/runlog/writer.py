@@ -169,7 +169,7 @@ class RunLogFile:
             schema = row_topic_schema(title, fields, desc)
             cid = self.mcap.register_channel(f"{p}/{name}", "protobuf", self._schema(title, schema, "protobuf"),
                                              {"run": run, "kind": "rows"})
-            rows.append((cid, FixedLayout(message_class(schema, title)), [col[f] for f in fields]))
+            rows.append((cid, FixedLayout(message_class(schema, title)), [col[f] for f in fields]))   # same order
         funnel = any(name == "errors" for name, _, _ in topics)
         chans["events"] = self.mcap.register_channel(f"{p}/events", "json", self._schema("usv_mj.Event", EVENT_SCHEMA),
                                                      {"run": run})
@@ -187,7 +187,7 @@ class RunLogFile:
                      funnel=funnel_layout(chans["funnel"]) if funnel else None)
         dt = float(info["control_period_s"])
         self.runs[run] = {**extra,
-            "layout": BinaryRows(rows), "n_values": max(c for _, _, cols in rows for c in cols) + 1, "chans": chans, "dt": dt, "width": len(columns), "col": col,
+            "layout": BinaryRows(rows), "chans": chans, "dt": dt, "width": len(columns), "col": col,
             "decim": max(1, int(round(FRAME_PERIOD / dt))), "slow": max(1, int(round(SLOW_PERIOD / dt))),
             "frame": frame_for(run), "path": list(info.get("path") or ()), "rows": 0,
             "last_ns": 0, "ended": False,
@@ -245,8 +245,8 @@ class RunLogFile:
             buf = ChunkBuffer()
             log_time = block_time[a:a + step]
             values = sub
-            if st["n_values"] > st["width"]:     # the obstacles' and the sea's values after the record's
-                values = np.full((sub.shape[0], st["n_values"]), np.nan)
+            if st["layout"].n_cols > st["width"]:     # the obstacles' and the sea's values after the record's
+                values = np.full((sub.shape[0], st["layout"].n_cols), np.nan)
                 values[:, :st["width"]] = sub
                 if st["obs_values"]:
                     if obstacles is not None:
@@ -439,7 +439,7 @@ def _keep_freed_pages():
         libc = ctypes.CDLL(None)
         libc.mallopt(-3, 64 << 20)      # M_MMAP_THRESHOLD
         libc.mallopt(-1, 256 << 20)     # M_TRIM_THRESHOLD
-    except (OSError, AttributeError):
+    except Exception:  # noqa: BLE001 - not glibc (musl, another OS): malloc as it is
         pass
 
 

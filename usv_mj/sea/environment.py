@@ -33,7 +33,6 @@ DEFAULT_RAMP_TIME = 2.0  # s, tau_ramp of docs/sea.md §3 (as VRX)
 _DRIFT_CODES = {"off": lay.DRIFT_OFF, "mean": lay.DRIFT_MEAN, "newman": lay.DRIFT_NEWMAN}
 
 
-
 @njit(cache=True)
 def _elevation_sum(a, w, kx, ky, eps, ts, xs, ys):
     """sum_j a_j cos(w_j t - kx_j x - ky_j y + eps_j) per point (one loop: about 10x faster per
@@ -45,6 +44,7 @@ def _elevation_sum(a, w, kx, ky, eps, ts, xs, ys):
             acc += a[j] * math.cos(ts[i] * w[j] - xs[i] * kx[j] - ys[i] * ky[j] + eps[j])
         out[i] = acc
     return out
+
 
 class PackedEnvironment(NamedTuple):
     """The four arrays the kernels take (layout in :mod:`usv_mj.sea.layout`)."""
