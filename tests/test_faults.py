@@ -339,3 +339,18 @@ def test_crash_in_the_loop_is_one_line_recorded_with_a_traceback_file(tmp_path, 
     log = read_run(out / "run.mcap")
     assert log.record.status == "failed" and len(log.record) > 100
     assert leftovers(tmp_path) == []
+
+
+def test_the_summary_line_of_a_baseline_that_did_not_run():
+    """A job stopped between the main run and the baseline: ``usv-mj run`` prints the baseline's
+    status and reason (it raised KeyError on the missing violation count)."""
+    from pathlib import Path
+
+    from usv_mj import load_scenario, simulate, summarize
+    from usv_mj.main_job import JobResult, one_screen_summary
+
+    rec = simulate(load_scenario(preset="paper", overrides={"duration": 0.2, "plant": {"kind": "analytic"}}))
+    summary = summarize(rec)
+    summary["baseline"] = {"status": "not run", "stop_reason": "interrupted (SIGHUP) while starting the video"}
+    text = one_screen_summary(JobResult(out_dir=Path("."), record=rec, summary=summary), 1.0)
+    assert "PI baseline: not run (interrupted (SIGHUP) while starting the video)" in text

@@ -13,7 +13,10 @@ its parameters and its state) that follow the loop's own arguments. The signatur
 - actuators: ``fn(q_u, q_r, *args) -> (f_u, f_r, sat_u, sat_r)``, like ``apply``;
 - plant: ``fn(k, x, f_u, f_r, *args) -> (x_new, failed)``: the plant's ``k``-th step (from t0 + k dt)
   from state ``x`` with the force held; ``failed`` when the step failed (the plant raises the error
-  through ``Kernel.fail(k)``).
+  through ``Kernel.fail(k)``);
+- hook: ``fn(k, t, x, *args) -> python``: the hook's work at row ``k`` (time ``t``, state ``x``),
+  before the reference; True when Python must do it instead (the loop then calls the hook's
+  ``__call__`` for that row and goes on): :mod:`usv_mj.obstacles.native_step`.
 
 ``sync`` (optional) writes the kernel's results back into the Python object after a block (the
 quantizer's level and switch count; a plant's ``sync(k, x)``: its step count and state), so that

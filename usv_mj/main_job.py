@@ -641,8 +641,13 @@ def one_screen_summary(result: JobResult, wall_s: float) -> str:
                    f"r {s['quantizer_switches']['r']}")
     if "baseline" in s:
         b = s["baseline"]
-        lines.append(f"  PI baseline: {b['status']}, funnel violations {b['funnel_violations']}"
-                     + (f" (first at {b['first_violation_s']:.2f} s)" if b["first_violation_s"] is not None else ""))
+        if "funnel_violations" in b:
+            lines.append(f"  PI baseline: {b['status']}, funnel violations {b['funnel_violations']}"
+                         + (f" (first at {b['first_violation_s']:.2f} s)" if b.get("first_violation_s") is not None
+                            else ""))
+        else:   # not run (the job was stopped before it): its status and why
+            lines.append(f"  PI baseline: {b.get('status', '?')}" + (f" ({b['stop_reason']})" if b.get("stop_reason")
+                                                                       else ""))
     if "step_check" in s:
         c = s["step_check"]
         if c.get("max_position_m") is None:

@@ -62,7 +62,8 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
     The record's ``statics`` are the build's (the sea the plant saw, the obstacles, the plan).
 
     ``loop``: "auto" runs the compiled loop (:mod:`usv_mj.compiled_loop`) when every part has a
-    kernel and there are no hooks, the Python loop otherwise; "python" always runs the Python loop.
+    kernel (and the hook, if any: the obstacles' hook has one for standing obstacles without
+    guidance), the Python loop otherwise; "python" always runs the Python loop.
     ``record.metadata["loop"]`` says which ran (``"loop_reason"``: why not the compiled one).
     """
     if loop not in ("auto", "python"):
@@ -116,7 +117,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     try:
         if compiled is not None:
             compiled, _ = kernels_of(parts, hooks)  # again after the resets: the kernels' state is theirs
-            k = _run_compiled(record, parts, compiled, block, flush, limits, dt, n, fields)
+            k = _run_compiled(record, parts, compiled, block, flush, limits, dt, n, fields, hooks)
             raise _Done
         x = plant.state
         while True:
@@ -209,11 +210,11 @@ class _Done(Exception):
     """The compiled loop ended (internal: joins the Python loop's normal exit)."""
 
 
-def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, fields) -> int:
+def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, fields, hooks=()) -> int:
     """The compiled loop (usv_mj.compiled_loop) until the run stops, with the Python loop's events."""
     from .compiled_loop import DIVERGED, FORCE_LIMIT, run_compiled
 
-    k, status, x, out = run_compiled(record, parts, kernels, block, flush, limits, dt, n)
+    k, status, x, out = run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks)
     if status == FORCE_LIMIT:
         tau_u, tau_r = float(out[0]), float(out[1])
         t = k * dt

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .planner import Guidance, Plan, SafetyEnvelope, plan_reference
 from .sink import ObstacleLog
 
@@ -23,6 +25,35 @@ class ObstacleHook:
         self.monitor, self.log, self.guidance = monitor, log, guidance
         moving = any(o.moving for o in getattr(plant, "obstacles", ()))
         self._move = getattr(plant, "move_obstacles", None) if moving else None
+
+    def kernel(self):
+        """The step as a kernel of the compiled loop (:mod:`usv_mj.obstacles.native_step`), when
+        the obstacles stand still and no guidance runs; None otherwise (the Python loop)."""
+        from usv_mj.kernels import Kernel
+
+        from . import native_step
+        from .clearance import GeometricClearance, MuJoCoClearance
+
+        log, monitor = self.log, self.monitor
+        if self._move is not None or self.guidance is not None or any(o.moving for o in log.obstacles):
+            return None
+        rows = np.zeros(1, np.int64)
+
+        def sync():  # the rows the kernel stored count as recorded (ObstacleLog.n_rows)
+            log.n_rows = max(log.n_rows, int(rows[0]))
+
+        tail = (log.clearance, log._near, log._contact, float(log.margin))
+        if type(monitor) is MuJoCoClearance:
+            return Kernel(native_step.mujoco_obstacle_step,
+                          monitor.kernel_args() + tail + (native_step.CONTACT_WATCH, rows), sync)
+        if type(monitor) is GeometricClearance and monitor.method != "shapely":
+            g = monitor
+            centers = np.ascontiguousarray(g._center0[g._circles])    # standing: the centres at any t
+            return Kernel(native_step.geometric_obstacle_step,
+                          (g._body, g._body_radius, centers, g._radius, g._corners0, g._box_radii,
+                           float(g.exact_within), g._out_c, g._out_b, g._circles, g._boxes, g.clearance,
+                           g.in_contact) + tail + (rows,), sync)
+        return None
 
     def __call__(self, t, k, plant):
         if self._move is not None:

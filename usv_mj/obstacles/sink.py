@@ -82,7 +82,7 @@ class ObstacleLog:
                 self.add_event(Event(t, "near_miss", f"clearance to {o.name} fell to {clearance[i]:.3f} m "
                                      f"(< margin {self.margin:g} m)",
                                      {"obstacle": o.name, "index": int(i), "clearance_m": float(clearance[i])}))
-        self._near = near
+        self._near[:] = near              # in place: the compiled loop's hook kernel holds it
         if self._any_contact or in_contact.any():
             kind = "contact" if not self.note else "collision"
             for i in np.flatnonzero(in_contact & ~self._contact):
@@ -106,7 +106,7 @@ class ObstacleLog:
                                      f"(peak normal force {self._contact_peak[i]:.1f} N)",
                                      {"obstacle": o.name, "index": int(i), "duration_s": float(t - self._contact_start[i]),
                                       "peak_normal_force_N": float(self._contact_peak[i])}))
-            self._contact = in_contact.copy()
+            self._contact[:] = in_contact
             self._any_contact = bool(self._contact.any())
 
     def add_event(self, event: Event) -> None:

@@ -150,8 +150,9 @@ def warm_up(scenario, steps: int = 5) -> dict:
     (:mod:`usv_mj.compiled_loop`: compiled into the disk cache when it is not there yet, loaded from
     it otherwise). Returns ``{"loop", "loop_reason", "seconds"}``, or ``{"error", "seconds"}``:
     it never raises (a scenario that cannot run says so in its own task's row).
-    A scenario with obstacles runs the Python loop (its hooks) and plans its path in the build:
-    only the modules are imported for it.
+    A scenario with obstacles is not run here (its build composes the harbour and plans a path):
+    only the modules are imported, and each run takes the loop its parts allow (standing obstacles:
+    the compiled one, compiled by the first run that needs it).
     """
     t0 = time.perf_counter()
     try:
@@ -159,7 +160,7 @@ def warm_up(scenario, steps: int = 5) -> dict:
 
         if scenario.obstacles:
             import usv_mj.obstacles.hooks  # noqa: F401
-            return {"loop": "python", "loop_reason": "the run has hooks with Python logic (obstacles)",
+            return {"loop": "per run", "loop_reason": "not warmed up: obstacles (the build composes the harbour)",
                     "seconds": time.perf_counter() - t0}
         record = simulate(scenario, duration=steps * scenario.control_period)
         if record.status == "interrupted":  # a Ctrl-C (or SIGTERM) in the warm-up stops the sweep as anywhere
