@@ -117,7 +117,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     try:
         if compiled is not None:
             compiled, _ = kernels_of(parts, hooks)  # again after the resets: the kernels' state is theirs
-            k = _run_compiled(record, parts, compiled, block, flush, limits, dt, n, fields, hooks)
+            k = _run_compiled(record, parts, compiled, block, flush, limits, dt, n, hooks)
             raise _Done
         x = plant.state
         while True:
@@ -210,7 +210,7 @@ class _Done(Exception):
     """The compiled loop ended (internal: joins the Python loop's normal exit)."""
 
 
-def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, fields, hooks=()) -> int:
+def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()) -> int:
     """The compiled loop (usv_mj.compiled_loop) until the run stops, with the Python loop's events."""
     from .compiled_loop import DIVERGED, FORCE_LIMIT, run_compiled
 

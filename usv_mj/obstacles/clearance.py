@@ -414,6 +414,16 @@ class GeometricClearance:
         self.in_contact[:] = out <= 0.0
         return out
 
+    def kernel_args(self) -> tuple:
+        """The monitor's arguments of :func:`usv_mj.obstacles.native_step.geometric_obstacle_step`
+        (standing obstacles only: the circles' centres at any t), its arrays written in place."""
+        if self.method != "numba" or self._velocity.any():
+            raise ValueError("GeometricClearance.kernel_args: the numba method of standing obstacles only")
+        centers = np.ascontiguousarray(self._center0[self._circles])
+        return (self._body, self._body_radius, centers, self._radius, self._corners0, self._box_radii,
+                float(self.exact_within), self._out_c, self._out_b, self._circles, self._boxes, self.clearance,
+                self.in_contact)
+
     def update_shapely(self, t: float, state) -> np.ndarray:
         """The same with shapely (the reference for the numba kernels; slower)."""
         hull = self.hull_at(float(state[0]), float(state[1]), float(state[2]))

@@ -42,17 +42,12 @@ class ObstacleHook:
         def sync():  # the rows the kernel stored count as recorded (ObstacleLog.n_rows)
             log.n_rows = max(log.n_rows, int(rows[0]))
 
-        tail = (log.clearance, log._near, log._contact, float(log.margin))
+        tail = log.kernel_state()
         if type(monitor) is MuJoCoClearance:
             return Kernel(native_step.mujoco_obstacle_step,
                           monitor.kernel_args() + tail + (native_step.CONTACT_WATCH, rows), sync)
         if type(monitor) is GeometricClearance and monitor.method != "shapely":
-            g = monitor
-            centers = np.ascontiguousarray(g._center0[g._circles])    # standing: the centres at any t
-            return Kernel(native_step.geometric_obstacle_step,
-                          (g._body, g._body_radius, centers, g._radius, g._corners0, g._box_radii,
-                           float(g.exact_within), g._out_c, g._out_b, g._circles, g._boxes, g.clearance,
-                           g.in_contact) + tail + (rows,), sync)
+            return Kernel(native_step.geometric_obstacle_step, monitor.kernel_args() + tail + (rows,), sync)
         return None
 
     def __call__(self, t, k, plant):

@@ -109,6 +109,11 @@ class ObstacleLog:
             self._contact[:] = in_contact
             self._any_contact = bool(self._contact.any())
 
+    def kernel_state(self) -> tuple:
+        """(clearance rows, near-miss flags, contact flags, margin [m]): what the compiled loop's
+        hook kernel (usv_mj.obstacles.native_step) reads and writes in place of :meth:`record_step`."""
+        return self.clearance, self._near, self._contact, float(self.margin)
+
     def add_event(self, event: Event) -> None:
         self.events.append(event)
         if self.record is not None:
