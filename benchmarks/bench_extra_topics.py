@@ -46,8 +46,8 @@ def encoding(duration_rows: int = 10000):
 
     from usv_mj.record import COLUMNS
     from usv_mj.runlog.extra_topics import environment_block, environment_layout, obstacle_block, obstacle_layout
-    from usv_mj.runlog.mcap_file import RowLayout
-    from usv_mj.runlog.topics import ROW_TOPICS
+    from usv_mj.runlog.protobuf_rows import BinaryRows, FixedLayout, message_class
+    from usv_mj.runlog.topics import ROW_TOPICS, row_topic_schema
     from usv_mj.scenario import load_scenario
     from usv_mj.simulation import make_environment, simulate
 
@@ -63,18 +63,22 @@ def encoding(duration_rows: int = 10000):
     block = rec.data[:rec.n_rows]
     n = block.shape[0]
     lt = np.rint(block[:, 0] * 1e9).astype(np.int64)
-    rows = RowLayout(COLUMNS, [(i + 1, f) for i, (_, _, f) in enumerate(ROW_TOPICS)])
+    col = {c: i for i, c in enumerate(COLUMNS)}     # the writer's layout of the row topics (RunLogFile)
+    rows = BinaryRows([(i + 1, FixedLayout(message_class(row_topic_schema(title, f), title)), [col[c] for c in f])
+                       for i, (_, title, f) in enumerate(ROW_TOPICS)])
     print(f"1. encoding per control step ({n} rows; simulation step in this sea: {sim_us:.1f} us)")
-    print(f"   six row topics (yardstick)          {per_step(lambda: rows.encode(block, lt, 0), n):7.2f} us")
+    print(f"   five row topics (yardstick)          {per_step(lambda: rows.encode(block, lt, 0), n):7.2f} us")
     for m in (1, 10, 50):
-        lay = obstacle_layout(20, [f"obstacle_{i}" for i in range(m)])
+        one = obstacle_layout([f"obstacle_{i}" for i in range(m)])
+        lay = BinaryRows([(20, one, range(len(one.paths)))])
         rng = np.random.default_rng(m)
         ob = obstacle_block(block[:, 0], rng.normal(size=(n, m)), np.zeros((n, m)), rng.normal(size=(n, m, 2)))
         print(f"   /usv/obstacles, {m:2d} obstacles         {per_step(lambda: lay.encode(ob, lt, 0), n):7.2f} us"
               f"  (+ {per_step(lambda: obstacle_block(block[:, 0], ob[:, 1::4], ob[:, 2::4], np.zeros((n, m, 2))), n):.2f} us"
               " to copy the arrays on the loop side)")
     env = make_environment(sc)
-    lay = environment_layout(21)
+    one = environment_layout()
+    lay = BinaryRows([(21, one, range(len(one.paths)))])
     environment_block(env, block[:10])
     comp = per_step(lambda: environment_block(env, block), n)
     eb = environment_block(env, block)

@@ -113,8 +113,11 @@ def test_an_obstacle_log_cut_before_its_first_chunk_still_reads(tmp_path):
     with RunLogWriter(path, osc) as writer:
         _run_through_build(osc, plant_kind="analytic", sinks=[writer.sink("main")])
     data = path.read_bytes()
-    first_chunk = data.find(b"\x06", data.find(b"usv_mj.Obstacles"))   # after the channels
+    pos = 8                                  # after the magic: record by record to the first Chunk (0x06)
+    while data[pos] != 0x06:
+        pos += 9 + int.from_bytes(data[pos + 1:pos + 9], "little")
     cut = tmp_path / "cut.mcap"
-    cut.write_bytes(data[:first_chunk + 20])
+    cut.write_bytes(data[:pos + 20])
     log = read_run(cut)
+    assert "/usv/obstacles" in log.topic_counts      # the channel is there, its messages are not
     assert log.truncated and len(log.record) == 0 and log.obstacles is None
