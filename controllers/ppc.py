@@ -169,7 +169,7 @@ def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
     z_buf[0], z_buf[1], z_buf[2] = u, v, r
     z_buf[3], z_buf[4], z_buf[5] = alpha_u, alpha_v, alpha_r
     z_buf[6], z_buf[7], z_buf[8] = e1s, e2s, e3s
-    rbf_activations3(z_buf, centres, sig_u, sig_v, sig_r, s_buf)  # = rbf_activations per width
+    rbf_activations3(z_buf, centres, sig_u, sig_v, sig_r, s_buf)  # Eq. 12 per width
     s_u, s_v, s_r = s_buf[0], s_buf[1], s_buf[2]
     phi_u, phi_v, phi_r = nominal_terms(p, x[3:])
     gamma1 = (k1 + l3) * u_e + phi_u + _dot(w[0], s_u) + l3 * v_e

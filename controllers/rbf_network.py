@@ -21,30 +21,15 @@ def node_centres(n_nodes: int = 39, span: float = 16.0) -> np.ndarray:
     return np.linspace(-span, span, n_nodes)
 
 
-@njit(cache=True)
-def rbf_activations(z, centres, sigma, out):
-    """Fill ``out[j] = exp(-|z - centres[j] * 1|^2 / sigma^2)`` (Eq. 12) and return it."""
-    inv = 1.0 / (sigma * sigma)
-    for j in range(centres.shape[0]):
-        acc = 0.0
-        c = centres[j]
-        for i in range(z.shape[0]):
-            d = z[i] - c
-            acc += d * d
-        out[j] = math.exp(-acc * inv)
-    return out
-
-
-
 #: exp(x) rounds to +0.0 below -745.13 (2^-1075): the exponential is skipped there, same value
 EXP_UNDERFLOW = -746.0
 
 
 @njit(cache=True)
 def rbf_activations3(z, centres, sig_u, sig_v, sig_r, out):
-    """:func:`rbf_activations` for three widths at once into the rows of ``out`` (3 x n), bit for bit
-    the same values. The distances |z - c_j 1|^2 are summed over i in the same order as there, but
-    for all nodes at once (independent sums that vectorise; ``out[2]`` holds them until the last
+    """S_j(Z) = exp(-|Z - c_j 1|^2 / sigma^2) (Eq. 12) for three widths at once into the rows of
+    ``out`` (3 x n), each as the formula gives it, bit for bit. The distances |z - c_j 1|^2 are
+    summed over i in the formula's order, but for all nodes at once (independent sums that vectorise; ``out[2]`` holds them until the last
     pass); a width equal to an earlier one reuses its exponentials (the paper's sigma_u = sigma_v);
     an exponent below :data:`EXP_UNDERFLOW` gives 0.0 without calling exp (most of the paper's
     nodes: its slow underflow path was half the cost of the network)."""

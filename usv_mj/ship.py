@@ -304,12 +304,6 @@ def coriolis_damping_terms(p, nu):
 
 
 @njit(cache=True)
-def coriolis_damping_force(p, nu):
-    """:func:`coriolis_damping_terms` as an array."""
-    return _array3(coriolis_damping_terms(p, nu))
-
-
-@njit(cache=True)
 def hull_terms(p, dp, t, eta, nu, nu_r):
     """d(t) + Delta(eta, nu) - C(nu_r) nu_r - D(nu_r) nu_r, body frame [N, N, N m], a 3-tuple.
 
@@ -320,12 +314,6 @@ def hull_terms(p, dp, t, eta, nu, nu_r):
     d0, d1, d2 = disturbance_terms(dp, t)
     u0, u1, u2 = uncertainty_terms(p, eta, nu)
     return d0 + u0 - c0, d1 + u1 - c1, d2 + u2 - c2
-
-
-@njit(cache=True)
-def hull_force(p, dp, t, eta, nu, nu_r):
-    """:func:`hull_terms` as an array."""
-    return _array3(hull_terms(p, dp, t, eta, nu, nu_r))
 
 
 @njit(cache=True)
@@ -342,23 +330,20 @@ def mass_solve_terms(p, f0, f1, f2):
 
 
 @njit(cache=True)
-def solve_mass(p, f):
-    """:func:`mass_solve_terms` of an array f, as an array."""
-    return _array3(mass_solve_terms(p, f[0], f[1], f[2]))
-
-
-@njit(cache=True)
-def thrust_acceleration(p, f, tau_u, tau_r):
-    """nu_dot = M^-1 (f + [tau_u, 0, tau_r]) for the non-thrust force f (overwritten) [m/s^2, rad/s^2]."""
-    f[0] += tau_u
-    f[2] += tau_r
-    return solve_mass(p, f)
-
-
-@njit(cache=True)
 def body_acceleration(p, dp, t, eta, nu, tau_u, tau_r):
-    """nu_dot = M^-1 ([tau_u, 0, tau_r] + d(t) + Delta - C nu - D nu) (Eq. 2)."""
-    return thrust_acceleration(p, hydrodynamic_force(p, dp, t, eta, nu), tau_u, tau_r)
+    """nu_dot = M^-1 ([tau_u, 0, tau_r] + d(t) + Delta - C nu - D nu) (Eq. 2): the velocity part of
+    :func:`state_derivative` (the plants' own assembly, so that tests of Eq. 2 test what runs)."""
+    x = np.empty(6)
+    x[:3] = eta
+    x[3:] = nu
+    return state_derivative(p, dp, t, x, tau_u, tau_r)[3:]
+
+
+@njit(cache=True)
+def kinematics_terms(psi, u, v, r):
+    """eta_dot = J(psi) nu (Eq. 1), a 3-tuple."""
+    c, s = math.cos(psi), math.sin(psi)
+    return c * u - s * v, s * u + c * v, r
 
 
 @njit(cache=True)
@@ -366,32 +351,15 @@ def derivative_into(out, p, x, f0, f1, f2, tau_u, tau_r):
     """out = d/dt of x = (eta, nu) given the non-thrust body force (f0, f1, f2): (J(psi) nu,
     M^-1 (f + [tau_u, 0, tau_r])) (Eqs. 1-2). The one assembly of the state derivative."""
     a0, a1, a2 = mass_solve_terms(p, f0 + tau_u, f1, f2 + tau_r)
-    c, s = math.cos(x[2]), math.sin(x[2])
-    out[0] = c * x[3] - s * x[4]
-    out[1] = s * x[3] + c * x[4]
-    out[2] = x[5]
+    out[0], out[1], out[2] = kinematics_terms(x[2], x[3], x[4], x[5])
     out[3], out[4], out[5] = a0, a1, a2
     return out
 
 
 @njit(cache=True)
 def kinematics(eta, nu):
-    """eta_dot = J(psi) nu (Eq. 1)."""
-    c, s = math.cos(eta[2]), math.sin(eta[2])
-    out = np.empty(3)
-    out[0] = c * nu[0] - s * nu[1]
-    out[1] = s * nu[0] + c * nu[1]
-    out[2] = nu[2]
-    return out
-
-
-@njit(cache=True)
-def stack_derivative(x, nu_dot):
-    """d/dt of the 6-vector x = (eta, nu): (J(psi) nu, nu_dot)."""
-    out = np.empty(6)
-    out[:3] = kinematics(x[:3], x[3:])
-    out[3:] = nu_dot
-    return out
+    """eta_dot = J(psi) nu (Eq. 1), an array."""
+    return _array3(kinematics_terms(eta[2], nu[0], nu[1], nu[2]))
 
 
 @njit(cache=True)

@@ -184,9 +184,6 @@ class PaperReference(Reference):
         x, y, psi, self.t_max = _paper_table(n, self.GRID, speed, t_turn, t_phase, amplitude, period)
         self._x, self._y, self._psi = x.copy(), y.copy(), psi.copy()
 
-    def _heading(self, t):
-        return paper_heading(t, self.speed, self.t_turn, self.t_phase, self.amplitude, self.period)
-
     def pose(self, t):
         out = self.evaluate(t)
         return out[0], out[1], out[2], out[5], out[6]

@@ -9,7 +9,7 @@ uncertainty, Sec. 4), d(t), kinematics and wind use absolute nu. With a calm env
 is bit-identical to :func:`usv_mj.ship.state_derivative`: calm is this same code with the sea's terms
 absent (:func:`sea_force` is then :func:`usv_mj.ship.hydrodynamic_force`).
 
-Written once: the hull's force is :func:`usv_mj.ship.hull_force` (with nu_r), the M^-1 solve and the
+Written once: the hull's force is :func:`usv_mj.ship.hull_terms` (with nu_r), the M^-1 solve and the
 eta_dot assembly are usv_mj.ship's, and :func:`sea_rk4_advance` is the only RK4 loop of the package
 (:func:`usv_mj.plants.analytic.rk4_advance` is its calm case, :func:`calm_rk4_advance`).
 
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, derivative_into, hull_terms, thrust_acceleration
+from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, _array3, derivative_into, hull_terms
 
 from .environment import environment_loads
 from .layout import (E_CURRENT_ON, E_WAVES_ON, E_WIND_ON, L_DRIFT, L_NU_C, L_NU_C_DOT, L_WAVE1,
@@ -61,16 +61,17 @@ def sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
 @njit(cache=True)
 def sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
     """:func:`sea_terms` as an array; in a calm environment usv_mj.ship.hydrodynamic_force itself."""
-    f0, f1, f2 = sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu)
-    out = np.empty(3)
-    out[0], out[1], out[2] = f0, f1, f2
-    return out
+    return _array3(sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu))
 
 
 @njit(cache=True)
 def sea_body_acceleration(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu, tau_u, tau_r):
-    """nu_dot = M^-1 (sea_force + [tau_u, 0, tau_r]) [m/s^2, m/s^2, rad/s^2]."""
-    return thrust_acceleration(p, sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu), tau_u, tau_r)
+    """nu_dot = M^-1 (sea_force + [tau_u, 0, tau_r]) [m/s^2, m/s^2, rad/s^2]: the velocity part of
+    :func:`sea_derivative_into`, the assembly the plants run."""
+    x = np.empty(6)
+    x[:3] = eta
+    x[3:] = nu
+    return sea_derivative_into(np.empty(6), p, dp, ep, waves, current_grid, wind_grid, t, x, tau_u, tau_r)[3:]
 
 
 @njit(cache=True)
