@@ -307,6 +307,21 @@ def convex_signed_distance(a, b):
 
 
 @njit(cache=True)
+def scatter_clearances(out_circles, out_boxes, circles, boxes, clearance, in_contact):
+    """The circles' and boxes' clearances into the obstacles' order; in_contact = clearance <= 0.
+    Returns whether any obstacle is reached (GeometricClearance.update and the loop's hook kernel)."""
+    for j in range(circles.shape[0]):
+        clearance[circles[j]] = out_circles[j]
+    for j in range(boxes.shape[0]):
+        clearance[boxes[j]] = out_boxes[j]
+    hit = False
+    for i in range(clearance.shape[0]):
+        in_contact[i] = clearance[i] <= 0.0
+        hit = hit or in_contact[i]
+    return hit
+
+
+@njit(cache=True)
 def footprint_clearances(body, body_radius, x, y, psi, centers, radii, boxes, box_radii, exact_within,
                          out_circles, out_boxes):
     """Clearance of the hull footprint ``body`` (convex, CCW, body frame, within ``body_radius`` of
@@ -408,11 +423,8 @@ class GeometricClearance:
             boxes = boxes + (self._velocity[self._boxes] * t)[:, None, :]
         footprint_clearances(self._body, self._body_radius, float(state[0]), float(state[1]), float(state[2]),
                              centers, self._radius, boxes, self._box_radii, self.exact_within, self._out_c, self._out_b)
-        out = self.clearance
-        out[self._circles] = self._out_c
-        out[self._boxes] = self._out_b
-        self.in_contact[:] = out <= 0.0
-        return out
+        scatter_clearances(self._out_c, self._out_b, self._circles, self._boxes, self.clearance, self.in_contact)
+        return self.clearance
 
     def kernel_args(self) -> tuple:
         """The monitor's arguments of :func:`usv_mj.obstacles.native_step.geometric_obstacle_step`

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from .clearance import footprint_clearances, mujoco_clearance_kernel
+from .clearance import footprint_clearances, mujoco_clearance_kernel, scatter_clearances
 
 #: [m] on the MuJoCo plant, a step whose least clearance is under this goes to Python (contacts)
 CONTACT_WATCH = 0.05
@@ -71,14 +71,6 @@ def geometric_obstacle_step(k, t, x, body, body_radius, centers, radius, boxes, 
             return True
     footprint_clearances(body, body_radius, x[0], x[1], x[2], centers, radius, boxes, box_radii, exact_within,
                          out_c, out_b)
-    for j in range(circles.shape[0]):
-        clearance[circles[j]] = out_c[j]
-    for j in range(box_index.shape[0]):
-        clearance[box_index[j]] = out_b[j]
-    hit = False
-    for i in range(clearance.shape[0]):
-        in_contact[i] = clearance[i] <= 0.0
-        hit = hit or in_contact[i]
-    if hit:
+    if scatter_clearances(out_c, out_b, circles, box_index, clearance, in_contact):
         return True
     return _store(k, clearance, log_clearance, near, margin, rows)
