@@ -53,7 +53,7 @@ and normalized actions: :mod:`usv_mj.envs.gymnasium_env`.
 
 from __future__ import annotations
 
-import importlib
+from usv_mj.lazy_names import lazy_names
 
 ALL_TASKS = ("track", "track_waves", "harbor", "harbor_waves")
 #: Gymnasium id -> task (as usv_mj.envs.gymnasium_env.GYM_IDS, without importing gymnasium here)
@@ -85,14 +85,5 @@ def _register_gymnasium() -> None:
 _register_gymnasium()
 
 
-def __getattr__(name: str):
-    """Names are imported on first use, so ``usv-mj --help`` does not import dm_control."""
-    if name not in _WHERE:
-        raise AttributeError(f"module 'usv_mj.envs' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return __all__
+# names imported on first use, so ``usv-mj --help`` does not import dm_control
+__getattr__, __dir__, _ = lazy_names(__name__, {name: "." + module for name, module in _WHERE.items()})

@@ -180,19 +180,11 @@ def entry_point(dispatcher):
     return getattr(next(iter(overloads.values())), "entry_point", None)
 
 
-_SENSOR_POS = None
-
-
 def sensor_pos_address() -> int:
     """Address of ``mj_sensorPos`` in this process's libmujoco (for :func:`harbor_sense`)."""
-    global _SENSOR_POS
-    if _SENSOR_POS is None:
-        import ctypes
+    from usv_mj.plants.mujoco_callback import mujoco_function_address
 
-        from usv_mj.plants.mujoco_callback import _libmujoco
-
-        _SENSOR_POS = int(ctypes.cast(_libmujoco().mj_sensorPos, ctypes.c_void_p).value)
-    return _SENSOR_POS
+    return mujoco_function_address("mj_sensorPos")
 
 
 def _rows_python(reference, t, preview):

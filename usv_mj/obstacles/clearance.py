@@ -25,8 +25,6 @@ from __future__ import annotations
 
 import math
 
-import ctypes
-
 import mujoco
 import numpy as np
 import shapely
@@ -35,7 +33,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 from shapely import affinity
 
-from usv_mj.plants.mujoco_callback import _call_model_data, _libmujoco
+from usv_mj.plants.mujoco_callback import _call_model_data, mujoco_function_address
 
 from .compose import HULL_RADIUS, hull_footprint
 
@@ -123,19 +121,6 @@ def mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, hull, obs
         in_contact[i] = False
 
 
-_MJ_ADDRESSES = None
-
-
-def _mujoco_addresses() -> tuple[int, int]:
-    """Addresses of mj_kinematics and mj_geomDistance in this process's libmujoco."""
-    global _MJ_ADDRESSES
-    if _MJ_ADDRESSES is None:
-        lib = _libmujoco()
-        _MJ_ADDRESSES = tuple(int(ctypes.cast(getattr(lib, name), ctypes.c_void_p).value)
-                              for name in ("mj_kinematics", "mj_geomDistance"))
-    return _MJ_ADDRESSES
-
-
 class MuJoCoClearance:
     """Signed distances hull <-> obstacles and contact forces on a ``HarbourPlant`` (module docstring).
 
@@ -177,7 +162,8 @@ class MuJoCoClearance:
         # first, so that a pair MuJoCo cannot measure raises here, not inside compiled code
         self._qpos, self._geom_xpos = self.data.qpos, self.data.geom_xpos
         self._hgeoms = np.array(self.hull_geoms, dtype=np.int64)
-        self._addresses = (self.model._address, self.data._address, *_mujoco_addresses())
+        self._addresses = (self.model._address, self.data._address, mujoco_function_address("mj_kinematics"),
+                           mujoco_function_address("mj_geomDistance"))
         mujoco.mj_kinematics(self.model, self.data)
         for og in self.obstacle_geoms:
             for hg in self.hull_geoms:

@@ -47,6 +47,7 @@ exception) and the plant raises :class:`HydrodynamicCallbackError` after the ste
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 import os
 
@@ -336,6 +337,7 @@ def check_offsets(model: mujoco.MjModel, data: mujoco.MjData) -> None:
 # --- native callback ----------------------------------------------------------------------------
 
 
+@functools.cache
 def _libmujoco() -> ctypes.CDLL:
     folder = os.path.dirname(mujoco.__file__)
     names = sorted(f for f in os.listdir(folder) if f.startswith("libmujoco.so"))
@@ -343,6 +345,13 @@ def _libmujoco() -> ctypes.CDLL:
         raise RuntimeError(f"libmujoco.so not found next to the mujoco package in {folder}")
     # the same file the bindings loaded: dlopen returns the already-loaded library
     return ctypes.CDLL(os.path.join(folder, names[-1]))
+
+
+@functools.cache
+def mujoco_function_address(name: str) -> int:
+    """Address of the C function ``name`` of this process's libmujoco, for kernels that call MuJoCo
+    natively (found once per process: loading the library through ctypes costs about 1 ms)."""
+    return int(ctypes.cast(getattr(_libmujoco(), name), ctypes.c_void_p).value)
 
 
 _NATIVE = None
@@ -436,20 +445,14 @@ def mujoco_kernel(k, x, f_u, f_r, m_addr, d_addr, t0, dt, nsub, o_time, o_qpos, 
     return out, failed
 
 
-_CONSTANTS = None
-
-
+@functools.cache
 def kernel_constants() -> tuple:
     """The trailing arguments of :func:`mujoco_kernel`: (o_time, o_qpos, o_qvel, o_ctrl, o_ud,
     n_words, address of mj_step) for this process's libmujoco (found once per process: the
-    compiled loop asks every block, and loading the library through ctypes costs about 1 ms)."""
-    global _CONSTANTS
-    if _CONSTANTS is None:
-        off = struct_offsets()
-        words = tuple(off[name] // 8 for name in ("time", "qpos", "qvel", "ctrl", "userdata"))
-        address = ctypes.cast(_libmujoco().mj_step, ctypes.c_void_p).value
-        _CONSTANTS = words + (max(words[1:]) + 1, int(address))
-    return _CONSTANTS
+    compiled loop asks every block)."""
+    off = struct_offsets()
+    words = tuple(off[name] // 8 for name in ("time", "qpos", "qvel", "ctrl", "userdata"))
+    return words + (max(words[1:]) + 1, mujoco_function_address("mj_step"))
 
 
 _STEPPER = None
