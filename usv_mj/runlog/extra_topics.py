@@ -112,17 +112,16 @@ def obstacle_arrays(cols: dict) -> dict:
 
 # --- environment ---------------------------------------------------------------------------------
 
-ENVIRONMENT_FIELDS = ("t", "zeta", "tau_wave.x", "tau_wave.y", "tau_wave.n", "tau_drift.x", "tau_drift.y",
-                      "tau_drift.n", "tau_wind.x", "tau_wind.y", "tau_wind.n", "current.x", "current.y",
-                      "wind.speed", "wind.direction")
-
 
 def environment_layout() -> FixedLayout:
     """Layout of ``P/environment``; its values are the columns of :func:`environment_block`
     (:data:`ENVIRONMENT_FIELDS`)."""
-    layout = FixedLayout(message_class(ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME))
-    assert layout.paths == ENVIRONMENT_FIELDS, layout.paths
-    return layout
+    return FixedLayout(message_class(ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME))
+
+
+#: the values of P/environment in message order ("t", "zeta", "tau_wave.x", ..., "wind.direction"),
+#: the columns of :func:`environment_block`
+ENVIRONMENT_FIELDS = environment_layout().paths
 
 
 def environment_block(env, rows: np.ndarray) -> np.ndarray:

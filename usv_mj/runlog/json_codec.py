@@ -1,8 +1,9 @@
 """JSON for run logs (events, Foxglove topics, metadata), through orjson (a block's numbers in one call).
 
 Floats are written as the shortest decimal that reads back to the same double (orjson's Ryu-based
-formatting), NaN as ``null``, +-inf as ``1e999`` / ``-1e999`` in the Foxglove frames (see
-:mod:`usv_mj.runlog.topics`). In other messages (events, Foxglove) a non-finite float is ``null``.
+formatting), NaN as ``null``; +-inf as ``1e999`` / ``-1e999`` in the numbers laid out from templates
+(the Foxglove frames and funnel, the metadata: see :mod:`usv_mj.runlog.topics`), ``null`` in
+messages dumped whole (events, the Foxglove scenes).
 """
 
 from __future__ import annotations

@@ -73,7 +73,7 @@ class TemplateLayout:
             tokens[i] = b"1e999" if flat[i] > 0 else b"-1e999"
         lt = np.asarray(log_time, np.int64).tolist()
         seq = (np.arange(n, dtype=np.int64) + int(seq)) if np.ndim(seq) == 0 else np.asarray(seq, np.int64)
-        records, fmt, ch, head = [], self.format, self.channel_id, struct.Struct("<BQHIQQ").pack
+        records, fmt, ch = [], self.format, self.channel_id
         sec, nsec = self.sec_hole, self.nsec_hole
         for i, (t, sq) in enumerate(zip(lt, seq.tolist())):
             row = tokens[i * k:(i + 1) * k]
@@ -81,10 +81,8 @@ class TemplateLayout:
                 row[sec] = b"%d" % (t // 1_000_000_000)
             if nsec is not None:
                 row[nsec] = b"%d" % (t % 1_000_000_000)
-            data = fmt % tuple(row)
-            records.append(head(Opcode.MESSAGE, 22 + len(data), ch, sq & 0xFFFFFFFF, t, t))
-            records.append(data)
-        sizes = np.fromiter(map(len, records), np.int64, len(records)).reshape(-1, 2).sum(axis=1)
+            records.append(message_record(ch, t, fmt % tuple(row), sq))
+        sizes = np.fromiter(map(len, records), np.int64, len(records))
         offsets = (np.cumsum(sizes) - sizes).reshape(n, 1)
         return np.frombuffer(b"".join(records), np.uint8), offsets
 

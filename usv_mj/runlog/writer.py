@@ -248,11 +248,8 @@ class RunLogFile:
             if st["layout"].n_cols > st["width"]:     # the obstacles' and the sea's values after the record's
                 values = np.full((sub.shape[0], st["layout"].n_cols), np.nan)
                 values[:, :st["width"]] = sub
-                if st["obs_values"]:
-                    if obstacles is not None:
-                        values[:, st["width"]:st["width"] + st["obs_values"]] = obstacles[a:a + step]
-                    else:
-                        values[:, st["width"]] = sub[:, COL["t"]]
+                if st["obs_values"] and obstacles is not None:   # (the sink hands them whenever it logs them)
+                    values[:, st["width"]:st["width"] + st["obs_values"]] = obstacles[a:a + step]
                 if st["env"] is not None:
                     values[:, st["width"] + st["obs_values"]:] = environment_block(st["env"], sub)
             records, offsets = st["layout"].encode(values, log_time, lo + a)
