@@ -107,46 +107,40 @@ class USVEnvironment(control.Environment):
         return ts
 
     def step(self, action):
-        """``dm_control.rl.control.Environment.step``, written out so that the task can do its part
-        (before_step, the physics step, after_step, the reward and the observation vector) in one
-        call (:meth:`TrackTask.fused_step`, when it applies; else the same calls one by one, as
-        there); then the time limit is noted in the task's :attr:`~TrackTask.info`."""
+        """``dm_control.rl.control.Environment.step``; when the task can do its part (before_step,
+        the physics step, after_step, the reward and the observation vector) in one call
+        (:meth:`TrackTask.fused_step`), that call and dm_control's bookkeeping after it (step
+        limit, discount, TimeStep) instead. Then the step is kept for :meth:`render_frame` and the
+        time limit noted in the task's :attr:`~TrackTask.info`."""
         if self._closed:
             raise RuntimeError("USVEnvironment: the environment is closed")
-        if self._reset_next_step:
-            return self.reset()
         task, physics = self._task, self._physics
-        fused = task.fused_step(action, physics, self._n_sub_steps) if self._fusable else None
-        if fused is not None:
+        fused = None
+        if self._fusable and not self._reset_next_step:
+            fused = task.fused_step(action, physics, self._n_sub_steps)
+        if fused is None:
+            ts = super().step(action)
+            if ts.first():   # it reset (after a last step): reset() kept the step
+                return ts
+        else:
             reward, vector = fused
             observation = collections.OrderedDict([(control.FLAT_OBSERVATION_KEY, vector)]) \
                 if self._flat_observation else task.observation_dict(vector)
-        else:
-            task.before_step(action, physics)
-            physics.step(self._n_sub_steps)
-            task.after_step(physics)
-            reward = task.get_reward(physics)
-            observation = task.get_observation(physics)
-            if self._flat_observation:
-                observation = control.flatten_observation(observation)
-        self._step_count += 1
-        if self._step_count >= self._step_limit:
-            discount = 1.0
-        else:
-            discount = task.get_termination(physics)
+            self._step_count += 1
+            discount = 1.0 if self._step_count >= self._step_limit else task.get_termination(physics)
+            if discount is None:
+                ts = dm_env.TimeStep(dm_env.StepType.MID, reward, 1.0, observation)
+            else:
+                self._reset_next_step = True
+                ts = dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)
         self._remember()
-        if discount is None:
-            return dm_env.TimeStep(dm_env.StepType.MID, reward, 1.0, observation)
-        self._reset_next_step = True
-        if discount == 1.0:
+        if ts.last() and ts.discount == 1.0:
             task.mark_time_limit(physics.time())
-        return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, observation)
+        return ts
 
     def _remember(self) -> None:
         task, ph = self._task, self._physics
         t = ph.time()
-        if self._history and self._history[-1][0] == t:   # the step that reset after the last one
-            return
         self._history.append((t, ph.state.copy(), task.reference_at(t).copy(), task.last_action.copy(),
                               task.last_thrust.copy()))
 
