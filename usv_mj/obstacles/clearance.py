@@ -156,7 +156,6 @@ class MuJoCoClearance:
         self._bound = HULL_RADIUS + np.array([o.bounding_radius for o in plant.obstacles], dtype=float)
         self.exact = np.ones(n, dtype=bool)  # which entries of the last update are exact
         self._order = np.zeros(n, dtype=np.int64)  # the kernel's visiting order (min_only)
-        self._args = None                          # update's kernel arguments, once made
         # the native update (mujoco_clearance_kernel): views of the mjData's arrays, the libmujoco
         # addresses; every (hull geom, obstacle geom) pair is asked once through the bindings
         # first, so that a pair MuJoCo cannot measure raises here, not inside compiled code
@@ -168,14 +167,12 @@ class MuJoCoClearance:
         for og in self.obstacle_geoms:
             for hg in self.hull_geoms:
                 mujoco.mj_geomDistance(self.model, self.data, hg, og, self.distmax, None)
+        self._args = self.kernel_args()   # update's (made once: 2 us a step)
 
     def update(self, t: float = 0.0, plant_or_state=None) -> np.ndarray:
         """Clearance [m] per obstacle at the plant's current state (``t`` and the argument are
         accepted for interface symmetry; the plant's mjData is read)."""
-        args = self._args
-        if args is None or args[7] != self.exact_within:   # made once (2 us a step), or anew
-            args = self._args = self.kernel_args()
-        mujoco_clearance_kernel(*args)
+        mujoco_clearance_kernel(*self._args)
         self.add_contacts()
         return self.clearance
 

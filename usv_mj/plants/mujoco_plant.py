@@ -351,7 +351,7 @@ class MuJoCoPlant(PlantBase):
     def step(self, tau_u: float, tau_r: float) -> None:
         """Advance one control period with surge force tau_u [N] and yaw moment tau_r [N m] held."""
         # time from the step count (as the analytic plant): no drift from summing dt
-        t = self._t0 + self._k * self.control_period
+        t = self.time_at(self._k)
         if t + self.control_period > self._sea_horizon:
             self._extend_sea(t + self.control_period)
         if self._stepper is not None:
@@ -392,7 +392,7 @@ class MuJoCoPlant(PlantBase):
 
         def fail(k):  # the k-th step failed: raise its error as step() does
             self._k = k + 1
-            self._raise_after_step(self._t0 + k * self.control_period)
+            self._raise_after_step(self.time_at(k))
 
         return Kernel(mcb.mujoco_kernel, (self._m_addr, self._d_addr, self._t0, self.control_period, self.substeps,
                                           *mcb.kernel_constants()), sync, fail)
@@ -406,7 +406,7 @@ class MuJoCoPlant(PlantBase):
 
     @property
     def time(self) -> float:
-        return self._t0 + self._k * self.control_period
+        return self.time_at(self._k)
 
     @property
     def step_count(self) -> int:
