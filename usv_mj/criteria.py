@@ -66,7 +66,49 @@ class PoseTolerance:
         return {"kind": self.kind, **asdict(self)}
 
 
-CRITERIA = {FunnelCriterion.kind: FunnelCriterion, PoseTolerance.kind: PoseTolerance}
+@dataclass(frozen=True)
+class PathTolerance:
+    """Kept when, after ``settle_time_s``, the cross-track error (the vessel's offset from the
+    reference point normal to the reference's course, in the path frame of the reference velocity
+    (x_d_dot, y_d_dot)) stays under ``cross_track_m`` and the along-track error under
+    ``along_track_m`` at every control step: the criterion of a path-following law (LOS)."""
+
+    settle_time_s: float = 20.0           # s: the errors before this time are not judged
+    cross_track_m: float = 1.0            # m: bound on the path-normal error
+    along_track_m: float = float("inf")   # m: bound on the path-tangential error (inf: not judged)
+
+    kind = "path_tolerance"
+
+    def __post_init__(self):
+        for name in ("settle_time_s", "cross_track_m", "along_track_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v == v and v >= 0):
+                raise ScenarioError(f"criterion {self.kind}: {name} = {v!r} must be a number >= 0")
+
+    def describe(self) -> str:
+        along = "" if self.along_track_m == float("inf") else f" and the along-track error under {self.along_track_m:g} m"
+        return f"after {self.settle_time_s:g} s the cross-track error stays under {self.cross_track_m:g} m{along}"
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, **asdict(self)}
+
+
+@dataclass(frozen=True)
+class NotJudged:
+    """An open-loop input or a manoeuvre: the run has no success criterion (``passed`` is None)."""
+
+    reason: str = "open-loop input"
+
+    kind = "not_judged"
+
+    def describe(self) -> str:
+        return f"not judged ({self.reason})"
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, **asdict(self)}
+
+
+CRITERIA = {c.kind: c for c in (FunnelCriterion, PoseTolerance, PathTolerance, NotJudged)}
 
 
 def criterion_from_dict(d: dict):
