@@ -70,8 +70,8 @@ class OpenLoopGains:
             object.__setattr__(self, "times", times)
         for name in ("tau_u", "tau_r"):
             v = getattr(self, name)
-            if v is None:
-                v = 0.0
+            if v is None:  # kept None (read as 0 by table()): the scenario loader reads a default of None
+                continue   # as "any type", so that a table's key may take a number or a list
             if isinstance(v, (list, tuple)):
                 if times is None:
                     raise ScenarioError(f"controller.{name} is a list of {len(v)} values but controller.times "
@@ -89,7 +89,7 @@ class OpenLoopGains:
         v = getattr(self, name)
         if isinstance(v, tuple):
             return self.times, v
-        return (0.0,), (v,)
+        return (0.0,), (0.0 if v is None else v,)
 
 
 def table_value(times, values, t: float, interpolation: str) -> float:
