@@ -159,3 +159,10 @@ def test_simulated_yaw_rate_grows_at_the_linearized_rate():
     rate = np.polyfit(t[window], np.log(r[window]), 1)[0]
     assert rate == pytest.approx(max(lam.real), rel=0.03)
     assert np.abs(rec["v"][window]).max() < 0.01 and r[window].max() < 0.015
+
+
+@pytest.mark.parametrize("name, kind", [("yaw_instability", "open_loop"), ("zigzag_10_10", "zigzag"),
+                                        ("los_circle", "los")])
+def test_example_scenarios_load(name, kind):
+    sc = load_scenario(ROOT / "examples" / "scenarios" / f"{name}.toml")
+    assert sc.controller.kind == kind and not sc.baseline.enabled
