@@ -190,7 +190,8 @@ def los_law(t, x, ref, p, g, st, dt, diag):
     ys = y_e + sigma * st[S_YINT]
     lim = g[G_YINT_LIM]
     st[S_YINT] = min(max(st[S_YINT] + dt * big_u * delta * y_e / (ys * ys + delta * delta), -lim), lim)
-    st[S_A_M] = a_m + dt * (w ** 3 * wrap_angle(chi_d - beta - psi_m) - (2 * z + 1) * w * a_m - (2 * z + 1) * w * w * (r_m - ref[REF_R]))
+    st[S_A_M] = a_m + dt * (w ** 3 * wrap_angle(chi_d - beta - psi_m) - (2 * z + 1) * w * a_m
+                            - (2 * z + 1) * w * w * (r_m - ref[REF_R]))
     st[S_R_M] = r_m + dt * a_m
     st[S_PSI_M] = wrap_angle(psi_m + dt * r_m)
     lim = g[G_INT_PSI_LIM]

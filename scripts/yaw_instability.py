@@ -61,8 +61,10 @@ def main(argv=None) -> int:
     print(f"eigenvalues at u0 = {U0} m/s: {lam[1]:+.4f}, {lam[0]:+.4f} 1/s "
           f"(e-folding {1 / lam[1]:.2f} s); unstable above u0 = {u_crit:.3f} m/s")
     for u in (0.0, 0.3, 1.0):
-        print(f"  u0 = {u:.1f} m/s: {np.array2string(np.sort(np.linalg.eigvals(sway_yaw_linearization(ship, u)).real), precision=4)}")
-    print(f"straight-run drag at {U0} m/s: d11 u0 = {damping_coefficients(ship.as_array(), (U0, 0.0, 0.0))[0] * U0:.4f} N")
+        lam_u = np.sort(np.linalg.eigvals(sway_yaw_linearization(ship, u)).real)
+        print(f"  u0 = {u:.1f} m/s: {np.array2string(lam_u, precision=4)}")
+    drag = damping_coefficients(ship.as_array(), (U0, 0.0, 0.0))[0] * U0
+    print(f"straight-run drag at {U0} m/s: d11 u0 = {drag:.4f} N")
 
     import matplotlib
 

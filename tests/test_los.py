@@ -75,6 +75,28 @@ def test_heading_loop_holds_a_constant_heading_against_a_constant_yaw_moment():
     assert np.abs(rec["r"][late]).max() < 1e-4
 
 
+@pytest.mark.parametrize("ctrl, offset", [({"crab_compensation": False}, "lookahead"),
+                                          ({"crab_compensation": False, "ilos_sigma": 0.5}, "none"),
+                                          ({}, "none")])
+def test_a_steady_side_force_leaves_the_lookahead_offset_unless_crab_is_compensated(ctrl, offset):
+    """A constant 3 N side force makes the hull crab at beta = atan(v/u). Plain LOS steering the
+    heading (no crab compensation) settles where the heading command chi_d = pi_p - atan(y_e/Delta)
+    equals the heading that keeps the course on the path, pi_p - beta: y_e = Delta v/u (closed
+    form, from the record's v and u). The integral LOS, or the measured crab angle, removes it."""
+    sc = _scenario(duration=150.0, controller=ctrl, trajectory={"kind": "line"}, initial={"eta": [0.0, 0.0, 0.0]},
+                   quantizer={"enabled": False}, ship={"uncertainty_scale": 0.0},
+                   disturbance={"scale": 1.0, "amplitudes": [0.0, 3.0, 0.0], "cos_frequencies": [0.0, 0.0, 0.0],
+                                "sin_frequencies": [0.0, 0.0, 0.0]})
+    rec = simulate(sc)
+    _, y_e = _path_errors(rec)
+    v, u = rec["v"][-1], rec["u"][-1]
+    assert v / u > 0.1  # the side force makes a real crab angle (about 8 deg)
+    if offset == "lookahead":
+        assert y_e[-1] == pytest.approx(DELTA * v / u, rel=1e-3)
+    else:
+        assert abs(y_e[-1]) < 2e-3
+
+
 @pytest.mark.parametrize("plant", ["analytic", "mujoco"])
 def test_cross_track_error_converges_on_a_line_from_an_offset_start(plant):
     """Start 3 m left of a straight line heading north-east, at rest and heading east: the cross-track
