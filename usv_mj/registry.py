@@ -88,6 +88,8 @@ class Registry:
 
 
 PLANTS = Registry("plant", {"analytic": "usv_mj.plants.analytic", "mujoco": "usv_mj.plants.mujoco_plant"})
-CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "usv_mj.controllers.pi_baseline"})
+CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "usv_mj.controllers.pi_baseline",
+                                      "los": "usv_mj.controllers.los", "open_loop": "usv_mj.controllers.open_loop",
+                                      "zigzag": "usv_mj.controllers.zigzag"})
 TRAJECTORIES = Registry("trajectory", {k: "usv_mj.trajectories" for k in ("paper", "line", "circle", "waypoints")})
 DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.disturbances"})

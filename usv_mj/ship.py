@@ -399,3 +399,26 @@ def wrap_angle(a):
     (the controllers' e3, the planner, the reference)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
+
+
+def sway_yaw_linearization(ship: ShipParams, u0: float) -> np.ndarray:
+    """The linearized sway-yaw dynamics at the straight run nu0 = (u0, 0, 0): d/dt (v, r) = A (v, r),
+    A = -M_sy^-1 N(u0) (docs/model.md §8), a 2x2 array [1/s, m/s, ...].
+
+    M_sy is the sway-yaw block of M; N(u0) the Jacobian of C(nu) nu + D(nu) nu (the hull's own
+    :func:`coriolis_damping_terms`) with respect to (v, r) at nu0, by central differences (the
+    terms are polynomial in v and r but for |v| v-like terms, whose derivative at 0 is 0: the error
+    is c1 h, about 1e-5 N s/m). Written out: N = [[d22_0, m11 u0 + d23_0],
+    [(m22 - m11) u0 + d32_0, m23 u0 + d33_0]] (d_ij_0 the constant coefficients; (m22 - m11) u0 is
+    the Munk moment). Neither Delta nor d(t) enters. A positive real eigenvalue of A: the straight
+    run is directionally unstable (with no yaw moment a small yaw rate grows as exp(lambda t))."""
+    p = ship.as_array()
+    h = 1e-7
+    n = np.empty((2, 2))
+    for j in range(2):
+        e = np.zeros(3)
+        e[1 + j] = h
+        hi = np.array(coriolis_damping_terms(p, np.array([u0, 0.0, 0.0]) + e))
+        lo = np.array(coriolis_damping_terms(p, np.array([u0, 0.0, 0.0]) - e))
+        n[:, j] = (hi - lo)[1:] / (2 * h)
+    return -np.linalg.solve(mass_matrix(p)[1:, 1:], n)

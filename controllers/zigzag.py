@@ -1,0 +1,101 @@
+"""The zig-zag manoeuvre (Kempf's test; IMO MSC.137(76) §5.3, ITTC 7.5-02-06-01): feedback on heading only.
+
+The paper's hull has no rudder, so the "rudder angle" is a commanded yaw moment: at a constant surge
+force ``tau_u`` [N] the law commands tau_r = +-``tau_r_amplitude`` [N m] and reverses it each time
+the heading change from the start passes the switching angle, the 10/10 (or 20/20, ...) logic:
+
+- the heading change is dpsi = psi - psi_0 [rad], unwrapped (psi_0: the heading at the first call);
+- the first command turns to ``first_turn`` ("starboard": tau_r = -A, since positive r turns to
+  port in the README's conventions; "port": +A);
+- while the command turns to starboard (tau_r = -A) it switches to port (+A) at the first control
+  step with dpsi <= -psi_switch; while it turns to port it switches to starboard at the first step
+  with dpsi >= +psi_switch. The switch acts in the step where the threshold is passed (the command
+  of that step is already the new one).
+
+``[controller] kind = "zigzag"`` with the keys of :class:`ZigzagGains`; the run is not judged (a
+manoeuvre); the record's ``heading_change`` and ``switches`` columns give the overshoots and periods.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from usv_mj.criteria import NotJudged
+from usv_mj.errors import ScenarioError
+from usv_mj.registry import CONTROLLERS
+from usv_mj.ship import wrap_angle
+
+TURNS = {"starboard": -1.0, "port": 1.0}
+
+
+@dataclass(frozen=True)
+class ZigzagGains:
+    """The zig-zag's inputs (module docstring)."""
+
+    tau_u: float = 53.73             # N: constant surge force (53.73: the drag at 0.6 m/s, d11(0.6) 0.6)
+    tau_r_amplitude: float = 10.0    # N m: the "rudder": yaw moment +-A (> 0; 2 N m cannot break the hull's spiral)
+    psi_switch_deg: float = 10.0     # deg: heading change at which the yaw moment reverses (> 0)
+    first_turn: str = "starboard"    # "starboard" (tau_r = -A first) or "port"
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name == "first_turn":
+                continue
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ScenarioError(f"controller.{f.name} must be a finite number, got {v!r}")
+        for name in ("tau_r_amplitude", "psi_switch_deg"):
+            if not getattr(self, name) > 0:
+                raise ScenarioError(f"controller.{name} must be > 0, got {getattr(self, name)!r}")
+        if not self.psi_switch_deg < 180:
+            raise ScenarioError(f"controller.psi_switch_deg must be < 180, got {self.psi_switch_deg!r}")
+        if self.first_turn not in TURNS:
+            raise ScenarioError(f"controller.first_turn must be 'starboard' or 'port', got {self.first_turn!r}")
+
+
+@CONTROLLERS.register("zigzag", gains=ZigzagGains)
+class ZigzagController:
+    """The zig-zag's switching logic on the heading (module docstring)."""
+
+    name = "zigzag"
+    diagnostic_fields = (
+        "heading_change",  # dpsi = psi - psi_0, unwrapped [rad]
+        "turn",            # sign of the commanded yaw moment: +1 port, -1 starboard
+        "switches",        # reversals so far
+    )
+    criterion = NotJudged("manoeuvre")
+
+    @classmethod
+    def from_scenario(cls, gains: ZigzagGains, scenario) -> "ZigzagController":
+        return cls(gains)
+
+    def __init__(self, gains: ZigzagGains):
+        self.gains = gains
+        self._switch = math.radians(gains.psi_switch_deg)
+        self._diag = np.zeros(len(self.diagnostic_fields))
+        self.reset()
+
+    def reset(self) -> None:
+        self._started = False
+        self._psi_prev = 0.0
+        self._dpsi = 0.0
+        self._turn = TURNS[self.gains.first_turn]
+        self._switches = 0
+        self._diag[:] = 0.0
+
+    def __call__(self, t, state, reference):
+        psi = float(state[2])
+        if not self._started:
+            self._started = True
+        else:
+            self._dpsi += float(wrap_angle(psi - self._psi_prev))
+        self._psi_prev = psi
+        if (self._turn < 0 and self._dpsi <= -self._switch) or (self._turn > 0 and self._dpsi >= self._switch):
+            self._turn = -self._turn
+            self._switches += 1
+        d = self._diag
+        d[0], d[1], d[2] = self._dpsi, self._turn, self._switches
+        return self.gains.tau_u, self._turn * self.gains.tau_r_amplitude, d
