@@ -4,8 +4,8 @@ a typed options dataclass, and an existing kind is not replaced unless asked.
 
 The worked example (examples/plugins/usv_mj_example_plugin: the ``example-pd`` controller and the
 ``lawnmower`` trajectory) is pip-installed into a temporary folder and run, from a temporary folder
-outside the repository, by ``run``, ``sweep`` (2 Dask workers), ``compare``, ``kinds`` and
-``gymnasium.make``; then the same with the package's folder on PYTHONPATH and module:Name kinds.
+outside the repository, by ``run``, ``sweep`` (2 Dask workers), ``compare``, ``env``, ``kinds``
+and ``gymnasium.make``; then the same with the package's folder on PYTHONPATH and module:Name kinds.
 That the runs used the plug-in is read off their records: the reference rows are the lawnmower's
 geometry (straight lanes at y = 0 and y = lane_spacing, a half circle of radius lane_spacing / 2
 about (lane_length, lane_spacing / 2) between them), the diagnostics are the PD law's columns, and
@@ -144,6 +144,11 @@ def test_a_plugin_runs_in_every_command_from_outside_the_repository(route, insta
     closed = json.loads((work / "cmp" / "compare.json").read_text())["closed_loop"]
     assert closed["status"] == {"analytic": "completed", "mujoco": "completed"}
     assert closed["max_position_m"] < 1e-3 and closed["inside_funnels"] == {"analytic": None, "mujoco": None}
+
+    done = _cli(["env", "track", "--policy", "controller", "--set", f'controller.kind="{controller}"',
+                 "--set", f'trajectory.kind="{trajectory}"', "--duration", "1", "--video", "none"], work, paths)
+    assert done.returncode == 0, done.stderr
+    assert "track / controller: mean return" in done.stdout
 
     # gymnasium.make with the plug-in's trajectory, driven by the plug-in's controller as the policy
     code = f"""
@@ -332,3 +337,42 @@ def test_a_kind_registered_only_in_main_is_refused_for_workers_and_an_importable
     finally:
         CONTROLLERS.unregister("importable")
     assert worker_imports(load_scenario(preset="paper")) == ()
+
+
+def test_a_main_only_kind_runs_on_in_process_workers_and_is_refused_before_worker_processes(tmp_path):
+    """The same sweep of a kind registered in ``__main__``: on an in-process cluster (threads, one
+    registry) it runs; on a cluster of worker processes it is refused in one line before any run."""
+    from distributed import Client, LocalCluster
+
+    from usv_mj.errors import SweepError
+    from usv_mj.registry import CONTROLLERS
+    from usv_mj.sweep.runner import run_sweep
+    from usv_mj.sweep.spec import plan_sweep
+
+    def call(self, t, x, ref):
+        return 0.0, 0.0, np.zeros(0)
+
+    law = types.new_class("Idle", (), {}, lambda ns: ns.update({
+        "__module__": "__main__", "name": "idle", "diagnostic_fields": (), "reset": lambda self: None,
+        "from_scenario": classmethod(lambda c, g, s: c()), "__call__": call}))
+    CONTROLLERS.register("main-idle")(law)
+    try:
+        base = tmp_path / "idle.toml"
+        base.write_text('duration = 0.2\n[plant]\nkind = "analytic"\n[controller]\nkind = "main-idle"\n'
+                        '[baseline]\nenabled = false\n')
+        plan = plan_sweep({"base": str(base), "vary": {"initial.eta[0]": [0.0, 1.0]}})
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+                Client(cluster) as client:
+            result = run_sweep(plan, tmp_path / "threads", client=client, progress=False, echo=None, report=False)
+        import pyarrow.parquet as pq
+
+        rows = pq.read_table(tmp_path / "threads" / "results.parquet").to_pylist()
+        assert sorted(r["status"] for r in rows) == ["ok", "ok"] and {r["controller"] for r in rows} == {"idle"}
+        assert result is not None
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+                Client(cluster) as client:
+            with pytest.raises(SweepError, match=r"controller kind 'main-idle' is registered only in this process"):
+                run_sweep(plan, tmp_path / "processes", client=client, progress=False, echo=None, report=False)
+        assert not (tmp_path / "processes" / "results.parquet").exists()
+    finally:
+        CONTROLLERS.unregister("main-idle")
