@@ -376,3 +376,20 @@ def test_a_main_only_kind_runs_on_in_process_workers_and_is_refused_before_worke
         assert not (tmp_path / "processes" / "results.parquet").exists()
     finally:
         CONTROLLERS.unregister("main-idle")
+
+
+def test_the_registry_is_a_leaf_and_validating_a_scenario_imports_no_mujoco(tmp_path):
+    import ast
+
+    tree = ast.parse((REPO / "usv_mj" / "registry.py").read_text())
+    relative = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.level}
+    absolute = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names} | \
+        {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and not n.level}
+    assert relative == {"errors"} and not any(m.startswith("usv_mj") for m in absolute)
+    code = ("import sys; from usv_mj.scenario import load_scenario; "
+            "sc = load_scenario(preset='paper', overrides={'plant': {'kind': 'mujoco', 'substeps': 2}, "
+            "'trajectory': {'kind': 'circle', 'radius': 5.0}}); "
+            "assert sc.plant.substeps == 2 and sc.trajectory.radius == 5.0; print('mujoco' in sys.modules)")
+    done = _python(code, tmp_path, [REPO])
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"

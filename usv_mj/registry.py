@@ -31,7 +31,9 @@ Where a kind is found, in this order (:meth:`Registry.get`):
 
 1. registered in this process (a decorator, or a built-in whose module was imported);
 2. a **built-in**, declared below by module name (imported only when its kind is looked up, so
-   validating a scenario does not import MuJoCo; a checkout works without installation);
+   validating a scenario does not import MuJoCo; a checkout works without installation). The
+   built-ins are not also declared as entry points in pyproject.toml: this table is their one
+   source (an uninstalled checkout has no entry points, and two lists would drift apart);
 3. ``"package.module:Name"`` (as Gymnasium's ``entry_point``): the module is imported and ``Name``
    taken; it is registered under that very string;
 4. a Python **entry point** named ``kind`` in the registry's group (``usv_mj.controllers``,
