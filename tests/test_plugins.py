@@ -393,3 +393,47 @@ def test_the_registry_is_a_leaf_and_validating_a_scenario_imports_no_mujoco(tmp_
     done = _python(code, tmp_path, [REPO])
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "False"
+
+
+def test_a_plant_and_a_disturbance_register_like_a_controller():
+    """A plant kind with its own options and the plants' context, and a disturbance kind whose
+    options dataclass is the disturbance: each run equals the built-in run it stands for."""
+    from dataclasses import dataclass
+
+    from usv_mj import simulate
+    from usv_mj.plants.analytic import AnalyticPlant
+    from usv_mj.registry import DISTURBANCES, PLANTS
+    from usv_mj.scenario import load_scenario
+    from usv_mj.ship import PaperDisturbance
+
+    @dataclass(frozen=True)
+    class TwinOptions:
+        label: str = "twin"   # [-] a name, to show that the table's own keys arrive
+
+    seen = {}
+
+    @PLANTS.register("test-twin", options=TwinOptions)
+    def twin(options, scenario, **context):
+        seen.update(label=options.label, context=sorted(context))
+        return AnalyticPlant.from_scenario(None, scenario, **context)
+
+    @dataclass(frozen=True)
+    class Half(PaperDisturbance):   # the preset's scale carries over (a key this kind has too)
+        amplitudes: tuple[float, float, float] = (5e3, 50.0, 5e4)   # [N, N, N m] half the paper's
+
+    DISTURBANCES.register("test-half", options=Half)(Half)
+    try:
+        base = {"duration": 1.0, "control_period": 0.01, "baseline": {"enabled": False}}
+        sc = load_scenario(preset="paper", overrides={**base, "plant": {"kind": "test-twin", "label": "mine",
+                                                                         "substeps": 2},
+                                                      "disturbance": {"kind": "test-half"}})
+        assert sc.plant.label == "mine" and sc.plant.substeps == 2 and type(sc.disturbance) is Half
+        ours = simulate(sc)
+        assert seen == {"label": "mine", "context": ["contact", "environment", "obstacles", "safety_radii"]}
+        ref = simulate(load_scenario(preset="paper", overrides={**base, "plant": {"kind": "analytic", "substeps": 2},
+                                                                "disturbance": {"amplitudes": [5e3, 50.0, 5e4]}}))
+        for c in ("x", "y", "psi", "u", "v", "r"):
+            np.testing.assert_array_equal(ours[c], ref[c])
+    finally:
+        PLANTS.unregister("test-twin")
+        DISTURBANCES.unregister("test-half")
