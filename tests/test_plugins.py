@@ -437,3 +437,31 @@ def test_a_plant_and_a_disturbance_register_like_a_controller():
     finally:
         PLANTS.unregister("test-twin")
         DISTURBANCES.unregister("test-half")
+
+
+def test_an_undecorated_class_named_by_module_name_brings_its_options_attribute(tmp_path, monkeypatch):
+    from usv_mj.registry import TRAJECTORIES
+    from usv_mj.scenario import load_scenario
+    from usv_mj.simulation import make_reference
+
+    (tmp_path / "my_paths.py").write_text(
+        "from dataclasses import dataclass\n"
+        "from usv_mj.trajectories import Reference\n"
+        "@dataclass(frozen=True)\n"
+        "class StillOptions:\n"
+        "    x: float = 1.0   # [m] where the reference stands\n"
+        "class Still(Reference):\n"
+        "    options = StillOptions\n"
+        "    @classmethod\n"
+        "    def from_scenario(cls, options, scenario, *, duration):\n"
+        "        self = cls(); self.x = options.x; return self\n"
+        "    def pose(self, t):\n"
+        "        return self.x, 0.0, 0.0, 0.0, 0.0\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        sc = load_scenario(preset="paper", overrides={"trajectory": {"kind": "my_paths:Still", "x": 7.5}})
+        assert TRAJECTORIES.get("my_paths:Still").source == "module:Name"
+        assert make_reference(sc).evaluate(3.0)[:3].tolist() == [7.5, 0.0, 0.0]
+    finally:
+        TRAJECTORIES.unregister("my_paths:Still")
+        sys.modules.pop("my_paths", None)
