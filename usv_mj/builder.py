@@ -129,8 +129,12 @@ def make_plant(scenario: Scenario, kind: str | None = None, environment="scenari
             raise ScenarioError(f"{scenario.source}: the {kind!r} plant has no rangefinders")
         extra["rangefinders"] = tuple(float(a) for a in rangefinders)
     env = make_environment(scenario) if isinstance(environment, str) and environment == "scenario" else environment
-    return entry.obj.from_scenario(scenario, environment=env, obstacles=tuple(scenario.obstacles), contact=contact,
-                                   safety_radii=safety_radii, **extra)
+    if kind == scenario.plant.kind:
+        options = scenario.plant.options
+    else:
+        options = entry.options_class() if entry.options_class is not None else None
+    return entry.make(options, scenario, environment=env, obstacles=tuple(scenario.obstacles), contact=contact,
+                      safety_radii=safety_radii, **extra)
 
 
 def make_controller(scenario: Scenario, kind: str | None = None):
@@ -145,7 +149,7 @@ def make_controller(scenario: Scenario, kind: str | None = None):
         gains = scenario.baseline.gains
     else:
         gains = entry.gains() if entry.info.get("gains") else None
-    return entry.obj.from_scenario(gains, scenario)
+    return entry.make(gains, scenario)
 
 
 def make_quantizers(scenario: Scenario):
@@ -210,7 +214,7 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     try:
         controller = controller if controller is not None else make_controller(scenario, controller_kind)
         if reference is None:
-            reference = plan.reference if plan is not None else make_reference(scenario.trajectory, duration)
+            reference = plan.reference if plan is not None else make_reference(scenario.trajectory, duration, scenario)
         hooks, sinks = (), ()
         if scenario.obstacles:
             hooks, sinks, metadata = _obstacle_parts(scenario, plant, plan, duration, statics, contact)

@@ -11,6 +11,7 @@
     usv-mj sweep SWEEP.toml            many runs on a Dask cluster (local by default)
     usv-mj capability --load ...       the environment capability polar of the controller
     usv-mj env track --policy ppc      the USV as a dm_control task: roll out a policy, print returns, video
+    usv-mj kinds                       every controller, trajectory, plant, disturbance kind and its options
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
@@ -271,6 +272,8 @@ _EXTERNAL = {
                    "environment capability polar: the largest load at which the funnel holds"),
     "env": ("usv_mj.envs.cli", "add_arguments", "run_command",
             "roll out a policy (ppc, random) in a dm_control task (track, track_waves, harbor): returns and a video"),
+    "kinds": ("usv_mj.kinds", "add_arguments", "run_command",
+              "every controller, trajectory, plant and disturbance kind: where it comes from, its options"),
 }
 
 
@@ -294,6 +297,9 @@ _DESCRIPTIONS = {
                   "with [actuators], e.g. --scenario paper-limited).",
     "env": "Roll out a policy (ppc: the paper's controller; random) in a dm_control task (track,\n"
            "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode.",
+    "kinds": "List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
+             "disturbance): where it comes from (built-in, an entry point's distribution, module:Name,\n"
+             "registered at runtime) and its options (name, type, default, unit). --json for one object.",
 }
 
 
@@ -326,7 +332,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, compare, inspect, plot, render, sweep, capability, env
+commands: run, presets, compare, inspect, plot, render, sweep, capability, env, kinds
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 

@@ -377,7 +377,9 @@ def _record_states(record) -> np.ndarray:
     return np.stack([record[c] for c in ("x", "y", "psi", "u", "v", "r")], axis=1)
 
 
-def _funnel_check(record) -> tuple[bool, float]:
+def _funnel_check(record) -> tuple[bool | None, float | None]:
+    if not record.has_funnel:  # a controller without a funnel: not judged here (None), unless it failed
+        return (None if record.status == "completed" else False), None
     z = np.stack([record["z1"], record["z2"], record["z3"]])
     worst = float(np.max(np.abs(z))) if z.size else float("nan")
     return bool(record.status == "completed" and np.all(np.abs(z) < 1.0)), worst
@@ -565,7 +567,7 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
     checks = {
         **open_check,
         "closed_loop_position_below_1e-3_m": closed_loop["max_position_m"] < CLOSED_LOOP_TOLERANCE_M,
-        "closed_loop_both_inside_funnels": all(closed_loop["inside_funnels"].values()),
+        "closed_loop_both_inside_funnels": all(v is not False for v in closed_loop["inside_funnels"].values()),
         "saturated_closed_loop_position_below_1e-3_m": saturated["max_position_m"] < CLOSED_LOOP_TOLERANCE_M,
         "saturated_closed_loop_saturates": all(max(f.values()) > 0 for f in saturated["saturated_fraction"].values()),
     }

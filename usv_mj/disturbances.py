@@ -9,4 +9,4 @@ from __future__ import annotations
 from .registry import DISTURBANCES
 from .ship import PaperDisturbance
 
-DISTURBANCES.register("paper", doc="the paper's d(t), Eq. 46, times `scale`")(PaperDisturbance)
+DISTURBANCES.register("paper", options=PaperDisturbance, doc="the paper's d(t), Eq. 46, times `scale`")(PaperDisturbance)

@@ -30,6 +30,11 @@ class UnknownKindError(ScenarioError):
     """A ``kind`` names no registered plant, controller, trajectory or disturbance."""
 
 
+class PluginImportError(UnknownKindError):
+    """A ``"package.module:Name"`` kind or an entry point could not be imported (the message names
+    the kind, where it was named, and the import's own error)."""
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised like Ctrl-C's KeyboardInterrupt (its text: the signal's name), so
     that every ending by a signal is recorded as an interruption."""

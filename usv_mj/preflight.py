@@ -27,7 +27,7 @@ def reference_error(scenario: Scenario) -> str | None:
     from .trajectories import make_reference
 
     try:
-        make_reference(scenario.trajectory, scenario.duration)
+        make_reference(scenario.trajectory, scenario.duration, scenario)
     except ValueError as exc:
         return str(exc)
     return None

@@ -46,37 +46,39 @@ class InitialState:
     nu: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
+class _KindOptions:
+    """A ``[section]`` of ``kind`` plus the kind's own options dataclass (``options``); the options
+    read as attributes of the spec too (``scenario.trajectory.speed``, ``.points``)."""
+
+    def __getattr__(self, name):
+        if name.startswith("_") or name == "options":
+            raise AttributeError(name)
+        try:
+            return getattr(self.options, name)
+        except AttributeError:
+            raise AttributeError(f"{type(self).__name__}: kind {self.kind!r} has no option {name!r}") from None
+
+
 @dataclass(frozen=True)
-class TrajectorySpec:
+class TrajectorySpec(_KindOptions):
     """The reference path (see :mod:`usv_mj.trajectories`).
 
     Attributes
     ----------
-    kind: "paper" | "line" | "circle" | "waypoints".
-    speed: reference surge speed u_d [m/s] (paper: 0.6).
-    start, heading_deg: line start [m] and direction [deg].
-    center, radius, start_angle_deg, clockwise: circle centre [m], radius [m], start angle [deg].
-    points, turn_radius: waypoints [m] and the radius of the arcs that join the legs [m].
+    kind: a registered trajectory (:data:`usv_mj.registry.TRAJECTORIES`): "paper" | "line" | "circle" |
+        "waypoints", or a plug-in's.
+    options: the kind's own options dataclass (every other key of ``[trajectory]``; the built-ins':
+        :class:`usv_mj.trajectories.PaperOptions`, ``LineOptions``, ``CircleOptions``,
+        ``WaypointsOptions``); None: the kind's defaults.
     """
 
     kind: str = "paper"
-    speed: float = 0.6
-    start: tuple[float, float] = (0.0, 0.0)
-    heading_deg: float = 0.0
-    center: tuple[float, float] = (0.0, 20.0)
-    radius: float = 20.0
-    start_angle_deg: float = -90.0
-    clockwise: bool = False
-    points: tuple = ((0.0, 0.0), (40.0, 0.0))
-    turn_radius: float = 5.0
+    options: Any = None
 
     def __post_init__(self) -> None:
-        if self.kind not in TRAJECTORIES:
-            raise ValueError(f"kind must be one of {', '.join(TRAJECTORIES.kinds())}, got {self.kind!r}")
-        if not (math.isfinite(self.speed) and self.speed > 0):
-            raise ValueError(f"speed must be > 0 m/s, got {self.speed!r}")
-        if not self.radius > 0:
-            raise ValueError(f"radius must be > 0 m, got {self.radius!r}")
+        if self.options is None:
+            cls = TRAJECTORIES.get(self.kind, "kind").options_class
+            object.__setattr__(self, "options", cls() if cls is not None else None)
 
 
 @dataclass(frozen=True)
@@ -134,17 +136,19 @@ class FunnelSpec:
 
 
 @dataclass(frozen=True)
-class PlantSpec:
+class PlantSpec(_KindOptions):
     """Which plant integrates the ship.
 
     Attributes
     ----------
-    kind: "mujoco" or "analytic".
-    substeps: integrator steps per control period (>= 1).
+    kind: a registered plant (:data:`usv_mj.registry.PLANTS`): "mujoco", "analytic", or a plug-in's.
+    substeps: integrator steps per control period (>= 1; every plant's).
+    options: the kind's own options dataclass (the other keys of ``[plant]``; None for the built-ins).
     """
 
     kind: str = "mujoco"
     substeps: int = 1
+    options: Any = None
 
     def __post_init__(self) -> None:
         if self.kind not in PLANTS:
@@ -335,14 +339,25 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
         if isinstance(over, dict) and isinstance(base.get(section), dict) and "kind" in over \
                 and over["kind"] != base[section].get("kind", default):
             base[section] = {k: v for k, v in base[section].items() if k == "enabled"}
+    for section, registry, keep in (("trajectory", TRAJECTORIES, ()), ("plant", PLANTS, ("substeps",))):
+        # another trajectory / plant kind: only the preset's keys the new kind also has carry over
+        over = data.get(section)
+        if isinstance(over, dict) and isinstance(base.get(section), dict) and "kind" in over \
+                and over["kind"] != base[section].get("kind"):
+            known = set(keep)
+            if isinstance(over["kind"], str):
+                cls = registry.get(over["kind"], f"{source}: {section}.kind").options_class \
+                    if (set(base[section]) - {"kind", *keep}) else None
+                known |= {f.name for f in dataclasses.fields(cls)} if cls is not None else set()
+            base[section] = {k: v for k, v in base[section].items() if k in known}
     merged = _merge(base, {k: v for k, v in data.items() if k != "preset"})
     merged["preset"] = name
     return _build_scenario(merged, source)
 
 
 _SECTIONS = {
-    "initial": InitialState, "trajectory": TrajectorySpec,
-    "ship": ShipParams, "quantizer": QuantizerSpec, "funnel": FunnelSpec, "plant": PlantSpec,
+    "initial": InitialState,
+    "ship": ShipParams, "quantizer": QuantizerSpec, "funnel": FunnelSpec,
     "limits": LimitsSpec, "actuators": ActuatorSpec,
 }
 
@@ -360,6 +375,11 @@ def _build_scenario(data: dict, source: str) -> Scenario:
     for key, cls in _SECTIONS.items():
         if key in data:
             top[key] = _build(cls, data[key], source, key)
+    if "trajectory" in data:
+        top["trajectory"] = _kind_spec(TrajectorySpec, TRAJECTORIES, data["trajectory"], source, "trajectory",
+                                       "paper", ())
+    if "plant" in data:
+        top["plant"] = _kind_spec(PlantSpec, PLANTS, data["plant"], source, "plant", "mujoco", ("substeps",))
     for key in ("controller", "baseline", "sea", "guidance"):
         if key in data and not isinstance(data[key], dict):
             raise ScenarioError(f"{source}: [{key}] must be a table, got {data[key]!r}")
@@ -404,6 +424,32 @@ def _controller_spec(table: Any, source: str, section: str, default_kind: str) -
     return ControllerSpec(kind=kind, gains=gains)
 
 
+def _kind_spec(spec_cls, registry, table: Any, source: str, section: str, default_kind: str, common: tuple):
+    """``[trajectory]`` / ``[plant]``: ``kind`` names a registered kind whose own options dataclass
+    validates every key of the table but ``kind`` and the section's ``common`` keys (the plant's
+    ``substeps``). A built-in kind that takes no options is not imported to say so (a plant's
+    module imports MuJoCo) unless the table holds other keys."""
+    if not isinstance(table, dict):
+        raise ScenarioError(f"{source}: [{section}] must be a table, got {table!r}")
+    table = dict(table)
+    kind = table.pop("kind", default_kind)
+    if not isinstance(kind, str):
+        raise ScenarioError(f"{source}: {section}.kind must be a string, got {kind!r}")
+    own = {k: v for k, v in table.items() if k not in common}
+    defaults = spec_cls.__dataclass_fields__
+    kwargs = {k: _convert(source, f"{section}.{k}", table[k], defaults[k].default) for k in common if k in table}
+    if own or kind not in registry.builtin_kinds() or spec_cls is TrajectorySpec:
+        options_cls = registry.get(kind, f"{source}: {section}.kind").options_class
+        if options_cls is None:
+            if own:
+                raise ScenarioError(f"{source}: {section} kind {kind!r} takes no options"
+                                    + (f" besides {', '.join(common)}" if common else "")
+                                    + f", got {', '.join(sorted(own))}")
+        else:
+            kwargs["options"] = _build(options_cls, own, source, section, extra_known={"kind", *common})
+    return _construct(spec_cls, {"kind": kind, **kwargs}, source, section)
+
+
 def _build_disturbance(table: Any, source: str):
     """``[disturbance]``: ``kind`` (default "paper") names a registered disturbance, whose
     parameter dataclass validates the other keys."""
@@ -411,8 +457,8 @@ def _build_disturbance(table: Any, source: str):
         raise ScenarioError(f"{source}: [disturbance] must be a table, got {table!r}")
     table = dict(table)
     kind = table.pop("kind", "paper")
-    cls = DISTURBANCES.get(kind, f"{source}: disturbance.kind").obj
-    return _build(cls, table, source, "disturbance", extra_known={"kind"})
+    entry = DISTURBANCES.get(kind, f"{source}: disturbance.kind")
+    return _build(entry.options_class or entry.obj, table, source, "disturbance", extra_known={"kind"})
 
 
 def _build_sea(table, source: str) -> SeaSettings:
@@ -470,6 +516,10 @@ def _construct(cls, kwargs, source, section):
 
 
 def _to_plain(obj):
+    if isinstance(obj, _KindOptions):  # as its TOML table: kind, the common keys, the kind's own keys
+        out = {f.name: _to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj) if f.name != "options"}
+        out.update(_to_plain(obj.options) if obj.options is not None else {})
+        return out
     if dataclasses.is_dataclass(obj):
         return {f.name: _to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)
                 if f.name not in ("raw",)}

@@ -38,7 +38,7 @@ class RunSink(Protocol):
 
 def make_reference(scenario: Scenario, duration: float | None = None):
     """The scenario's reference trajectory over ``duration`` [s] (default: the scenario's)."""
-    return _make_reference(scenario.trajectory, scenario.duration if duration is None else duration)
+    return _make_reference(scenario.trajectory, scenario.duration if duration is None else duration, scenario)
 
 
 def state_limit_exceeded(x, ex: float, ey: float, limits) -> bool:

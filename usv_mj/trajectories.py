@@ -5,8 +5,11 @@ r_d = psi_d_dot and surge speed u_d (v_d = 0). ``reference.evaluate(t)`` returns
 :data:`usv_mj.controllers.base.REF_FIELDS` = (x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d) in m, rad, m/s,
 rad/s; the returned array is the reference's own buffer (copy it to keep it).
 
-A new trajectory is a new subclass of :class:`Reference` with a ``from_spec(spec, duration)``
-classmethod, registered with ``@TRAJECTORIES.register(kind)`` (:mod:`usv_mj.registry`).
+A new trajectory kind is a :class:`Reference` subclass (or any object with ``evaluate(t)``) and
+a typed options dataclass (the keys of its ``[trajectory]`` table), registered with
+``@TRAJECTORIES.register(kind, options=Options)`` on a ``from_scenario(options, scenario, *,
+duration)`` classmethod or a factory of that signature (:mod:`usv_mj.registry`; the built-ins
+below are registered the same way).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import bisect
 import functools
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
@@ -331,15 +335,89 @@ class WaypointReference(Reference):
 
 
 
-# --- registration: the scenario's [trajectory] kinds (TrajectorySpec carries every kind's keys) ----
-
-TRAJECTORIES.register("paper")(lambda spec, duration: PaperReference(duration=duration, speed=spec.speed))
-TRAJECTORIES.register("line")(lambda spec, duration: LineReference(spec.start, spec.heading_deg, spec.speed))
-TRAJECTORIES.register("circle")(lambda spec, duration: CircleReference(
-    spec.center, spec.radius, spec.speed, spec.start_angle_deg, spec.clockwise))
-TRAJECTORIES.register("waypoints")(lambda spec, duration: WaypointReference(spec.points, spec.speed, spec.turn_radius))
+# --- registration: the scenario's [trajectory] kinds, each with its own options ------------------
+#
+# A kind is registered as a plug-in's would be: ``TRAJECTORIES.register(kind, options=Options)`` on
+# a factory ``(options, scenario, *, duration) -> Reference`` (or a Reference subclass with that
+# ``from_scenario`` classmethod); ``duration`` [s] is the horizon the reference must cover.
 
 
-def make_reference(spec, duration: float) -> Reference:
-    """The reference that ``spec`` (a scenario's ``TrajectorySpec``) names, valid over ``duration`` [s]."""
-    return TRAJECTORIES.get(spec.kind, "trajectory.kind").obj(spec, duration)
+def _check_speed(speed) -> None:
+    if not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"speed must be > 0 m/s, got {speed!r}")
+
+
+@dataclass(frozen=True)
+class PaperOptions:
+    """``kind = "paper"``: the paper's reference (docs/model.md §4)."""
+
+    speed: float = 0.6  # [m/s] reference surge speed u_d (paper: 0.6)
+
+    def __post_init__(self) -> None:
+        _check_speed(self.speed)
+
+
+@dataclass(frozen=True)
+class LineOptions:
+    """``kind = "line"``: a straight line."""
+
+    speed: float = 0.6                       # [m/s] reference surge speed u_d
+    start: tuple[float, float] = (0.0, 0.0)  # [m] the start point (x, y)
+    heading_deg: float = 0.0                 # [deg] direction, counter-clockwise from +x
+
+    def __post_init__(self) -> None:
+        _check_speed(self.speed)
+
+
+@dataclass(frozen=True)
+class CircleOptions:
+    """``kind = "circle"``: a circle, counter-clockwise unless ``clockwise``."""
+
+    speed: float = 0.6                        # [m/s] reference surge speed u_d
+    center: tuple[float, float] = (0.0, 20.0)  # [m] the centre (x, y)
+    radius: float = 20.0                      # [m] the radius (> 0)
+    start_angle_deg: float = -90.0            # [deg] polar angle of the start (-90: the bottom, heading +x)
+    clockwise: bool = False                   # [-] run clockwise
+
+    def __post_init__(self) -> None:
+        _check_speed(self.speed)
+        if not self.radius > 0:
+            raise ValueError(f"radius must be > 0 m, got {self.radius!r}")
+
+
+@dataclass(frozen=True)
+class WaypointsOptions:
+    """``kind = "waypoints"``: straight legs through the points joined by arcs."""
+
+    speed: float = 0.6                                # [m/s] reference surge speed u_d
+    points: tuple = ((0.0, 0.0), (40.0, 0.0))          # [m] the waypoints [[x, y], ...] (at least two)
+    turn_radius: float = 5.0                          # [m] radius of the arcs that join the legs
+
+    def __post_init__(self) -> None:
+        _check_speed(self.speed)
+
+
+@TRAJECTORIES.register("paper", options=PaperOptions)
+def paper_from_scenario(options: PaperOptions, scenario, *, duration: float) -> PaperReference:
+    return PaperReference(duration=duration, speed=options.speed)
+
+
+@TRAJECTORIES.register("line", options=LineOptions)
+def line_from_scenario(options: LineOptions, scenario, *, duration: float) -> LineReference:
+    return LineReference(options.start, options.heading_deg, options.speed)
+
+
+@TRAJECTORIES.register("circle", options=CircleOptions)
+def circle_from_scenario(options: CircleOptions, scenario, *, duration: float) -> CircleReference:
+    return CircleReference(options.center, options.radius, options.speed, options.start_angle_deg, options.clockwise)
+
+
+@TRAJECTORIES.register("waypoints", options=WaypointsOptions)
+def waypoints_from_scenario(options: WaypointsOptions, scenario, *, duration: float) -> WaypointReference:
+    return WaypointReference(options.points, options.speed, options.turn_radius)
+
+
+def make_reference(spec, duration: float, scenario=None) -> Reference:
+    """The reference that ``spec`` (a scenario's ``TrajectorySpec``) names, valid over ``duration``
+    [s]; ``scenario`` is handed to the kind's factory (the built-ins do not read it)."""
+    return TRAJECTORIES.get(spec.kind, "trajectory.kind").make(spec.options, scenario, duration=duration)

@@ -23,8 +23,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("task", choices=ALL_TASKS, help="track: the paper's reference from a randomised start; "
                         "track_waves: the same in the moderate sea with current and wind; harbor: reach a goal "
                         "through a randomised harbour without contact; harbor_waves: the harbour in that sea")
-    parser.add_argument("--policy", choices=("ppc", "random"), default="ppc",
-                        help="ppc: the paper's controller (docs/model.md §3) on the observations; random: uniform actions")
+    parser.add_argument("--policy", choices=("ppc", "controller", "random"), default="ppc",
+                        help="ppc: the paper's controller (docs/model.md §3) on the observations; controller: the "
+                        "scenario's [controller] kind (a plug-in's too); random: uniform actions")
+    parser.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
+                        help="override one value of the task's scenario by dotted key, e.g. --set "
+                        "controller.kind=my-pd or --set trajectory.kind=lawnmower")
     parser.add_argument("--episodes", type=int, default=1, help="number of episodes (default 1)")
     parser.add_argument("--seed", type=int, default=0, help="environment (and random policy) seed (default 0)")
     parser.add_argument("--duration", type=float, default=None, help="episode length [s] (default 30, harbor 90)")
@@ -62,7 +66,7 @@ def run_command(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         print(f"usv-mj env: error: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
         return 2
-    if args.video:  # the video's size and file are checked before any episode runs
+    if args.video and args.video.lower() != "none":  # the video's size and file are checked before any episode runs
         from usv_mj.preflight import check_output_path
         from usv_mj.render.video import _check_size, parse_size
 
@@ -73,6 +77,14 @@ def run_command(args: argparse.Namespace) -> int:
             print(f"usv-mj env: error: --video/--size: {exc}", file=sys.stderr)
             return 2
     options = {"quantize": not args.no_quantize}
+    if args.set:
+        from usv_mj.cli import _parse_set
+
+        try:
+            options["overrides"] = _parse_set(args.set)
+        except ScenarioError as exc:
+            print(f"usv-mj env: error: {exc}", file=sys.stderr)
+            return 2
     if args.duration is not None:
         options["duration"] = args.duration
     try:
@@ -84,7 +96,12 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"usv-mj env: {exc}", file=sys.stderr)
         return 1
     try:
-        policy = PPCPolicy(env) if args.policy == "ppc" else RandomPolicy(env, seed=args.seed)
+        if args.policy == "random":
+            policy = RandomPolicy(env, seed=args.seed)
+        else:
+            from usv_mj.builder import make_controller
+
+            policy = PPCPolicy(env, make_controller(env.task.scenario) if args.policy == "controller" else None)
         first_rows, returns = None, []
         for ep in range(args.episodes):
             wall = time.perf_counter()

@@ -116,8 +116,8 @@ class AnalyticPlant(PlantBase):
         return self._x
 
     @classmethod
-    def from_scenario(cls, scenario, environment=None, obstacles=(), contact=None, safety_radii=None):
-        """The analytic plant of ``scenario`` in ``environment`` (obstacles are seen by geometry only:
+    def from_scenario(cls, options, scenario, environment=None, obstacles=(), contact=None, safety_radii=None):
+        """The analytic plant of ``scenario`` (``options``: None, it has none) in ``environment`` (obstacles are seen by geometry only:
         the clearance hooks measure them; this plant has no contact forces)."""
         return cls(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
                    environment=environment)

@@ -451,9 +451,9 @@ class MuJoCoPlant(PlantBase):
         return np.array((c * qa[0] + s * qa[1] + r * v, -s * qa[0] + c * qa[1] - r * u, qa[2]))
 
     @classmethod
-    def from_scenario(cls, scenario, environment=None, obstacles=(), contact=None, safety_radii=None,
+    def from_scenario(cls, options, scenario, environment=None, obstacles=(), contact=None, safety_radii=None,
                       rangefinders=()):
-        """The MuJoCo plant of ``scenario``: the hull of ``models/usv.xml`` in open water, or the scene
+        """The MuJoCo plant of ``scenario`` (``options``: None, it has none): the hull of ``models/usv.xml`` in open water, or the scene
         composed from the hull and ``obstacles`` (with its contact model) when there are any or
         when ``rangefinders`` (body-frame ray angles [rad]) asks for range sensors on the hull; the
         sea ``environment`` acts on the hull in both."""

@@ -23,6 +23,7 @@ and ``reason``; ``kept_funnel`` (status ok and no funnel violation, the funnel o
 from __future__ import annotations
 
 import contextlib
+import importlib
 import json
 import math
 import os
@@ -94,9 +95,10 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
     """Simulate one run of a sweep and return its row (see the module docstring).
 
     ``options``: ``transient`` [s]; ``log_path`` (write an MCAP log there through
-    ``usv_mj.runlog.RunLogWriter``); ``hooks`` (tests only, honoured only when the environment
-    variable ``USV_MJ_SWEEP_TEST_HOOKS`` is "1" in the worker: ``raise`` / ``exit_worker`` sets of
-    run ids).
+    ``usv_mj.runlog.RunLogWriter``); ``imports`` (modules that register the run's kinds at
+    runtime: imported first, :func:`usv_mj.kinds.worker_imports`); ``hooks`` (tests only,
+    honoured only when the environment variable ``USV_MJ_SWEEP_TEST_HOOKS`` is "1" in the worker:
+    ``raise`` / ``exit_worker`` sets of run ids).
     """
     from ..simulation import simulate
     from ..summary import summarize
@@ -110,6 +112,8 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
                 os._exit(13)  # the worker process dies mid-task
             if run_id in hooks.get("raise", ()):
                 raise RuntimeError(f"test hook: run {run_id} raises")
+        for module in options.get("imports", ()):
+            importlib.import_module(module)
         sinks = []
         writer = None
         if options.get("log_path"):
@@ -373,6 +377,15 @@ def runlog_available() -> bool:
     return True
 
 
+def _workers_share_this_process(client) -> bool:
+    """True when every worker of ``client`` runs in this process (an in-process cluster's threads)."""
+    try:
+        pids = client.run(os.getpid)
+    except Exception:
+        return False
+    return bool(pids) and all(pid == os.getpid() for pid in pids.values())
+
+
 def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict], None],
                 key_prefix: str = "usv-run") -> None:
     """Submit ``(run, options)`` pairs as one task each and call ``on_row(row)`` as each finishes.
@@ -384,9 +397,22 @@ def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
+    from ..kinds import worker_imports
+
     token = uuid.uuid4().hex[:8]
     futures = {}
+    shared = None  # whether every worker is a thread of this process (then it sees this registry)
     for run, options in jobs:
+        try:
+            imports = worker_imports(run.scenario)  # SweepError for a kind that exists only in this process
+        except SweepError:
+            if shared is None:
+                shared = _workers_share_this_process(client)
+            if not shared:
+                raise
+            imports = ()
+        if imports:
+            options = {**(options or {}), "imports": imports}
         fut = client.submit(run_one, run.run_id, run.scenario, run.values, options,
                             key=f"{key_prefix}-{run.run_id}-{token}", pure=False, retries=0)
         futures[fut] = run
