@@ -392,7 +392,8 @@ def _criterion(scenario, source: str):
     return criterion
 
 
-def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows, criterion):
+def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows, criterion=None):
+    criterion = criterion or _criterion(scenario, f"capability --load {load.name}")
     title = (f"capability: {load.label}\n{scenario.preset}, {scenario.controller.kind}, "
              f"{scenario.duration:g} s, {scenario.plant.kind} plant")
     unlimited = scenario.actuators.unlimited
