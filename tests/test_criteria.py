@@ -319,3 +319,54 @@ def test_paper_words_stay_for_the_paper_controller():
                            "quantizer_switches": {"u": 1, "r": 2}, "criterion": {}})
     assert line == "  funnel violations: 0 steps; s2 clamps: 0; quantizer switches: u 1, r 2"
     assert not any(PAPER_WORDS.search(t) for t in figure_titles("pose_tolerance", False).values())
+
+
+@pytest.mark.parametrize("criterion", [PathTolerance(settle_time_s=5.0, cross_track_m=1.0),
+                                       NotJudged("open-loop test input")], ids=["path", "not_judged"])
+def test_path_and_not_judged_outputs(tmp_path, pd_kind, criterion, monkeypatch):
+    """The other two criteria through the summary, figures, report and a sweep row (in-process)."""
+    from usv_mj import load_scenario, simulate, summarize
+    from usv_mj.figures import draw_figures
+    from usv_mj.report import write_report
+    from usv_mj.sweep.runner import run_one
+
+    scen = tmp_path / "pd.toml"
+    scen.write_text(SCENARIO)
+    sc = load_scenario(scen)
+    law = PDTest()
+    law.criterion = criterion
+    rec = simulate(sc, controller=law)
+    assert rec.metadata["criterion"] == criterion.to_dict()
+    s = summarize(rec)
+    text = json.dumps(s, allow_nan=False)  # summary.json: an infinite along-track bound is null
+    block = s["criterion"]
+    assert block["kind"] == criterion.kind and block["description"] == criterion.describe()
+    if criterion.kind == "path_tolerance":
+        # on a line along +x the cross-track error is y - y_d and the along-track one x - x_d
+        assert block["passed"] is True
+        after = rec["t"] >= 5.0
+        assert block["max_cross_track_m"] == pytest.approx(np.max(np.abs(rec["y"] - rec["y_d"])[after]))
+        assert block["max_along_track_m"] == pytest.approx(np.max(np.abs(rec["x"] - rec["x_d"])[after]))
+    else:
+        assert block["passed"] is None and block["violations"] is None
+    draw_figures(rec, tmp_path / "figures")
+    assert len(list((tmp_path / "figures").glob("fig*.png"))) == 7
+    report = write_report(tmp_path / "report.md", s).read_text()
+    assert criterion.describe() in report
+    for t, where in ((report, "report.md"), (text, "summary.json")):
+        _no_paper_words(t, where)
+    # a sweep row of the kind declaring it: passed only when judged and kept (a run not judged never passes)
+    monkeypatch.setattr(PDTest, "criterion", criterion)
+    row = run_one(0, sc, {})
+    assert row["criterion.kind"] == criterion.kind and row["passed"] is (criterion.kind == "path_tolerance")
+
+
+def test_capability_refuses_a_controller_whose_runs_are_not_judged(tmp_path, pd_kind, monkeypatch):
+    from usv_mj.sweep import SweepError
+    from usv_mj.sweep.capability import run_capability
+
+    scen = tmp_path / "pd.toml"
+    scen.write_text(SCENARIO)
+    monkeypatch.setattr(PDTest, "criterion", NotJudged("open-loop test input"))
+    with pytest.raises(SweepError, match="not judged \\(open-loop test input\\): there is no criterion"):
+        run_capability("disturbance", base=str(scen), out=tmp_path / "cap", progress=False, echo=None)
