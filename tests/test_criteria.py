@@ -147,6 +147,12 @@ def test_what_the_built_in_controllers_declare():
     with pytest.raises(ScenarioError, match="has no kind, describe, to_dict, evaluate"):
         criterion_of(Bad())
 
+    class NoFunnel:
+        name, diagnostic_fields, criterion = "no-funnel", ("e1",), FunnelCriterion()
+
+    with pytest.raises(ScenarioError, match="declares the funnel criterion but not the funnel fields"):
+        criterion_of(NoFunnel())
+
 
 # --- a registered PD law with a pose tolerance, through every command ------------------------------
 

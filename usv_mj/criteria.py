@@ -155,7 +155,8 @@ class PathTolerance:
                 raise ScenarioError(f"criterion {self.kind}: {name} = {v!r} must be a number >= 0")
 
     def describe(self) -> str:
-        along = "" if self.along_track_m == float("inf") else f" and the along-track error under {self.along_track_m:g} m"
+        along = ("" if self.along_track_m == float("inf")
+                 else f" and the along-track error under {self.along_track_m:g} m")
         return f"after {self.settle_time_s:g} s the cross-track error stays under {self.cross_track_m:g} m{along}"
 
     def to_dict(self) -> dict:
@@ -202,8 +203,8 @@ class NotJudged:
         return {"kind": self.kind, **asdict(self)}
 
     def evaluate(self, record) -> dict:
-        return {"kind": self.kind, "noun": self.noun, "description": self.describe(), "passed": None, "violations": None,
-                "first_violation_s": None, "judged_steps": 0, "params": _params(self)}
+        return {"kind": self.kind, "noun": self.noun, "description": self.describe(), "passed": None,
+                "violations": None, "first_violation_s": None, "judged_steps": 0, "params": _params(self)}
 
 
 CRITERIA = {c.kind: c for c in (FunnelCriterion, PoseTolerance, PathTolerance, NotJudged)}
@@ -232,11 +233,15 @@ def criterion_of(controller):
         if missing:
             raise ScenarioError(f"controller {getattr(controller, 'name', '?')!r}: its criterion {declared!r} "
                                 f"has no {', '.join(missing)} (usv_mj.criteria: the contract)")
-        return declared
     from .controllers.base import FUNNEL_FIELDS
 
-    return FunnelCriterion() if set(FUNNEL_FIELDS) <= set(getattr(controller, "diagnostic_fields", ())) \
-        else PoseTolerance()
+    has_funnel = set(FUNNEL_FIELDS) <= set(getattr(controller, "diagnostic_fields", ()))
+    if declared is not None:
+        if declared.kind == "funnel" and not has_funnel:
+            raise ScenarioError(f"controller {getattr(controller, 'name', '?')!r} declares the funnel criterion "
+                                f"but not the funnel fields {', '.join(FUNNEL_FIELDS)} among its diagnostic_fields")
+        return declared
+    return FunnelCriterion() if has_funnel else PoseTolerance()
 
 
 def criterion_of_record(record):

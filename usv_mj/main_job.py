@@ -134,7 +134,8 @@ def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_o
                                                          "funnel_violations", "first_violation_s") if k in calm_summary}
     lines = ["## The controller in this sea", "",
              f"Sea: {json.dumps(scenario.sea.to_dict())}; significant wave height seen at the hull "
-             f"{summary_out['hs_at_hull_m']:.3f} m. {outcome_sentence(summary['criterion'])} The same scenario in calm water beside it "
+             f"{summary_out['hs_at_hull_m']:.3f} m. {outcome_sentence(summary['criterion'])} "
+             "The same scenario in calm water beside it "
              "(the controller is not tuned to the sea: the capability study is `usv-mj capability`):", "",
              "| error | t | in this sea | calm water |", "|---|---|---|---|"]
     for axis, unit in (("x", "m"), ("y", "m"), ("psi", "rad")):

@@ -467,6 +467,7 @@ def capability_command(args: argparse.Namespace) -> int:
         return 1
     for r in results:
         d = "any direction" if r.direction_deg is None else f"{r.direction_deg:g} deg"
-        print(f"{d}: {r.noun[4:] if r.noun.startswith('the ') else r.noun} holds up to {r.holds}, lost at {r.fails}" + (f" ({'; '.join(r.notes)})" if r.notes else ""))
+        what = r.noun[4:] if r.noun.startswith("the ") else r.noun
+        print(f"{d}: {what} holds up to {r.holds}, lost at {r.fails}" + (f" ({'; '.join(r.notes)})" if r.notes else ""))
     print(f"{args.out}/capability.md, {args.out}/capability.png")
     return 0

@@ -219,7 +219,8 @@ def _column_type(name: str, values: list):
 
 
 def _column_order(rows: list[dict], paths: list[str]) -> list[str]:
-    first = ["run_id"] + [f"vary.{p}" for p in paths] + ["status", "reason", "passed", "criterion.kind", "task_wall_time_s"]
+    first = ["run_id"] + [f"vary.{p}" for p in paths] + ["status", "reason", "passed", "criterion.kind",
+                                                         "task_wall_time_s"]
     seen = dict.fromkeys(first)
     for row in rows:
         for key in row:
