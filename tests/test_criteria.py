@@ -376,3 +376,18 @@ def test_capability_refuses_a_controller_whose_runs_are_not_judged(tmp_path, pd_
     monkeypatch.setattr(PDTest, "criterion", NotJudged("open-loop test input"))
     with pytest.raises(SweepError, match="not judged \\(open-loop test input\\): there is no criterion"):
         run_capability("disturbance", base=str(scen), out=tmp_path / "cap", progress=False, echo=None)
+
+
+def test_compare_judges_the_closed_loop_by_the_controllers_criterion(tmp_path, pd_kind):
+    """compare's closed loop with the PD law: both plants pass its pose tolerance (their difference is
+    far below it), and compare.json's keys say the criterion, not the funnel."""
+    from usv_mj import load_scenario
+    from usv_mj.compare import compare_closed_loop
+
+    scen = tmp_path / "pd.toml"
+    scen.write_text(SCENARIO)
+    result, _ = compare_closed_loop(load_scenario(scen, overrides={"duration": 6.0}), progress=False)
+    assert result["passed_criterion"] == {"analytic": True, "mujoco": True}
+    assert result["criterion"] == PD_CRITERION.describe()
+    assert "inside_funnels" not in result and "max_abs_z" not in result
+    assert result["max_position_m"] < 1e-3
