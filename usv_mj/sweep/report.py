@@ -62,6 +62,8 @@ def passed_rate(rows: list[dict]) -> str:
     kept = sum(bool(r.get("passed")) for r in rows)
     crits = criteria_of(rows)
     words = "; ".join(d for _, d in crits) if crits else "the controller's criterion (no run was judged)"
+    if crits and all(r.get("criterion.kind") in ("not_judged", None) for r in rows):
+        return f"0 of {len(rows)} passed: the runs are {words}"
     return f"{kept} of {len(rows)} passed: {words}"
 
 
