@@ -391,3 +391,28 @@ def test_compare_judges_the_closed_loop_by_the_controllers_criterion(tmp_path, p
     assert result["criterion"] == PD_CRITERION.describe()
     assert "inside_funnels" not in result and "max_abs_z" not in result
     assert result["max_position_m"] < 1e-3
+
+
+def test_video_hud_of_a_run_without_a_funnel_shows_pose_errors_and_no_funnel(tmp_path, pd_kind):
+    """The video's planner and overlay (no OpenGL needed): pose errors in the HUD, no funnel legend entry."""
+    from usv_mj import load_scenario, simulate
+    from usv_mj.render.overlay import draw_hud
+    from usv_mj.render.planner import plan_frames
+
+    scen = tmp_path / "pd.toml"
+    scen.write_text(SCENARIO)
+    rec = simulate(load_scenario(scen, overrides={"duration": 2.0, "initial": {"eta": [0.5, -0.3, 0.2]}}))
+    frames = plan_frames(rec, fps=5, speedup=1.0, width=160, height=120).frames
+    for f in frames:
+        k = int(np.argmin(np.abs(rec["t"] - f.t)))
+        assert f.hud["funnel"] is False
+        assert f.hud["e"][0] == pytest.approx(rec["x"][k] - rec["x_d"][k])
+        assert f.hud["e"][1] == pytest.approx(rec["y"][k] - rec["y_d"][k])
+        assert not math.isfinite(f.funnel_half[0])  # no funnel box in the 3-D scene
+
+    def legend_rows(funnel):  # rows of a white frame that the legend panel darkened
+        frame = np.full((720, 1280, 3), 255, np.uint8)
+        draw_hud(frame, {"funnel": funnel}, hud=False, legend=True)
+        return int(np.sum(frame[:, 20, 0] < 255))
+
+    assert legend_rows(True) - legend_rows(False) == 22  # one entry (22 px at 720 px) fewer
