@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from usv_mj.criteria import FunnelCriterion
 from usv_mj.registry import CONTROLLERS
 from usv_mj.ship import ShipParams
 
@@ -112,6 +113,9 @@ class PIController:
 
     name = "pi"
     diagnostic_fields = TRACKING_FIELDS + ("u_e", "r_e", "integral_u", "integral_r")
+    # judged by the PPC law's funnel, as the paper compares the two (its funnel errors, same transform);
+    # beside another controller the main job judges it by that controller's criterion instead
+    criterion = FunnelCriterion()
 
     @classmethod
     def from_scenario(cls, gains: PIGains, scenario) -> "PIController":

@@ -79,7 +79,8 @@ def test_a_registered_controller_runs_end_to_end(tmp_path):
     assert rec.diagnostic_fields == ("heading_error", "speed_error") and not rec.has_funnel
     # the toy law converges: the heading error of a damped second-order loop decays from 0.3 rad
     assert abs(rec["heading_error"][0] - 0.3) < 1e-12 and abs(rec["heading_error"][-1]) < 0.01
-    assert result.summary["controller"] == "toy" and result.summary["funnel_violations"] is None
+    assert result.summary["controller"] == "toy" and "funnel_violations" not in result.summary
+    assert result.summary["criterion"]["kind"] == "pose_tolerance"  # the default of a law without a funnel
     assert result.summary["s2_clamps"] is None
     figures = sorted(p.name for p in (tmp_path / "toy" / "figures").glob("*.png"))
     assert len(figures) == 7

@@ -150,7 +150,7 @@ def test_search_capability_finds_a_threshold_and_flags_non_monotone():
     threshold = 0.3137
 
     def evaluate(points):
-        return {(d, v): {"kept_funnel": v <= threshold} for d, v in points}
+        return {(d, v): {"passed": v <= threshold} for d, v in points}
 
     for slots in (1, 2, 5):
         (res,) = search_capability(evaluate, [None], 1e-4, 10.0, "log", 0.02, slots)
@@ -166,7 +166,7 @@ def test_search_capability_finds_a_threshold_and_flags_non_monotone():
     assert r.holds is None and r.fails == 0.5
 
     def bumpy(points):  # holds below 0.3 and again in (0.55, 0.6): not monotone
-        return {(d, v): {"kept_funnel": v <= 0.3 or 0.55 < v < 0.6} for d, v in points}
+        return {(d, v): {"passed": v <= 0.3 or 0.55 < v < 0.6} for d, v in points}
 
     (r,) = search_capability(bumpy, [None], 0.0, 1.0, "linear", 0.01, 6)
     assert r.holds <= 0.3 < r.fails and any("not monotone" in n for n in r.notes)
@@ -224,7 +224,7 @@ def test_local_default_and_two_worker_cluster_give_identical_rows(tmp_path):
         assert row[f"errors_at.5.{axis}"] == direct["errors_at"]["5"][axis]
     assert row["funnel_violations"] == direct["funnel_violations"]
     assert row["quantizer_switches.u"] == direct["quantizer_switches"]["u"]
-    assert row["kept_funnel"] == (direct["funnel_violations"] == 0)
+    assert row["passed"] == (direct["funnel_violations"] == 0)
     assert (tmp_path / "local" / "report.md").is_file()
 
 
@@ -260,7 +260,7 @@ test_hooks = { raise = [1], exit_worker = [2] }
     for i in (3, 4, 5):
         assert by_id[i]["status"] == "diverged", by_id[i]
         assert "limits" in by_id[i]["reason"] and by_id[i]["simulated_s"] < 1.0
-        assert by_id[i]["kept_funnel"] is False
+        assert by_id[i]["passed"] is False
     report = (tmp_path / "out" / "report.md").read_text()
     assert "1 of 6" in report  # only run 0 kept the funnel
     assert "| 2 | failed | 0.0001 |" in report and "worker died" in report
@@ -424,12 +424,12 @@ def test_capability_stops_on_a_failed_run_instead_of_calling_it_a_limit(monkeypa
             if run.values["disturbance.scale"] > 0.01:
                 on_row(failed_row(run.run_id, run.values, "worker died: out of memory"))
             else:
-                on_row({"run_id": run.run_id, "status": "ok", "kept_funnel": True, "reason": None})
+                on_row({"run_id": run.run_id, "status": "ok", "passed": True, "reason": None})
 
     monkeypatch.setattr(runner, "gather_rows", fake_gather)
     base = load_scenario(preset="paper", overrides={"duration": 5.0})
     evaluator = _Evaluator(None, base, LOADS["disturbance"], 0.0, "test")
-    assert evaluator([(None, 0.001)])[(None, 0.001)]["kept_funnel"]
+    assert evaluator([(None, 0.001)])[(None, 0.001)]["passed"]
     with pytest.raises(SweepError, match=r"disturbance.scale = 0.5 failed, so the search cannot go on: "
                                          r"worker died: out of memory"):
         search_capability(evaluator, [None], 1e-4, 0.5, "log", 0.05, 2)
@@ -496,8 +496,8 @@ def test_directional_search_runs_on_dask_and_zero_load_runs_once(tmp_path, clien
     for r in results:
         assert r.holds is not None and r.fails is not None and r.holds < r.fails
         mine = [row for row in evaluator.rows if row["direction_deg"] == r.direction_deg or row["load"] == 0.0]
-        assert r.holds == max(row["load"] for row in mine if row["kept_funnel"])
-        assert r.fails == min(row["load"] for row in mine if not row["kept_funnel"]) or r.notes
+        assert r.holds == max(row["load"] for row in mine if row["passed"])
+        assert r.fails == min(row["load"] for row in mine if not row["passed"]) or r.notes
     for row in evaluator.rows:
         assert row["vary.trajectory.heading_deg"] == row["direction_deg"] or row["load"] == 0.0
     _write_outputs(tmp_path, results, load, base, 0.0, 0.0, 1.0, 0.3, evaluator.rows)

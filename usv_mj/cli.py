@@ -225,6 +225,7 @@ def _add_plot(sub):
 
 
 def _plot_command(args) -> int:
+    from .criteria import criterion_of_record
     from .figures import draw_figures
     from .report import write_report
     from .runlog import read_run
@@ -250,7 +251,8 @@ def _plot_command(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     draw_figures(log.record, out / "figures", log.baseline)
     summary = summarize(log.record)
-    write_report(out / "report.md", summary, summarize(log.baseline) if log.baseline is not None else None,
+    base = summarize(log.baseline, criterion_of_record(log.record)) if log.baseline is not None else None
+    write_report(out / "report.md", summary, base,
                  log.metadata.get("step_check"))
     print(f"figures and report from {path} written to {out}/")
     return EXIT_OK
@@ -269,7 +271,7 @@ _EXTERNAL = {
     "sweep": ("usv_mj.sweep", "add_arguments", "run_command",
               "Monte-Carlo sweep of many runs on a Dask cluster (local by default)"),
     "capability": ("usv_mj.sweep", "add_capability_arguments", "capability_command",
-                   "environment capability polar: the largest load at which the funnel holds"),
+                   "environment capability polar: the largest load at which the controller's criterion holds"),
     "env": ("usv_mj.envs.cli", "add_arguments", "run_command",
             "roll out a policy (ppc, random) in a dm_control task (track, track_waves, harbor): returns and a video"),
     "kinds": ("usv_mj.kinds", "add_arguments", "run_command",
@@ -289,12 +291,13 @@ _DESCRIPTIONS = {
               "speed-up or camera (top, chase, overview, chart). Writes video.mp4 and video.png.",
     "sweep": "Run many variations of one scenario (a sweep file: a base scenario and what varies, by dotted\n"
              "path such as initial.eta[0] or sea.current.speed) on a Dask cluster, local by default.\n"
-             "Results stream into results.parquet; report.md gives the rate of runs that kept the funnel.\n"
+             "Results stream into results.parquet; report.md gives the rate of runs that passed\n"
+             "the controller's criterion (the funnel for the paper's controller).\n"
              "--resume runs only what is missing.",
     "capability": "The environment capability polar (DNV style): for each direction, the largest current,\n"
-                  "wind or wave load at which the controller keeps its funnel, found by bisection. With\n"
-                  "unlimited actuators it shows the control law's limit, not the vessel's (use a preset\n"
-                  "with [actuators], e.g. --scenario paper-limited).",
+                  "wind or wave load at which the controller's criterion holds (the funnel for the paper's\n"
+                  "controller), found by bisection. With unlimited actuators it shows the control law's\n"
+                  "limit, not the vessel's (use a preset with [actuators], e.g. --scenario paper-limited).",
     "env": "Roll out a policy (ppc: the paper's controller; random) in a dm_control task (track,\n"
            "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode.",
     "kinds": "List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"

@@ -8,23 +8,64 @@ and the default :class:`PoseTolerance` to any other. Every output (console, ``su
 words; the criterion travels in the record's metadata (``metadata["criterion"]``, the dict of
 :meth:`to_dict`), so outputs made from a log alone judge it the same way.
 
-A leaf module: it imports nothing of the package but the errors.
+It imports nothing of the package at import time but the errors (the pose errors of
+:mod:`usv_mj.summary` and the funnel's field names when called).
 
 Contract (each criterion):
 
-- ``kind``: a short identifier ("funnel", "pose_tolerance");
+- ``kind``: a short identifier ("funnel", "pose_tolerance", "path_tolerance", "not_judged");
+- ``noun``: what holds or is lost, in the outputs' sentences ("the funnel", "the pose tolerance");
 - ``describe() -> str``: one line in plain words, for the report and the console;
 - ``to_dict() -> dict`` and :func:`criterion_from_dict` (its inverse);
-- ``evaluate(record) -> dict``: ``{"criterion": kind, "description": str, "passed": bool | None,
-  "violations": int | None (steps that broke it), "first_violation_s": float | None, ...}``
-  (``passed`` None when the record is too short to judge).
+- ``evaluate(record) -> dict``: ``{"kind": kind, "noun": noun, "description": str, "passed": bool | None,
+  "violations": int | None (control steps that broke it), "first_violation_s": float | None,
+  "judged_steps": int, ...}`` plus the criterion's own largest errors, every value JSON-ready
+  (no inf or NaN: None). ``passed`` is False as soon as one judged step broke it; True when none
+  did and the run completed with at least one judged step; None otherwise (a run that stopped
+  early without a violation, a record that ends before the settling time, :class:`NotJudged`).
+  A non-finite error counts as broken.
+
+Time window: the tolerances judge the control steps with t >= ``settle_time_s``; the funnel every step.
+A criterion class of a plug-in's own follows the same contract and is added to :data:`CRITERIA`
+under its ``kind`` (so that a log names it back).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
+import numpy as np
+
 from .errors import ScenarioError
+
+
+def _finite(v) -> float | None:
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _params(criterion) -> dict:
+    """The criterion's fields, JSON-ready (an infinite bound: None, "not judged")."""
+    return {k: (_finite(v) if isinstance(v, float) else v) for k, v in asdict(criterion).items()}
+
+
+def _verdict(criterion, record, broken: np.ndarray, judged: np.ndarray, **extra) -> dict:
+    """The result dict of the module docstring from the per-row flags ``broken`` (a step broke the
+    criterion) and ``judged`` (the step is in the criterion's window)."""
+    t = np.asarray(record["t"])
+    bad = broken & judged
+    n_bad = int(bad.sum())
+    completed = getattr(record, "status", "completed") == "completed"
+    passed = False if n_bad else (True if completed and judged.any() else None)
+    return {"kind": criterion.kind, "noun": criterion.noun, "description": criterion.describe(), "passed": passed,
+            "violations": n_bad, "first_violation_s": _finite(t[np.argmax(bad)]) if n_bad else None,
+            "judged_steps": int(judged.sum()), **extra, "params": _params(criterion)}
+
+
+def _max_abs(values: np.ndarray, judged: np.ndarray) -> float | None:
+    """max |values| over the judged rows (None: none judged, or not finite)."""
+    return _finite(np.max(np.abs(values[judged]))) if judged.any() else None
 
 
 @dataclass(frozen=True)
@@ -33,12 +74,22 @@ class FunnelCriterion:
     (the prescribed-performance bound of Eqs. 9 and 14, docs/model.md §3)."""
 
     kind = "funnel"
+    noun = "the funnel"
 
     def describe(self) -> str:
         return "the tracking errors stay inside the prescribed-performance funnel (|z_i| < 1 at every step)"
 
     def to_dict(self) -> dict:
         return {"kind": self.kind}
+
+    def evaluate(self, record) -> dict:
+        """Every step is judged: broken where any |z_i| >= 1 (or z_i is not finite)."""
+        if not all(f"z{i}" in record for i in (1, 2, 3)):
+            raise ScenarioError(f"criterion {self.kind}: the record has no funnel columns z1, z2, z3 "
+                                f"(controller {record.metadata.get('controller', '?')!r} declares none)")
+        z = np.stack([record["z1"], record["z2"], record["z3"]])
+        broken = np.any(~(np.abs(z) < 1.0), axis=0)
+        return _verdict(self, record, broken, np.ones(len(broken), bool))
 
 
 @dataclass(frozen=True)
@@ -51,6 +102,7 @@ class PoseTolerance:
     heading_deg: float = 10.0     # deg: bound on |wrap(psi - psi_d)|
 
     kind = "pose_tolerance"
+    noun = "the pose tolerance"
 
     def __post_init__(self):
         for name in ("settle_time_s", "position_m", "heading_deg"):
@@ -65,6 +117,21 @@ class PoseTolerance:
     def to_dict(self) -> dict:
         return {"kind": self.kind, **asdict(self)}
 
+    def errors(self, record) -> dict:
+        """The judged errors at every row: ``position`` sqrt((x - x_d)^2 + (y - y_d)^2) [m] and
+        ``heading`` |wrap(psi - psi_d)| [rad] (from :func:`usv_mj.summary.pose_errors`)."""
+        from .summary import pose_errors
+
+        e = pose_errors(record)
+        return {"position": np.hypot(e["x"], e["y"]), "heading": np.abs(e["psi"])}
+
+    def evaluate(self, record) -> dict:
+        e = self.errors(record)
+        judged = np.asarray(record["t"]) >= self.settle_time_s
+        broken = ~(e["position"] < self.position_m) | ~(e["heading"] < math.radians(self.heading_deg))
+        return _verdict(self, record, broken, judged, max_position_error_m=_max_abs(e["position"], judged),
+                        max_heading_error_rad=_max_abs(e["heading"], judged))
+
 
 @dataclass(frozen=True)
 class PathTolerance:
@@ -78,6 +145,8 @@ class PathTolerance:
     along_track_m: float = float("inf")   # m: bound on the path-tangential error (inf: not judged)
 
     kind = "path_tolerance"
+    noun = "the path tolerance"
+    still_speed = 1e-6  # m/s: below this reference speed the course is psi_d
 
     def __post_init__(self):
         for name in ("settle_time_s", "cross_track_m", "along_track_m"):
@@ -86,11 +155,36 @@ class PathTolerance:
                 raise ScenarioError(f"criterion {self.kind}: {name} = {v!r} must be a number >= 0")
 
     def describe(self) -> str:
-        along = "" if self.along_track_m == float("inf") else f" and the along-track error under {self.along_track_m:g} m"
+        along = ("" if self.along_track_m == float("inf")
+                 else f" and the along-track error under {self.along_track_m:g} m")
         return f"after {self.settle_time_s:g} s the cross-track error stays under {self.cross_track_m:g} m{along}"
 
     def to_dict(self) -> dict:
         return {"kind": self.kind, **asdict(self)}
+
+    def errors(self, record) -> dict:
+        """The path-frame errors at every row [m]: with the course chi = atan2(y_d_dot, x_d_dot)
+        (psi_d where the reference speed is below ``still_speed``) and (ex, ey) = (x - x_d, y - y_d),
+        ``along`` = cos(chi) ex + sin(chi) ey (> 0: ahead of the reference point) and
+        ``cross`` = -sin(chi) ex + cos(chi) ey (> 0: left of the path, the z-up frame)."""
+        from .summary import pose_errors
+
+        e = pose_errors(record)
+        xd, yd = record["x_d_dot"], record["y_d_dot"]
+        chi = np.where(np.hypot(xd, yd) >= self.still_speed, np.arctan2(yd, xd), record["psi_d"])
+        c, s = np.cos(chi), np.sin(chi)
+        return {"along": c * e["x"] + s * e["y"], "cross": -s * e["x"] + c * e["y"]}
+
+    def evaluate(self, record) -> dict:
+        e = self.errors(record)
+        judged = np.asarray(record["t"]) >= self.settle_time_s
+        broken = ~(np.abs(e["cross"]) < self.cross_track_m)
+        if self.along_track_m != float("inf"):
+            broken |= ~(np.abs(e["along"]) < self.along_track_m)
+        else:  # not judged along the path, but a non-finite error is
+            broken |= ~np.isfinite(e["along"])
+        return _verdict(self, record, broken, judged, max_cross_track_m=_max_abs(e["cross"], judged),
+                        max_along_track_m=_max_abs(e["along"], judged))
 
 
 @dataclass(frozen=True)
@@ -100,6 +194,7 @@ class NotJudged:
     reason: str = "open-loop input"
 
     kind = "not_judged"
+    noun = "no criterion"
 
     def describe(self) -> str:
         return f"not judged ({self.reason})"
@@ -107,17 +202,26 @@ class NotJudged:
     def to_dict(self) -> dict:
         return {"kind": self.kind, **asdict(self)}
 
+    def evaluate(self, record) -> dict:
+        return {"kind": self.kind, "noun": self.noun, "description": self.describe(), "passed": None,
+                "violations": None, "first_violation_s": None, "judged_steps": 0, "params": _params(self)}
+
 
 CRITERIA = {c.kind: c for c in (FunnelCriterion, PoseTolerance, PathTolerance, NotJudged)}
 
 
 def criterion_from_dict(d: dict):
-    """The criterion that :meth:`to_dict` wrote."""
+    """The criterion that :meth:`to_dict` wrote (a JSON null bound, as ``summary.json`` writes an
+    infinite one, reads back as inf)."""
     d = dict(d)
     kind = d.pop("kind", None)
     if kind not in CRITERIA:
         raise ScenarioError(f"unknown success criterion {kind!r}; criteria: {', '.join(CRITERIA)}")
-    return CRITERIA[kind](**d)
+    d = {k: (float("inf") if v is None and k.endswith("_m") else v) for k, v in d.items()}
+    try:
+        return CRITERIA[kind](**d)
+    except TypeError as exc:
+        raise ScenarioError(f"success criterion {kind!r}: {exc}") from None
 
 
 def criterion_of(controller):
@@ -125,7 +229,26 @@ def criterion_of(controller):
     for a controller with the funnel block among its diagnostics, else the default pose tolerance."""
     declared = getattr(controller, "criterion", None)
     if declared is not None:
+        missing = [m for m in ("kind", "describe", "to_dict", "evaluate") if not hasattr(declared, m)]
+        if missing:
+            raise ScenarioError(f"controller {getattr(controller, 'name', '?')!r}: its criterion {declared!r} "
+                                f"has no {', '.join(missing)} (usv_mj.criteria: the contract)")
+    from .controllers.base import FUNNEL_FIELDS
+
+    has_funnel = set(FUNNEL_FIELDS) <= set(getattr(controller, "diagnostic_fields", ()))
+    if declared is not None:
+        if declared.kind == "funnel" and not has_funnel:
+            raise ScenarioError(f"controller {getattr(controller, 'name', '?')!r} declares the funnel criterion "
+                                f"but not the funnel fields {', '.join(FUNNEL_FIELDS)} among its diagnostic_fields")
         return declared
-    from_fields = set(getattr(controller, "diagnostic_fields", ()))
-    funnel = {"e1", "e2", "e3", "rho1", "rho2", "rho3", "z1", "z2", "z3"}  # controllers.base.FUNNEL_FIELDS
-    return FunnelCriterion() if funnel <= from_fields else PoseTolerance()
+    return FunnelCriterion() if has_funnel else PoseTolerance()
+
+
+def criterion_of_record(record):
+    """The criterion a run is judged by: the one in ``record.metadata["criterion"]`` (the loop puts
+    the controller's there); a record without one (a log older than the criteria) is judged by the
+    funnel when it has the funnel columns, else by the default :class:`PoseTolerance`."""
+    d = record.metadata.get("criterion")
+    if d:
+        return criterion_from_dict(d)
+    return FunnelCriterion() if getattr(record, "has_funnel", False) else PoseTolerance()

@@ -4,6 +4,12 @@
 and e3 (Eq. 15) with the bounds +-rho_i (Eq. 9) and the PI baseline; 5-6. tau_u against Q(tau_u)
 and tau_r against Q(tau_r); 7. the norms of the network weights.
 
+A run judged by another criterion than the funnel (:mod:`usv_mj.criteria`) gets in 2-4 the errors
+its criterion judges, with the tolerance band from the settling time on (pose tolerance: x - x_d
+and y - y_d with the position error norm, and the heading error; path tolerance: the along- and
+cross-track errors and the heading error), and in 7 the diagnostics its controller declares;
+:func:`figure_titles` gives the titles in each case.
+
 Drawing is deterministic (no timestamps in the PNGs), so figures made from the log equal those made
 from the live run.
 """
@@ -28,7 +34,28 @@ FIGURES = {
     "fig6_tau_r.png": "Yaw moment tau_r and Q(tau_r)",
     "fig7_weights.png": "Network weight norms",
 }
+_OTHER_TITLES = {
+    "pose_tolerance": ("Position error x - x_d with the position tolerance",
+                       "Position error y - y_d with the position tolerance",
+                       "Heading error with the heading tolerance"),
+    "path_tolerance": ("Along-track error with the path tolerance", "Cross-track error with the path tolerance",
+                       "Heading error psi - psi_d"),
+}
+_POSE_TITLES = ("Pose error x - x_d", "Pose error y - y_d", "Heading error psi - psi_d")
 _PNG_META = {"Software": None}
+
+
+def figure_titles(criterion_kind: str, weights: bool) -> dict:
+    """The titles of the seven figures of a run judged by ``criterion_kind`` whose record has
+    (``weights``) or lacks the network weight norms: :data:`FIGURES` for the paper's controller."""
+    titles = dict(FIGURES)
+    if criterion_kind != "funnel":
+        for name, title in zip(("fig2_error_x.png", "fig3_error_y.png", "fig4_error_psi.png"),
+                               _OTHER_TITLES.get(criterion_kind, _POSE_TITLES)):
+            titles[name] = title
+    if not weights:
+        titles["fig7_weights.png"] = "Diagnostics declared by the controller"
+    return titles
 MAX_POINTS = 20000
 
 
@@ -43,8 +70,12 @@ def _save(fig, path: Path) -> None:
 
 def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, obstacles=()) -> list[Path]:
     """Write the seven figures into ``out_dir`` and return their paths (obstacles, with their
-    inflated safety boundaries, in the trajectory figure). A record whose controller declares no
-    funnel (e, rho, z) gets no figures 2-4, one without the weight norms no figure 7."""
+    inflated safety boundaries, in the trajectory figure). A run judged by another criterion than
+    the funnel gets its criterion's errors in figures 2-4 (module docstring), one without the
+    weight norms its controller's own diagnostics in figure 7."""
+    from .criteria import criterion_of_record
+
+    criterion = criterion_of_record(record)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     s = _stride(len(record))
@@ -78,8 +109,8 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
 
     for axis, name_, unit, fname in ((1, "x", "m", "fig2_error_x.png"), (2, "y", "m", "fig3_error_y.png"),
                                       (3, "psi", "rad", "fig4_error_psi.png")):
-        if not record.has_funnel:  # a controller without a funnel: the plain pose errors
-            paths.append(_pose_error_figure(record, baseline, axis, name_, unit, out / fname, s))
+        if criterion.kind != "funnel" or not record.has_funnel:  # the errors its criterion judges
+            paths.append(_criterion_error_figure(record, baseline, criterion, axis, out / fname, s))
             continue
         fig, ax = plt.subplots(figsize=(8, 4))
         rho = record[f"rho{axis}"][::s]
@@ -145,21 +176,50 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     return paths
 
 
-def _pose_error_figure(record, baseline, axis, name, unit, path, s):
-    """The pose error (x - x_d, y - y_d, wrap(psi - psi_d)) of a run whose controller has no funnel."""
+def _panels(criterion, record) -> list:
+    """Figures 2-4 of a run judged by ``criterion`` (not the funnel): per figure (label, unit, error,
+    tolerance or None, the judged norm's label or None, the norm or None)."""
+    import math
+
     from .summary import pose_errors
 
+    e = pose_errors(record)
+    heading = ("wrap(psi - psi_d)", "rad", e["psi"], None, None, None)
+    if criterion.kind == "pose_tolerance":
+        pos = criterion.errors(record)["position"]
+        return [("x - x_d", "m", e["x"], criterion.position_m, "|p - p_d|", pos),
+                ("y - y_d", "m", e["y"], criterion.position_m, "|p - p_d|", pos),
+                heading[:3] + (math.radians(criterion.heading_deg), None, None)]
+    if criterion.kind == "path_tolerance":
+        pe = criterion.errors(record)
+        along = criterion.along_track_m if math.isfinite(criterion.along_track_m) else None
+        return [("along-track error", "m", pe["along"], along, None, None),
+                ("cross-track error", "m", pe["cross"], criterion.cross_track_m, None, None), heading]
+    return [("x - x_d", "m", e["x"], None, None, None), ("y - y_d", "m", e["y"], None, None, None), heading]
+
+
+def _criterion_error_figure(record, baseline, criterion, axis, path, s):
+    """Figure ``axis + 1`` of a run judged by ``criterion``: the error it judges, its tolerance band
+    from the settling time on, the judged norm and the baseline's same error."""
+    label, unit, err, bound, norm_label, norm = _panels(criterion, record)[axis - 1]
+    t = record["t"][::s]
     fig, ax = plt.subplots(figsize=(8, 4))
-    err = pose_errors(record)[name]
-    ax.plot(record["t"][::s], err[::s], "C0", lw=1.3, label=f"{name} - {name}_d")
+    if bound is not None:
+        band = t >= getattr(criterion, "settle_time_s", 0.0)
+        ax.fill_between(t[band], -bound, bound, color="0.85", label=f"tolerance ±{bound:.3g} {unit}")
+    if norm is not None:
+        ax.plot(t, norm[::s], color="0.45", lw=0.9, ls="--", label=norm_label)
+    ax.plot(t, err[::s], "C0", lw=1.3, label=label)
     if baseline is not None and len(baseline):
         sb = _stride(len(baseline))
-        ax.plot(baseline["t"][::sb], pose_errors(baseline)[name][::sb], "C3", lw=1.0, alpha=0.85, label="baseline")
+        base_err = _panels(criterion, baseline)[axis - 1][2]
+        ax.plot(baseline["t"][::sb], base_err[::sb], "C3", lw=1.0, alpha=0.85, label="baseline")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel(f"[{unit}]")
+    ax.set_ylabel(f"{label} [{unit}]")
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right")
-    ax.set_title(f"Fig. {axis + 1}: pose error in {name} (the controller declares no funnel)")
+    title = figure_titles(criterion.kind, True)[path.name]
+    ax.set_title(f"Fig. {axis + 1}: {title[:1].lower() + title[1:]}")
     _save(fig, path)
     return path
 
@@ -192,4 +252,4 @@ def readme_figure(record: RunRecord, path, baseline: RunRecord | None = None) ->
     return Path(path)
 
 
-__all__ = ["FIGURES", "draw_figures", "readme_figure"]
+__all__ = ["FIGURES", "draw_figures", "figure_titles", "readme_figure"]

@@ -23,12 +23,13 @@ from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .criteria import criterion_of_record
 from .figures import draw_figures
 from .record import RunRecord
 from .report import write_report
 from .scenario import Scenario
 from .simulation import simulate
-from .summary import CHECK_TIMES, pose_errors, summarize
+from .summary import CHECK_TIMES, baseline_line, criterion_line, outcome_sentence, pose_errors, summarize
 
 
 @dataclass
@@ -129,12 +130,12 @@ def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_o
     calm = scenario.with_overrides({"sea": {}, "baseline": {"enabled": False}})
     calm = dataclasses.replace(calm, sea=type(scenario.sea)())
     calm_summary = summarize(_simulate(calm, plant_kind, None, [], None))
-    summary_out["calm"] = {k: calm_summary[k] for k in ("status", "errors_at", "max_abs_error_after_20s",
-                                                         "funnel_violations", "first_violation_s")}
-    held = "held" if summary["funnel_violations"] == 0 else f"was lost ({summary['funnel_violations']} steps outside)"
+    summary_out["calm"] = {k: calm_summary[k] for k in ("status", "errors_at", "max_abs_error_after_20s", "criterion",
+                                                         "funnel_violations", "first_violation_s") if k in calm_summary}
     lines = ["## The controller in this sea", "",
              f"Sea: {json.dumps(scenario.sea.to_dict())}; significant wave height seen at the hull "
-             f"{summary_out['hs_at_hull_m']:.3f} m. The funnel {held}. The same scenario in calm water beside it "
+             f"{summary_out['hs_at_hull_m']:.3f} m. {outcome_sentence(summary['criterion'])} "
+             "The same scenario in calm water beside it "
              "(the controller is not tuned to the sea: the capability study is `usv-mj capability`):", "",
              "| error | t | in this sea | calm water |", "|---|---|---|---|"]
     for axis, unit in (("x", "m"), ("y", "m"), ("psi", "rad")):
@@ -530,7 +531,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
             finally:
                 close()
         summary = summarize(record)
-        base_summary = summarize(base_rec) if base_rec is not None else None
+        # the baseline judged as the main run is (its criterion and its words)
+        base_summary = summarize(base_rec, criterion_of_record(record)) if base_rec is not None else None
         phase = "running the half-step check"
         check = step_size_check(scenario, record, plant_kind) if step_check and record.status == "completed" else None
         summary_out = _summary_out(summary, base_summary, check)
@@ -598,8 +600,8 @@ def _summary_out(summary: dict, base_summary: dict | None, check: dict | None) -
     summary_out = dict(summary)
     if base_summary:
         summary_out["baseline"] = {k: base_summary[k] for k in (
-            "status", "errors_at", "max_abs_error_after_20s", "funnel_violations", "first_violation_s",
-            "quantizer_switches")}
+            "status", "errors_at", "max_abs_error_after_20s", "criterion", "funnel_violations", "first_violation_s",
+            "quantizer_switches") if k in base_summary}
     if check:
         summary_out["step_check"] = check
     return summary_out
@@ -635,19 +637,9 @@ def one_screen_summary(result: JobResult, wall_s: float) -> str:
     m = s["max_abs_error_after_20s"]
     if m["x"] is not None:
         lines.append(f"  max |error| after 20 s: {m['x']:.3f} m, {m['y']:.3f} m, {m['psi']:.3f} rad")
-    lines.append(f"  funnel violations: {s['funnel_violations']} steps"
-                 + (f" (first at {s['first_violation_s']:.2f} s)" if s["first_violation_s"] is not None else "")
-                 + f"; s2 clamps: {s['s2_clamps']}; quantizer switches: u {s['quantizer_switches']['u']}, "
-                   f"r {s['quantizer_switches']['r']}")
+    lines.append(criterion_line(s))
     if "baseline" in s:
-        b = s["baseline"]
-        if "funnel_violations" in b:
-            lines.append(f"  PI baseline: {b['status']}, funnel violations {b['funnel_violations']}"
-                         + (f" (first at {b['first_violation_s']:.2f} s)" if b.get("first_violation_s") is not None
-                            else ""))
-        else:   # not run (the job was stopped before it): its status and why
-            lines.append(f"  PI baseline: {b.get('status', '?')}" + (f" ({b['stop_reason']})" if b.get("stop_reason")
-                                                                       else ""))
+        lines.append(baseline_line(s["baseline"]))
     if "step_check" in s:
         c = s["step_check"]
         if c.get("max_position_m") is None:

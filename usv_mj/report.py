@@ -1,11 +1,16 @@
-"""``report.md`` of a run: our errors beside the paper's Tables 1 and 2, funnel and quantizer
-statistics, the PI baseline, the step-halving check and the figures (works from finished runs)."""
+"""``report.md`` of a run: our errors beside the paper's Tables 1 and 2, the run's success criterion
+(the funnel for the paper's controller, :mod:`usv_mj.criteria`) and quantizer statistics, the PI
+baseline, the step-halving check and the figures (works from finished runs).
+
+The report speaks in the run's criterion: the funnel's words only for a run judged by the funnel,
+the adaptation's (s2 clamps) only for a controller that records them."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from .figures import FIGURES
+from .figures import figure_titles
+from .summary import verdict
 
 # docs/model.md §5: the paper's Table 1 (this controller) and Table 2 (the controller of its ref. [26]).
 PAPER_TABLE_1 = {"x": (5.32, 3.10, 0.85), "y": (6.42, 4.58, 1.17), "psi": (0.84, 0.65, 0.42)}
@@ -31,12 +36,14 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
         lines.append(f"**The run stopped early ({status}) after {summary['simulated_s']:.3f} s of simulated time:** "
                      f"{summary['stop_reason']}")
     lines.append("")
-    viol = summary["funnel_violations"]
+    crit = summary["criterion"]
+    funnel = "funnel_violations" in summary
+    viol = summary.get("funnel_violations")
     name = str(summary.get("controller") or "run").upper()
     bname = str((baseline_summary or {}).get("controller") or "baseline").upper()
-    if viol is None:
-        lines.append(f"The {name} controller declares no prescribed-performance funnel: the errors below are "
-                     "pose errors only.")
+    if not funnel:
+        lines.append(f"The {name} controller is judged by its own criterion: {crit['description']}. "
+                     f"Outcome: **{verdict(crit)}**.")
     elif viol == 0:
         lines.append("The tracking errors stayed inside all three prescribed-performance funnels "
                      "(0 control steps with |z_i| >= 1).")
@@ -58,16 +65,27 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     m = summary["max_abs_error_after_20s"]
     lines += ["", f"Largest error after 20 s: |x| {_fmt(m['x'])} m, |y| {_fmt(m['y'])} m, "
                   f"|psi| {_fmt(m['psi'])} rad.", ""]
-    lines += ["## Funnel, adaptation and quantizer", "",
+    clamps = summary.get("s2_clamps") is not None
+    lines += ["## " + ("Funnel, adaptation and quantizer" if funnel else
+                       "Success criterion" + (", adaptation" if clamps else "") + " and quantizer"), "",
               f"| quantity | {name} | {bname} baseline |", "|---|---|---|"]
 
-    def both(key, fmt=str):
-        b = baseline_summary.get(key) if baseline_summary else None
-        return f"| {key} | {fmt(summary.get(key))} | {fmt(b) if b is not None else '—'} |"
+    def both(key, fmt=str, get=lambda s, key: s.get(key)):
+        b = get(baseline_summary, key) if baseline_summary else None
+        return f"| {key} | {fmt(get(summary, key))} | {fmt(b) if b is not None else '—'} |"
 
-    lines.append(both("funnel_violations"))
-    lines.append(both("first_violation_s", lambda v: _fmt(v)))
-    lines.append(both("s2_clamps"))
+    if funnel:
+        lines.append(both("funnel_violations"))
+        lines.append(both("first_violation_s", lambda v: _fmt(v)))
+    else:
+        judged = lambda s, key: (s.get("criterion") or {}).get(key)  # noqa: E731
+        lines.append(both("passed", lambda v: {True: "yes", False: "no"}.get(v, "not judged"), judged))
+        lines.append(both("violations", get=judged))
+        lines.append(both("first_violation_s", lambda v: _fmt(v), judged))
+        for key in sorted(k for k in crit if k.startswith("max_")):
+            lines.append(both(key, lambda v: _fmt(v), judged))
+    if clamps:
+        lines.append(both("s2_clamps"))
     qs = summary["quantizer_switches"]
     qb = baseline_summary["quantizer_switches"] if baseline_summary else {"u": None, "r": None}
     lines.append(f"| quantizer output changes, surge | {qs['u']} | {qb['u'] if qb['u'] is not None else '—'} |")
@@ -93,7 +111,8 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     if baseline_summary:
         lines += ["", "The PI baseline (docs/model.md §6: surge-speed PI on the along-track error, heading PI with "
                   "yaw-rate damping on the same psi_a) runs through the same quantizer on the same plant. "
-                  + ("" if baseline_summary["funnel_violations"] is None else
+                  + ((f"Judged as this run is: {verdict(baseline_summary['criterion'])}."
+                      if "criterion" in baseline_summary else "") if "funnel_violations" not in baseline_summary else
                      "It stayed inside the funnel." if baseline_summary["funnel_violations"] == 0 else
                      f"It left the funnel first at t = {_fmt(baseline_summary['first_violation_s'])} s "
                      f"({baseline_summary['funnel_violations']} control steps outside).")]
@@ -121,7 +140,8 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     for section in extra_sections or []:
         lines += ["", section]
     lines += ["", "## Figures", ""]
-    for name, title in FIGURES.items():
+    weights = "w_u_norm" in (summary.get("diagnostic_fields") or ())
+    for name, title in figure_titles(crit["kind"], weights).items():
         lines += [f"### {title}", "", f"![{title}](figures/{name})", ""]
     path = Path(path)
     tmp = path.with_suffix(".md.tmp")

@@ -90,6 +90,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
     from .compiled_loop import kernels_of
+    from .criteria import criterion_of
 
     compiled, why = (None, "asked for (loop='python')") if not use_compiled else kernels_of(parts, hooks)
     loop = {"loop": "compiled"} if compiled is not None else {"loop": "python", "loop_reason": why}
@@ -97,6 +98,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         "preset": scenario.preset, "plant": plant.name, "controller": controller.name,
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
         "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata, **loop,
+        "criterion": criterion_of(controller).to_dict(),  # how the outputs judge the run (usv_mj.criteria)
     }, diagnostic_fields=fields, diagnostic_events=getattr(controller, "diagnostic_events", None))
     record.statics = parts.statics
     for sink in sinks:

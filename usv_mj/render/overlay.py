@@ -14,6 +14,9 @@ What it shows (values of one record row, see :mod:`usv_mj.record`):
   a clipped bar ends in a triangle); the actuators' limits ``tau_*_limits`` are red ticks;
 - a legend of the 3-D layers (wake trail, reference path ahead, ghost hull, funnel box).
 
+A run without a funnel (``values["funnel"]`` False) shows its pose errors x - x_d, y - y_d and
+wrap(psi - psi_d) with no bound, and no funnel in the legend.
+
 Only the two panel regions are converted to Pillow images, so the cost is about a millisecond a frame
 at 1280x720. Everything scales with the frame height (designed at 720 px).
 """
@@ -157,7 +160,7 @@ def draw_hud(frame: np.ndarray, values: dict, *, hud: bool = True, legend: bool 
     if hud:
         _draw_panel(frame, values, s)
     if legend:
-        _draw_legend(frame, s)
+        _draw_legend(frame, s, values.get("funnel", True))
     return frame
 
 
@@ -184,17 +187,20 @@ def _draw_panel(frame, values, s):
     label_w, bar_w, bar_h = int(62 * s), int(190 * s), max(4, int(16 * s))
     e = list(values.get("e", (None,) * 3)) + [None] * 3
     rho = list(values.get("rho", (None,) * 3)) + [None] * 3
-    rows = (("x e1", e[0], rho[0], 1.0, "m", "+6.2f", "5.2f"), ("y e2", e[1], rho[1], 1.0, "m", "+6.2f", "5.2f"),
-            ("psi e3", e[2], rho[2], 180.0 / math.pi, "deg", "+6.1f", "5.1f"))
-    d.text((m, y), "error / bound (funnel)", font=tiny, fill=DIM)
+    funnel = values.get("funnel", True)
+    names = ("x e1", "y e2", "psi e3") if funnel else ("x", "y", "psi")
+    rows = ((names[0], e[0], rho[0], 1.0, "m", "+6.2f", "5.2f"), (names[1], e[1], rho[1], 1.0, "m", "+6.2f", "5.2f"),
+            (names[2], e[2], rho[2], 180.0 / math.pi, "deg", "+6.1f", "5.1f"))
+    d.text((m, y), "error / bound (funnel)" if funnel else "pose error (x - x_d, y - y_d, psi - psi_d)",
+           font=tiny, fill=DIM)
     y += int(20 * s)
     for label, ei, ri, k, unit, fe, fr in rows:
         d.text((m, y), label, font=small, fill=TEXT)
         _error_bar(d, m + label_w, y + int(2 * s), bar_w, bar_h, ei, ri)
         ev = None if ei is None else float(ei) * k
         rv = None if ri is None else float(ri) * k
-        d.text((m + label_w + bar_w + int(10 * s), y), f"{_fmt(ev, fe)}/{_fmt(rv, fr)} {unit}", font=tiny,
-               fill=TEXT)
+        d.text((m + label_w + bar_w + int(10 * s), y), f"{_fmt(ev, fe)}/{_fmt(rv, fr)} {unit}" if funnel else
+               f"{_fmt(ev, fe)} {unit}", font=tiny, fill=TEXT)
         y += int(27 * s)
     y += int(4 * s)
     applied = values.get("f_u") is not None
@@ -220,10 +226,11 @@ LEGEND = (("wake trail", TRAIL_RGBA), ("reference path ahead", PATH_RGBA), ("ref
           ("funnel |e1|<rho1, |e2|<rho2", FUNNEL_OK_RGBA))
 
 
-def _draw_legend(frame, s):
+def _draw_legend(frame, s, funnel: bool = True):
+    entries = LEGEND if funnel else LEGEND[:-1]  # the funnel box is the last entry
     H, W = frame.shape[:2]
     pad = int(round(14 * s))
-    w, h = int(300 * s), int(len(LEGEND) * 22 * s + 14 * s)
+    w, h = int(300 * s), int(len(entries) * 22 * s + 14 * s)
     x0, y1 = pad, H - pad
     y0, x1 = max(0, y1 - h), min(W, x0 + w)
     if x1 - x0 < 20 or y1 - y0 < 10:
@@ -232,7 +239,7 @@ def _draw_legend(frame, s):
     d = ImageDraw.Draw(img)
     font = hud_font(round(14 * s))
     y = int(7 * s)
-    for label, rgba in LEGEND:
+    for label, rgba in entries:
         c = _rgb(rgba)
         if rgba is GHOST_RGBA:
             c = tuple(min(255, int(v * 0.8 + 40)) for v in c)

@@ -258,6 +258,11 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     e = [_column(record, f"e{i}", n) for i in (1, 2, 3)]
     rho = [_column(record, f"rho{i}", n) for i in (1, 2, 3)]
     z = [_column(record, f"z{i}", n) for i in (1, 2, 3)]
+    funnel = bool(np.isfinite(rho[0]).any())
+    if not funnel:  # a controller without a funnel: the HUD shows the pose errors, with no bound
+        from ..summary import pose_errors
+
+        e = [np.asarray(v[:n], float) for v in pose_errors(record).values()]
     tau = {k: _column(record, k, n) for k in ("tau_u", "q_tau_u", "tau_r", "q_tau_r", "f_u", "f_r", "sat_u", "sat_r")}
     eps = do_pan_offset(record)
     md = getattr(record, "metadata", {}) or {}
@@ -307,7 +312,7 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
         if obstacle_table is not None:                # obstacles close to the hull stay in the picture
             pts += _obstacles_near(obstacle_table, float(t[k]), float(x[k]), float(y[k]))
         view = top_view(np.array(pts, float), aspect)
-        hud = {"t": float(t[k]), "t_end": t1, "speedup": played, "title": title, "camera": camera,
+        hud = {"t": float(t[k]), "t_end": t1, "speedup": played, "title": title, "camera": camera, "funnel": funnel,
                "e": tuple(float(e[i][k]) for i in range(3)), "rho": tuple(float(rho[i][k]) for i in range(3)),
                "tau_u": float(tau["tau_u"][k]), "q_tau_u": float(tau["q_tau_u"][k]),
                "tau_r": float(tau["tau_r"][k]), "q_tau_r": float(tau["q_tau_r"][k]),

@@ -17,8 +17,8 @@ A sweep file names a base and what varies, by dotted path into the scenario (doc
 Every sampled scenario is validated before anything runs (a bad path or range: exit 2). Each run
 is one Dask task; its row (varied values, status ok/diverged/failed and why, every summary.json
 field) streams into DIR/results.parquet; --resume runs only the missing ones; DIR/report.md has the
-funnel-kept rate (Wilson 95 %), error histograms, scatter plots and the failures. By default a local
-cluster with one worker process per core; --scheduler tcp://HOST:8786 uses any running Dask cluster
+rate of runs that passed their controller's criterion (Wilson 95 %), error histograms, scatter plots
+and the failures. By default a local cluster with one worker process per core; --scheduler tcp://HOST:8786 uses any running Dask cluster
 (``dask scheduler`` on one machine, ``dask worker tcp://HOST:8786 --nthreads 1 --nworkers N`` on
 each other, every one with usv_mj installed); --jobqueue uses a batch system via dask-jobqueue.
 
@@ -113,12 +113,13 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"\nusv-mj sweep: interrupted: the runs finished so far are in {args.out}/results.parquet; "
               f"run the same command with --resume to finish the sweep", file=sys.stderr)
         return 1
-    kept = sum(bool(r.get("kept_funnel")) for r in result.rows)
     if not result.complete:
         print(f"{len(result.rows)} of {len(plan.runs)} runs in {args.out}/results.parquet; run again with "
               f"--resume for the rest")
         return 0
-    print(f"{len(result.rows)} runs ({result.ran} run now): {kept} kept the funnel, {result.failed} diverged or "
+    from .report import passed_rate
+
+    print(f"{len(result.rows)} runs ({result.ran} run now): {passed_rate(result.rows)}; {result.failed} diverged or "
           f"failed; {args.out}/results.parquet, {args.out}/report.md")
     return 0
 

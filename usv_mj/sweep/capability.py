@@ -2,17 +2,19 @@
 
 DNV-ST-0111 draws, for each direction of the environment relative to the vessel, the largest
 environment (wind speed, with the current and waves tied to it) in which a dynamic-positioning vessel
-still keeps its position. Here the vessel tracks a path, and "keeps" means the funnel of docs/model.md §2
-holds over the whole run: the run finishes ``ok`` and no sample has |z_i| >= 1 (the sweep row's
-``kept_funnel``). For each direction, every ``--step`` degrees relative to the path's heading at
-t = 0 (going-to directions, counter-clockwise, as docs/sea.md §0), the largest load that keeps the funnel
-is found by bisection between ``--min`` and ``--max``.
+still keeps its position. Here the vessel tracks a path, and "keeps" means the criterion its
+controller declares (:mod:`usv_mj.criteria`) holds: the run finishes ``ok`` and passes it (the sweep
+row's ``passed``); for the paper's controller that is the funnel of docs/model.md §2, no sample with
+|z_i| >= 1. For each direction, every ``--step`` degrees relative to the path's heading at t = 0
+(going-to directions, counter-clockwise, as docs/sea.md §0), the largest load at which the
+criterion holds is found by bisection between ``--min`` and ``--max``. A controller whose runs are
+not judged (:class:`usv_mj.criteria.NotJudged`) has no capability: the command says so (exit 2).
 
 Search: each round, every direction whose bracket [holds, fails] is still wider than ``--tol``
 (relative to its upper end) gets m interior points, m = max(1, workers // open directions), all
 submitted to Dask at once; the bracket shrinks by m + 1 a round (m = 1: bisection). Linear loads
 are split evenly, the disturbance scale (which spans decades) geometrically. The search assumes the
-funnel holds below some load and fails above it; a direction where a point held above a failing one
+criterion holds below some load and fails above it; a direction where a point held above a failing one
 is flagged "not monotone" and the lowest failure is kept (the conservative answer).
 
 Loads
@@ -37,8 +39,8 @@ the control law's arithmetic, which can ask for any force: the search still runs
 ``capability.md`` and ``capability.json`` (``actuators_unlimited``) say so, and the command prints
 it.
 
-A run that *fails* (raises, or its worker dies) is not an answer about the funnel: the search stops
-with its reason (exit code 2), where a diverged run counts as the funnel lost.
+A run that *fails* (raises, or its worker dies) is not an answer about the criterion: the search stops
+with its reason (exit code 2), where a diverged run counts as the criterion lost.
 """
 
 from __future__ import annotations
@@ -84,7 +86,7 @@ LOADS = {
 
 @dataclass
 class DirectionResult:
-    """The search in one direction: ``holds`` (largest load seen to keep the funnel), ``fails``
+    """The search in one direction: ``holds`` (largest load seen to keep the criterion), ``fails``
     (smallest seen not to), ``capability`` (= holds; None if even ``--min`` fails), and notes."""
 
     direction_deg: float | None
@@ -92,6 +94,7 @@ class DirectionResult:
     fails: float | None = None
     notes: list = field(default_factory=list)
     runs: int = 0
+    noun: str = "the criterion"  # what holds, in words ("the funnel")
 
     @property
     def capability(self) -> float | None:
@@ -162,7 +165,7 @@ class _Evaluator:
 
         gather_rows(self.client, jobs, on_row, key_prefix="usv-capability")
         for (direction, value), row in out.items():
-            if row["status"] == "failed":  # an error of the set-up, not an answer about the funnel
+            if row["status"] == "failed":  # an error of the set-up, not an answer about the criterion
                 where = "" if direction is None else f" toward {direction:g} deg"
                 raise SweepError(f"{self.source}: the run with {self.load.path} = {value:g}{where} failed, so the "
                                  f"search cannot go on: {row['reason']}")
@@ -170,25 +173,26 @@ class _Evaluator:
 
 
 def search_capability(evaluate, directions: list, lo: float, hi: float, spacing: str, tol: float,
-                      slots: int, max_rounds: int = 40) -> list[DirectionResult]:
-    """Parallel bisection / k-section of the largest load that keeps the funnel in each direction.
+                      slots: int, max_rounds: int = 40, noun: str = "the criterion") -> list[DirectionResult]:
+    """Parallel bisection / k-section of the largest load that keeps the criterion in each direction.
 
     ``evaluate(points)`` runs a list of (direction, load) and returns {(direction, load): row} with
-    ``kept_funnel`` in each row. ``slots``: how many runs to have in flight a round (workers).
+    ``passed`` in each row. ``slots``: how many runs to have in flight a round (workers). ``noun``:
+    the criterion in the notes ("the funnel").
     """
-    results = {d: DirectionResult(d) for d in directions}
+    results = {d: DirectionResult(d, noun=noun) for d in directions}
     first = [(d, lo) for d in directions] + [(d, hi) for d in directions]
     rows = evaluate(first)
     for d, res in results.items():
         res.runs += 2
-        held_lo = bool(rows[(d, lo)]["kept_funnel"])
-        held_hi = bool(rows[(d, hi)]["kept_funnel"])
+        held_lo = bool(rows[(d, lo)]["passed"])
+        held_hi = bool(rows[(d, hi)]["passed"])
         if not held_lo:
             res.fails = lo
-            res.notes.append(f"the funnel does not hold even at the lower end {lo:g}")
+            res.notes.append(f"{noun} does not hold even at the lower end {lo:g}")
         elif held_hi:
             res.holds = hi
-            res.notes.append(f"the funnel holds at the upper end {hi:g}: the capability is at least that")
+            res.notes.append(f"{noun} holds at the upper end {hi:g}: the capability is at least that")
         else:
             res.holds, res.fails = lo, hi
     for _ in range(max_rounds):
@@ -201,7 +205,7 @@ def search_capability(evaluate, directions: list, lo: float, hi: float, spacing:
         for r in active:
             pts = plan[r.direction_deg]
             r.runs += len(pts)
-            kept = [bool(rows[(r.direction_deg, v)]["kept_funnel"]) for v in pts]
+            kept = [bool(rows[(r.direction_deg, v)]["passed"]) for v in pts]
             first_fail = next((i for i, k in enumerate(kept) if not k), None)
             if first_fail is None:
                 r.holds = pts[-1]
@@ -225,9 +229,10 @@ UNLIMITED_NOTE = ("actuators UNLIMITED: this is the control law's limit, not the
 
 
 def draw_polar(results: list[DirectionResult], load: LoadKind, path: Path, title: str,
-               note: str | None = None) -> None:
-    """The capability polar plot: radius = largest load that keeps the funnel, angle = direction
-    relative to the path (0 = along the path, counter-clockwise, going-to)."""
+               note: str | None = None, noun: str = "the criterion") -> None:
+    """The capability polar plot: radius = largest load that keeps the criterion (``noun``: "the
+    funnel"), angle = direction relative to the path (0 = along the path, counter-clockwise, going-to)."""
+    what = noun[4:] if noun.startswith("the ") else noun
     import matplotlib
 
     matplotlib.use("Agg")
@@ -241,17 +246,17 @@ def draw_polar(results: list[DirectionResult], load: LoadKind, path: Path, title
         r = results[0]
         theta = np.linspace(0, 2 * np.pi, 361)
         value = r.capability or 0.0
-        ax.plot(theta, np.full_like(theta, value), color="tab:blue", lw=2, label=f"funnel holds: s <= {value:.3g}")
+        ax.plot(theta, np.full_like(theta, value), color="tab:blue", lw=2, label=f"{what} holds: s <= {value:.3g}")
         if r.fails is not None:
             ax.plot(theta, np.full_like(theta, r.fails), color="tab:red", lw=1, ls="--",
-                    label=f"funnel lost: s = {r.fails:.3g}")
+                    label=f"{what} lost: s = {r.fails:.3g}")
         ax.set_rlim(0, (r.fails or value or 1.0) * 1.1)
         ax.text(0.5, -0.16, "d(t) acts on fixed body axes (docs/model.md §1): no direction, drawn as a circle",
                 transform=ax.transAxes, ha="center", va="top", fontsize=8)
     else:
         theta = np.radians([r.direction_deg for r in results] + [results[0].direction_deg])
         caps = [r.capability or 0.0 for r in results]
-        ax.plot(theta, caps + caps[:1], color="tab:blue", lw=2, label="funnel holds up to")
+        ax.plot(theta, caps + caps[:1], color="tab:blue", lw=2, label=f"{what} holds up to")
         bracketed = [i for i, r in enumerate(results) if r.fails is not None]
         open_top = [i for i, r in enumerate(results) if r.fails is None and r.holds is not None]
         ax.plot(theta[bracketed], [caps[i] for i in bracketed], ls="none", marker="o", ms=4, color="tab:blue")
@@ -259,7 +264,7 @@ def draw_polar(results: list[DirectionResult], load: LoadKind, path: Path, title
             ax.plot(theta[open_top], [caps[i] for i in open_top], ls="none", marker="^", ms=6, mfc="white",
                     color="tab:blue", label="held at the search's upper end (at least)")
         fails = [r.fails if r.fails is not None else np.nan for r in results]
-        ax.plot(theta, fails + fails[:1], color="tab:red", lw=1, ls="--", label="funnel lost at")
+        ax.plot(theta, fails + fails[:1], color="tab:red", lw=1, ls="--", label=f"{what} lost at")
         ax.text(0.5, -0.2, "angle: going-to direction relative to the path, counter-clockwise",
                 transform=ax.transAxes, ha="center", va="top", fontsize=8)
     ax.set_title(title, fontsize=10, pad=18)
@@ -328,6 +333,7 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
     if load.direction_path:
         probe[load.direction_path] = 0.0
     probe = apply_values(scenario, probe, source)  # a bad base scenario or range stops here with its message
+    criterion = _criterion(probe, source)
     directions = [None] if load.direction_path is None else [
         round(i * step, 9) for i in range(int(math.floor(360.0 / step + 1e-9)))]
     try:
@@ -355,7 +361,8 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
                 bar = tqdm(unit="run", desc=f"capability {load.name}", file=sys.stderr, dynamic_ncols=True)
             slots = max(1, sum(cl.nthreads().values()))
             evaluator = _Evaluator(cl, scenario, load, heading, source, bar)
-            return evaluator, search_capability(evaluator, directions, lo, hi, load.spacing, tol, slots)
+            return evaluator, search_capability(evaluator, directions, lo, hi, load.spacing, tol, slots,
+                                                noun=criterion.noun)
 
         if client is not None:
             evaluator, results = search(client)
@@ -369,21 +376,40 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
             bar.close()
     if scenario.actuators.unlimited:
         echo(f"note: {UNLIMITED_NOTE}")
-    _write_outputs(out, results, load, scenario, heading, lo, hi, tol, evaluator.rows)
+    _write_outputs(out, results, load, scenario, heading, lo, hi, tol, evaluator.rows, criterion)
     return results
 
 
-def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows):
+def _criterion(scenario, source: str):
+    """The criterion the base's controller declares; one its runs are not judged by has no capability."""
+    from ..builder import make_controller
+    from ..criteria import criterion_of
+
+    criterion = criterion_of(make_controller(scenario))
+    if criterion.kind == "not_judged":
+        raise SweepError(f"{source}: the {scenario.controller.kind} controller's runs are {criterion.describe()}: "
+                         f"there is no criterion whose largest load could be searched")
+    return criterion
+
+
+def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows, criterion=None):
+    criterion = criterion or _criterion(scenario, f"capability --load {load.name}")
     title = (f"capability: {load.label}\n{scenario.preset}, {scenario.controller.kind}, "
              f"{scenario.duration:g} s, {scenario.plant.kind} plant")
     unlimited = scenario.actuators.unlimited
     draw_polar(results, load, out / "capability.png", title, UNLIMITED_NOTE if unlimited else
-               f"actuators: {scenario.actuators.describe()}")
+               f"actuators: {scenario.actuators.describe()}", noun=criterion.noun)
+    noun = criterion.noun[:1].upper() + criterion.noun[1:]
+    what = criterion.noun[4:] if criterion.noun.startswith("the ") else criterion.noun
+    if criterion.kind == "funnel":  # the paper's words
+        holds = "The funnel holds when a run finishes ok with every |z_i| < 1 throughout."
+    else:
+        holds = f"{noun} holds when a run finishes ok and {criterion.describe()}."
     unit = f" [{load.unit}]" if load.unit else ""
     lines = [f"# Capability: {load.label}", "",
              f"Base `{scenario.preset}`, controller `{scenario.controller.kind}`, plant `{scenario.plant.kind}`, "
-             f"runs of {scenario.duration:g} s. The funnel holds when a run finishes ok with every |z_i| < 1 "
-             f"throughout. Search between {lo:g} and {hi:g}, to {tol:.0%} (see `usv_mj.sweep.capability`).", ""]
+             f"runs of {scenario.duration:g} s. {holds} "
+             f"Search between {lo:g} and {hi:g}, to {tol:.0%} (see `usv_mj.sweep.capability`).", ""]
     if unlimited:
         lines += ["**The actuators are unlimited** (`[actuators] kind = \"unlimited\"`, as in the paper): the "
                   "controller may ask for any force, so this is the limit of the control law's arithmetic, "
@@ -397,7 +423,7 @@ def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows):
     else:
         lines += [f"Directions are going-to, relative to the path heading psi_d(0) = {heading:.1f} deg, "
                   f"counter-clockwise.", ""]
-    lines += [f"| direction [deg] | funnel holds up to{unit} | funnel lost at{unit} | runs | notes |",
+    lines += [f"| direction [deg] | {what} holds up to{unit} | {what} lost at{unit} | runs | notes |",
               "| --- | --- | --- | --- | --- |"]
     for r in results:
         d = "any direction" if r.direction_deg is None else f"{r.direction_deg:g}"
@@ -409,10 +435,11 @@ def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows):
         "load": load.name, "path": load.path, "direction_path": load.direction_path, "unit": load.unit,
         "min": lo, "max": hi, "tol": tol, "path_heading_deg": heading,
         "actuators_unlimited": unlimited, "actuators": scenario.actuators.describe(),
+        "criterion": {"kind": criterion.kind, "description": criterion.describe()},
         "results": [{"direction_deg": r.direction_deg, "holds": r.holds, "fails": r.fails, "runs": r.runs,
                      "notes": r.notes} for r in results],
-        "runs": [{k: row.get(k) for k in ("direction_deg", "load", "status", "reason", "kept_funnel",
-                                          "funnel_violations", "first_violation_s")} for row in rows],
+        "runs": [{k: row.get(k) for k in ("direction_deg", "load", "status", "reason", "passed",
+                                          "criterion.violations", "criterion.first_violation_s")} for row in rows],
     }, indent=1))
 
 
@@ -440,6 +467,7 @@ def capability_command(args: argparse.Namespace) -> int:
         return 1
     for r in results:
         d = "any direction" if r.direction_deg is None else f"{r.direction_deg:g} deg"
-        print(f"{d}: funnel holds up to {r.holds}, lost at {r.fails}" + (f" ({'; '.join(r.notes)})" if r.notes else ""))
+        what = r.noun[4:] if r.noun.startswith("the ") else r.noun
+        print(f"{d}: {what} holds up to {r.holds}, lost at {r.fails}" + (f" ({'; '.join(r.notes)})" if r.notes else ""))
     print(f"{args.out}/capability.md, {args.out}/capability.png")
     return 0

@@ -1,7 +1,8 @@
 """``DIR/report.md`` of a sweep, with its figures (matplotlib, Agg backend).
 
-- the rate of runs that kept the funnel (status ok and no sample with |z_i| >= 1, docs/model.md §2's funnel)
-  with its Wilson 95 % score interval, overall and for each value of each grid axis;
+- the rate of runs that passed (status ok and the run passed the criterion its controller declares,
+  :mod:`usv_mj.criteria`: for the paper's controller no sample with |z_i| >= 1, docs/model.md §2's funnel)
+  with its Wilson 95 % score interval, overall and for each value of each grid axis, in the criterion's words;
 - histograms of the maximum errors after the sweep's transient (x, y [m], psi [rad]);
 - scatter plots of the worst position error after the transient against each varied value (runs that
   did not finish ok drawn at the top, as crosses);
@@ -46,6 +47,26 @@ def _numeric(values) -> bool:
     return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values if v is not None)
 
 
+def criteria_of(rows: list[dict]) -> list[tuple[str, str]]:
+    """The (noun, description) of every criterion the rows were judged by, in order of first
+    appearance (one, unless the sweep varies the controller); failed runs carry none."""
+    seen = {}
+    for r in rows:
+        if r.get("criterion.description"):
+            seen.setdefault((r.get("criterion.noun") or "the criterion", r["criterion.description"]))
+    return list(seen)
+
+
+def passed_rate(rows: list[dict]) -> str:
+    """"N of M passed: <description>" (the sweep's one line on its runs)."""
+    kept = sum(bool(r.get("passed")) for r in rows)
+    crits = criteria_of(rows)
+    words = "; ".join(d for _, d in crits) if crits else "the controller's criterion (no run was judged)"
+    if crits and all(r.get("criterion.kind") in ("not_judged", None) for r in rows):
+        return f"0 of {len(rows)} passed: the runs are {words}"
+    return f"{kept} of {len(rows)} passed: {words}"
+
+
 def write_report(out: str | Path, rows: list[dict], plan) -> Path:
     """Write ``out/report.md`` and its figures for ``rows`` (the sweep's table) of ``plan``."""
     import matplotlib
@@ -57,7 +78,9 @@ def write_report(out: str | Path, rows: list[dict], plan) -> Path:
     fig_dir = out / "figures"
     fig_dir.mkdir(exist_ok=True)
     n = len(rows)
-    kept = sum(bool(r.get("kept_funnel")) for r in rows)
+    kept = sum(bool(r.get("passed")) for r in rows)
+    crits = criteria_of(rows)
+    noun = crits[0][0] if len(crits) == 1 else "the criterion"
     counts = {s: sum(r["status"] == s for r in rows) for s in ("ok", "diverged", "failed")}
     lo, hi = wilson_interval(kept, n)
     lines = [f"# Sweep report{': ' + plan.name if plan.name else ''}", "",
@@ -66,9 +89,9 @@ def write_report(out: str | Path, rows: list[dict], plan) -> Path:
              f"{plan.samples} sample(s) per grid point, {len(plan.runs)} runs ({n} in the table).", "",
              "| varied path | how |", "| --- | --- |"]
     lines += [f"| `{a.path}` | {a.describe()} |" for a in plan.axes] or ["| (none) | |"]
-    lines += ["", "## Funnel kept", "",
-              f"Runs that finished ok with every |z_i| < 1 throughout: **{kept} of {n}**"
-              + (f" = {kept / n:.1%}, Wilson 95 % interval [{lo:.1%}, {hi:.1%}]." if n else "."),
+    lines += ["", "## Passed", "",
+              f"Runs that finished ok and passed: **{passed_rate(rows)}**"
+              + (f"; {kept / n:.1%}, Wilson 95 % interval [{lo:.1%}, {hi:.1%}]." if n else "."),
               f"Status: {counts['ok']} ok, {counts['diverged']} diverged, {counts['failed']} failed.", ""]
 
     grid_axes = [a for a in plan.axes if a.kind == "grid"]
@@ -76,12 +99,12 @@ def write_report(out: str | Path, rows: list[dict], plan) -> Path:
         fig, axs = plt.subplots(1, len(grid_axes), figsize=(4.5 * len(grid_axes), 3.5), squeeze=False)
         for ax, axis in zip(axs[0], grid_axes):
             col = f"vary.{axis.path}"
-            lines += [f"By `{axis.path}`:", "", "| value | kept | runs | rate | Wilson 95 % |",
+            lines += [f"By `{axis.path}`:", "", "| value | passed | runs | rate | Wilson 95 % |",
                       "| --- | --- | --- | --- | --- |"]
             rates, errs_lo, errs_hi, labels = [], [], [], []
             for value in axis.args:
                 sub = [r for r in rows if r.get(col) == value]
-                k = sum(bool(r.get("kept_funnel")) for r in sub)
+                k = sum(bool(r.get("passed")) for r in sub)
                 a, b = wilson_interval(k, len(sub))
                 rate = k / len(sub) if sub else float("nan")
                 lines.append(f"| {_fmt(value)} | {k} | {len(sub)} | {rate:.1%} | [{a:.1%}, {b:.1%}] |")
@@ -96,11 +119,11 @@ def write_report(out: str | Path, rows: list[dict], plan) -> Path:
             ax.set_xticks(x, labels, rotation=30)
             ax.set_ylim(0, 1.05)
             ax.set_xlabel(axis.path)
-            ax.set_ylabel("funnel kept (Wilson 95 %)")
+            ax.set_ylabel("passed (Wilson 95 %)")
         fig.tight_layout()
-        fig.savefig(fig_dir / "funnel_rate.png", dpi=110)
+        fig.savefig(fig_dir / "passed_rate.png", dpi=110)
         plt.close(fig)
-        lines += ["![funnel kept rate by grid value](figures/funnel_rate.png)", ""]
+        lines += ["![passed rate by grid value](figures/passed_rate.png)", ""]
 
     lines += ["## Errors after the transient", "",
               f"Maximum |error| for t > {plan.transient:g} s of each run that finished ok.", ""]
@@ -144,7 +167,7 @@ def write_report(out: str | Path, rows: list[dict], plan) -> Path:
                                          ("not ok", "tab:red", "x")):
                 xs, ys = [], []
                 for r, w in zip(rows, worst):
-                    g = "not ok" if r["status"] != "ok" else ("kept" if r.get("kept_funnel") else "left")
+                    g = "not ok" if r["status"] != "ok" else ("kept" if r.get("passed") else "left")
                     if g != group or r.get(col) is None:
                         continue
                     if group == "not ok" or w is None:
@@ -153,7 +176,7 @@ def write_report(out: str | Path, rows: list[dict], plan) -> Path:
                         w = top
                     xs.append(r[col])
                     ys.append(w)
-                label = {"kept": "funnel kept", "left": "funnel left", "not ok": "diverged / failed"}[group]
+                label = {"kept": "passed", "left": "not passed", "not ok": "diverged / failed"}[group]
                 if xs:
                     ax.scatter(xs, ys, s=14, c=color, marker=marker, label=label, alpha=0.8)
             if axis.kind == "loguniform" or (axis.kind == "grid" and min(axis.args) > 0
@@ -183,14 +206,15 @@ def write_report(out: str | Path, rows: list[dict], plan) -> Path:
             lines.append(f"\n... and {len(bad) - 200} more (see results.parquet).")
     else:
         lines.append("None.")
-    left = [r for r in rows if r["status"] == "ok" and not r.get("kept_funnel")]
-    lines += ["", "## Runs that finished but left the funnel", ""]
+    left = [r for r in rows if r["status"] == "ok" and not r.get("passed")]
+    lines += ["", f"## Runs that finished but did not pass ({noun} lost or not judged)", ""]
     if left:
         cols = [f"vary.{p}" for p in plan.paths]
         lines += ["| run | first violation [s] | samples outside | " + " | ".join(f"`{p}`" for p in plan.paths)
                   + " |", "| --- | --- | --- | " + " | ".join("---" for _ in plan.paths) + " |"]
         for r in left[:100]:
-            lines.append(f"| {r['run_id']} | {_fmt(r.get('first_violation_s'))} | {_fmt(r.get('funnel_violations'))} | "
+            lines.append(f"| {r['run_id']} | {_fmt(r.get('criterion.first_violation_s'))} | "
+                         f"{_fmt(r.get('criterion.violations'))} | "
                          + " | ".join(_fmt(r.get(c)) for c in cols) + " |")
         if len(left) > 100:
             lines.append(f"\n... and {len(left) - 100} more (see results.parquet).")

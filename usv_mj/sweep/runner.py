@@ -12,10 +12,11 @@
   interrupted sweep keeps what it had and ``--resume`` runs only the missing ids.
 
 Row columns: ``run_id``; ``vary.<path>`` for each varied path; ``status`` (ok | diverged | failed)
-and ``reason``; ``kept_funnel`` (status ok and no funnel violation, the funnel of docs/model.md §3, |z_i| < 1);
-``task_wall_time_s``; ``max_abs_error_after_transient.{x,y,psi}`` [m, m, rad] and
-``max_position_error_after_transient`` [m] (hypot of the x, y errors) after the sweep's
-``transient``; then every field of :func:`usv_mj.summary.summarize` flattened with dots
+and ``reason``; ``passed`` (status ok and the run passed the criterion its controller declares,
+:mod:`usv_mj.criteria`: the funnel of docs/model.md §3, |z_i| < 1, for the paper's controller; the
+criterion's kind, words and largest errors are the ``criterion.*`` columns); ``task_wall_time_s``;
+``max_abs_error_after_transient.{x,y,psi}`` [m, m, rad] and ``max_position_error_after_transient``
+[m] (hypot of the x, y errors) after the sweep's ``transient``; then every field of :func:`usv_mj.summary.summarize` flattened with dots
 (``errors_at.5.x``, ``quantizer_switches.u``, ...), with the summary's ``status`` renamed
 ``record_status``. Rows are sorted by ``run_id``.
 """
@@ -41,7 +42,8 @@ RESULTS_FILE = "results.parquet"
 FINGERPRINT_KEY = b"usv_mj.sweep.fingerprint"
 TIMING_COLUMNS = ("task_wall_time_s", "wall_time_s", "realtime_factor")
 """Columns that measure time on the machine: they differ between two runs of the same sweep."""
-STRING_COLUMNS = ("status", "reason", "record_status", "stop_reason", "preset", "plant", "controller")
+STRING_COLUMNS = ("status", "reason", "record_status", "stop_reason", "preset", "plant", "controller",
+                  "criterion.kind", "criterion.noun", "criterion.description")
 
 
 # --- the task -------------------------------------------------------------------------------------
@@ -87,7 +89,7 @@ def failed_row(run_id: int, values: dict, reason: str, wall: float | None = None
     """The row of a run that produced no record (raised, or its worker died)."""
     row = {"run_id": int(run_id)}
     row.update({f"vary.{p}": v for p, v in values.items()})
-    row.update({"status": "failed", "reason": reason, "kept_funnel": False, "task_wall_time_s": wall})
+    row.update({"status": "failed", "reason": reason, "passed": False, "task_wall_time_s": wall})
     return row
 
 
@@ -139,7 +141,7 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
     row.update({f"vary.{p}": v for p, v in values.items()})
     row["status"] = status
     row["reason"] = record.stop_reason or None
-    row["kept_funnel"] = bool(status == "ok" and summary["funnel_violations"] == 0)
+    row["passed"] = bool(status == "ok" and summary["criterion"]["passed"] is True)
     row.update(transient_errors(record, float(options.get("transient", 20.0))))
     flat = flatten(summary)
     flat["record_status"] = flat.pop("status")
@@ -221,7 +223,8 @@ def _column_type(name: str, values: list):
 
 
 def _column_order(rows: list[dict], paths: list[str]) -> list[str]:
-    first = ["run_id"] + [f"vary.{p}" for p in paths] + ["status", "reason", "kept_funnel", "task_wall_time_s"]
+    first = ["run_id"] + [f"vary.{p}" for p in paths] + ["status", "reason", "passed", "criterion.kind",
+                                                         "task_wall_time_s"]
     seen = dict.fromkeys(first)
     for row in rows:
         for key in row:
@@ -489,6 +492,9 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
         if fingerprint != plan.fingerprint:
             raise SweepError(f"{results} holds the results of another sweep (its file, seed or base differ): "
                              f"choose another --out")
+        if any("passed" not in r for r in old):
+            raise SweepError(f"{results} was written before the runs were judged by their controller's criterion "
+                             f"(it has no 'passed' column): choose another --out")
         rows = {int(r["run_id"]): r for r in old if not (retry_failed and r["status"] == "failed")}
     (out / "sweep.json").write_text(json.dumps({
         "source": plan.source, "fingerprint": plan.fingerprint, "runs": len(plan.runs), "seed": plan.seed,
