@@ -15,6 +15,7 @@ from numba import njit
 
 from usv_mj.registry import PLANTS
 from usv_mj.sea.dynamics import calm_rk4_advance, sea_rk4_advance
+from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
 from usv_mj.ship import PaperDisturbance, ShipParams
 
 from .base import PlantBase
@@ -24,9 +25,13 @@ from .base import PlantBase
 rk4_advance = calm_rk4_advance
 
 
+#: the sea's arrays of calm water (analytic_kernel's ``sea`` False: never read)
+_CALM = (np.zeros(N_ENV_PARAMS), np.zeros((N_WAVE_COLS, 0)), np.zeros((0, 2)), np.zeros((0, 1)))
+
+
 @njit(cache=True)
 def analytic_kernel(k, x, f_u, f_r, p, dp, sea, ep, waves, current_grid, wind_grid, t0, dt, h, n):
-    """:meth:`AnalyticPlant.step` natively (usv_mj.kernels): the k-th step, from t0 + k dt."""
+    """:meth:`AnalyticPlant.step` (which calls it) and its kernel (usv_mj.kernels): the k-th step, from t0 + k dt."""
     t = t0 + k * dt if k > 0 else t0
     if sea:
         return sea_rk4_advance(p, dp, ep, waves, current_grid, wind_grid, t, x, f_u, f_r, h, n), False
@@ -76,36 +81,31 @@ class AnalyticPlant(PlantBase):
         self._k = 0
 
     def step(self, tau_u: float, tau_r: float) -> None:
-        if self.environment is None:
-            self._x = rk4_advance(self._p, self._dp, self._t, self._x, float(tau_u), float(tau_r), self._h,
-                                  self.substeps)
-        else:
-            self.environment.ensure_horizon(self._t + 2 * self.control_period)
-            self._x = sea_rk4_advance(self._p, self._dp, *self.environment.packed, self._t, self._x,
-                                      float(tau_u), float(tau_r), self._h, self.substeps)
+        self._x, _ = analytic_kernel(self._k, self._x, float(tau_u), float(tau_r), *self._kernel_args(self._t))
         self._k += 1
         # time from the step count: no drift from summing dt 300 000 times
         self._t = self._t0 + self._k * self.control_period
 
-    def kernel(self, t_end: float):
-        """(analytic_kernel, its arrays) for steps up to ``t_end`` [s] (the sea's grids cover them)."""
-        from usv_mj.kernels import Kernel
-
+    def _kernel_args(self, t_end: float) -> tuple:
+        """:func:`analytic_kernel`'s arguments after (k, x, f_u, f_r), the sea's grids covering ``t_end`` [s]."""
         env = self.environment
         if env is None:
-            from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
-
-            packed = (np.zeros(N_ENV_PARAMS), np.zeros((N_WAVE_COLS, 0)), np.zeros((0, 2)), np.zeros((0, 1)))
+            packed = _CALM
         else:
             env.ensure_horizon(t_end + 2 * self.control_period)
             packed = tuple(env.packed)
+        return (self._p, self._dp, env is not None, *packed, self._t0, self.control_period, self._h, self.substeps)
+
+    def kernel(self, t_end: float):
+        """(analytic_kernel, its arrays) for steps up to ``t_end`` [s] (the sea's grids cover them);
+        :meth:`step` is the same kernel, one step at a time."""
+        from usv_mj.kernels import Kernel
 
         def sync(k, x):
             self._x, self._k = x, k
             self._t = self._t0 + k * self.control_period
 
-        return Kernel(analytic_kernel, (self._p, self._dp, env is not None, *packed, self._t0, self.control_period,
-                                        self._h, self.substeps), sync)
+        return Kernel(analytic_kernel, self._kernel_args(t_end), sync)
 
     @property
     def time(self) -> float:
