@@ -2,8 +2,9 @@
 
 When every part of a run hands a kernel (:mod:`usv_mj.kernels`: the reference, the controller,
 both quantizers, the actuators, the plant, and the hook if the run has one: the obstacles' hook
-has one for standing obstacles without guidance), :func:`usv_mj.simulate` runs this loop instead
-of the Python one; the record is the same bit for bit (tested in
+has one for standing obstacles without guidance) and no part's class overrides a method below
+the class of its kernel (:func:`usv_mj.kernels.kernel_blocker`), :func:`usv_mj.simulate` runs this
+loop instead of the Python one; the record is the same bit for bit (tested in
 tests/test_compiled_loop.py) and ``record.metadata["loop"]`` says which loop ran (with the reason
 when it was the Python one).
 
