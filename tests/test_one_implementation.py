@@ -183,8 +183,14 @@ def test_a_mixin_or_an_instance_attribute_also_keeps_the_python_loop():
     assert rec.metadata["loop"] == "python"
     assert rec.metadata["loop_reason"] == "the reference: LineReference object has its own pose (instance attribute)"
     # plain data and a constructor keep the kernel
-    quiet = type("Named", (ref_cls,), {"kind": "named", "__init__": lambda self, *a, **k: ref_cls.__init__(self, *a, **k)})
+    class Options:  # what a registry may attach to a registered class
+        pass
+
+    quiet = type("Named", (ref_cls,), {"kind": "named", "Options": Options,
+                                       "__init__": lambda self, *a, **k: ref_cls.__init__(self, *a, **k)})
     assert kernel_blocker(quiet()) is None
+    # a class in the place of a method is behaviour
+    assert "overrides pose" in kernel_blocker(object.__new__(type("Classy", (ref_cls,), {"pose": Options})))
 
 
 def test_the_wavy_line_of_the_issue_gives_its_own_sway_in_both_loops():
