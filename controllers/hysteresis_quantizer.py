@@ -130,36 +130,37 @@ class HysteresisQuantizer:
     def __init__(self, params: QuantizerParams, enabled: bool = True):
         self.params = params
         self.enabled = enabled
-        self.k = 0
-        self.output = 0.0
-        self.switches = 0
+        # (k, output, switches): the state quantizer_kernel reads and writes, for step() and the
+        # compiled loop alike (one implementation)
+        self._state = np.zeros(3)
+        self._delta, self._u_min = float(params.delta), float(params.u_min)
+
+    @property
+    def k(self) -> int:
+        """The signed level index of the last output."""
+        return int(self._state[0])
+
+    @property
+    def output(self) -> float:
+        """The last output Q(tau)."""
+        return float(self._state[1])
+
+    @property
+    def switches(self) -> int:
+        """How many times the output changed since :meth:`reset`."""
+        return int(self._state[2])
 
     def reset(self) -> None:
         """Back to level 0, as at t = 0 (docs/model.md §3 step 11)."""
-        self.k = 0
-        self.output = 0.0
-        self.switches = 0
+        self._state[:] = 0.0
 
     def kernel(self):
-        """(quantizer_kernel, its state and parameters) for the compiled loop; ``sync`` writes the
-        level, output and switch count back."""
+        """(quantizer_kernel, its state and parameters) for the compiled loop (the state is this
+        object's own: nothing to write back)."""
         from usv_mj.kernels import Kernel
 
-        state = np.array([float(self.k), float(self.output), float(self.switches)])
-
-        def sync():
-            self.k, self.output, self.switches = int(state[0]), float(state[1]), int(state[2])
-
-        return Kernel(quantizer_kernel, (state, float(self.params.delta), float(self.params.u_min),
-                                         bool(self.enabled)), sync)
+        return Kernel(quantizer_kernel, (self._state, self._delta, self._u_min, bool(self.enabled)))
 
     def step(self, tau: float) -> float:
         """Quantize one input sample; returns Q(tau) and counts output changes in ``switches``."""
-        if not self.enabled:
-            q = float(tau)
-        else:
-            q, self.k = quantize_step(self.params.delta, self.params.u_min, self.k, tau)
-        if q != self.output:
-            self.switches += 1
-            self.output = q
-        return q
+        return quantizer_kernel(float(tau), self._state, self._delta, self._u_min, bool(self.enabled))[0]

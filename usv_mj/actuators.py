@@ -216,16 +216,18 @@ def actuator_step(p, state, q_u, q_r):
     return f_u, f_r, sat_u, sat_r
 
 
-@njit(cache=True)
-def _actuator_step_compiled(p, state, q_u, q_r):
-    return actuator_step(p, state, q_u, q_r)
+@register_jitable
+def unlimited_step(q_u, q_r):
+    """The ``unlimited`` kind: the force is the command, nothing saturated (f_u, f_r, sat_u, sat_r)."""
+    return q_u, q_r, 0.0, 0.0
 
 
 @njit(cache=True)
 def actuator_kernel(q_u, q_r, unlimited, p, state):
-    """:meth:`Actuators.apply` natively (usv_mj.kernels)."""
+    """:meth:`Actuators.apply` (which calls it, or runs :func:`unlimited_step` as Python) and its
+    kernel for the compiled loop (usv_mj.kernels)."""
     if unlimited:
-        return q_u, q_r, 0.0, 0.0
+        return unlimited_step(q_u, q_r)
     return actuator_step(p, state, q_u, q_r)
 
 
@@ -276,6 +278,6 @@ class Actuators:
 
     def apply(self, q_u: float, q_r: float) -> tuple[float, float, float, float]:
         """(f_u [N], f_r [N m], sat_u, sat_r) realized over the coming period from the command."""
-        if self.unlimited:
-            return q_u, q_r, 0.0, 0.0
-        return _actuator_step_compiled(self.params, self.state, float(q_u), float(q_r))
+        if self.unlimited:  # the kernel's own branch, as plain Python (a native call costs more than it)
+            return unlimited_step(q_u, q_r)
+        return actuator_kernel(float(q_u), float(q_r), False, self.params, self.state)

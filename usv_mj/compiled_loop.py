@@ -2,8 +2,9 @@
 
 When every part of a run hands a kernel (:mod:`usv_mj.kernels`: the reference, the controller,
 both quantizers, the actuators, the plant, and the hook if the run has one: the obstacles' hook
-has one for standing obstacles without guidance), :func:`usv_mj.simulate` runs this loop instead
-of the Python one; the record is the same bit for bit (tested in
+has one for standing obstacles without guidance) and no part's class overrides a method below
+the class of its kernel (:func:`usv_mj.kernels.kernel_blocker`), :func:`usv_mj.simulate` runs this
+loop instead of the Python one; the record is the same bit for bit (tested in
 tests/test_compiled_loop.py) and ``record.metadata["loop"]`` says which loop ran (with the reason
 when it was the Python one).
 
@@ -41,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from .kernels import Kernel, kernel_of
+from .kernels import Kernel, kernel_blocker, kernel_of
 from .record import COL, N_CORE
 
 # statuses returned by run_block
@@ -223,22 +224,30 @@ def kernels_of(parts, hooks=None) -> tuple[dict | None, str]:
     if len(hooks) > 1:
         return None, "the run has several hooks (" + ", ".join(type(h).__name__ for h in hooks) + ")"
     if hooks:
-        make = kernel_of(hooks[0], "__call__")
+        blocked = kernel_blocker(hooks[0])
+        if blocked is not None:
+            return None, f"the hook: {blocked}"
+        make = kernel_of(hooks[0])
         found["hook"] = make() if make is not None else None
         if found["hook"] is None:
             return None, f"the hook ({type(hooks[0]).__name__}) has Python logic (moving obstacles, guidance, ...)"
     quant_u, quant_r = parts.quantizers
-    roles = (("ref", parts.reference, "evaluate", "reference"), ("ctrl", parts.controller, "__call__", "controller"),
-             ("qu", quant_u, "step", "surge quantizer"), ("qr", quant_r, "step", "yaw quantizer"),
-             ("act", parts.actuators, "apply", "actuators"))
-    for role, part, method, label in roles:
-        make = kernel_of(part, method) if part is not None else None
+    roles = (("ref", parts.reference, "reference"), ("ctrl", parts.controller, "controller"),
+             ("qu", quant_u, "surge quantizer"), ("qr", quant_r, "yaw quantizer"), ("act", parts.actuators, "actuators"),
+             ("plant", parts.plant, "plant"))
+    for role, part, label in roles:
+        blocked = kernel_blocker(part) if part is not None else None
+        if blocked is not None:  # a subclass's Python must run (usv_mj.kernels: the rule)
+            return None, f"the {label}: {blocked}"
+        if role == "plant":  # its kernel is taken per block (run_compiled)
+            if kernel_of(part) is None:
+                return None, f"the plant ({type(part).__name__}) has no kernel"
+            continue
+        make = kernel_of(part) if part is not None else None
         k = make() if make is not None else None
         if k is None:
             return None, f"the {label} ({type(part).__name__}) has no kernel"
         found[role] = k
-    if kernel_of(parts.plant, "step") is None:
-        return None, f"the plant ({type(parts.plant).__name__}) has no kernel"
     t_max = getattr(parts.reference, "t_max", None)
     if t_max is not None and t_max < parts.duration:
         return None, f"the reference's table ends at {t_max:g} s, before the run's end"

@@ -14,7 +14,6 @@ below are registered the same way).
 
 from __future__ import annotations
 
-import bisect
 import functools
 import math
 from dataclasses import dataclass
@@ -28,7 +27,12 @@ from usv_mj.ship import wrap_angle
 
 
 class Reference:
-    """Base class: subclasses implement :meth:`pose` returning (x, y, psi, r, u)."""
+    """Base class: subclasses implement :meth:`pose` returning (x, y, psi, r, u).
+
+    A built-in reference's ``pose`` is an njit function of this module (one implementation: its
+    kernel for the compiled loop composes the same function with :func:`unicycle_out`); a subclass
+    that overrides ``pose`` (or any other method) runs in the Python loop (usv_mj.kernels).
+    """
 
     kind = "base"
 
@@ -39,16 +43,38 @@ class Reference:
         raise NotImplementedError
 
     def evaluate(self, t: float) -> np.ndarray:
-        x, y, psi, r, u = self.pose(t)
-        out = self._out
-        out[0], out[1], out[2] = x, y, psi
-        out[3], out[4] = u * math.cos(psi), u * math.sin(psi)
-        out[5], out[6] = r, u
-        return out
+        return unicycle_out(self._out, *self.pose(t))
 
     def sample(self, times) -> np.ndarray:
         """The reference at many times, shape (len(times), 7)."""
         return np.array([self.evaluate(float(t)).copy() for t in np.asarray(times, dtype=float)])
+
+
+@njit(cache=True)
+def unicycle_out(out, x, y, psi, r, u):
+    """The REF_FIELDS vector of a unicycle pose, written into ``out`` (returned): (x, y, psi,
+    u cos psi, u sin psi, r, u) [m, m, rad, m/s, m/s, rad/s, m/s]. :meth:`Reference.evaluate`."""
+    out[0], out[1], out[2] = x, y, psi
+    out[3], out[4] = u * math.cos(psi), u * math.sin(psi)
+    out[5], out[6] = r, u
+    return out
+
+
+@njit(cache=True)
+def hermite_point(w, x0, y0, p0, x1, y1, p1, h, v):
+    """(x, y) at w in [0, 1] across one cell of a cubic Hermite interpolant: nodes (x0, y0), (x1, y1)
+    [m] a parameter step ``h`` apart, with tangents v (cos p, sin p) per unit of the parameter
+    (the paper's table: h [s], v = u_d [m/s]; a path table: h = ds [m], v = 1). The one Hermite
+    interpolation of the package (the paper's reference and usv_mj.obstacles.planner's paths)."""
+    h00 = 2 * w**3 - 3 * w**2 + 1
+    h10 = w**3 - 2 * w**2 + w
+    h01 = -2 * w**3 + 3 * w**2
+    h11 = w**3 - w**2
+    c0, s0 = math.cos(p0), math.sin(p0)
+    c1, s1 = math.cos(p1), math.sin(p1)
+    x = h00 * x0 + h10 * h * v * c0 + h01 * x1 + h11 * h * v * c1
+    y = h00 * y0 + h10 * h * v * s0 + h01 * y1 + h11 * h * v * s1
+    return x, y
 
 
 @njit(cache=True)
@@ -66,68 +92,57 @@ def paper_heading(t, u_d, t_turn, t_phase, amplitude, period):
 
 
 @njit(cache=True)
-def _hermite(tab_x, tab_y, tab_psi, h, u_d, t):
-    """Cubic Hermite interpolation of the tabulated position with exact end slopes u_d (cos, sin) psi."""
+def paper_pose(t, tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, period):
+    """:meth:`PaperReference.pose`: the heading in closed form, the position from the table (Hermite
+    with exact end slopes u_d (cos, sin) psi; past the table's last cell, its cubic)."""
+    psi, r = paper_heading(t, u_d, t_turn, t_phase, amplitude, period)
     i = int(t / h)
     if i >= tab_x.shape[0] - 1:
         i = tab_x.shape[0] - 2
-    s = t / h - i
-    h00 = 2 * s**3 - 3 * s**2 + 1
-    h10 = s**3 - 2 * s**2 + s
-    h01 = -2 * s**3 + 3 * s**2
-    h11 = s**3 - s**2
-    c0, s0 = math.cos(tab_psi[i]), math.sin(tab_psi[i])
-    c1, s1 = math.cos(tab_psi[i + 1]), math.sin(tab_psi[i + 1])
-    x = h00 * tab_x[i] + h10 * h * u_d * c0 + h01 * tab_x[i + 1] + h11 * h * u_d * c1
-    y = h00 * tab_y[i] + h10 * h * u_d * s0 + h01 * tab_y[i + 1] + h11 * h * u_d * s1
-    return x, y
-
-
-@njit(cache=True)
-def _paper_evaluate(tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, period, t, out):
-    psi, r = paper_heading(t, u_d, t_turn, t_phase, amplitude, period)
-    x, y = _hermite(tab_x, tab_y, tab_psi, h, u_d, t)
-    out[0], out[1], out[2] = x, y, psi
-    out[3], out[4] = u_d * math.cos(psi), u_d * math.sin(psi)
-    out[5], out[6] = r, u_d
-    return out
+    x, y = hermite_point(t / h - i, tab_x[i], tab_y[i], tab_psi[i], tab_x[i + 1], tab_y[i + 1], tab_psi[i + 1], h,
+                         u_d)
+    return x, y, psi, r, u_d
 
 
 @njit(cache=True)
 def paper_kernel(t, tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, period, out):
     """:meth:`PaperReference.evaluate` natively (usv_mj.kernels; the loop checks the table's t_max)."""
-    return _paper_evaluate(tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, period, t, out)
+    return unicycle_out(out, *paper_pose(t, tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, period))
 
 
 @njit(cache=True)
-def _unicycle_out(out, x, y, psi, r, u):
-    """:meth:`Reference.evaluate`'s assembly of the vector from a pose."""
-    out[0], out[1], out[2] = x, y, psi
-    out[3], out[4] = u * math.cos(psi), u * math.sin(psi)
-    out[5], out[6] = r, u
-    return out
+def line_pose(t, x0, y0, heading, speed):
+    """:meth:`LineReference.pose`: from (x0, y0) [m] along ``heading`` [rad] at ``speed`` [m/s]."""
+    d = speed * t
+    return x0 + d * math.cos(heading), y0 + d * math.sin(heading), heading, 0.0, speed
 
 
 @njit(cache=True)
 def line_kernel(t, x0, y0, heading, speed, out):
     """:class:`LineReference` natively."""
-    d = speed * t
-    return _unicycle_out(out, x0 + d * math.cos(heading), y0 + d * math.sin(heading), heading, 0.0, speed)
+    return unicycle_out(out, *line_pose(t, x0, y0, heading, speed))
+
+
+@njit(cache=True)
+def circle_pose(t, cx, cy, radius, speed, theta0, direction):
+    """:meth:`CircleReference.pose`: polar angle theta0 + w t about (cx, cy), w = direction speed/radius."""
+    w = direction * speed / radius
+    th = theta0 + w * t
+    return cx + radius * math.cos(th), cy + radius * math.sin(th), th + direction * math.pi / 2, w, speed
 
 
 @njit(cache=True)
 def circle_kernel(t, cx, cy, radius, speed, theta0, direction, out):
     """:class:`CircleReference` natively."""
-    w = direction * speed / radius
-    th = theta0 + w * t
-    return _unicycle_out(out, cx + radius * math.cos(th), cy + radius * math.sin(th),
-                         th + direction * math.pi / 2, w, speed)
+    return unicycle_out(out, *circle_pose(t, cx, cy, radius, speed, theta0, direction))
 
 
 @njit(cache=True)
-def waypoint_kernel(t, speed, starts, pieces, out):
-    """:class:`WaypointReference` natively; ``pieces`` rows (kind 0 line / 1 arc, then the piece's
-    numbers: line x0, y0, heading, length; arc cx, cy, theta0, sign, radius, length)."""
+def waypoint_pose(t, speed, starts, pieces):
+    """:meth:`WaypointReference.pose`; ``pieces`` rows (kind 0 line / 1 arc, then the piece's
+    numbers: line x0, y0, heading, length; arc cx, cy, theta0, sign, radius, length), ``starts``
+    their start arc lengths [m]. Past the last piece (a line: the path never ends on an arc) the
+    reference goes on along it."""
     s = speed * t
     i = 0  # bisect_right(starts, s) - 1, at least 0
     for j in range(starts.shape[0]):
@@ -139,10 +154,16 @@ def waypoint_kernel(t, speed, starts, pieces, out):
     pc = pieces[i]
     if pc[0] == 0.0:
         h = pc[3]
-        return _unicycle_out(out, pc[1] + ds * math.cos(h), pc[2] + ds * math.sin(h), h, 0.0, speed)
+        return pc[1] + ds * math.cos(h), pc[2] + ds * math.sin(h), h, 0.0, speed
     th = pc[3] + pc[4] * ds / pc[5]
-    return _unicycle_out(out, pc[1] + pc[5] * math.cos(th), pc[2] + pc[5] * math.sin(th), th + pc[4] * math.pi / 2,
-                         pc[4] * speed / pc[5], speed)
+    return (pc[1] + pc[5] * math.cos(th), pc[2] + pc[5] * math.sin(th), th + pc[4] * math.pi / 2,
+            pc[4] * speed / pc[5], speed)
+
+
+@njit(cache=True)
+def waypoint_kernel(t, speed, starts, pieces, out):
+    """:class:`WaypointReference` natively."""
+    return unicycle_out(out, *waypoint_pose(t, speed, starts, pieces))
 
 
 @functools.lru_cache(maxsize=8)
@@ -189,21 +210,16 @@ class PaperReference(Reference):
         self._x, self._y, self._psi = x.copy(), y.copy(), psi.copy()
 
     def pose(self, t):
-        out = self.evaluate(t)
-        return out[0], out[1], out[2], out[5], out[6]
+        if t > self.t_max:
+            raise ValueError(f"reference asked at t = {t:.3f} s beyond its table ({self.t_max:.1f} s)")
+        return paper_pose(t, self._x, self._y, self._psi, self.GRID, self.speed, self.t_turn, self.t_phase,
+                          self.amplitude, self.period)
 
     def kernel(self):
         from usv_mj.kernels import Kernel
 
         return Kernel(paper_kernel, (self._x, self._y, self._psi, self.GRID, self.speed, self.t_turn, self.t_phase,
                                      self.amplitude, self.period, self._out))
-
-    def evaluate(self, t):
-        if t > self.t_max:
-            raise ValueError(f"reference asked at t = {t:.3f} s beyond its table ({self.t_max:.1f} s)")
-        # one native call per control step: this runs 300 000 times in the paper run
-        return _paper_evaluate(self._x, self._y, self._psi, self.GRID, self.speed, self.t_turn, self.t_phase,
-                               self.amplitude, self.period, t, self._out)
 
 
 class LineReference(Reference):
@@ -223,9 +239,7 @@ class LineReference(Reference):
         return Kernel(line_kernel, (self.start[0], self.start[1], self.heading, self.speed, self._out))
 
     def pose(self, t):
-        d = self.speed * t
-        return (self.start[0] + d * math.cos(self.heading), self.start[1] + d * math.sin(self.heading),
-                self.heading, 0.0, self.speed)
+        return line_pose(t, self.start[0], self.start[1], self.heading, self.speed)
 
 
 class CircleReference(Reference):
@@ -251,11 +265,7 @@ class CircleReference(Reference):
                                       self.direction, self._out))
 
     def pose(self, t):
-        w = self.direction * self.speed / self.radius
-        th = self.theta0 + w * t
-        x = self.center[0] + self.radius * math.cos(th)
-        y = self.center[1] + self.radius * math.sin(th)
-        return x, y, th + self.direction * math.pi / 2, w, self.speed
+        return circle_pose(t, self.center[0], self.center[1], self.radius, self.speed, self.theta0, self.direction)
 
 
 class WaypointReference(Reference):
@@ -304,34 +314,19 @@ class WaypointReference(Reference):
             else:
                 cursor = end
         self.pieces = pieces
-        self._starts = list(np.cumsum([0.0] + [pc[-1] for pc in pieces[:-1]]))
+        self._starts = np.cumsum([0.0] + [pc[-1] for pc in pieces[:-1]])
+        self._rows = np.zeros((len(pieces), 7))  # waypoint_pose's layout of the pieces
+        for i, pc in enumerate(pieces):
+            self._rows[i, 0] = 0.0 if pc[0] == "line" else 1.0
+            self._rows[i, 1:len(pc)] = pc[1:]
 
     def kernel(self):
         from usv_mj.kernels import Kernel
 
-        last = self.pieces[-1]
-        if last[0] != "line":  # pose() raises past a final arc; keep that in the Python loop
-            return None
-        rows = np.zeros((len(self.pieces), 7))
-        for i, pc in enumerate(self.pieces):
-            rows[i, 0] = 0.0 if pc[0] == "line" else 1.0
-            rows[i, 1:len(pc)] = pc[1:]
-        return Kernel(waypoint_kernel, (self.speed, np.array(self._starts, dtype=float), rows, self._out))
+        return Kernel(waypoint_kernel, (self.speed, self._starts, self._rows, self._out))
 
     def pose(self, t):
-        s = self.speed * t
-        i = max(0, bisect.bisect_right(self._starts, s) - 1)
-        pc = self.pieces[i]
-        ds = s - self._starts[i]
-        if pc[0] == "line" or (i == len(self.pieces) - 1 and ds > pc[-1]):
-            if pc[0] == "arc":  # past the end of a final arc cannot happen: the path ends on a line
-                raise AssertionError("waypoint path ends on an arc")
-            _, x0, y0, h, _ = pc
-            return x0 + ds * math.cos(h), y0 + ds * math.sin(h), h, 0.0, self.speed
-        _, cx, cy, th0, sign, radius, _ = pc
-        th = th0 + sign * ds / radius
-        return (cx + radius * math.cos(th), cy + radius * math.sin(th), th + sign * math.pi / 2,
-                sign * self.speed / radius, self.speed)
+        return waypoint_pose(t, self.speed, self._starts, self._rows)
 
 
 

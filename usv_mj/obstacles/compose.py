@@ -260,6 +260,10 @@ class HarbourPlant(MuJoCoPlant):
         for ``usv_mj.render``; the model file itself when there are none.
     """
 
+    #: what the plant's kernel does not stand in for (both loops call them alike): the kernel
+    #: stays MuJoCoPlant's (usv_mj.kernels)
+    KERNEL_NEUTRAL = frozenset({"rangefinder_adr", "rangefinders", "move_obstacles", "close"})
+
     def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, obstacles=(), control_period: float = 1e-3,
                  substeps: int = 1, contact: ContactParams = ContactParams(), safety_radii=None,
                  split: RigidBodySplit = RigidBodySplit(), callback: str = "native", environment=None,

@@ -37,6 +37,8 @@ class ObstacleHook:
         log, monitor = self.log, self.monitor
         if self._move is not None or self.guidance is not None or any(o.moving for o in log.obstacles):
             return None
+        if type(log) is not ObstacleLog:  # the kernel stores the rows as ObstacleLog.record_step does
+            return None
         rows = np.zeros(1, np.int64)
 
         def sync():  # the rows the kernel stored count as recorded (ObstacleLog.n_rows)

@@ -63,7 +63,7 @@ from usv_mj.controllers.performance_funnel import PerformanceFunnel
 from usv_mj.record import Event
 from usv_mj.scenario import ScenarioError
 from usv_mj.ship import wrap_angle
-from usv_mj.trajectories import Reference
+from usv_mj.trajectories import Reference, hermite_point, unicycle_out
 
 from .compose import HULL_RADIUS
 from usv_mj.obstacle_tables import GuidanceSpec, ObstacleSpec
@@ -114,13 +114,6 @@ class SafetyEnvelope:
 # --- the path: arc-length table from a virtual boat --------------------------------------------
 
 
-def _hermite_weights(w):
-    """Cubic Hermite basis h00, h10, h01, h11 at w in [0, 1]."""
-    w2 = w * w
-    w3 = w2 * w
-    return 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w, -2 * w3 + 3 * w2, w3 - w2
-
-
 @dataclass
 class PathTable:
     """x(s), y(s), psi(s), kappa(s) on s = 0, ds, 2 ds, ... [m, rad, 1/m]; kappa is linear between
@@ -138,39 +131,17 @@ class PathTable:
     def length(self) -> float:
         return (len(self.x) - 1) * self.ds
 
+    def __post_init__(self) -> None:
+        # the rows (x, y, psi, kappa) that _path_at reads: the one evaluation of a path table
+        self._rows = np.ascontiguousarray(np.column_stack([self.x, self.y, self.psi, self.kappa]), dtype=np.float64)
+
     def at(self, s: float):
-        """(x, y, psi, kappa) at arc length s [m] (linear interpolation; straight past the end)."""
-        if s <= 0.0:
-            return self.x[0] + s * math.cos(self.psi[0]), self.y[0] + s * math.sin(self.psi[0]), self.psi[0], 0.0
-        f = s / self.ds
-        i = int(f)
-        n = len(self.x) - 1
-        if i >= n:
-            extra = s - n * self.ds
-            p = self.psi[n]
-            return self.x[n] + extra * math.cos(p), self.y[n] + extra * math.sin(p), p, 0.0
-        w = f - i
-        k0, k1 = self.kappa[i], self.kappa[i + 1]
-        # kappa is linear in s over a cell and psi its integral, so d psi/ds = kappa exactly;
-        # x, y: cubic Hermite with the unit tangents at the nodes
-        h00, h10, h01, h11 = _hermite_weights(w)
-        p0, p1, ds = self.psi[i], self.psi[i + 1], self.ds
-        x = h00 * self.x[i] + h10 * ds * math.cos(p0) + h01 * self.x[i + 1] + h11 * ds * math.cos(p1)
-        y = h00 * self.y[i] + h10 * ds * math.sin(p0) + h01 * self.y[i + 1] + h11 * ds * math.sin(p1)
-        return x, y, p0 + ds * w * (k0 + 0.5 * (k1 - k0) * w), k0 + (k1 - k0) * w
+        """(x, y, psi, kappa) at arc length s [m] (:func:`_path_at`; straight past either end)."""
+        return _path_at(self._rows, 0, len(self.x) - 1, self.ds, float(s))
 
     def points(self, s: np.ndarray) -> np.ndarray:
-        """Positions at many arc lengths, shape (len(s), 2)."""
-        s = np.asarray(s, dtype=float)
-        n = len(self.x) - 1
-        inside = np.clip(s, 0.0, n * self.ds)
-        i = np.minimum((inside / self.ds).astype(np.int64), n - 1)
-        h00, h10, h01, h11 = _hermite_weights(inside / self.ds - i)
-        ds = self.ds
-        x = h00 * self.x[i] + h10 * ds * np.cos(self.psi[i]) + h01 * self.x[i + 1] + h11 * ds * np.cos(self.psi[i + 1])
-        y = h00 * self.y[i] + h10 * ds * np.sin(self.psi[i]) + h01 * self.y[i + 1] + h11 * ds * np.sin(self.psi[i + 1])
-        extra = np.maximum(s - n * self.ds, 0.0)
-        return np.c_[x + extra * math.cos(self.psi[n]), y + extra * math.sin(self.psi[n])]
+        """Positions at many arc lengths, shape (len(s), 2) (as :meth:`at`)."""
+        return _path_points(self._rows, len(self.x) - 1, self.ds, np.ascontiguousarray(s, dtype=np.float64).ravel())
 
 
 def smooth_polyline(points, psi0: float, kappa_max: float, dkappa_max: float, lookahead: float,
@@ -295,7 +266,9 @@ def retimed_pieces(t: float, s: float, u: float, u_low: float, hold: float, u_cr
 
 @njit(cache=True)
 def _path_at(path, a, n, ds, s):
-    """:meth:`PathTable.at` on rows a .. a + n of ``path`` (columns x, y, psi, kappa), term by term."""
+    """(x, y, psi, kappa) at arc length s [m] of the path table on rows a .. a + n of ``path``
+    (columns x, y, psi, kappa): Hermite x, y, linear kappa and its integral psi; straight along
+    psi of the end row beyond either end."""
     if s <= 0.0:
         return path[a, 0] + s * math.cos(path[a, 2]), path[a, 1] + s * math.sin(path[a, 2]), path[a, 2], 0.0
     f = s / ds
@@ -307,20 +280,28 @@ def _path_at(path, a, n, ds, s):
     w = f - i
     r0, r1 = a + i, a + i + 1
     k0, k1 = path[r0, 3], path[r1, 3]
-    w2 = w * w
-    w3 = w2 * w
-    h00, h10, h01, h11 = 2 * w3 - 3 * w2 + 1, w3 - 2 * w2 + w, -2 * w3 + 3 * w2, w3 - w2
     p0, p1 = path[r0, 2], path[r1, 2]
-    x = h00 * path[r0, 0] + h10 * ds * math.cos(p0) + h01 * path[r1, 0] + h11 * ds * math.cos(p1)
-    y = h00 * path[r0, 1] + h10 * ds * math.sin(p0) + h01 * path[r1, 1] + h11 * ds * math.sin(p1)
+    # kappa is linear in s over a cell and psi its integral, so d psi/ds = kappa exactly;
+    # x, y: cubic Hermite with the unit tangents at the nodes
+    x, y = hermite_point(w, path[r0, 0], path[r0, 1], p0, path[r1, 0], path[r1, 1], p1, ds, 1.0)
     return x, y, p0 + ds * w * (k0 + 0.5 * (k1 - k0) * w), k0 + (k1 - k0) * w
 
 
 @njit(cache=True)
-def guided_kernel(t, prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path, out):
-    """:meth:`GuidedReference.evaluate` natively (usv_mj.kernels), on a snapshot of its profile
-    (``prof_t0`` and the (t0, s0, u0, a) rows ``prof_pieces``) and segments (start time, start arc
-    length, the path's ds and first row in ``path``; ``seg_row`` has one more entry, the end)."""
+def _path_points(path, n, ds, s):
+    """(x, y) of :func:`_path_at` at each arc length of ``s``, shape (len(s), 2)."""
+    out = np.empty((s.shape[0], 2))
+    for j in range(s.shape[0]):
+        x, y, _, _ = _path_at(path, 0, n, ds, s[j])
+        out[j, 0], out[j, 1] = x, y
+    return out
+
+
+@njit(cache=True)
+def guided_pose(t, prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path):
+    """:meth:`GuidedReference.pose` on a snapshot of its profile (``prof_t0`` and the (t0, s0, u0, a)
+    rows ``prof_pieces``) and segments (start time, start arc length, the path's ds and first row
+    in ``path``; ``seg_row`` has one more entry, the end)."""
     lo, hi = 0, prof_t0.shape[0]  # bisect.bisect_right(profile.t0, t)
     while lo < hi:
         mid = (lo + hi) // 2
@@ -337,11 +318,13 @@ def guided_kernel(t, prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path, 
     while j > 0 and seg_t[j] > t:
         j -= 1
     x, y, psi, kappa = _path_at(path, seg_row[j], seg_row[j + 1] - seg_row[j] - 1, seg_ds[j], s - seg_s[j])
-    r = kappa * u
-    out[0], out[1], out[2] = x, y, psi
-    out[3], out[4] = u * math.cos(psi), u * math.sin(psi)
-    out[5], out[6] = r, u
-    return out
+    return x, y, psi, kappa * u, u
+
+
+@njit(cache=True)
+def guided_kernel(t, prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path, out):
+    """:meth:`GuidedReference.evaluate` natively (usv_mj.kernels), on the snapshot of :func:`guided_pose`."""
+    return unicycle_out(out, *guided_pose(t, prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path))
 
 
 class GuidedReference(Reference):
@@ -378,10 +361,7 @@ class GuidedReference(Reference):
         return (*seg[2].at(s - seg[1]), s - seg[1], seg)
 
     def pose(self, t):
-        s, u, _ = self.profile.state(t)
-        t0, s0, path = self._segment(self.segments, t)
-        x, y, psi, kappa = path.at(s - s0)
-        return x, y, psi, kappa * u, u
+        return guided_pose(t, *self._snapshot())
 
     def positions(self, times, profile: SpeedProfile | None = None, segments=None) -> np.ndarray:
         """Reference positions at many times, shape (len(times), 2) (optionally for a candidate
@@ -414,23 +394,32 @@ class GuidedReference(Reference):
         p = self.profile
         return (id(self.segments), len(self.segments), id(p), id(p.t0), len(p.t0), id(p.pieces), len(p.pieces))
 
-    def kernel(self):
-        """:func:`guided_kernel` on a snapshot of the profile and the segments (taken now: make a
-        new kernel when :meth:`kernel_key` changes). The snapshot keeps the lists it was taken of
-        alive, so their ids in the key are not reused."""
-        from usv_mj.kernels import Kernel
-
+    def _snapshot(self) -> tuple:
+        """:func:`guided_pose`'s arrays of the profile and the segments, made again when
+        :meth:`kernel_key` changed. The snapshot keeps the lists it was taken of alive, so their
+        ids in the key are not reused."""
+        key = self.kernel_key()
+        if getattr(self, "_snapshot_key", None) == key:
+            return self._snapshot_args
         p = self.profile
         prof_t0 = np.array(p.t0, dtype=np.float64)
         prof_pieces = np.array(p.pieces, dtype=np.float64).reshape(-1, 4)
         seg_t = np.array([seg[0] for seg in self.segments], dtype=np.float64)
         seg_s = np.array([seg[1] for seg in self.segments], dtype=np.float64)
         seg_ds = np.array([seg[2].ds for seg in self.segments], dtype=np.float64)
-        tables = [np.column_stack([seg[2].x, seg[2].y, seg[2].psi, seg[2].kappa]) for seg in self.segments]
+        tables = [seg[2]._rows for seg in self.segments]
         seg_row = np.cumsum([0] + [len(tb) for tb in tables]).astype(np.int64)
         path = np.ascontiguousarray(np.vstack(tables), dtype=np.float64)
         self._kernel_snapshot = (self.segments, p, p.t0, p.pieces)
-        return Kernel(guided_kernel, (prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path, self._out))
+        self._snapshot_key, self._snapshot_args = key, (prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path)
+        return self._snapshot_args
+
+    def kernel(self):
+        """:func:`guided_kernel` on the snapshot of the profile and the segments as they are now (make
+        a new kernel when :meth:`kernel_key` changes)."""
+        from usv_mj.kernels import Kernel
+
+        return Kernel(guided_kernel, self._snapshot() + (self._out,))
 
 
 # --- static planning ----------------------------------------------------------------------------

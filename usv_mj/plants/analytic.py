@@ -25,12 +25,22 @@ rk4_advance = calm_rk4_advance
 
 
 @njit(cache=True)
-def analytic_kernel(k, x, f_u, f_r, p, dp, sea, ep, waves, current_grid, wind_grid, t0, dt, h, n):
-    """:meth:`AnalyticPlant.step` natively (usv_mj.kernels): the k-th step, from t0 + k dt."""
-    t = t0 + k * dt if k > 0 else t0
-    if sea:
-        return sea_rk4_advance(p, dp, ep, waves, current_grid, wind_grid, t, x, f_u, f_r, h, n), False
-    return rk4_advance(p, dp, t, x, f_u, f_r, h, n), False
+def _step_start(k, t0, dt):
+    """The time [s] the k-th step starts from: t0 + k dt (t0 itself for k = 0)."""
+    return t0 + k * dt if k > 0 else t0
+
+
+@njit(cache=True)
+def analytic_kernel(k, x, f_u, f_r, p, dp, t0, dt, h, n):
+    """:meth:`AnalyticPlant.step` in calm water (step() calls it; the compiled loop's kernel,
+    usv_mj.kernels): the k-th step, from t0 + k dt."""
+    return rk4_advance(p, dp, _step_start(k, t0, dt), x, f_u, f_r, h, n), False
+
+
+@njit(cache=True)
+def analytic_sea_kernel(k, x, f_u, f_r, p, dp, ep, waves, current_grid, wind_grid, t0, dt, h, n):
+    """:meth:`AnalyticPlant.step` in a sea (step() calls it; the compiled loop's kernel): the k-th step."""
+    return sea_rk4_advance(p, dp, ep, waves, current_grid, wind_grid, _step_start(k, t0, dt), x, f_u, f_r, h, n), False
 
 
 @PLANTS.register("analytic")
@@ -67,6 +77,7 @@ class AnalyticPlant(PlantBase):
         self._t0 = 0.0
         self._t = 0.0
         self._k = 0
+        self._calm_args = None
         self.environment = environment if environment is not None and not environment.calm else None
 
     def reset(self, eta0, nu0, t0: float = 0.0) -> None:
@@ -76,36 +87,35 @@ class AnalyticPlant(PlantBase):
         self._k = 0
 
     def step(self, tau_u: float, tau_r: float) -> None:
-        if self.environment is None:
-            self._x = rk4_advance(self._p, self._dp, self._t, self._x, float(tau_u), float(tau_r), self._h,
-                                  self.substeps)
-        else:
-            self.environment.ensure_horizon(self._t + 2 * self.control_period)
-            self._x = sea_rk4_advance(self._p, self._dp, *self.environment.packed, self._t, self._x,
-                                      float(tau_u), float(tau_r), self._h, self.substeps)
+        fn, args = self._kernel_args(self._t)
+        self._x, _ = fn(self._k, self._x, float(tau_u), float(tau_r), *args)
         self._k += 1
         # time from the step count: no drift from summing dt 300 000 times
         self._t = self._t0 + self._k * self.control_period
 
-    def kernel(self, t_end: float):
-        """(analytic_kernel, its arrays) for steps up to ``t_end`` [s] (the sea's grids cover them)."""
-        from usv_mj.kernels import Kernel
-
+    def _kernel_args(self, t_end: float) -> tuple:
+        """(the kernel, its arguments after (k, x, f_u, f_r)), the sea's grids covering ``t_end`` [s]."""
         env = self.environment
         if env is None:
-            from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
+            if self._calm_args is None or self._calm_args[1][2] != self._t0:  # made once per reset
+                self._calm_args = analytic_kernel, (self._p, self._dp, self._t0, self.control_period, self._h,
+                                                    self.substeps)
+            return self._calm_args
+        env.ensure_horizon(t_end + 2 * self.control_period)
+        return analytic_sea_kernel, (self._p, self._dp, *env.packed, self._t0, self.control_period, self._h,
+                                     self.substeps)
 
-            packed = (np.zeros(N_ENV_PARAMS), np.zeros((N_WAVE_COLS, 0)), np.zeros((0, 2)), np.zeros((0, 1)))
-        else:
-            env.ensure_horizon(t_end + 2 * self.control_period)
-            packed = tuple(env.packed)
+    def kernel(self, t_end: float):
+        """(analytic_kernel or analytic_sea_kernel, its arrays) for steps up to ``t_end`` [s] (the
+        sea's grids cover them); :meth:`step` is the same kernel, one step at a time."""
+        from usv_mj.kernels import Kernel
 
         def sync(k, x):
             self._x, self._k = x, k
             self._t = self._t0 + k * self.control_period
 
-        return Kernel(analytic_kernel, (self._p, self._dp, env is not None, *packed, self._t0, self.control_period,
-                                        self._h, self.substeps), sync)
+        fn, args = self._kernel_args(t_end)
+        return Kernel(fn, args, sync)
 
     @property
     def time(self) -> float:

@@ -144,9 +144,9 @@ class MuJoCoPlant(PlantBase):
         "native" (numba cfunc, default) or "python" (the same physics kernel called from a Python
         callback: slower, useful as a reference).
     native_step:
-        With the native callback, advance through :func:`mujoco_callback.native_stepper` (mj_step
-        called from compiled code, state computed there) instead of the Python bindings; the
-        result is identical, only faster.
+        With the native callback, advance through :func:`mujoco_callback.mujoco_kernel` (mj_step
+        called from compiled code, state computed there; the compiled loop's kernel of this plant)
+        instead of the Python bindings; the result is identical, only faster.
     environment:
         A :class:`usv_mj.sea.Environment` (waves, current, wind; docs/sea.md §1, §6) or None for calm
         water. The plant keeps it and its packed arrays alive, extends its OU grids ahead of the
@@ -202,7 +202,8 @@ class MuJoCoPlant(PlantBase):
         self._x = None
         self._m_addr, self._d_addr = self.model._address, self.data._address
         # native stepping (no Python between mj_step and the state) with the native callback
-        self._stepper = mcb.native_stepper() if (callback == "native" and native_step) else None
+        self._native_step = callback == "native" and bool(native_step)
+        self._step_x = np.zeros(6)  # mujoco_kernel's (unused) state argument
         REGISTRY.add(self)
         self._finalizer = weakref.finalize(self, _release, id(self), self.data._address, self._userdata)
         self.reset((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
@@ -354,8 +355,10 @@ class MuJoCoPlant(PlantBase):
         t = self.time_at(self._k)
         if t + self.control_period > self._sea_horizon:
             self._extend_sea(t + self.control_period)
-        if self._stepper is not None:
-            self._x, failed = self._stepper(self._m_addr, self._d_addr, t, float(tau_u), float(tau_r), self.substeps)
+        if self._native_step:  # the kernel of the compiled loop, one step
+            self._x, failed = mcb.mujoco_kernel(self._k, self._step_x, float(tau_u), float(tau_r), self._m_addr,
+                                                self._d_addr, self._t0, self.control_period, self.substeps,
+                                                *mcb.kernel_constants())
             self._k += 1
             if failed:
                 self._raise_after_step(t)
