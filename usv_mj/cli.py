@@ -15,7 +15,8 @@
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
 message names the Debian packages to install; --no-video skips the video); 141 the output pipe closed.
-`usv-mj run` refuses an --out that already holds a run unless --overwrite (which replaces it whole).
+An --out that holds an earlier output is refused unless --overwrite, which replaces only what a usv_mj
+command wrote (listed in the folder's .usv_mj-manifest.json); a folder holding anything else is refused.
 """
 
 from __future__ import annotations
@@ -137,8 +138,9 @@ def _add_run(sub):
     p.add_argument("--no-video", action="store_true", help="skip the video")
     p.add_argument("--no-baseline", action="store_true", help="skip the PI baseline run")
     p.add_argument("--no-log", action="store_true", help="skip the MCAP log")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an earlier run in --out (it is replaced whole); without it such a folder is refused")
+    from .outdir import add_overwrite_argument
+
+    add_overwrite_argument(p, "--out whole when it holds an earlier usv_mj output")
     p.add_argument("--debug", action="store_true", help="print the traceback of a crash (always in traceback.txt)")
     from .render import add_video_arguments
 
@@ -220,6 +222,9 @@ def _add_plot(sub):
                        "holding run.mcap) without simulating.")
     p.add_argument("run", metavar="RUN", help="a run log (run.mcap) or the run folder that holds it")
     p.add_argument("--out", metavar="DIR", help="output folder (default: beside the log)")
+    from .outdir import add_overwrite_argument
+
+    add_overwrite_argument(p, "report.md and figures/ in --out that usv_mj wrote")
     p.set_defaults(func=_plot_command)
 
 
@@ -243,14 +248,15 @@ def _plot_command(args) -> int:
         why = f": {log.problem}" if log.problem else ""
         raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot){why}")
     out = Path(args.out) if args.out else path.parent
-    from .preflight import check_output_path
+    from .outdir import check_folder, record
 
-    check_output_path(out)
+    check_folder(out, args.overwrite, writes=("report.md", "figures"))
     out.mkdir(parents=True, exist_ok=True)
-    draw_figures(log.record, out / "figures", log.baseline)
+    figures = draw_figures(log.record, out / "figures", log.baseline)
     summary = summarize(log.record)
     write_report(out / "report.md", summary, summarize(log.baseline) if log.baseline is not None else None,
                  log.metadata.get("step_check"))
+    record(out, ["report.md", *(Path(f).relative_to(out).as_posix() for f in figures)])
     print(f"figures and report from {path} written to {out}/")
     return EXIT_OK
 
@@ -363,6 +369,9 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help (0), or a bad option already said in one line (2)
         return int(exc.code or 0)
+    from .outdir import set_command
+
+    set_command(["usv-mj", *argv])   # what the output folders' manifests record
     if not getattr(args, "func", None):
         print(SHORT_USAGE, file=sys.stderr)
         return EXIT_BAD_INPUT

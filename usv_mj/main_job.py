@@ -18,7 +18,6 @@ import dataclasses
 import json
 import math
 import os
-import shutil
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -289,59 +288,6 @@ class _Signals:
         return hold()
 
 
-class _Staging:
-    """A job writes into ``.<name>.staging-<pid>`` beside ``out`` and :meth:`commit` moves that folder
-    into place at the end, whatever the end: ``out`` then holds this run alone (an earlier run there
-    is replaced whole; :func:`usv_mj.preflight.check_out_dir` refuses one without ``overwrite``).
-    Staging folders of killed jobs (their process is gone) are removed first."""
-
-    def __init__(self, out: Path):
-        self.out = out
-        parent = out.parent
-        parent.mkdir(parents=True, exist_ok=True)
-        self._cleanup_killed(parent, out.name)
-        self.path = parent / f".{out.name}.staging-{os.getpid()}"
-        if self.path.exists():
-            shutil.rmtree(self.path)
-        self.path.mkdir()
-
-    @staticmethod
-    def _cleanup_killed(parent: Path, name: str) -> None:
-        for p in list(parent.glob(f".{name}.staging-*")) + list(parent.glob(f".{name}.old-*")):
-            try:
-                pid = int(p.name.rsplit("-", 1)[1])
-                os.kill(pid, 0)
-                continue                          # a job still running
-            except (ValueError, ProcessLookupError):
-                pass
-            except PermissionError:
-                continue
-            if p.name.startswith(f".{name}.old-") and not (parent / name).exists():
-                p.rename(parent / name)           # killed between the two renames of a commit
-            else:
-                shutil.rmtree(p, ignore_errors=True)
-
-    def commit(self) -> None:
-        """Drop temporary files, then put the staging folder in place of ``out`` (nothing written:
-        ``out`` stays as it was)."""
-        if not self.path.exists():
-            return
-        for tmp in list(self.path.rglob("*.tmp")) + list(self.path.rglob("*.segments.txt")):
-            tmp.unlink(missing_ok=True)
-        for tmp in self.path.glob(".render-*"):
-            shutil.rmtree(tmp, ignore_errors=True)
-        if not any(self.path.iterdir()):
-            self.path.rmdir()
-            return
-        old = None
-        if self.out.exists():
-            old = self.out.parent / f".{self.out.name}.old-{os.getpid()}"
-            self.out.rename(old)
-        self.path.rename(self.out)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-
-
 def _relocate(obj, stage: Path, out: Path):
     """``obj`` with every path (or path string) under ``stage`` moved under ``out``."""
     if isinstance(obj, dict):
@@ -372,18 +318,21 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
 
     Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
-    ``out_dir`` as it was); ``out_dir`` holding an earlier run is refused unless ``overwrite``, and
-    then replaced whole. The outputs are written into a staging folder beside ``out_dir`` and moved
+    ``out_dir`` as it was); ``out_dir`` holding an earlier usv_mj output is refused unless
+    ``overwrite``, and then replaced whole; a folder holding anything usv_mj did not write is
+    always refused (:mod:`usv_mj.outdir`). The outputs are written into a staging folder beside ``out_dir`` and moved
     into place when the job ends, however it ends. Ctrl-C, SIGTERM and SIGHUP stop the job (the
     summary says where and which outputs are missing); a crash or an output that cannot be written
     raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place."""
     from .preflight import check_run
 
+    from .outdir import Staging
+
     out = Path(out_dir)
     render_opts = dict(render_options or {})
     check_run(scenario, out, video=video, render_options=render_opts, overwrite=overwrite)
     with _OutLock(out), _Signals() as signals:
-        stage = _Staging(out)
+        stage = Staging(out)
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,

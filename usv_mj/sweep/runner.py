@@ -37,6 +37,9 @@ import numpy as np
 from .spec import RunSpec, SweepError, SweepPlan
 
 RESULTS_FILE = "results.parquet"
+#: What a sweep writes into its folder, by name (listed in its manifest before they are written).
+OUTPUT_PATTERNS = ("sweep.json", RESULTS_FILE, f".{RESULTS_FILE}.*.tmp", "report.md", "figures", "figures/*.png",
+                   "logs", "logs/run-*")
 FINGERPRINT_KEY = b"usv_mj.sweep.fingerprint"
 TIMING_COLUMNS = ("task_wall_time_s", "wall_time_s", "realtime_factor")
 """Columns that measure time on the machine: they differ between two runs of the same sweep."""
@@ -451,6 +454,9 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     out = Path(out)
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
+    from ..outdir import record
+
+    record(out, [], patterns=OUTPUT_PATTERNS)   # claimed before written: a killed sweep stays resumable
     results = out / RESULTS_FILE
     rows: dict[int, dict] = {}
     if results.exists():
