@@ -4,6 +4,7 @@
     usv-mj run --preset harsh --plant analytic --duration 60 --no-video
     usv-mj run --scenario my.toml --set controller.k1=5 --out runs/k1-5
     usv-mj presets                     list the presets; `usv-mj presets paper` prints one
+    usv-mj examples                    list the example scenarios and sweeps (--scenario harbour_gap)
     usv-mj compare                     the same scenario on both plants, with the differences
     usv-mj inspect RUN.mcap            what a run log holds
     usv-mj plot RUN.mcap               figures and report again, from the log alone
@@ -216,6 +217,20 @@ def _presets_command(args) -> int:
     return EXIT_OK
 
 
+def _add_examples(sub):
+    p = sub.add_parser("examples", formatter_class=_Formatter, help="list the example scenarios and sweeps",
+                       description="The example scenarios and sweeps shipped with the package, each found by its "
+                       "name: usv-mj run --scenario harbour_gap, usv-mj sweep quick (a path works too).")
+    p.set_defaults(func=_examples_command)
+
+
+def _examples_command(args) -> int:
+    from .example_files import listing
+
+    print(listing())
+    return EXIT_OK
+
+
 def _add_plot(sub):
     p = sub.add_parser("plot", formatter_class=_Formatter, help="figures and report again from a run's MCAP log",
                        description="Remake figures/ and report.md from RUN (an .mcap file or a run folder "
@@ -324,6 +339,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_run(sub)
     _add_presets(sub)
+    _add_examples(sub)
     _add_plot(sub)
     for name, spec in _EXTERNAL.items():
         _add_external(sub, name, spec)
@@ -332,7 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, compare, inspect, plot, render, sweep, capability, env
+commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, env
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 

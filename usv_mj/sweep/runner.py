@@ -276,7 +276,7 @@ def _dashboard(client) -> str:
     try:
         import bokeh  # noqa: F401  (distributed serves its dashboard only with bokeh)
     except ImportError:
-        return "not served (pip install 'bokeh>=3.1' for the Dask dashboard)"
+        return "not served (pip install \"usv_mj[hpc]\" for the Dask dashboard)"
     link = client.dashboard_link
     return link or "not served"
 
@@ -355,7 +355,9 @@ def jobqueue_cluster(kind: str = "slurm", jobs: int = 1, **kwargs):
     try:
         import dask_jobqueue
     except ImportError:
-        raise SweepError("dask-jobqueue is not installed: pip install dask-jobqueue") from None
+        from ..errors import missing_extra
+
+        raise SweepError(str(missing_extra("dask_jobqueue", "--jobqueue"))) from None
     classes = {"slurm": "SLURMCluster", "pbs": "PBSCluster", "sge": "SGECluster", "lsf": "LSFCluster",
                "oar": "OARCluster", "htcondor": "HTCondorCluster", "moab": "MoabCluster"}
     if kind not in classes:
