@@ -90,6 +90,15 @@ def _worker_render(spec):
     return _worker_renderer.render(spec)
 
 
+def _worker_close() -> None:
+    """Free the worker's renderer now, so that nothing is left for its exit (a pool terminates
+    its workers with SIGTERM, which may land while one is exiting)."""
+    global _worker_renderer
+    if _worker_renderer is not None:
+        _worker_renderer.close()
+        _worker_renderer = None
+
+
 def _open_writer(path, width, height, fps, encoder):
     import imageio_ffmpeg
 
