@@ -132,7 +132,8 @@ def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_o
                                                          "funnel_violations", "first_violation_s")}
     held = "held" if summary["funnel_violations"] == 0 else f"was lost ({summary['funnel_violations']} steps outside)"
     lines = ["## The controller in this sea", "",
-             f"Sea: {json.dumps(scenario.sea.to_dict())}; significant wave height seen at the hull "
+             f"Sea: {scenario.sea.describe()} (compass degrees clockwise from north; waves and wind coming "
+             f"from, the current setting toward; every setting in summary.json); significant wave height seen at the hull "
              f"{summary_out['hs_at_hull_m']:.3f} m. The funnel {held}. The same scenario in calm water beside it "
              "(the controller is not tuned to the sea: the capability study is `usv-mj capability`):", "",
              "| error | t | in this sea | calm water |", "|---|---|---|---|"]
@@ -614,8 +615,30 @@ def one_screen_summary(result: JobResult, wall_s: float) -> str:
         r = s["render"]
         lines.append(f"  video: {r.get('frames')} frames {r.get('width')}x{r.get('height')} in {r.get('wall_s', 0):.1f} s "
                      f"({r.get('fps', 0):.1f} frames/s rendered, {r.get('gl')}), played at {r.get('speedup', 0):.1f}x")
-    lines.append(f"  outputs in {result.out_dir}/: " + ", ".join(sorted(
-        p.name if isinstance(p, Path) else k for k, p in result.files.items())))
+    lines.append(f"  outputs in {result.out_dir}/: " + ", ".join(written_outputs(result)))
     return "\n".join(lines)
+
+
+def written_outputs(result: JobResult) -> list[str]:
+    """The names in ``result.out_dir`` of what the job wrote and is there: files by name, a folder
+    as ``figures/`` (every figure, the sea's too, is in that folder); nothing that was not written."""
+    base = Path(result.out_dir).resolve()
+    names = set()
+
+    def add(value):
+        if isinstance(value, dict):
+            value = list(value.values())
+        if isinstance(value, (list, tuple)):
+            for v in value:
+                add(v)
+        elif isinstance(value, (str, Path)) and value and Path(value).exists():
+            try:
+                rel = Path(value).resolve().relative_to(base)
+            except ValueError:
+                return
+            names.add(rel.parts[0] + ("/" if len(rel.parts) > 1 or Path(value).is_dir() else ""))
+
+    add(result.files)
+    return sorted(names)
 
 
