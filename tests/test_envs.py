@@ -784,3 +784,19 @@ def test_env_command_skips_the_video_with_none(tmp_path, capsys, monkeypatch):
     out = capsys.readouterr().out
     assert "episode 1: return" in out and "video:" not in out
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_missing_gymnasium_is_named_with_its_pip_command(monkeypatch):
+    """Without the [gym] extra the Gymnasium view says so in one line, with the pip command."""
+    import importlib
+    import sys
+
+    from usv_mj.errors import MissingExtra
+
+    monkeypatch.setitem(sys.modules, "gymnasium", None)          # as if not installed
+    monkeypatch.delitem(sys.modules, "usv_mj.envs.gymnasium_env", raising=False)
+    with pytest.raises(MissingExtra) as info:
+        importlib.import_module("usv_mj.envs.gymnasium_env")
+    text = str(info.value)
+    assert "\n" not in text and 'pip install "usv_mj[gym]"' in text and "gymnasium" in text
+    assert isinstance(info.value, ImportError)

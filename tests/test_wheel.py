@@ -87,9 +87,11 @@ def test_the_wheel_finds_the_examples_by_name_and_registers_the_gymnasium_ids(in
             "p = load_sweep('quick'); print(len(p.runs), p.source); "
             "ep = [e for e in md.entry_points(group='gymnasium.envs') if e.name == 'usv_mj']; ep[0].load()(); "
             "import gymnasium; print('usv_mj/Track-v0' in gymnasium.registry); "
+            "from usv_mj import load_scenario; print(load_scenario('examples/scenarios/harbour_gap.toml').source); "
             "e = gymnasium.make('usv_mj.envs:usv_mj/Track-v0'); print(e.reset(seed=0)[0].shape)")
     proc = subprocess.run([str(py), "-c", code], cwd=outside, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.split("\n")
     assert lines[0].split()[1].endswith("usv_mj/examples/sweeps/quick.toml") and str(ROOT) not in lines[0]
     assert lines[1] == "True"
+    assert lines[2].endswith("usv_mj/examples/scenarios/harbour_gap.toml") and str(ROOT) not in lines[2]

@@ -5,7 +5,9 @@ carries the same files as the data of ``usv_mj.examples`` (``package-dir`` in py
 ``examples/`` there, as it maps ``controllers/`` and ``models/``). Only those two folders are data:
 anything else under ``examples/`` (a plug-in package, say) is not shipped.
 
-A name is a file's stem; a path that exists, or a value with a folder or a ``.toml`` in it, stays a path.
+A name is a file's stem; a path that exists stays a path, and so does any other value with a folder
+or a ``.toml`` in it, except ``.../examples/scenarios/NAME.toml`` (or ``sweeps``) that is not there:
+the README's commands, run by a pip user outside a checkout, get the shipped copy.
 Each file's first comment line is its one-line description (``usv-mj examples``).
 """
 
@@ -33,7 +35,12 @@ def names(kind: str) -> list[str]:
 def find(value, kind: str) -> Path | None:
     """The example file named ``value`` (a stem) of ``kind``, or None."""
     text = str(value)
-    if not text or "/" in text or "\\" in text or text.endswith(".toml") or Path(text).exists():
+    if not text or Path(text).exists():
+        return None
+    parts = Path(text).parts
+    if len(parts) >= 3 and parts[-3:-1] == ("examples", kind) and text.endswith(".toml"):
+        text = Path(text).stem          # the README's examples/scenarios/x.toml, outside a checkout
+    elif "/" in text or "\\" in text or text.endswith(".toml"):
         return None
     root = examples_root()
     path = root / kind / f"{text}.toml" if root else None
