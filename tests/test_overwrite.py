@@ -193,3 +193,23 @@ def test_a_name_whose_staging_name_is_too_long_is_refused_in_one_line(tmp_path, 
     line = one_line_exit_2(argv, capsys)
     assert "over 255" in line
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_sweep_folder_resumes_in_place_and_is_replaced_with_overwrite(tmp_path, capsys):
+    """A sweep claims its outputs by name before it writes them (a killed one stays resumable):
+    --resume continues in it, --overwrite replaces it; a file of the user's in it stops both."""
+    out = tmp_path / "sw"
+    base = ["sweep", "quick", "--workers", "1", "--max-runs", "1", "--no-progress", "--out", str(out)]
+    assert main(base) == 0
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert "results.parquet" in manifest["patterns"]
+    assert main([*base, "--resume"]) == 0
+    assert "2 of" in capsys.readouterr().out                   # the second run added to the first
+    (out / "notes.txt").write_text("mine\n")
+    for flag in ("--resume", "--overwrite"):
+        line = one_line_exit_2([*base, flag], capsys)
+        assert "notes.txt" in line
+    (out / "notes.txt").unlink()
+    assert main([*base, "--overwrite"]) == 0
+    assert "1 of" in capsys.readouterr().out                   # a new sweep: one run again
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sw"]

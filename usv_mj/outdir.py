@@ -124,9 +124,11 @@ def _owned(folder: Path, rel: str, manifest: dict) -> str | None:
         if rel in manifest.get("dirs", []) or any(_matches(rel, p) for p in manifest.get("patterns", [])):
             return None
         return "not in its manifest"
+    if any(_matches(rel, p) for p in manifest.get("patterns", [])):
+        return None                        # listed by name: a file its command rewrites as it goes
     entry = manifest["files"].get(rel)
     if entry is None:
-        return None if any(_matches(rel, p) for p in manifest.get("patterns", [])) else "not in its manifest"
+        return "not in its manifest"
     if not path.is_file():
         return "not a regular file"
     if entry.get("size") is not None and (path.stat().st_size != entry["size"] or _sha256(path) != entry.get("sha256")):
@@ -439,7 +441,8 @@ class Staging:
             self._unmake()
             return
         try:
-            record(self.path, fresh=True)
+            claimed = (read_manifest(self.path) or {}).get("patterns", [])   # a sweep's names stay names
+            record(self.path, patterns=claimed, fresh=True)
         except OSError:
             pass                                  # a full disk: the outputs still go into place
         old = None
