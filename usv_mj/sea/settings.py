@@ -10,8 +10,10 @@ Directions are written as marine users write them, with the meaning in the key: 
 the direction they come **from**, the current by the direction it sets **toward**, both in compass
 degrees (clockwise from north = +y). :func:`going_to_deg` converts them, once, here, to the angle the
 kernels use: the direction the load travels toward, counter-clockwise from east (+x), in degrees.
-That internal angle is the ``direction_deg`` attribute of the settings classes (and of
-:meth:`SeaSettings.to_dict`, so a run's metadata rebuilds the sea bit for bit).
+That internal angle is the ``direction_deg`` attribute of the settings classes (and of the run's
+metadata, ``Scenario.to_dict``, so that it rebuilds the sea bit for bit); what a user reads
+(:meth:`SeaSettings.to_dict` in summary.json and compare.json, :meth:`SeaSettings.describe` in
+report.md) gives the directions as they are written, ``from_deg`` / ``toward_deg``.
 
 ``direction_deg`` is also still accepted as a key, a deprecated alias with its old meaning (going-to,
 counter-clockwise from +x); a table that gives it beside ``from_deg`` / ``toward_deg`` is refused.
