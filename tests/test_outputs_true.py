@@ -9,7 +9,6 @@ a run without a baseline has no baseline column and no placeholder.
 
 import json
 import re
-from pathlib import Path
 
 from usv_mj.cli import main
 
