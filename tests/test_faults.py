@@ -159,6 +159,7 @@ def test_read_only_out_is_refused_before_the_simulation(tmp_path, capsys):
 def test_killed_runs_staging_is_cleaned_up_by_the_next_run(tmp_path):
     dead = tmp_path / ".out.staging-999999999"
     dead.mkdir()
+    (dead / ".usv_mj-staging").touch()    # what a job leaves in its staging folder until it ends
     (dead / "run.mcap.tmp").write_bytes(b"x")
     assert main([*FAST, "--duration", "0.3", "--no-log", "--out", str(tmp_path / "out")]) == 0
     assert leftovers(tmp_path) == []

@@ -4,6 +4,7 @@
     usv-mj run --preset harsh --plant analytic --duration 60 --no-video
     usv-mj run --scenario my.toml --set controller.k1=5 --out runs/k1-5
     usv-mj presets                     list the presets; `usv-mj presets paper` prints one
+    usv-mj examples                    list the example scenarios and sweeps (--scenario harbour_gap)
     usv-mj compare                     the same scenario on both plants, with the differences
     usv-mj inspect RUN.mcap            what a run log holds
     usv-mj plot RUN.mcap               figures and report again, from the log alone
@@ -16,7 +17,8 @@
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
 message names the Debian packages to install; --no-video skips the video); 141 the output pipe closed.
-`usv-mj run` refuses an --out that already holds a run unless --overwrite (which replaces it whole).
+An --out that holds an earlier output is refused unless --overwrite, which replaces only what a usv_mj
+command wrote (listed in the folder's .usv_mj-manifest.json); a folder holding anything else is refused.
 """
 
 from __future__ import annotations
@@ -138,8 +140,9 @@ def _add_run(sub):
     p.add_argument("--no-video", action="store_true", help="skip the video")
     p.add_argument("--no-baseline", action="store_true", help="skip the PI baseline run")
     p.add_argument("--no-log", action="store_true", help="skip the MCAP log")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an earlier run in --out (it is replaced whole); without it such a folder is refused")
+    from .outdir import add_overwrite_argument
+
+    add_overwrite_argument(p, "--out whole when it holds an earlier usv_mj output")
     p.add_argument("--debug", action="store_true", help="print the traceback of a crash (always in traceback.txt)")
     from .render import add_video_arguments
 
@@ -215,12 +218,29 @@ def _presets_command(args) -> int:
     return EXIT_OK
 
 
+def _add_examples(sub):
+    p = sub.add_parser("examples", formatter_class=_Formatter, help="list the example scenarios and sweeps",
+                       description="The example scenarios and sweeps shipped with the package, each found by its "
+                       "name: usv-mj run --scenario harbour_gap, usv-mj sweep quick (a path works too).")
+    p.set_defaults(func=_examples_command)
+
+
+def _examples_command(args) -> int:
+    from .example_files import listing
+
+    print(listing())
+    return EXIT_OK
+
+
 def _add_plot(sub):
     p = sub.add_parser("plot", formatter_class=_Formatter, help="figures and report again from a run's MCAP log",
                        description="Remake figures/ and report.md from RUN (an .mcap file or a run folder "
                        "holding run.mcap) without simulating.")
     p.add_argument("run", metavar="RUN", help="a run log (run.mcap) or the run folder that holds it")
     p.add_argument("--out", metavar="DIR", help="output folder (default: beside the log)")
+    from .outdir import add_overwrite_argument
+
+    add_overwrite_argument(p, "report.md and figures/ in --out that usv_mj wrote")
     p.set_defaults(func=_plot_command)
 
 
@@ -245,15 +265,16 @@ def _plot_command(args) -> int:
         why = f": {log.problem}" if log.problem else ""
         raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot){why}")
     out = Path(args.out) if args.out else path.parent
-    from .preflight import check_output_path
+    from .outdir import check_folder, record
 
-    check_output_path(out)
+    check_folder(out, args.overwrite, writes=("report.md", "figures"))
     out.mkdir(parents=True, exist_ok=True)
-    draw_figures(log.record, out / "figures", log.baseline)
+    figures = draw_figures(log.record, out / "figures", log.baseline)
     summary = summarize(log.record)
     base = summarize(log.baseline, criterion_of_record(log.record)) if log.baseline is not None else None
     write_report(out / "report.md", summary, base,
                  log.metadata.get("step_check"))
+    record(out, ["report.md", *(Path(f).relative_to(out).as_posix() for f in figures)])
     print(f"figures and report from {path} written to {out}/")
     return EXIT_OK
 
@@ -327,6 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_run(sub)
     _add_presets(sub)
+    _add_examples(sub)
     _add_plot(sub)
     for name, spec in _EXTERNAL.items():
         _add_external(sub, name, spec)
@@ -335,7 +357,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, compare, inspect, plot, render, sweep, capability, env, kinds
+commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, env, kinds
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 
@@ -372,6 +394,9 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help (0), or a bad option already said in one line (2)
         return int(exc.code or 0)
+    from .outdir import set_command
+
+    set_command(["usv-mj", *argv])   # what the output folders' manifests record
     if not getattr(args, "func", None):
         print(SHORT_USAGE, file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -613,6 +613,9 @@ def add_arguments(parser) -> None:
 
     add_scenario_arguments(parser)
     parser.add_argument("--out", metavar="DIR", default=None, help="output folder (default renders/compare-<name>)")
+    from .outdir import add_overwrite_argument
+
+    add_overwrite_argument(parser, "--out whole when it holds an earlier usv_mj output")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
 
@@ -629,10 +632,16 @@ def run_command(args) -> int:
     scenario = scenario_from_args(args)
     name = os.path.splitext(os.path.basename(args.scenario))[0] if args.scenario else (args.preset or "paper")
     out = args.out or os.path.join("renders", f"compare-{name}")
-    from .preflight import check_output_path
+    from .outdir import Staging, check_folder
 
-    check_output_path(out)
-    result = compare_plants(scenario, out, progress=not args.quiet)
+    check_folder(out, args.overwrite)
+    stage = Staging(out)
+    try:
+        result = compare_plants(scenario, str(stage.path), progress=not args.quiet)
+    except BaseException:
+        stage.discard()
+        raise
+    stage.commit()
     ol, cl = result["open_loop"], result["closed_loop"]
     if "predictable_horizon_s" in ol:
         print(f"open loop in a sea: a {SENSITIVITY_OFFSET_M:g} m offset of the start stays within 1e-6 m for "

@@ -16,9 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
-import os
-import shutil
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -133,7 +130,8 @@ def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_o
     summary_out["calm"] = {k: calm_summary[k] for k in ("status", "errors_at", "max_abs_error_after_20s", "criterion",
                                                          "funnel_violations", "first_violation_s") if k in calm_summary}
     lines = ["## The controller in this sea", "",
-             f"Sea: {json.dumps(scenario.sea.to_dict())}; significant wave height seen at the hull "
+             f"Sea: {scenario.sea.describe()} (compass degrees clockwise from north; waves and wind coming "
+             f"from, the current setting toward; every setting in summary.json); significant wave height seen at the hull "
              f"{summary_out['hs_at_hull_m']:.3f} m. {outcome_sentence(summary['criterion'])} "
              "The same scenario in calm water beside it "
              "(the controller is not tuned to the sea: the capability study is `usv-mj capability`):", "",
@@ -290,59 +288,6 @@ class _Signals:
         return hold()
 
 
-class _Staging:
-    """A job writes into ``.<name>.staging-<pid>`` beside ``out`` and :meth:`commit` moves that folder
-    into place at the end, whatever the end: ``out`` then holds this run alone (an earlier run there
-    is replaced whole; :func:`usv_mj.preflight.check_out_dir` refuses one without ``overwrite``).
-    Staging folders of killed jobs (their process is gone) are removed first."""
-
-    def __init__(self, out: Path):
-        self.out = out
-        parent = out.parent
-        parent.mkdir(parents=True, exist_ok=True)
-        self._cleanup_killed(parent, out.name)
-        self.path = parent / f".{out.name}.staging-{os.getpid()}"
-        if self.path.exists():
-            shutil.rmtree(self.path)
-        self.path.mkdir()
-
-    @staticmethod
-    def _cleanup_killed(parent: Path, name: str) -> None:
-        for p in list(parent.glob(f".{name}.staging-*")) + list(parent.glob(f".{name}.old-*")):
-            try:
-                pid = int(p.name.rsplit("-", 1)[1])
-                os.kill(pid, 0)
-                continue                          # a job still running
-            except (ValueError, ProcessLookupError):
-                pass
-            except PermissionError:
-                continue
-            if p.name.startswith(f".{name}.old-") and not (parent / name).exists():
-                p.rename(parent / name)           # killed between the two renames of a commit
-            else:
-                shutil.rmtree(p, ignore_errors=True)
-
-    def commit(self) -> None:
-        """Drop temporary files, then put the staging folder in place of ``out`` (nothing written:
-        ``out`` stays as it was)."""
-        if not self.path.exists():
-            return
-        for tmp in list(self.path.rglob("*.tmp")) + list(self.path.rglob("*.segments.txt")):
-            tmp.unlink(missing_ok=True)
-        for tmp in self.path.glob(".render-*"):
-            shutil.rmtree(tmp, ignore_errors=True)
-        if not any(self.path.iterdir()):
-            self.path.rmdir()
-            return
-        old = None
-        if self.out.exists():
-            old = self.out.parent / f".{self.out.name}.old-{os.getpid()}"
-            self.out.rename(old)
-        self.path.rename(self.out)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-
-
 def _relocate(obj, stage: Path, out: Path):
     """``obj`` with every path (or path string) under ``stage`` moved under ``out``."""
     if isinstance(obj, dict):
@@ -373,18 +318,21 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
 
     Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
-    ``out_dir`` as it was); ``out_dir`` holding an earlier run is refused unless ``overwrite``, and
-    then replaced whole. The outputs are written into a staging folder beside ``out_dir`` and moved
+    ``out_dir`` as it was); ``out_dir`` holding an earlier usv_mj output is refused unless
+    ``overwrite``, and then replaced whole; a folder holding anything usv_mj did not write is
+    always refused (:mod:`usv_mj.outdir`). The outputs are written into a staging folder beside ``out_dir`` and moved
     into place when the job ends, however it ends. Ctrl-C, SIGTERM and SIGHUP stop the job (the
     summary says where and which outputs are missing); a crash or an output that cannot be written
     raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place."""
     from .preflight import check_run
 
+    from .outdir import Staging
+
     out = Path(out_dir)
     render_opts = dict(render_options or {})
     check_run(scenario, out, video=video, render_options=render_opts, overwrite=overwrite)
     with _OutLock(out), _Signals() as signals:
-        stage = _Staging(out)
+        stage = Staging(out)
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
@@ -657,8 +605,30 @@ def one_screen_summary(result: JobResult, wall_s: float) -> str:
         r = s["render"]
         lines.append(f"  video: {r.get('frames')} frames {r.get('width')}x{r.get('height')} in {r.get('wall_s', 0):.1f} s "
                      f"({r.get('fps', 0):.1f} frames/s rendered, {r.get('gl')}), played at {r.get('speedup', 0):.1f}x")
-    lines.append(f"  outputs in {result.out_dir}/: " + ", ".join(sorted(
-        p.name if isinstance(p, Path) else k for k, p in result.files.items())))
+    lines.append(f"  outputs in {result.out_dir}/: " + ", ".join(written_outputs(result)))
     return "\n".join(lines)
+
+
+def written_outputs(result: JobResult) -> list[str]:
+    """The names in ``result.out_dir`` of what the job wrote and is there: files by name, a folder
+    as ``figures/`` (every figure, the sea's too, is in that folder); nothing that was not written."""
+    base = Path(result.out_dir).resolve()
+    names = set()
+
+    def add(value):
+        if isinstance(value, dict):
+            value = list(value.values())
+        if isinstance(value, (list, tuple)):
+            for v in value:
+                add(v)
+        elif isinstance(value, (str, Path)) and value and Path(value).exists():
+            try:
+                rel = Path(value).resolve().relative_to(base)
+            except ValueError:
+                return
+            names.add(rel.parts[0] + ("/" if len(rel.parts) > 1 or Path(value).is_dir() else ""))
+
+    add(result.files)
+    return sorted(names)
 
 

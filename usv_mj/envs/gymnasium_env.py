@@ -2,8 +2,9 @@
 
 ::
 
-    import gymnasium, usv_mj.envs                       # importing usv_mj.envs registers the ids
-    env = gymnasium.make("usv_mj/Track-v0")             # or usv_mj.envs.gym_env("track")
+    import gymnasium
+    env = gymnasium.make("usv_mj.envs:usv_mj/Track-v0") # Gymnasium imports usv_mj.envs, which registers the ids
+    env = gymnasium.make("usv_mj/Track-v0")             # the same once usv_mj.envs is imported; or gym_env("track")
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
     info["kind"], info["reason"]                        # why the episode ended (None while it runs)
@@ -57,8 +58,10 @@ import numpy as np
 try:
     import gymnasium
     from gymnasium import spaces
-except ImportError as exc:  # pragma: no cover - optional dependency
-    raise ImportError("usv_mj.envs.gym_env needs gymnasium (pip install gymnasium)") from exc
+except ImportError:  # pragma: no cover - optional dependency
+    from ..errors import missing_extra
+
+    raise missing_extra("gymnasium", "usv_mj's Gymnasium view (usv_mj.envs.gym_env, gymnasium.make)") from None
 
 from . import GYM_IDS  # noqa: F401 (API: id -> task)
 

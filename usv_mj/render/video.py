@@ -90,6 +90,15 @@ def _worker_render(spec):
     return _worker_renderer.render(spec)
 
 
+def _worker_close() -> None:
+    """Free the worker's renderer now, so that nothing is left for its exit (a pool terminates
+    its workers with SIGTERM, which may land while one is exiting)."""
+    global _worker_renderer
+    if _worker_renderer is not None:
+        _worker_renderer.close()
+        _worker_renderer = None
+
+
 def _open_writer(path, width, height, fps, encoder):
     import imageio_ffmpeg
 
@@ -551,6 +560,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default=None,
                         help="the .mp4 to write, or a directory (default: beside the run, <stem>.mp4)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from ..outdir import add_overwrite_argument
+
+    add_overwrite_argument(parser, "the .mp4 and its .png still when usv_mj wrote them")
     add_video_arguments(parser)
 
 
@@ -590,14 +602,15 @@ def run_command(args: argparse.Namespace) -> int:
         return 2
     out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
     try:
-        from ..preflight import check_output_path
+        from ..outdir import check_file, record_file
 
-        check_output_path(out, folder=False)
+        check_file(out, args.overwrite)
     except ValueError as exc:
         print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
     try:
         result = render_run(record, out, progress=not args.no_progress, **video_options(args))
+        record_file(out)
     except GLUnavailableError as exc:
         print(f"usv-mj render: {exc}", file=sys.stderr)
         return 3

@@ -39,6 +39,9 @@ import numpy as np
 from .spec import RunSpec, SweepError, SweepPlan
 
 RESULTS_FILE = "results.parquet"
+#: What a sweep writes into its folder, by name (listed in its manifest before they are written).
+OUTPUT_PATTERNS = ("sweep.json", RESULTS_FILE, f".{RESULTS_FILE}.*.tmp", "report.md", "figures", "figures/*.png",
+                   "logs", "logs/run-*")
 FINGERPRINT_KEY = b"usv_mj.sweep.fingerprint"
 TIMING_COLUMNS = ("task_wall_time_s", "wall_time_s", "realtime_factor")
 """Columns that measure time on the machine: they differ between two runs of the same sweep."""
@@ -280,7 +283,7 @@ def _dashboard(client) -> str:
     try:
         import bokeh  # noqa: F401  (distributed serves its dashboard only with bokeh)
     except ImportError:
-        return "not served (pip install 'bokeh>=3.1' for the Dask dashboard)"
+        return "not served (pip install \"usv_mj[hpc]\" for the Dask dashboard)"
     link = client.dashboard_link
     return link or "not served"
 
@@ -359,7 +362,9 @@ def jobqueue_cluster(kind: str = "slurm", jobs: int = 1, **kwargs):
     try:
         import dask_jobqueue
     except ImportError:
-        raise SweepError("dask-jobqueue is not installed: pip install dask-jobqueue") from None
+        from ..errors import missing_extra
+
+        raise SweepError(str(missing_extra("dask_jobqueue", "--jobqueue"))) from None
     classes = {"slurm": "SLURMCluster", "pbs": "PBSCluster", "sge": "SGECluster", "lsf": "LSFCluster",
                "oar": "OARCluster", "htcondor": "HTCondorCluster", "moab": "MoabCluster"}
     if kind not in classes:
@@ -480,6 +485,9 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     out = Path(out)
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
+    from ..outdir import record
+
+    record(out, [], patterns=OUTPUT_PATTERNS)   # claimed before written: a killed sweep stays resumable
     results = out / RESULTS_FILE
     rows: dict[int, dict] = {}
     if results.exists():

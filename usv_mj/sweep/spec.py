@@ -325,7 +325,9 @@ def _range_ends(axis: Axis) -> list:
 
 def load_sweep(path: str | Path) -> SweepPlan:
     """Read, sample and validate a sweep file; see the module docstring for the format."""
-    path = Path(path)
+    from ..example_files import resolve
+
+    path = resolve(path, "sweeps")            # an example's name (quick) finds its file
     source = str(path)
     data = read_toml(path, SweepError, "sweep file")
     return plan_sweep(data, source=source, directory=path.parent)
@@ -340,6 +342,10 @@ def _load_base(source: str, base: Any, directory: Path | None) -> Scenario:
             if not candidate.is_file():
                 raise SweepError(f"{source}: base scenario file {str(candidate)!r} does not exist")
             return load_scenario(candidate)
+        from ..example_files import find
+
+        if base not in preset_names() and find(base, "scenarios") is not None:
+            return load_scenario(find(base, "scenarios"))
         if base not in preset_names():
             hint = difflib.get_close_matches(base, preset_names(), n=1)
             raise SweepError(f"{source}: base {base!r} is neither a preset ({', '.join(preset_names())}) nor a "
