@@ -247,11 +247,16 @@ def _plot_command(args) -> int:
 
     check_output_path(out)
     out.mkdir(parents=True, exist_ok=True)
-    draw_figures(log.record, out / "figures", log.baseline)
+    if log.notice:
+        print(f"usv-mj plot: warning: the log is incomplete: {log.notice}", file=sys.stderr)
+    draw_figures(log.record, out / "figures", log.baseline, note=log.notice)
     summary = summarize(log.record)
     write_report(out / "report.md", summary, summarize(log.baseline) if log.baseline is not None else None,
-                 log.metadata.get("step_check"))
-    print(f"figures and report from {path} written to {out}/")
+                 log.metadata.get("step_check"),
+                 extra_sections=[f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers above "
+                                 "are of what was recovered."] if log.notice else None)
+    print(f"figures and report from {path} written to {out}/" + (" (from an incomplete log, see above)"
+                                                                 if log.notice else ""))
     return EXIT_OK
 
 

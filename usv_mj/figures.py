@@ -10,6 +10,7 @@ from the live run.
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -36,14 +37,21 @@ def _stride(n: int) -> int:
     return max(1, n // MAX_POINTS)
 
 
-def _save(fig, path: Path) -> None:
+def _save(fig, path: Path, note: str = "") -> None:
+    """Write the figure; ``note`` (a log cut or damaged: what was recovered) in red across its top."""
+    if note:
+        fig.subplots_adjust(top=min(fig.subplotpars.top, 0.84))
+        fig.text(0.5, 0.995, textwrap.fill(f"LOG INCOMPLETE: {note}", 110), ha="center", va="top", fontsize=7,
+                 color="C3")
     fig.savefig(path, dpi=110, metadata=_PNG_META)
     plt.close(fig)
 
 
-def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, obstacles=()) -> list[Path]:
+def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, obstacles=(),
+                 note: str = "") -> list[Path]:
     """Write the seven figures into ``out_dir`` and return their paths (obstacles, with their
-    inflated safety boundaries, in the trajectory figure). A record whose controller declares no
+    inflated safety boundaries, in the trajectory figure; ``note``, a log read back cut or damaged,
+    across the top of each). A record whose controller declares no
     funnel (e, rho, z) gets no figures 2-4, one without the weight norms no figure 7."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -74,12 +82,12 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     ax.legend(loc="best")
     ax.set_title("Fig. 1: trajectory tracking")
     paths.append(out / "fig1_trajectory.png")
-    _save(fig, paths[-1])
+    _save(fig, paths[-1], note)
 
     for axis, name_, unit, fname in ((1, "x", "m", "fig2_error_x.png"), (2, "y", "m", "fig3_error_y.png"),
                                       (3, "psi", "rad", "fig4_error_psi.png")):
         if not record.has_funnel:  # a controller without a funnel: the plain pose errors
-            paths.append(_pose_error_figure(record, baseline, axis, name_, unit, out / fname, s))
+            paths.append(_pose_error_figure(record, baseline, axis, name_, unit, out / fname, s, note))
             continue
         fig, ax = plt.subplots(figsize=(8, 4))
         rho = record[f"rho{axis}"][::s]
@@ -98,7 +106,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         ax.legend(loc="upper right")
         ax.set_title(f"Fig. {axis + 1}: tracking error of {name_} in the prescribed-performance funnel")
         paths.append(out / fname)
-        _save(fig, paths[-1])
+        _save(fig, paths[-1], note)
 
     tf = record["t"]
     for col, qcol, unit, fname, num in (("tau_u", "q_tau_u", "N", "fig5_tau_u.png", 5),
@@ -118,7 +126,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         fig.suptitle(f"Fig. {num}: {FIGURES[fname]}")
         fig.tight_layout()
         paths.append(out / fname)
-        _save(fig, paths[-1])
+        _save(fig, paths[-1], note)
 
     weights = ("w_u_norm", "w_v_norm", "w_r_norm")
     fig, ax = plt.subplots(figsize=(8, 4))
@@ -141,11 +149,11 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="best")
     paths.append(out / "fig7_weights.png")
-    _save(fig, paths[-1])
+    _save(fig, paths[-1], note)
     return paths
 
 
-def _pose_error_figure(record, baseline, axis, name, unit, path, s):
+def _pose_error_figure(record, baseline, axis, name, unit, path, s, note=""):
     """The pose error (x - x_d, y - y_d, wrap(psi - psi_d)) of a run whose controller has no funnel."""
     from .summary import pose_errors
 
@@ -160,7 +168,7 @@ def _pose_error_figure(record, baseline, axis, name, unit, path, s):
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right")
     ax.set_title(f"Fig. {axis + 1}: pose error in {name} (the controller declares no funnel)")
-    _save(fig, path)
+    _save(fig, path, note)
     return path
 
 

@@ -322,7 +322,7 @@ def _open(source):
     head = source.read(8)
     if head != MAGIC:
         raise RunLogReadError(f"{source!r}: not an MCAP stream (starts with {head!r})")
-    return io.BufferedReader(_Prepend(head, source)), repr(source), 0
+    return io.BufferedReader(_Prepend(head, source)), "the stream", 0
 
 
 class _Prepend(io.RawIOBase):
@@ -911,7 +911,7 @@ def _read_one(path) -> RunLog:
     notices = {}
     if not scan.complete:
         what = "cut short" if scan.truncated and not scan.damaged else "damaged"
-        got = ", ".join(f"{run} {len(rec)} rows up to t = {float(rec['t'][-1]) if len(rec) else 0.0:.3f} s"
+        got = ", ".join(f"{run} {len(rec)} rows up to t = {float(rec['t'][-1]):.3f} s" if len(rec) else f"{run} no rows"
                         for run, rec in runs.items())
         notices[str(path)] = f"{what} ({scan.problem}); recovered: {got}"
     return RunLog(path=str(path), runs=runs, metadata=file_meta, attachments=dict(scan.attachments),
