@@ -481,9 +481,10 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         # outside the loop's own handler (setting up, or a second signal while it finished)
         close_all()
         reason = f"interrupted ({signals.last}) before the run could be summarized"
-        _write_failure(out, _failed_summary(scenario, plant_kind, "interrupted", reason,
-                                            [n for n in expected if n not in ("summary.json", "report.md", "run.mcap")]),
-                       None)
+        with signals.deferred():      # a burst of signals: the next ones wait until the summary is written
+            _write_failure(out, _failed_summary(scenario, plant_kind, "interrupted", reason,
+                                                [n for n in expected if n not in ("summary.json", "report.md",
+                                                                                  "run.mcap")]), None)
         raise RunFailed(f"{reason}; outputs in {final_out}/", final_out, None) from None
     except Exception as exc:
         close_all()
@@ -503,9 +504,10 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         _write_failure(out, summary_fail, tb)
         raise RunFailed(f"the run {status}: {reason} (traceback in {final_out}/traceback.txt)", final_out,
                         summary_fail, out / "traceback.txt") from None
-    if record.status == "interrupted" and signals.last != "Ctrl-C":
-        # the loop says Ctrl-C for every KeyboardInterrupt; say which signal it was
-        record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", signals.last)
+    first = signals.received[0] if signals.received else "Ctrl-C"     # the one that stopped the loop
+    if record.status == "interrupted" and first != "Ctrl-C":
+        # the loop says Ctrl-C for every KeyboardInterrupt; say which signal it was (in a burst, the first)
+        record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", first)
         if record.events and record.events[-1].kind == "interrupted":
             record.events[-1] = dataclasses.replace(record.events[-1], message=record.stop_reason)
 
@@ -559,6 +561,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         stopped = fault
     if not stopped and len(signals.received) > seen_in_loop:
         stopped = f"interrupted ({signals.last}) while {phase}"
+    hold = signals.deferred()       # the finish holds further signals: the summary and report are written whole
+    hold.__enter__()
     try:
         if summary is None:
             summary = summarize(record)
@@ -587,6 +591,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
     except OSError as exc:
         fault = fault or _one_line(exc)
         files.pop("summary", None)
+    finally:
+        hold.__exit__(None, None, None)
     if fault:
         message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
         raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),

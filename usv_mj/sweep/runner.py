@@ -481,7 +481,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     base_options = {"transient": plan.transient, "hooks": plan.test_hooks or None}
     n_jobs = jobs
     tasks = []
-    for run in todo:
+    for run in todo[:max_runs]:        # only what will run is submitted (--max-runs 10 of 60,000: 10 tasks)
         opts = dict(base_options)
         if log_dir is not None:
             opts["log_path"] = str(log_dir / f"run-{run.run_id:06d}.mcap")
@@ -489,7 +489,8 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     ran = 0
     timing: dict = {}
     if todo:
-        echo(f"{len(plan.runs)} runs in the sweep, {len(rows)} already in {results}, {len(todo)} to run")
+        echo(f"{len(plan.runs)} runs in the sweep, {len(rows)} already in {results}, {len(todo)} to run"
+             + (f", {len(tasks)} of them now (max_runs)" if len(tasks) < len(todo) else ""))
         bar = None
         state = {"last_flush": time.monotonic(), "failed": sum(r["status"] != "ok" for r in rows.values()),
                  "dirty": False}
