@@ -112,6 +112,7 @@ def test_a_burst_of_signals_still_leaves_the_summary_and_the_report(tmp_path, ga
     code, _, err = prog.finish()
     assert code == 1, err
     assert "Traceback" not in err, err
+    assert (out / "summary.json").is_file() and (out / "report.md").is_file(), (sorted(os.listdir(out)), err)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "interrupted" and "SIGTERM" in summary["stop_reason"], summary
     report = (out / "report.md").read_text()
@@ -139,3 +140,48 @@ def test_max_runs_submits_only_the_runs_it_runs(tmp_path, monkeypatch):
     monkeypatch.setattr(runner, "gather_rows", counting)
     result = runner.run_sweep(load_sweep(path), tmp_path / "out", workers=1, max_runs=3, progress=False, echo=None)
     assert submitted == [3] and result.ran == 3 and not result.complete
+
+
+# --- a damaged numba cache ----------------------------------------------------------------------------
+
+
+def test_a_damaged_numba_cache_is_rebuilt_with_one_warning_line(tmp_path):
+    """Files of numba's disk cache zeroed (as a full disk leaves them). Before: ``EOFError: Ran out of
+    input`` on every later run. The same wrapper serves the compiled loops' cache (cache_dir()) and the
+    package's own __pycache__: here a kernel of a module of its own, so that the test compiles in a second."""
+    (tmp_path / "kern.py").write_text("from numba import njit\n\n\n@njit(cache=True)\ndef twice(x):\n"
+                                      "    return 2.0 * x\n")
+    code = "import usv_mj, kern; assert kern.twice(21.0) == 42.0; print('ok')"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(tmp_path)]))
+
+    def run():
+        return subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                              timeout=300)
+
+    first = run()
+    assert first.returncode == 0 and first.stderr == "", first.stderr
+    cached = sorted((tmp_path / "__pycache__").glob("kern.twice-*.nb[ic]"))
+    assert {p.suffix for p in cached} == {".nbi", ".nbc"}
+    for p in cached:
+        p.write_bytes(b"")
+    damaged = run()
+    assert damaged.returncode == 0 and damaged.stdout == "ok\n", damaged.stderr
+    lines = damaged.stderr.splitlines()
+    assert len(lines) == 1 and "damaged" in lines[0] and "compiled again" in lines[0] and ".nbi" in lines[0], lines
+    again = run()                      # rebuilt: read from the cache again, no warning
+    assert again.returncode == 0 and again.stderr == "", again.stderr
+
+
+# --- overrides before the step-count check ----------------------------------------------------------------
+
+
+def test_duration_flag_is_applied_before_the_step_count_is_checked(tmp_path):
+    """``--duration 0.05 --set control_period=1e-6``: 50,000 steps. Before: refused, "over 5e7 steps",
+    checked on the preset's 300 s."""
+    from usv_mj.cli import main
+
+    out = tmp_path / "o"
+    assert main(["run", "--plant", "analytic", "--no-video", "--no-baseline", "-q", "--duration", "0.05",
+                 "--set", "control_period=1e-6", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and abs(summary["simulated_s"] - 0.05) < 1e-9

@@ -105,9 +105,13 @@ def scenario_from_args(args):
     if getattr(args, "sea", None) is not None:
         overrides["sea"] = {"preset": args.sea}
     sets = _parse_set(args.set)
-    # every value of the file and of --set is checked, even one that a flag below replaces
+    # every value of the file and of --set is checked, even one that a flag below replaces; with
+    # --duration's value (unless --set gives one), so that the step count is checked on the duration run
+    pre = _merge(overrides, sets)
+    if args.duration is not None and "duration" not in sets:
+        pre = {**pre, "duration": args.duration}
     try:
-        load_scenario(args.scenario, preset=args.preset, overrides=_merge(overrides, sets) or None)
+        load_scenario(args.scenario, preset=args.preset, overrides=pre or None)
     except ScenarioError as exc:
         if not sets:
             raise
