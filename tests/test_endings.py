@@ -114,9 +114,12 @@ def test_a_burst_of_signals_still_leaves_the_summary_and_the_report(tmp_path, ga
     assert "Traceback" not in err, err
     assert (out / "summary.json").is_file() and (out / "report.md").is_file(), (sorted(os.listdir(out)), err)
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "interrupted" and "SIGTERM" in summary["stop_reason"], summary
+    # which one stopped the loop: the first Python ran (signals pending together are run in signal-number
+    # order, SIGHUP, SIGINT, SIGTERM, so on a busy machine it need not be the first sent)
+    names = [n for n in ("SIGTERM", "Ctrl-C", "SIGHUP") if n in summary["stop_reason"]]
+    assert summary["status"] == "interrupted" and len(names) == 1, summary["stop_reason"]
     report = (out / "report.md").read_text()
-    assert "interrupted" in report and "SIGTERM" in report
+    assert "interrupted" in report and names[0] in report
 
 
 # --- sweep --max-runs --------------------------------------------------------------------------------
@@ -185,3 +188,23 @@ def test_duration_flag_is_applied_before_the_step_count_is_checked(tmp_path):
                  "--set", "control_period=1e-6", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "completed" and abs(summary["simulated_s"] - 0.05) < 1e-9
+
+
+# --- a cancelled sweep ------------------------------------------------------------------------------------
+
+
+def test_a_cancelled_sweep_prints_one_line_not_the_schedulers_tracebacks(tmp_path):
+    """Ctrl-C to ``usv-mj sweep -q`` with runs in flight. Before: the in-process Dask scheduler's
+    CRITICAL "Closed comm ... lost-data" tracebacks and the workers' heartbeat ERRORs."""
+    sweep = tmp_path / "s.toml"
+    sweep.write_text('base = "paper"\nduration = 0.5\nplant = "analytic"\nsamples = 100\nseed = 11\n'
+                     'transient = 0.1\n[vary]\n"initial.eta[0]" = { uniform = [-4.0, 4.0] }\n'
+                     '"disturbance.scale" = [1e-4, 1e-3]\n')
+    out = tmp_path / "out"
+    prog = Program(["sweep", str(sweep), "-q", "--workers", "2", "--out", str(out)], None)
+    wait_until(lambda: (out / "results.parquet").exists(), "the first rows written", prog.proc)
+    prog.proc.send_signal(signal.SIGINT)
+    code, _, err = prog.finish()
+    assert code == 1
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "interrupted" in lines[0] and "--resume" in lines[0], err

@@ -217,8 +217,10 @@ from .errors import Terminated  # noqa: E402  (SIGTERM / SIGHUP as Ctrl-C)
 
 class _Signals:
     """While a job runs in the main thread: SIGTERM and SIGHUP raise :class:`Terminated` as Ctrl-C
-    raises KeyboardInterrupt; :meth:`deferred` holds every one of them back over a section that
-    must not be cut (closing the log, moving the outputs into place). Handlers restored on exit."""
+    raises KeyboardInterrupt; the first signal only: after it the job finishes (summary, report)
+    and later ones are noted in :attr:`received`. :meth:`deferred` holds every one of them back
+    over a section that must not be cut (closing the log, moving the outputs into place).
+    Handlers restored on exit."""
 
     NAMES = {"SIGINT": "Ctrl-C", "SIGTERM": "SIGTERM", "SIGHUP": "SIGHUP"}
 
@@ -229,11 +231,18 @@ class _Signals:
         self.signal = signal
         self.active = threading.current_thread() is threading.main_thread()
         self.received: list[str] = []     # every signal seen, in order
+        self.stopping = False              # a signal has stopped the job: the next ones only noted
         self._old = {}
 
     def _raise(self, signum, frame):
         name = self.NAMES.get(self.signal.Signals(signum).name, self.signal.Signals(signum).name)
         self.received.append(name)
+        if self.stopping:
+            # a burst (SIGTERM, Ctrl-C, SIGHUP ms apart): the first stops the job, the others are noted.
+            # Two signals that arrive together are handled at once, the second at the first bytecode
+            # of the first one's except clause: raising there would skip the summary.
+            return
+        self.stopping = True
         raise (KeyboardInterrupt if name == "Ctrl-C" else Terminated)(name)
 
     def __enter__(self):

@@ -96,7 +96,9 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
     ``options``: ``transient`` [s]; ``log_path`` (write an MCAP log there through
     ``usv_mj.runlog.RunLogWriter``); ``hooks`` (tests only, honoured only when the environment
     variable ``USV_MJ_SWEEP_TEST_HOOKS`` is "1" in the worker: ``raise`` / ``exit_worker`` sets of
-    run ids).
+    run ids; ``hold``: those runs touch ``$USV_MJ_SWEEP_TEST_RELEASE.started-<id>`` and wait until
+    the file ``$USV_MJ_SWEEP_TEST_RELEASE`` exists, so that a test can interrupt a sweep that is
+    certainly not finished).
     """
     from ..simulation import simulate
     from ..summary import summarize
@@ -110,6 +112,11 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
                 os._exit(13)  # the worker process dies mid-task
             if run_id in hooks.get("raise", ()):
                 raise RuntimeError(f"test hook: run {run_id} raises")
+            release = os.environ.get("USV_MJ_SWEEP_TEST_RELEASE")
+            if run_id in hooks.get("hold", ()) and release:   # says it started, then waits for the file
+                Path(f"{release}.started-{run_id}").touch()
+                while not os.path.exists(release):
+                    time.sleep(0.01)
         sinks = []
         writer = None
         if options.get("log_path"):
@@ -329,15 +336,37 @@ def open_client(scheduler: str | None = None, workers: int | None = None,
     n = int(workers or os.cpu_count() or 1)
     if n < 1:
         raise SweepError(f"--workers must be >= 1, got {n}")
+    # the workers' own loggers at CRITICAL: a run that fails comes back as a row with its reason, and
+    # a cluster closed under them (Ctrl-C) makes them log heartbeat ERRORs with tracebacks
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
+                           silence_logs=logging.CRITICAL)
     client = Client(cluster)
     echo(f"local Dask cluster: {n} worker processes x 1 thread; dashboard: {_dashboard(client)}")
     try:
         yield client
     finally:
-        client.close()
-        cluster.close()
+        with _quiet_teardown():
+            client.close()
+            cluster.close()
+
+
+@contextlib.contextmanager
+def _quiet_teardown():
+    """The local cluster closed after a Ctrl-C: its scheduler (in this process) logs at CRITICAL, with
+    tracebacks, each task it can no longer report to the closed client ("Closed comm ... lost-data").
+    That is the teardown, not a fault; its loggers are silenced while it lasts."""
+    import logging
+
+    loggers = [logging.getLogger(name) for name in ("distributed", "distributed.scheduler", "distributed.core",
+                                                    "distributed.batched", "distributed.nanny")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
 
 
 def jobqueue_cluster(kind: str = "slurm", jobs: int = 1, **kwargs):
