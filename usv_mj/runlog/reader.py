@@ -215,8 +215,12 @@ class _Rows:
         """``capacity``: the rows expected (the summary's message count when the file has one)."""
         self.keys = keys
         cap = max(int(capacity), 1024)
-        self.lt = np.empty(cap, np.int64)
-        self.values = np.empty((cap, width), np.float64)
+        try:
+            self.lt = np.empty(cap, np.int64)
+            self.values = np.empty((cap, width), np.float64)
+        except MemoryError:                 # a hint from a damaged summary: grow as the rows come instead
+            self.lt = np.empty(1024, np.int64)
+            self.values = np.empty((1024, width), np.float64)
         self.n = 0
 
     def append(self, lt, values) -> None:
@@ -293,6 +297,13 @@ def _expected_counts(source) -> dict:
         from mcap.reader import make_reader
 
         with open(source, "rb") as f:
+            size = f.seek(0, 2)
+            f.seek(max(0, size - 37))              # footer record (29 bytes) and the closing magic (8)
+            tail = f.read(37)
+            start = int.from_bytes(tail[9:17], "little") if len(tail) == 37 and tail[0] == 0x02 else 0
+            if not 0 < start < size or size - start > 64 << 20:   # no footer, or a damaged one: no hint
+                return {}
+            f.seek(0)
             summary = make_reader(f).get_summary()
         stats = summary.statistics if summary is not None else None
         return {int(k): int(v) for k, v in (stats.channel_message_counts if stats else {}).items() if 0 <= v < 1 << 34}
