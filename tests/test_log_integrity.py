@@ -222,3 +222,22 @@ def test_fuzz_cuts_and_flips_give_a_flagged_correct_prefix_or_one_line_of_error(
         assert _same_prefix(rec, main), f"{what}: rows that are not the run's ({log.notice})"
         outcomes["prefix"] += 1
     assert outcomes["prefix"] > 50, outcomes
+
+
+def test_render_reads_the_notice_of_a_cut_log(logged, tmp_path, capsys):
+    """``usv-mj render`` prints the notice before drawing (its log is read by load_run_log)."""
+    from usv_mj.render.video import load_run_log, run_command
+
+    path, main, _ = logged
+    run = _cut_copy(tmp_path / "c", path, "run.mcap")
+    log, mcap = load_run_log(run.parent)
+    assert mcap == run and "run.mcap: cut short" in log.notice
+    import argparse
+
+    from usv_mj.render import add_arguments
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    # an --out that is refused (a folder): the command stops before any GL work, after the notice
+    assert run_command(parser.parse_args([str(run), "--out", str(tmp_path)])) == 2
+    assert "the log is incomplete" in capsys.readouterr().err
