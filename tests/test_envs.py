@@ -566,6 +566,13 @@ def test_gymnasium_info_says_why_the_episode_ended():
             n += 1
         assert truncated and not terminated and n == 20
         assert info["kind"] == "time_limit" and "time limit" in info["reason"]
+        # a step after the last one: gymnasium's ResetNeeded, not TypeError: float() ... NoneType (issue 27)
+        from gymnasium.error import ResetNeeded
+
+        with pytest.raises(ResetNeeded, match="call reset"):
+            g.step(np.zeros(2, np.float32))
+        g.reset(seed=1)
+        assert g.step(np.zeros(2, np.float32))[1] is not None     # a new episode steps again
     finally:
         g.close()
     # a lost hull: terminated, with the distance in the reason

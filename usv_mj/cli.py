@@ -108,13 +108,15 @@ def scenario_from_args(args):
     if getattr(args, "sea", None) is not None:
         overrides["sea"] = {"preset": args.sea}
     sets = _parse_set(args.set)
-    # every value of the file and of --set is checked, even one that a flag below replaces
+    # every value of the file and of --set is checked, even one that a flag below replaces; but the
+    # step count (duration / control_period) only on the duration that runs: --duration's, if given
     try:
         load_scenario(args.scenario, preset=args.preset, overrides=_merge(overrides, sets) or None)
     except ScenarioError as exc:
-        if not sets:
-            raise
-        raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
+        if not (args.duration is not None and "over 5e7 steps" in str(exc)):   # scenario.Scenario's check
+            if not sets:
+                raise
+            raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
     overrides = _merge(overrides, sets)
     if args.duration is not None:
         overrides["duration"] = args.duration
@@ -269,13 +271,18 @@ def _plot_command(args) -> int:
 
     check_folder(out, args.overwrite, writes=("report.md", "figures"))
     out.mkdir(parents=True, exist_ok=True)
-    figures = draw_figures(log.record, out / "figures", log.baseline)
+    if log.notice:
+        print(f"usv-mj plot: warning: the log is incomplete: {log.notice}", file=sys.stderr)
+    figures = draw_figures(log.record, out / "figures", log.baseline, note=log.notice)
     summary = summarize(log.record)
     base = summarize(log.baseline, criterion_of_record(log.record)) if log.baseline is not None else None
     write_report(out / "report.md", summary, base,
-                 log.metadata.get("step_check"))
+                 log.metadata.get("step_check"),
+                 extra_sections=[f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers above "
+                                 "are of what was recovered."] if log.notice else None)
     record(out, ["report.md", *(Path(f).relative_to(out).as_posix() for f in figures)])
-    print(f"figures and report from {path} written to {out}/")
+    print(f"figures and report from {path} written to {out}/" + (" (from an incomplete log, see above)"
+                                                                 if log.notice else ""))
     return EXIT_OK
 
 

@@ -16,6 +16,7 @@ from the live run.
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -63,16 +64,23 @@ def _stride(n: int) -> int:
     return max(1, n // MAX_POINTS)
 
 
-def _save(fig, path: Path) -> None:
+def _save(fig, path: Path, note: str = "") -> None:
+    """Write the figure; ``note`` (a log cut or damaged: what was recovered) in red across its top."""
+    if note:
+        fig.subplots_adjust(top=min(fig.subplotpars.top, 0.84))
+        fig.text(0.5, 0.995, textwrap.fill(f"LOG INCOMPLETE: {note}", 110), ha="center", va="top", fontsize=7,
+                 color="C3")
     fig.savefig(path, dpi=110, metadata=_PNG_META)
     plt.close(fig)
 
 
-def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, obstacles=()) -> list[Path]:
+def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, obstacles=(),
+                 note: str = "") -> list[Path]:
     """Write the seven figures into ``out_dir`` and return their paths (obstacles, with their
-    inflated safety boundaries, in the trajectory figure). A run judged by another criterion than
-    the funnel gets its criterion's errors in figures 2-4 (module docstring), one without the
-    weight norms its controller's own diagnostics in figure 7."""
+    inflated safety boundaries, in the trajectory figure; ``note``, a log read back cut or damaged,
+    across the top of each). A run judged by another criterion than the funnel gets its criterion's
+    errors in figures 2-4 (module docstring), one without the weight norms its controller's own
+    diagnostics in figure 7."""
     from .criteria import criterion_of_record
 
     criterion = criterion_of_record(record)
@@ -105,12 +113,12 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     ax.legend(loc="best")
     ax.set_title("Fig. 1: trajectory tracking")
     paths.append(out / "fig1_trajectory.png")
-    _save(fig, paths[-1])
+    _save(fig, paths[-1], note)
 
     for axis, name_, unit, fname in ((1, "x", "m", "fig2_error_x.png"), (2, "y", "m", "fig3_error_y.png"),
                                       (3, "psi", "rad", "fig4_error_psi.png")):
         if criterion.kind != "funnel" or not record.has_funnel:  # the errors its criterion judges
-            paths.append(_criterion_error_figure(record, baseline, criterion, axis, out / fname, s))
+            paths.append(_criterion_error_figure(record, baseline, criterion, axis, out / fname, s, note))
             continue
         fig, ax = plt.subplots(figsize=(8, 4))
         rho = record[f"rho{axis}"][::s]
@@ -129,7 +137,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         ax.legend(loc="upper right")
         ax.set_title(f"Fig. {axis + 1}: tracking error of {name_} in the prescribed-performance funnel")
         paths.append(out / fname)
-        _save(fig, paths[-1])
+        _save(fig, paths[-1], note)
 
     tf = record["t"]
     for col, qcol, unit, fname, num in (("tau_u", "q_tau_u", "N", "fig5_tau_u.png", 5),
@@ -149,7 +157,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         fig.suptitle(f"Fig. {num}: {FIGURES[fname]}")
         fig.tight_layout()
         paths.append(out / fname)
-        _save(fig, paths[-1])
+        _save(fig, paths[-1], note)
 
     weights = ("w_u_norm", "w_v_norm", "w_r_norm")
     fig, ax = plt.subplots(figsize=(8, 4))
@@ -172,7 +180,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="best")
     paths.append(out / "fig7_weights.png")
-    _save(fig, paths[-1])
+    _save(fig, paths[-1], note)
     return paths
 
 
@@ -198,7 +206,7 @@ def _panels(criterion, record) -> list:
     return [("x - x_d", "m", e["x"], None, None, None), ("y - y_d", "m", e["y"], None, None, None), heading]
 
 
-def _criterion_error_figure(record, baseline, criterion, axis, path, s):
+def _criterion_error_figure(record, baseline, criterion, axis, path, s, note=""):
     """Figure ``axis + 1`` of a run judged by ``criterion``: the error it judges, its tolerance band
     from the settling time on, the judged norm and the baseline's same error."""
     label, unit, err, bound, norm_label, norm = _panels(criterion, record)[axis - 1]
@@ -220,7 +228,7 @@ def _criterion_error_figure(record, baseline, criterion, axis, path, s):
     ax.legend(loc="upper right")
     title = figure_titles(criterion.kind, True)[path.name]
     ax.set_title(f"Fig. {axis + 1}: {title[:1].lower() + title[1:]}")
-    _save(fig, path)
+    _save(fig, path, note)
     return path
 
 

@@ -216,8 +216,10 @@ from .errors import Terminated  # noqa: E402  (SIGTERM / SIGHUP as Ctrl-C)
 
 class _Signals:
     """While a job runs in the main thread: SIGTERM and SIGHUP raise :class:`Terminated` as Ctrl-C
-    raises KeyboardInterrupt; :meth:`deferred` holds every one of them back over a section that
-    must not be cut (closing the log, moving the outputs into place). Handlers restored on exit."""
+    raises KeyboardInterrupt; the first signal only: after it the job finishes (summary, report)
+    and later ones are noted in :attr:`received`. :meth:`deferred` holds every one of them back
+    over a section that must not be cut (closing the log, moving the outputs into place).
+    Handlers restored on exit."""
 
     NAMES = {"SIGINT": "Ctrl-C", "SIGTERM": "SIGTERM", "SIGHUP": "SIGHUP"}
 
@@ -228,11 +230,18 @@ class _Signals:
         self.signal = signal
         self.active = threading.current_thread() is threading.main_thread()
         self.received: list[str] = []     # every signal seen, in order
+        self.stopping = False              # a signal has stopped the job: the next ones only noted
         self._old = {}
 
     def _raise(self, signum, frame):
         name = self.NAMES.get(self.signal.Signals(signum).name, self.signal.Signals(signum).name)
         self.received.append(name)
+        if self.stopping:
+            # a burst (SIGTERM, Ctrl-C, SIGHUP ms apart): the first stops the job, the others are noted.
+            # Two signals that arrive together are handled at once, the second at the first bytecode
+            # of the first one's except clause: raising there would skip the summary.
+            return
+        self.stopping = True
         raise (KeyboardInterrupt if name == "Ctrl-C" else Terminated)(name)
 
     def __enter__(self):
@@ -430,9 +439,10 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         # outside the loop's own handler (setting up, or a second signal while it finished)
         close_all()
         reason = f"interrupted ({signals.last}) before the run could be summarized"
-        _write_failure(out, _failed_summary(scenario, plant_kind, "interrupted", reason,
-                                            [n for n in expected if n not in ("summary.json", "report.md", "run.mcap")]),
-                       None)
+        with signals.deferred():      # a burst of signals: the next ones wait until the summary is written
+            _write_failure(out, _failed_summary(scenario, plant_kind, "interrupted", reason,
+                                                [n for n in expected if n not in ("summary.json", "report.md",
+                                                                                  "run.mcap")]), None)
         raise RunFailed(f"{reason}; outputs in {final_out}/", final_out, None) from None
     except Exception as exc:
         close_all()
@@ -452,9 +462,10 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         _write_failure(out, summary_fail, tb)
         raise RunFailed(f"the run {status}: {reason} (traceback in {final_out}/traceback.txt)", final_out,
                         summary_fail, out / "traceback.txt") from None
-    if record.status == "interrupted" and signals.last != "Ctrl-C":
-        # the loop says Ctrl-C for every KeyboardInterrupt; say which signal it was
-        record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", signals.last)
+    first = signals.received[0] if signals.received else "Ctrl-C"     # the one that stopped the loop
+    if record.status == "interrupted" and first != "Ctrl-C":
+        # the loop says Ctrl-C for every KeyboardInterrupt; say which signal it was (in a burst, the first)
+        record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", first)
         if record.events and record.events[-1].kind == "interrupted":
             record.events[-1] = dataclasses.replace(record.events[-1], message=record.stop_reason)
 
@@ -509,6 +520,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         stopped = fault
     if not stopped and len(signals.received) > seen_in_loop:
         stopped = f"interrupted ({signals.last}) while {phase}"
+    hold = signals.deferred()       # the finish holds further signals: the summary and report are written whole
+    hold.__enter__()
     try:
         if summary is None:
             summary = summarize(record)
@@ -537,6 +550,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
     except OSError as exc:
         fault = fault or _one_line(exc)
         files.pop("summary", None)
+    finally:
+        hold.__exit__(None, None, None)
     if fault:
         message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
         raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),

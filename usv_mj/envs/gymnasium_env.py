@@ -190,12 +190,22 @@ class USVGymEnv(gymnasium.Env):
         if seed is not None:
             self.dm_env.reseed(int(seed))
         ts = self.dm_env.reset()
+        self._episode_over = False
         return self._observe(ts.observation), self._info()
 
     def step(self, action):
+        """One control step. After the step that ended the episode (terminated or truncated), or
+        before the first reset, raises ``gymnasium.error.ResetNeeded``: call reset() first (the
+        dm_control environment underneath would start a new episode without saying so)."""
+        if getattr(self, "_episode_over", True):
+            from gymnasium.error import ResetNeeded
+
+            raise ResetNeeded("USVGymEnv.step: the episode has ended (the last step returned terminated or "
+                              "truncated) or was never started; call reset() before step()")
         ts = self.dm_env.step(self.physical_action(action))
         terminated = bool(ts.last() and ts.discount == 0.0)
         truncated = bool(ts.last() and not terminated)
+        self._episode_over = terminated or truncated
         return self._observe(ts.observation), float(ts.reward), terminated, truncated, self._info()
 
     def render(self):

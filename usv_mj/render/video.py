@@ -568,6 +568,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def load_run_record(path: str | os.PathLike):
     """The RunRecord of a run directory (its run.mcap) or of an .mcap file (via usv_mj.runlog)."""
+    log, p = load_run_log(path)
+    return log.record, p
+
+
+def load_run_log(path: str | os.PathLike):
+    """(the RunLog, the .mcap path) of a run directory (its run.mcap) or of an .mcap file."""
     p = Path(path)
     if p.is_dir():
         candidates = [p / "run.mcap"] + sorted(p.glob("*.mcap"))
@@ -583,7 +589,7 @@ def load_run_record(path: str | os.PathLike):
         from usv_mj.runlog import read_run
     except ImportError as exc:  # pragma: no cover - until the MCAP issue lands
         raise RuntimeError(f"reading {str(p)!r} needs usv_mj.runlog (the MCAP run log): {exc}") from exc
-    return read_run(p).record, p
+    return read_run(p), p
 
 
 def default_output(run_path: Path, mcap_path: Path) -> Path:
@@ -596,10 +602,14 @@ def default_output(run_path: Path, mcap_path: Path) -> Path:
 def run_command(args: argparse.Namespace) -> int:
     """``usv-mj render RUN``: 0 on success, 2 on bad input, 3 when no OpenGL backend starts."""
     try:
-        record, mcap = load_run_record(args.run)
+        log, mcap = load_run_log(args.run)
+        record = log.record
     except (FileNotFoundError, ValueError, RuntimeError) as exc:
         print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
+    if log.notice:
+        print(f"usv-mj render: warning: the log is incomplete, the video shows what was recovered: {log.notice}",
+              file=sys.stderr)
     out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
     try:
         from ..outdir import check_file, record_file

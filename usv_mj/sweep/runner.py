@@ -103,7 +103,9 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
     ``usv_mj.runlog.RunLogWriter``); ``imports`` (modules that register the run's kinds at
     runtime: imported first, :func:`usv_mj.kinds.worker_imports`); ``hooks`` (tests only,
     honoured only when the environment variable ``USV_MJ_SWEEP_TEST_HOOKS`` is "1" in the worker:
-    ``raise`` / ``exit_worker`` sets of run ids).
+    ``raise`` / ``exit_worker`` sets of run ids; ``hold``: those runs touch
+    ``$USV_MJ_SWEEP_TEST_RELEASE.started-<id>`` and wait until the file ``$USV_MJ_SWEEP_TEST_RELEASE``
+    exists, so that a test can interrupt a sweep that is certainly not finished).
     """
     from ..simulation import simulate
     from ..summary import summarize
@@ -117,6 +119,11 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
                 os._exit(13)  # the worker process dies mid-task
             if run_id in hooks.get("raise", ()):
                 raise RuntimeError(f"test hook: run {run_id} raises")
+            release = os.environ.get("USV_MJ_SWEEP_TEST_RELEASE")
+            if run_id in hooks.get("hold", ()) and release:   # says it started, then waits for the file
+                Path(f"{release}.started-{run_id}").touch()
+                while not os.path.exists(release):
+                    time.sleep(0.01)
         for module in options.get("imports", ()):
             importlib.import_module(module)
         sinks = []
@@ -339,15 +346,37 @@ def open_client(scheduler: str | None = None, workers: int | None = None,
     n = int(workers or os.cpu_count() or 1)
     if n < 1:
         raise SweepError(f"--workers must be >= 1, got {n}")
+    # the workers' own loggers at CRITICAL: a run that fails comes back as a row with its reason, and
+    # a cluster closed under them (Ctrl-C) makes them log heartbeat ERRORs with tracebacks
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
+                           silence_logs=logging.CRITICAL)
     client = Client(cluster)
     echo(f"local Dask cluster: {n} worker processes x 1 thread; dashboard: {_dashboard(client)}")
     try:
         yield client
     finally:
-        client.close()
-        cluster.close()
+        with _quiet_teardown():
+            client.close()
+            cluster.close()
+
+
+@contextlib.contextmanager
+def _quiet_teardown():
+    """The local cluster closed after a Ctrl-C: its scheduler (in this process) logs at CRITICAL, with
+    tracebacks, each task it can no longer report to the closed client ("Closed comm ... lost-data").
+    That is the teardown, not a fault; its loggers are silenced while it lasts."""
+    import logging
+
+    loggers = [logging.getLogger(name) for name in ("distributed", "distributed.scheduler", "distributed.core",
+                                                    "distributed.batched", "distributed.nanny")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
 
 
 def jobqueue_cluster(kind: str = "slurm", jobs: int = 1, **kwargs):
@@ -521,7 +550,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     base_options = {"transient": plan.transient, "hooks": plan.test_hooks or None}
     n_jobs = jobs
     tasks = []
-    for run in todo:
+    for run in todo[:max_runs]:        # only what will run is submitted (--max-runs 10 of 60,000: 10 tasks)
         opts = dict(base_options)
         if log_dir is not None:
             opts["log_path"] = str(log_dir / f"run-{run.run_id:06d}.mcap")
@@ -529,7 +558,8 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     ran = 0
     timing: dict = {}
     if todo:
-        echo(f"{len(plan.runs)} runs in the sweep, {len(rows)} already in {results}, {len(todo)} to run")
+        echo(f"{len(plan.runs)} runs in the sweep, {len(rows)} already in {results}, {len(todo)} to run"
+             + (f", {len(tasks)} of them now (max_runs)" if len(tasks) < len(todo) else ""))
         bar = None
         state = {"last_flush": time.monotonic(), "failed": sum(r["status"] != "ok" for r in rows.values()),
                  "dirty": False}

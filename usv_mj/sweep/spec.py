@@ -78,7 +78,8 @@ DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
 TOP_KEYS = ("base", "duration", "plant", "samples", "seed", "transient", "set", "vary", "name")
 TEST_HOOKS_ENV = "USV_MJ_SWEEP_TEST_HOOKS"
 """When this environment variable is "1", a sweep file may carry ``test_hooks = { raise = [ids],
-exit_worker = [ids] }``: the runs with those ids raise / kill their worker process (tests only)."""
+exit_worker = [ids], hold = [ids] }``: the runs with those ids raise / kill their worker process /
+wait for a file (tests only; see :func:`usv_mj.sweep.runner.run_one`)."""
 
 _NAME = r"[A-Za-z_][A-Za-z0-9_]*"
 _PART = re.compile(rf"({_NAME})((?:\[\d+\])*)")
