@@ -177,10 +177,11 @@ def test_plot_of_a_cut_log_says_so(logged, tmp_path, capsys, which):
     cut_rec = log.record if which == "run.mcap" else log.baseline
     assert 0 < len(cut_rec) < len(main) and _same_prefix(cut_rec, main if which == "run.mcap" else base)
     assert f"rows up to t = {cut_rec['t'][-1]:.3f} s" in log.notice
-    assert cli.main(["plot", str(run)]) == 0
+    # a new folder: the copy's own folder holds files no usv_mj command wrote (--overwrite refuses those)
+    assert cli.main(["plot", str(run), "--out", str(tmp_path / "plotted")]) == 0
     err = capsys.readouterr().err
     assert "incomplete" in err and which in err
-    report = (run.parent / "report.md").read_text()
+    report = (tmp_path / "plotted" / "report.md").read_text()
     assert "The log is incomplete" in report and which in report
 
 
