@@ -103,6 +103,7 @@ class RunRecord:
 
         rec = cls(window, metadata, diagnostic_fields, diagnostic_events)
         rec._store = ColumnStore(directory, rec.column_names, temporary=temporary)
+        rec._store._write_meta(rec._info())   # status "running" until the run ends
         return rec
 
     @classmethod
@@ -112,7 +113,9 @@ class RunRecord:
         from .record_store import ColumnStore
 
         store, meta = ColumnStore.open(path)
-        meta = meta or {"status": "interrupted", "stop_reason": "the run ended before its record was finished"}
+        if meta.get("status") == "running":   # the process ended inside the run: the rows it wrote
+            meta = {**meta, "status": "interrupted",
+                    "stop_reason": f"the run ended at row {store.rows} before its record was finished"}
         names = store.column_names
         fields = tuple(meta.get("diagnostic_fields", [c for c in names if c not in COL]))
         if tuple(CORE_COLUMNS + fields) != tuple(names):

@@ -7,7 +7,8 @@ Layout of a stored record (a folder, e.g. ``out/record/``):
   the rows in order. The header's shape is written when the store is finished (and is re-derived
   from the file's size for a folder left by a run that was killed);
 - ``record.json``: the column names, the row count, the status, the stop reason, the events and
-  the metadata (written when the run ends).
+  the metadata (written when the run ends; Python's JSON, so +-inf and NaN (an unlimited
+  actuator's limit) are ``Infinity`` and ``NaN`` and read back as they were).
 
 Why ``.npy`` columns and not Arrow IPC: a column is one contiguous little-endian array in its own
 file, so ``np.load(path, mmap_mode="r")`` (and :meth:`ColumnStore.column`) gives it as one
@@ -23,7 +24,6 @@ chunks (:meth:`ColumnStore.chunks`, by ``pread`` into a fresh buffer: nothing st
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
 import weakref
@@ -46,16 +46,14 @@ def _header(rows: int) -> bytes:
     return _MAGIC + len(body).to_bytes(2, "little") + body.encode("latin1")
 
 
-def _json_safe(obj):
-    """``obj`` with every non-finite float as the strings "inf", "-inf" or "nan" (JSON has none)."""
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return "nan" if obj != obj else ("inf" if obj > 0 else "-inf")
+def _plain(obj):
+    """``obj`` as JSON data (numpy scalars as Python numbers; other objects as their text)."""
     if isinstance(obj, dict):
-        return {str(k): _json_safe(v) for k, v in obj.items()}
+        return {str(k): _plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_json_safe(v) for v in obj]
+        return [_plain(v) for v in obj]
     if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return _json_safe(obj.item())
+        return obj.item()
     if isinstance(obj, (str, int, float, bool)) or obj is None:
         return obj
     return str(obj)
@@ -84,6 +82,7 @@ class ColumnStore:
                 f = open(self.directory / f"{name}.npy", "w+b")
                 f.write(_header(0))
                 self._files[name] = f
+            self._write_meta({"status": "running"})   # the columns' order, for a run that is killed
         else:
             self._files = {name: open(self.directory / f"{name}.npy", "rb") for name in self.column_names}
         if temporary:
@@ -91,23 +90,17 @@ class ColumnStore:
 
     @classmethod
     def open(cls, directory):
-        """A finished (or killed) store, read only; returns (store, the parsed record.json or None)."""
+        """A finished (or killed) store, read only; returns (store, the parsed record.json)."""
         directory = Path(directory)
         meta_path = directory / META_FILE
         meta = json.loads(meta_path.read_text()) if meta_path.exists() else None
-        if meta is not None:
-            names = meta["columns"]
-        else:   # a run that was killed before its end: the column files that are there
-            names = sorted(p.stem for p in directory.glob("*.npy"))
-            if "t" in names:
-                names.remove("t")
-                names.insert(0, "t")
-        if not names or not (directory / "t.npy").exists():
-            raise FileNotFoundError(f"{directory}: no stored record (t.npy missing)")
+        if meta is None or not (directory / "t.npy").exists():
+            raise FileNotFoundError(f"{directory}: no stored record ({META_FILE} or t.npy missing)")
+        names = meta["columns"]
         store = cls(directory, names, mode="read")
         sizes = [(os.fstat(f.fileno()).st_size - HEADER_BYTES) // 8 for f in store._files.values()]
         store.rows = int(min(sizes))
-        if meta is not None:
+        if meta.get("status") != "running":   # finished: its row count (a killed run: the whole rows there)
             store.rows = min(store.rows, int(meta["rows"]))
         return store, meta
 
@@ -135,8 +128,11 @@ class ColumnStore:
                 f.flush()
                 os.pwrite(f.fileno(), _header(self.rows), 0)
         self.finished = True
+        self._write_meta(info)
+
+    def _write_meta(self, info: dict) -> None:
         meta = {"format": "usv_mj record 1", "columns": list(self.column_names), "rows": self.rows,
-                **_json_safe(info)}
+                **_plain(info)}
         tmp = self.directory / (META_FILE + ".tmp")
         tmp.write_text(json.dumps(meta, indent=1))
         os.replace(tmp, self.directory / META_FILE)
