@@ -117,7 +117,9 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
 
             # in this process: a Dask worker is a daemonic process and may not start the writer's child
             writer = RunLogWriter(options["log_path"], scenario, background=False)
-            sinks.append(writer.sink(run="main"))
+            from ..runlog.writer import log_every
+
+            sinks.append(writer.sink(run="main", log_every=log_every(options.get("log_rate"), scenario.control_period)))
         try:
             record = simulate(scenario, sinks=sinks)
         except BaseException:
@@ -436,14 +438,15 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
               resume: bool = False, keep_logs: bool = False, progress: bool = True, flush_every: float = 2.0,
               client=None, echo: Callable[[str], None] | None = print, report: bool = True,
               max_runs: int | None = None, jobqueue: str | None = None, jobs: int = 1,
-              retry_failed: bool = False) -> SweepResult:
+              retry_failed: bool = False, log_rate: float | None = None) -> SweepResult:
     """Run the plan's missing runs on Dask, streaming rows into ``out/results.parquet``; then the report.
 
     ``client``: an existing ``distributed.Client`` (else one is opened by :func:`open_client`).
     ``max_runs``: stop after this many new rows, as an interrupt would (the rest waits for ``resume``).
     ``jobqueue``, ``jobs``: run on a batch system through dask-jobqueue (see :func:`open_client`).
     ``retry_failed``: with ``resume``, run the ``failed`` rows again too (a worker that died of a
-    lack of memory, say); diverged runs are results and stay.
+    lack of memory, say); diverged runs are results and stay. ``log_rate`` [Hz]: with ``keep_logs``,
+    each log holds every n-th control step (``RunLogWriter.sink(log_every=n)``).
     Raises :class:`SweepError` when ``out`` already holds results and ``resume`` is False, or holds
     results of another plan. KeyboardInterrupt propagates after the rows so far are written.
     """
@@ -485,6 +488,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
         opts = dict(base_options)
         if log_dir is not None:
             opts["log_path"] = str(log_dir / f"run-{run.run_id:06d}.mcap")
+            opts["log_rate"] = log_rate
         tasks.append((run, opts))
     ran = 0
     timing: dict = {}
