@@ -200,3 +200,26 @@ def test_a_streamed_run_s_memory_does_not_grow_with_its_length(tmp_path):
     in_memory_mb = int(rows) * int(cols) * 8 / 2 ** 20
     assert in_memory_mb > 200
     assert float(grew_mb) < 80, f"the peak grew by {grew_mb} MB (in memory the record alone is {in_memory_mb:.0f} MB)"
+
+
+def test_an_append_cut_by_ctrl_c_is_finished_by_the_next(tmp_path):
+    """Ctrl-C inside a block's append (some columns written): the next append completes the others."""
+    from usv_mj.record_store import ColumnStore
+
+    store = ColumnStore(tmp_path / "s", ("t", "a", "b"))
+    rows = np.arange(30, dtype=float).reshape(10, 3)
+    store.append(rows[:4])
+    real = store._files["b"]
+
+    class Cut:
+        def write(self, data):
+            raise KeyboardInterrupt
+
+    store._files["b"] = Cut()
+    with pytest.raises(KeyboardInterrupt):
+        store.append(rows[4:7])
+    store._files["b"] = real
+    store.append(rows[4:10])     # the loop's final flush: the rows after the last complete append
+    store.finish({"status": "interrupted"})
+    for i, name in enumerate(("t", "a", "b")):
+        np.testing.assert_array_equal(np.load(tmp_path / "s" / f"{name}.npy"), rows[:, i])

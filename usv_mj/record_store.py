@@ -78,6 +78,7 @@ class ColumnStore:
             if stale.exists():
                 stale.unlink()
             self._files = {}
+            self._counts = dict.fromkeys(self.column_names, 0)   # rows in each file (see append)
             for name in self.column_names:
                 f = open(self.directory / f"{name}.npy", "w+b")
                 f.write(_header(0))
@@ -105,14 +106,20 @@ class ColumnStore:
         return store, meta
 
     def append(self, block: np.ndarray) -> None:
-        """Rows (n, columns) at the end of every column file."""
+        """Rows (n, columns), the rows after :attr:`rows`, at the end of every column file. An
+        append that an interrupt (Ctrl-C) cut is finished by the next: a column that already has
+        some of the rows gets only the ones it lacks."""
         if self.finished:
             raise RuntimeError(f"record store {self.directory} is finished")
         if block.shape[0] == 0:
             return
+        target = self.rows + block.shape[0]
         for i, name in enumerate(self.column_names):
-            self._files[name].write(np.ascontiguousarray(block[:, i], dtype="<f8").data)
-        self.rows += block.shape[0]
+            have = self._counts[name]
+            if have < target:
+                self._files[name].write(np.ascontiguousarray(block[have - self.rows:, i], dtype="<f8").data)
+                self._counts[name] = target
+        self.rows = target
         self._maps.clear()
 
     def flush(self) -> None:

@@ -331,7 +331,9 @@ class _Flusher:
             if hi > self.sent[i]:
                 sink.rows(self.record, self.sent[i], hi)
                 self.sent[i] = hi
-        self.record.slide(hi)   # every part has these rows: a streamed record drops them from memory
+        if self.record.stored:   # every part has these rows: a streamed record drops them from memory
+            with _signals_held():   # (no Ctrl-C between moving the window and its new base)
+                self.record.slide(hi)
         if self.progress is not None and hi > self.counted:
             n, self.counted = hi - self.counted, hi
             self.progress(n)
