@@ -223,3 +223,16 @@ def test_an_append_cut_by_ctrl_c_is_finished_by_the_next(tmp_path):
     store.finish({"status": "interrupted"})
     for i, name in enumerate(("t", "a", "b")):
         np.testing.assert_array_equal(np.load(tmp_path / "s" / f"{name}.npy"), rows[:, i])
+
+
+@pytest.mark.parametrize("loop", ["auto", "python"])
+@pytest.mark.parametrize("limit,rows", [({"max_force": 150.0}, 1), ({"max_speed": 0.79}, 9000)])
+def test_a_run_that_stops_early_is_the_same_streamed(tmp_path, loop, limit, rows):
+    """The force check (at the first row: |tau_r| = 730 N m) and the state check (u reaches 0.79 m/s
+    near t = 10 s, inside the 30th block) stop the run."""
+    sc = load_scenario(preset="paper", overrides={**LIMITED, "actuators": {}, "limits": limit})
+    mem = simulate(sc, plant_kind="analytic", loop=loop, store=False, block=333)
+    disk = simulate(sc, plant_kind="analytic", loop=loop, store=tmp_path / "r", block=333)
+    assert mem.status == "diverged" and len(mem) >= rows, (mem.status, len(mem))
+    _same_record(mem, disk)
+    _same_record(mem, RunRecord.open(tmp_path / "r"))
