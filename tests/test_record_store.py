@@ -54,6 +54,14 @@ def test_streamed_record_equals_the_in_memory_record_bit_for_bit(tmp_path, loop)
     assert len(mem.events_of("actuator_saturation")) > 10   # the events were exercised
     _same_record(mem, disk)
     assert _no_timing(summarize(mem)) == _no_timing(summarize(disk))
+    from usv_mj.sweep.runner import transient_errors
+
+    after = mem["t"] > 5.0   # the sweep's reduction, chunked, against the whole columns at once
+    ex, ey = mem["x"][after] - mem["x_d"][after], mem["y"][after] - mem["y_d"][after]
+    got = transient_errors(disk, 5.0)
+    assert got == transient_errors(mem, 5.0)
+    assert got["max_abs_error_after_transient.x"] == np.max(np.abs(ex))
+    assert got["max_position_error_after_transient"] == np.max(np.hypot(ex, ey))
 
 
 def test_open_reads_a_stored_record_back_lazily(tmp_path):
