@@ -142,6 +142,8 @@ def _add_run(sub):
     p.add_argument("--no-video", action="store_true", help="skip the video")
     p.add_argument("--no-baseline", action="store_true", help="skip the PI baseline run")
     p.add_argument("--no-log", action="store_true", help="skip the MCAP log")
+    p.add_argument("--log-rate", type=float, metavar="HZ",
+                   help="log every n-th control step to the MCAP (e.g. 10: 10 Hz); default every step")
     from .outdir import add_overwrite_argument
 
     add_overwrite_argument(p, "--out whole when it holds an earlier usv_mj output")
@@ -171,7 +173,7 @@ def _run_command(args) -> int:
     try:
         result = run_job(scenario, out, baseline=False if args.no_baseline else None, video=not args.no_video,
                          log=not args.no_log, progress=not args.quiet,
-                         render_options=render_options, overwrite=args.overwrite)
+                         render_options=render_options, overwrite=args.overwrite, log_rate=args.log_rate)
     except RunFailed as exc:
         if args.debug and exc.traceback is not None and Path(exc.traceback).is_file():
             sys.stderr.write(Path(exc.traceback).read_text())

@@ -26,7 +26,7 @@ from .record import RunRecord
 from .report import write_report
 from .scenario import Scenario
 from .simulation import simulate
-from .summary import CHECK_TIMES, baseline_line, criterion_line, outcome_sentence, pose_errors, summarize
+from .summary import CHECK_TIMES, baseline_line, criterion_line, outcome_sentence, pose_errors_at, summarize
 
 
 @dataclass
@@ -62,7 +62,7 @@ def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | Non
     5 / 10 / 20 s move? (bound: 1 cm and 0.01 rad)."""
     horizon = max(CHECK_TIMES)
     dt = scenario.control_period
-    if record["t"][-1] < horizon:
+    if record.value("t", -1) < horizon:
         return {}
     half = scenario.with_overrides({"control_period": dt / 2, "duration": horizon,
                                     "baseline": {"enabled": False}})
@@ -70,12 +70,12 @@ def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | Non
     if fine.status != "completed":
         return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": None,  # JSON has no inf
                 "max_heading_rad": None, "ok": False, "status": fine.status, "stop_reason": fine.stop_reason}
-    e_c, e_f = pose_errors(record), pose_errors(fine)
     dpos, dpsi = 0.0, 0.0
     for tc in CHECK_TIMES:
         kc, kf = int(round(tc / dt)), int(round(tc / (dt / 2)))
-        dpos = max(dpos, abs(e_c["x"][kc] - e_f["x"][kf]), abs(e_c["y"][kc] - e_f["y"][kf]))
-        dpsi = max(dpsi, abs(e_c["psi"][kc] - e_f["psi"][kf]))
+        e_c, e_f = pose_errors_at(record, kc), pose_errors_at(fine, kf)
+        dpos = max(dpos, abs(e_c["x"] - e_f["x"]), abs(e_c["y"] - e_f["y"]))
+        dpsi = max(dpsi, abs(e_c["psi"] - e_f["psi"]))
     return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": float(dpos),
             "max_heading_rad": float(dpsi), "ok": bool(dpos < 0.01 and dpsi < 0.01)}
 
@@ -111,9 +111,14 @@ def _start_video(pool, record: RunRecord, path: Path, render_opts: dict) -> _Vid
     return _VideoJob(lambda: render_run(record, path, progress=False, pool=pool, **render_opts))
 
 
-def _simulate(scenario: Scenario, plant_kind: str, controller_kind: str | None, sinks, progress) -> RunRecord:
-    """One closed-loop run through :func:`usv_mj.build` (obstacles, sea and guidance included)."""
-    return simulate(scenario, plant_kind=plant_kind, controller_kind=controller_kind, sinks=sinks, progress=progress)
+def _simulate(scenario: Scenario, plant_kind: str, controller_kind: str | None, sinks, progress,
+              store=None) -> RunRecord:
+    """One closed-loop run through :func:`usv_mj.build` (obstacles, sea and guidance included);
+    ``store``: the folder a long run's record streams into (``simulate(store=..., stream_above=...)``)."""
+    from .simulation import STREAM_BYTES
+
+    return simulate(scenario, plant_kind=plant_kind, controller_kind=controller_kind, sinks=sinks, progress=progress,
+                    store=store, stream_above=STREAM_BYTES if store is not None else None)
 
 
 def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_out: dict, out: Path,
@@ -323,7 +328,7 @@ def _one_line(exc: BaseException) -> str:
 
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
             video: bool = True, log: bool = True, progress: bool = True, step_check: bool = True,
-            render_options: dict | None = None, overwrite: bool = False) -> JobResult:
+            render_options: dict | None = None, overwrite: bool = False, log_rate: float | None = None) -> JobResult:
     """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
 
     Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
@@ -332,9 +337,14 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     always refused (:mod:`usv_mj.outdir`). The outputs are written into a staging folder beside ``out_dir`` and moved
     into place when the job ends, however it ends. Ctrl-C, SIGTERM and SIGHUP stop the job (the
     summary says where and which outputs are missing); a crash or an output that cannot be written
-    raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place."""
+    raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place.
+    ``log_rate`` [Hz]: the MCAP logs every n-th control step (None: every step). A run whose
+    record exceeds ``simulation.STREAM_BYTES`` streams it into ``record/`` (``baseline_record/``):
+    ``RunRecord.open`` reads it back."""
     from .preflight import check_run
+    from .runlog.writer import log_every
 
+    log_every(log_rate, scenario.control_period)   # a bad rate is refused before anything is written
     from .outdir import Staging
 
     out = Path(out_dir)
@@ -345,7 +355,7 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
-                                 render_opts=render_opts)
+                                 render_opts=render_opts, log_rate=log_rate)
         except RunFailed as exc:
             exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
             exc.traceback = _relocate(exc.traceback, stage.path, out)
@@ -355,6 +365,9 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
             with signals.deferred():
                 stage.commit()
     result.out_dir = out
+    for rec in (result.record, result.baseline):   # a streamed record's folder moved with the outputs
+        if rec is not None and rec.stored:
+            rec.relocated(_relocate(rec.path, stage.path, out))
     result.files = _relocate(result.files, stage.path, out)
     result.summary = _relocate(result.summary, stage.path, out)
     result.render_stats = _relocate(result.render_stats, stage.path, out)
@@ -382,7 +395,7 @@ def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
-                video, log, progress, step_check, render_opts) -> JobResult:
+                video, log, progress, step_check, render_opts, log_rate=None) -> JobResult:
     """The job itself, writing into the staging folder ``out``."""
     import traceback
 
@@ -428,11 +441,14 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
             from .runlog import RunLogWriter
 
             writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario))
-            sink_main = [writer.sink(run="main")]
+            from .runlog.writer import log_every
+
+            every = log_every(log_rate, dt)
+            sink_main = [writer.sink(run="main", log_every=every)]
             files["mcap"] = out / "run.mcap"
         cb, close = progress_bar(scenario.duration, f"{scenario.controller.kind.upper()} on {plant_kind}", progress, dt)
         try:
-            record = _simulate(scenario, plant_kind, None, sink_main, cb)
+            record = _simulate(scenario, plant_kind, None, sink_main, cb, store=out / "record")
         finally:
             close()
     except KeyboardInterrupt:
@@ -468,6 +484,7 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", first)
         if record.events and record.events[-1].kind == "interrupted":
             record.events[-1] = dataclasses.replace(record.events[-1], message=record.stop_reason)
+        record.finish_store()   # a streamed record's record.json says it too
 
     phase = "starting the video"
     video_job = None
@@ -483,10 +500,12 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
             phase = f"running the {scenario.baseline.kind.upper()} baseline"
             if log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
                 base_writer = stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario, companion_of=writer))
-                sink_base, files["baseline_mcap"] = [base_writer.sink(run="baseline")], out / "baseline.mcap"
+                sink_base = [base_writer.sink(run="baseline", log_every=every)]
+                files["baseline_mcap"] = out / "baseline.mcap"
             cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", progress, dt)
             try:
-                base_rec = _simulate(scenario, plant_kind, scenario.baseline.kind, sink_base, cb)
+                base_rec = _simulate(scenario, plant_kind, scenario.baseline.kind, sink_base, cb,
+                                     store=out / "baseline_record")
             finally:
                 close()
         summary = summarize(record)

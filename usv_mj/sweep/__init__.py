@@ -80,6 +80,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--retry-failed", action="store_true",
                         help="with --resume: run the failed runs again too (diverged ones are results and stay)")
     parser.add_argument("--keep-logs", action="store_true", help="write an MCAP log of every run to DIR/logs/")
+    parser.add_argument("--log-rate", type=float, metavar="HZ",
+                        help="with --keep-logs: log every n-th control step (e.g. 10: 10 Hz); default every step")
     parser.add_argument("--max-runs", type=int, default=None,
                         help="run at most N runs now, then stop (--resume continues): sweeps in chunks")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -107,6 +109,14 @@ def run_command(args: argparse.Namespace) -> int:
         max_runs = getattr(args, "max_runs", None)
         if max_runs is not None and max_runs < 1:
             raise SweepError(f"--max-runs must be >= 1, got {max_runs}")
+        log_rate = getattr(args, "log_rate", None)
+        if log_rate is not None:
+            from ..runlog.writer import log_every
+
+            if not args.keep_logs:
+                raise SweepError("--log-rate goes with --keep-logs")
+            for run in plan.runs:   # every run's control period must allow the rate
+                log_every(log_rate, run.scenario.control_period)
         print(f"{args.sweep}: {len(plan.runs)} runs, all validated", flush=True)
         # a sweep into a new folder writes in place (a killed one stays resumable); one that replaces
         # an earlier output is staged, so that the old one stays until the new one ends
@@ -115,7 +125,8 @@ def run_command(args: argparse.Namespace) -> int:
         try:
             result = run_sweep(plan, stage.path if stage else args.out, scheduler=args.scheduler,
                                workers=args.workers, resume=args.resume,
-                               keep_logs=args.keep_logs, progress=not getattr(args, "no_progress", False),
+                               keep_logs=args.keep_logs, log_rate=log_rate,
+                               progress=not getattr(args, "no_progress", False),
                                max_runs=max_runs, jobqueue=getattr(args, "jobqueue", None),
                                jobs=getattr(args, "jobs", 1), retry_failed=getattr(args, "retry_failed", False))
         except ScenarioError:

@@ -74,17 +74,25 @@ def transient_errors(record, transient: float) -> dict:
 
     None where the run did not reach the transient's end.
     """
-    from ..summary import pose_errors
+    from ..summary import column_chunks, pose_errors
 
-    t = record["t"]
-    after = t > transient
-    if not after.any():
+    names = ("t", "x", "x_d", "y", "y_d", "psi", "psi_d")
+    peak: dict = {}
+    for chunk in column_chunks(record, names):   # chunk by chunk: a long stored record stays on disk
+        c = dict(zip(names, chunk))
+        after = c["t"] > transient
+        if not after.any():
+            continue
+        err = pose_errors(c)
+        for key, v in (("x", np.abs(err["x"])), ("y", np.abs(err["y"])), ("psi", np.abs(err["psi"])),
+                       ("pos", np.hypot(err["x"], err["y"]))):
+            m = np.max(v[after])
+            peak[key] = m if key not in peak else np.maximum(peak[key], m)   # NaN, as np.max, wins
+    if not peak:
         return {"max_abs_error_after_transient.x": None, "max_abs_error_after_transient.y": None,
                 "max_abs_error_after_transient.psi": None, "max_position_error_after_transient": None}
-    err = pose_errors(record)
-    out = {f"max_abs_error_after_transient.{a}": _finite_or_none(np.max(np.abs(err[a][after])))
-           for a in ("x", "y", "psi")}
-    out["max_position_error_after_transient"] = _finite_or_none(np.max(np.hypot(err["x"][after], err["y"][after])))
+    out = {f"max_abs_error_after_transient.{a}": _finite_or_none(peak[a]) for a in ("x", "y", "psi")}
+    out["max_position_error_after_transient"] = _finite_or_none(peak["pos"])
     return out
 
 
@@ -133,7 +141,9 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
 
             # in this process: a Dask worker is a daemonic process and may not start the writer's child
             writer = RunLogWriter(options["log_path"], scenario, background=False)
-            sinks.append(writer.sink(run="main"))
+            from ..runlog.writer import log_every
+
+            sinks.append(writer.sink(run="main", log_every=log_every(options.get("log_rate"), scenario.control_period)))
         try:
             record = simulate(scenario, sinks=sinks)
         except BaseException:
@@ -499,14 +509,15 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
               resume: bool = False, keep_logs: bool = False, progress: bool = True, flush_every: float = 2.0,
               client=None, echo: Callable[[str], None] | None = print, report: bool = True,
               max_runs: int | None = None, jobqueue: str | None = None, jobs: int = 1,
-              retry_failed: bool = False) -> SweepResult:
+              retry_failed: bool = False, log_rate: float | None = None) -> SweepResult:
     """Run the plan's missing runs on Dask, streaming rows into ``out/results.parquet``; then the report.
 
     ``client``: an existing ``distributed.Client`` (else one is opened by :func:`open_client`).
     ``max_runs``: stop after this many new rows, as an interrupt would (the rest waits for ``resume``).
     ``jobqueue``, ``jobs``: run on a batch system through dask-jobqueue (see :func:`open_client`).
     ``retry_failed``: with ``resume``, run the ``failed`` rows again too (a worker that died of a
-    lack of memory, say); diverged runs are results and stay.
+    lack of memory, say); diverged runs are results and stay. ``log_rate`` [Hz]: with ``keep_logs``,
+    each log holds every n-th control step (``RunLogWriter.sink(log_every=n)``).
     Raises :class:`SweepError` when ``out`` already holds results and ``resume`` is False, or holds
     results of another plan. KeyboardInterrupt propagates after the rows so far are written.
     """
@@ -554,6 +565,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
         opts = dict(base_options)
         if log_dir is not None:
             opts["log_path"] = str(log_dir / f"run-{run.run_id:06d}.mcap")
+            opts["log_rate"] = log_rate
         tasks.append((run, opts))
     ran = 0
     timing: dict = {}
