@@ -271,6 +271,10 @@ _EXTERNAL = {
                    "environment capability polar: the largest load at which the funnel holds"),
     "env": ("usv_mj.envs.cli", "add_arguments", "run_command",
             "roll out a policy (ppc, random) in a dm_control task (track, track_waves, harbor): returns and a video"),
+    "scene": ("usv_mj.scene_export", "add_arguments", "run_command",
+              "write the scenario's MuJoCo scene (obstacles included) as one MJCF file"),
+    "view": ("usv_mj.view", "add_arguments", "run_command",
+             "MuJoCo's viewer on the scenario: water, sea and controller acting; --manual drives with the arrows"),
 }
 
 
@@ -292,6 +296,12 @@ _DESCRIPTIONS = {
                   "wind or wave load at which the controller keeps its funnel, found by bisection. With\n"
                   "unlimited actuators it shows the control law's limit, not the vessel's (use a preset\n"
                   "with [actuators], e.g. --scenario paper-limited).",
+    "scene": "Write the MuJoCo scene the scenario runs in (the hull, the harbour and its obstacles, the\n"
+             "time step and the hull's inertial) as one MJCF file. MuJoCo alone sees no water in it:\n"
+             "usv_mj.attach_hydrodynamics(model, data, scenario=...) attaches the hull forces and the sea.",
+    "view": "Open MuJoCo's interactive viewer on the scenario's scene with the hydrodynamics, the sea and\n"
+            "the controller acting (needs a display; exit 3 without one). --manual: drive it yourself,\n"
+            "arrow keys up/down for surge, left/right for yaw, space to zero the thrust.",
     "env": "Roll out a policy (ppc: the paper's controller; random) in a dm_control task (track,\n"
            "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode.",
 }
@@ -326,7 +336,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, compare, inspect, plot, render, sweep, capability, env
+commands: run, presets, compare, inspect, plot, render, sweep, capability, env, scene, view
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 

@@ -20,7 +20,8 @@ What is in the file (topics: :mod:`usv_mj.runlog.topics`):
   package versions (python, numpy, numba, mujoco, mcap, orjson, protobuf, zstandard, usv_mj), the
   project's git commit ("unknown" outside a checkout) and whether the tree had uncommitted changes;
 - attachments: ``models/<name>.xml`` for every model XML of the project, ``scenario/<file>`` when
-  ``scenario.source`` is a file, and any ``attachments`` passed in;
+  ``scenario.source`` is a file, any ``attachments`` passed in, and ``scene/<run>.xml`` (at
+  ``start``, a MuJoCo plant's run): the MJCF scene that plant ran (``MuJoCoPlant.scene_xml``);
 - metadata ``run_start/<run>`` (at ``start``): topic prefix, the record's metadata, the columns;
 - metadata ``run_end/<run>`` (at ``finish``): status, stop reason, rows, the record's final
   metadata and ``usv_mj.summary.summarize(record)`` (all JSON text).
@@ -266,6 +267,9 @@ class RunLogFile:
             self.mcap.write_chunk(buf)
             st["last_ns"] = max(st["last_ns"], int(buf.end_time if buf.end_time is not None else log_time[-1]))
         st["rows"] = lo + n
+
+    def cmd_attach(self, name: str, media_type: str, data: bytes):
+        self.mcap.add_attachment(name, media_type, data, log_time=0, create_time=time.time_ns())
 
     def cmd_finish(self, run: str, end: dict, events: list):
         st = self.runs[run]
@@ -775,6 +779,10 @@ class RunLogSink:
             "diagnostic_events": dict(getattr(record, "diagnostic_events", {}) or {}),
             "environment": getattr(statics, "environment", None), "path": path, "obstacles": obstacles,
             "inflation": inflation, "obstacle_log": log is not None}))
+
+    def scene(self, xml: str) -> None:
+        """Attach ``scene/<run>.xml``: the MJCF scene the plant ran (MuJoCoPlant.scene_xml)."""
+        self.writer._send(("attach", f"scene/{self.run}.xml", "application/xml", xml.encode()))
 
     def rows(self, record: RunRecord, lo: int, hi: int) -> None:
         if lo < self._rows:  # rows it already has: the loop resends a block that an interrupt cut
