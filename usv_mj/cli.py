@@ -143,8 +143,34 @@ def _add_run(sub):
     from .render import add_video_arguments
 
     add_video_arguments(p)
+    add_live_arguments(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=_run_command)
+
+
+def add_live_arguments(p, speed: bool = True) -> None:
+    """--live, --live-port, --live-wait (and --speed): usv_mj.runlog.live (README, Live ...)."""
+    p.add_argument("--live", action="store_true", help="serve the run to Foxglove over its WebSocket protocol "
+                   "as it runs (needs pip install \"usv_mj[live]\"); the log is still written in full")
+    p.add_argument("--live-port", type=int, default=8765, metavar="PORT",
+                   help="the live server's TCP port on 127.0.0.1 (default 8765; 0: any free port)")
+    p.add_argument("--live-wait", type=float, default=None, metavar="S",
+                   help="wait at most S seconds for a viewer before streaming (default: until one connects)")
+    if speed:
+        p.add_argument("--speed", type=float, default=None, metavar="X",
+                       help="with --live: X times real time (1: real time; default: as fast as it runs)")
+
+
+def live_server(args):
+    """The LiveServer of --live (None without it); ScenarioError naming the pip extra if it is missing."""
+    if not getattr(args, "live", False):
+        return None
+    from .runlog.live import LiveServer, layout_path
+
+    server = LiveServer(port=args.live_port, speed=getattr(args, "speed", None), wait_s=args.live_wait)
+    print(f"usv-mj {args.command}: live on {server.url} (Foxglove: Open connection, Foxglove WebSocket; "
+          f"the layout: Layouts, Import from file, {layout_path()})", file=sys.stderr, flush=True)
+    return server
 
 
 def _run_command(args) -> int:
@@ -161,12 +187,19 @@ def _run_command(args) -> int:
     out = Path(args.out) if args.out is not None else Path("renders") / name
     if args.out is not None and args.out.strip() == "":
         raise ScenarioError("--out '': an empty path; name the output folder")
+    if args.live and args.no_log:
+        raise ScenarioError("--live serves the run log's messages: drop --no-log")
+    live = live_server(args)
     t0 = time.perf_counter()
     try:
         result = run_job(scenario, out, baseline=False if args.no_baseline else None, video=not args.no_video,
                          log=not args.no_log, progress=not args.quiet,
-                         render_options=render_options, overwrite=args.overwrite)
+                         render_options=render_options, overwrite=args.overwrite, live=live)
+        if live is not None:
+            live.finish()
     except RunFailed as exc:
+        if live is not None:
+            live.close()
         if args.debug and exc.traceback is not None and Path(exc.traceback).is_file():
             sys.stderr.write(Path(exc.traceback).read_text())
         print(f"usv-mj run: {exc}", file=sys.stderr)

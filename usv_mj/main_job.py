@@ -368,7 +368,7 @@ def _one_line(exc: BaseException) -> str:
 
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
             video: bool = True, log: bool = True, progress: bool = True, step_check: bool = True,
-            render_options: dict | None = None, overwrite: bool = False) -> JobResult:
+            render_options: dict | None = None, overwrite: bool = False, live=None) -> JobResult:
     """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
 
     Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
@@ -376,7 +376,8 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     then replaced whole. The outputs are written into a staging folder beside ``out_dir`` and moved
     into place when the job ends, however it ends. Ctrl-C, SIGTERM and SIGHUP stop the job (the
     summary says where and which outputs are missing); a crash or an output that cannot be written
-    raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place."""
+    raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place.
+    ``live``: a :class:`usv_mj.runlog.live.LiveServer` that serves the logs' messages to Foxglove."""
     from .preflight import check_run
 
     out = Path(out_dir)
@@ -387,7 +388,7 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
-                                 render_opts=render_opts)
+                                 render_opts=render_opts, live=live)
         except RunFailed as exc:
             exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
             exc.traceback = _relocate(exc.traceback, stage.path, out)
@@ -424,7 +425,7 @@ def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
-                video, log, progress, step_check, render_opts) -> JobResult:
+                video, log, progress, step_check, render_opts, live=None) -> JobResult:
     """The job itself, writing into the staging folder ``out``."""
     import traceback
 
@@ -469,7 +470,7 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         if log:
             from .runlog import RunLogWriter
 
-            writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario))
+            writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario, live=live))
             sink_main = [writer.sink(run="main")]
             files["mcap"] = out / "run.mcap"
         cb, close = progress_bar(scenario.duration, f"{scenario.controller.kind.upper()} on {plant_kind}", progress, dt)
@@ -522,7 +523,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         if run_baseline and record.status != "interrupted":
             phase = f"running the {scenario.baseline.kind.upper()} baseline"
             if log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
-                base_writer = stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario, companion_of=writer))
+                base_writer = stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario, companion_of=writer,
+                                                                      live=live))
                 sink_base, files["baseline_mcap"] = [base_writer.sink(run="baseline")], out / "baseline.mcap"
             cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", progress, dt)
             try:

@@ -533,11 +533,13 @@ class RunLogWriter:
     ``companion_of``: the writer of the main run's file when this one holds another run of the
     same job (the main job's ``baseline.mcap`` beside ``run.mcap``): one file per run keeps each
     file in log-time order, and :func:`usv_mj.runlog.read_run` of the main file finds this one.
+    ``live``: a :class:`usv_mj.runlog.live.LiveServer` that serves every chunk's messages to
+    Foxglove as the chunk is written (the file is then written in this process).
     """
 
     def __init__(self, path, scenario, attachments: dict | None = None, *, background: bool = True,
                  rows_per_chunk: int = 2000, compression_level: int = -3, queue_blocks: int = 32,
-                 environment=None, companion_of: "RunLogWriter | None" = None):
+                 environment=None, companion_of: "RunLogWriter | None" = None, live=None):
         self.path = Path(path)
         self.log_id = uuid.uuid4().hex
         if not self.path.parent.is_dir():
@@ -573,6 +575,8 @@ class RunLogWriter:
                 raise TypeError(f"attachment {name!r} must be bytes or str, got {type(data).__name__}")
             att.append((str(name), mimetypes.guess_type(str(name))[0] or "application/octet-stream", bytes(data)))
         args = (str(self.path), file_metadata, att, rows_per_chunk, compression_level, environment)
+        if live is not None:   # a usv_mj.runlog.live.LiveServer: written here, its chunks served as they are
+            background = False
         slots = max(1, int(queue_blocks))
         shape = (slots, SLOT_FLOATS)     # each run views a slot as (SLOT_FLOATS // its width, its width)
         if background:
@@ -603,6 +607,7 @@ class RunLogWriter:
             atexit.register(_close_at_exit, weakref.ref(self))
         else:
             self._file = RunLogFile(*args)
+            self._file.mcap.tee = live
 
     # commands
     def _send(self, cmd: tuple):
