@@ -150,3 +150,25 @@ def test_missing_sdk_is_one_line(tmp_path):
     assert res.returncode == 2
     assert res.stderr.strip().splitlines() == ['usv-mj run: error: live viewing needs the foxglove-sdk package: '
                                                'pip install "usv_mj[live]"']
+
+
+def test_render_live_replays_a_log(tmp_path):
+    """`usv-mj render RUN.mcap --live`: the log's messages again, the same values."""
+    from usv_mj import load_scenario, simulate
+    from usv_mj.runlog import RunLogWriter
+
+    scenario = load_scenario(overrides={"duration": 2.0, "plant": {"kind": "analytic"}})
+    with RunLogWriter(tmp_path / "run.mcap", scenario, background=False) as writer:
+        record = simulate(scenario, sinks=[writer.sink("main")])
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "render", str(tmp_path / "run.mcap"), "--live",
+                             "--live-port", "0"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines: list = []
+    try:
+        port = _wait_for_url(proc, lines)
+        got = asyncio.run(asyncio.wait_for(_client(port, {"/usv/state", "/usv/control"}), TIMEOUT_S))
+        assert proc.wait(TIMEOUT_S) == 0, "".join(lines)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert np.array_equal(np.array([m.x for _, m in got["/usv/state"]]), record["x"])
+    assert np.array_equal(np.array([m.f_u for _, m in got["/usv/control"]]), record["f_u"])

@@ -552,6 +552,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the .mp4 to write, or a directory (default: beside the run, <stem>.mp4)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_video_arguments(parser)
+    from ..cli import add_live_arguments
+
+    add_live_arguments(parser)   # --live: replay the log to Foxglove instead of drawing a video
 
 
 def load_run_record(path: str | os.PathLike):
@@ -588,6 +591,14 @@ def run_command(args: argparse.Namespace) -> int:
     except (FileNotFoundError, ValueError, RuntimeError) as exc:
         print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
+    if getattr(args, "live", False):
+        from ..cli import live_server
+
+        live = live_server(args)
+        n = live.replay(mcap)
+        live.finish()
+        print(f"usv-mj render: served {n} messages of {mcap} live")
+        return 0
     out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
     try:
         from ..preflight import check_output_path

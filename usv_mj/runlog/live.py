@@ -143,10 +143,30 @@ class LiveServer:
                 self.sent += 1
             pos += 9 + length
 
-    def messages(self, channel, schema, items) -> None:
-        """Replay: log ``items`` ((log time [ns], data bytes), ...) of one MCAP channel record (with its
-        schema record) as :meth:`chunk` does (``usv-mj render RUN.mcap --live``)."""
-        raise NotImplementedError
+    def replay(self, path) -> int:
+        """Serve the messages of the MCAP file ``path`` in log-time order as :meth:`chunk` serves a
+        run's (``usv-mj render RUN.mcap --live``); returns the number of messages served."""
+        from mcap.reader import make_reader
+
+        with open(path, "rb") as f:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+            if summary is None:
+                raise ScenarioError(f"{path}: the log has no summary (an unfinished file): nothing to replay")
+            chans = {}
+            for cid, rec in summary.channels.items():
+                schema = summary.schemas.get(rec.schema_id)
+                fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
+                                                                        data=schema.data)
+                chans[cid] = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
+                                              context=self.context, metadata=dict(rec.metadata))
+            self._channels.update({("replay", cid): ch for cid, ch in chans.items()})
+            self.wait_for_viewer()
+            for _, channel, message in reader.iter_messages(log_time_order=True):
+                self._pace(message.log_time)
+                chans[channel.id].log(message.data, log_time=message.log_time)
+                self.sent += 1
+        return self.sent
 
     def _pace(self, log_time: int) -> None:
         if self.speed is None:
