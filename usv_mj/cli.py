@@ -11,10 +11,14 @@
     usv-mj sweep SWEEP.toml            many runs on a Dask cluster (local by default)
     usv-mj capability --load ...       the environment capability polar of the controller
     usv-mj env track --policy ppc      the USV as a dm_control task: roll out a policy, print returns, video
+    usv-mj run --live                  the run served to Foxglove as it runs (pip install "usv_mj[live]")
+    usv-mj scene --out scene.xml       the scenario's MuJoCo scene (obstacles included) as one MJCF file
+    usv-mj view [--manual]             MuJoCo's viewer on the scenario: water, sea, controller (or the arrow keys)
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
-message names the Debian packages to install; --no-video skips the video); 141 the output pipe closed.
+message names the Debian packages to install; --no-video skips the video; `usv-mj view`: no display);
+141 the output pipe closed.
 `usv-mj run` refuses an --out that already holds a run unless --overwrite (which replaces it whole).
 """
 
