@@ -19,6 +19,7 @@ import struct
 import subprocess
 import sys
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -69,6 +70,7 @@ async def _client(port: int, want: set) -> dict:
             value = decoders[sub](frame[13:])
             topic = subs[sub]["topic"]
             got[topic].append((stamp, value))
+            got.setdefault("wall", []).append(time.monotonic())
             if topic == "/usv/events" and value.get("kind") == "run_end":
                 assert want <= set(got), sorted(got)
                 return got
@@ -152,8 +154,10 @@ def test_missing_sdk_is_one_line(tmp_path):
                                                'pip install "usv_mj[live]"']
 
 
-def test_render_live_replays_a_log(tmp_path):
-    """`usv-mj render RUN.mcap --live`: the log's messages again, the same values."""
+@pytest.mark.parametrize("speed", [None, 2.0])
+def test_render_live_replays_a_log(tmp_path, speed):
+    """`usv-mj render RUN.mcap --live`: the log's messages again, the same values; at --speed X
+    the 2 s of the log take 2 / X s of wall time."""
     from usv_mj import load_scenario, simulate
     from usv_mj.runlog import RunLogWriter
 
@@ -161,7 +165,7 @@ def test_render_live_replays_a_log(tmp_path):
     with RunLogWriter(tmp_path / "run.mcap", scenario, background=False) as writer:
         record = simulate(scenario, sinks=[writer.sink("main")])
     proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "render", str(tmp_path / "run.mcap"), "--live",
-                             "--live-port", "0"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             "--live-port", "0"] + (["--speed", str(speed)] if speed else []), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     lines: list = []
     try:
         port = _wait_for_url(proc, lines)
@@ -172,3 +176,6 @@ def test_render_live_replays_a_log(tmp_path):
             proc.kill()
     assert np.array_equal(np.array([m.x for _, m in got["/usv/state"]]), record["x"])
     assert np.array_equal(np.array([m.f_u for _, m in got["/usv/control"]]), record["f_u"])
+    if speed:
+        wall = got["wall"][-1] - got["wall"][0]
+        assert 0.9 * 2.0 / speed < wall < 2.0 / speed + 5.0, wall

@@ -122,11 +122,11 @@ def write_sea(ud: np.ndarray, packed) -> None:
                             ("wind_grid", wgrid, 2)):
         if not (isinstance(arr, np.ndarray) and arr.dtype == np.float64 and arr.ndim == ndim
                 and arr.flags.c_contiguous):
-            raise ValueError(f"MuJoCoPlant: environment array {name} must be C-contiguous float64 with "
+            raise ValueError(f"usv_mj hydrodynamics: environment array {name} must be C-contiguous float64 with "
                              f"{ndim} dimensions")
     if ep.shape != (mcb.N_ENV_PARAMS,) or waves.shape[0] != mcb.N_WAVE_COLS or cgrid.shape[1] != 2 \
             or wgrid.shape[1] != 1:
-        raise ValueError(f"MuJoCoPlant: environment arrays have unexpected shapes ep {ep.shape}, waves "
+        raise ValueError(f"usv_mj hydrodynamics: environment arrays have unexpected shapes ep {ep.shape}, waves "
                          f"{waves.shape}, current_grid {cgrid.shape}, wind_grid {wgrid.shape}")
     ud[mcb.U_SEA_EP] = float(ep.ctypes.data)
     ud[mcb.U_SEA_WAVES] = float(waves.ctypes.data)
@@ -206,8 +206,9 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
         preset): its ``[ship]``, ``[disturbance]`` and ``[sea]`` are used (through
         :func:`usv_mj.builder.make_environment`, the build's own sea).
     horizon:
-        Plant time [s] up to which a sea's slowly varying parts are made at once (calm: unused);
-        ``handle.extend(t)`` makes more.
+        Plant time [s] up to which a sea's slowly varying parts (the OU grids of current and wind
+        gusts) are made at once (calm: unused); past it they hold their last value (the waves go
+        on); ``handle.extend(t)`` makes more.
 
     Returns the :class:`Hydrodynamics` handle; keep it while stepping (``handle.detach()`` ends it).
     """

@@ -102,7 +102,7 @@ class LiveServer:
         self.host, self.port = host, int(self.server.port)
         self._channels: dict = {}      # (id of the file writer, MCAP channel id) -> foxglove.Channel
         self._waited = False
-        self._clock = None             # (wall [s], log time [ns]) of the first message paced
+        self._clock: dict = {}         # per file: (wall [s], log time [ns]) of its first message paced
         self.sent = 0
 
     @property
@@ -138,7 +138,7 @@ class LiveServer:
             op, length = data[pos], struct.unpack_from("<Q", data, pos + 1)[0]
             if op == _MESSAGE:
                 _, _, cid, _, log_time, _ = _HEAD.unpack_from(data, pos)
-                self._pace(log_time)
+                self._pace(id(writer), log_time)
                 self._channel(writer, cid).log(bytes(data[pos + head:pos + 9 + length]), log_time=log_time)
                 self.sent += 1
             pos += 9 + length
@@ -163,19 +163,19 @@ class LiveServer:
             self._channels.update({("replay", cid): ch for cid, ch in chans.items()})
             self.wait_for_viewer()
             for _, channel, message in reader.iter_messages(log_time_order=True):
-                self._pace(message.log_time)
+                self._pace("replay", message.log_time)
                 chans[channel.id].log(message.data, log_time=message.log_time)
                 self.sent += 1
         return self.sent
 
-    def _pace(self, log_time: int) -> None:
+    def _pace(self, key, log_time: int) -> None:
+        """Sleep until ``log_time`` [ns] is due at ``speed`` (each file's clock starts at its first
+        message: the baseline's file starts at t = 0 again)."""
         if self.speed is None:
             return
         now = time.monotonic()
-        if self._clock is None:
-            self._clock = (now, log_time)
-            return
-        ahead = (log_time - self._clock[1]) * 1e-9 / self.speed - (now - self._clock[0])
+        clock = self._clock.setdefault(key, (now, log_time))
+        ahead = (log_time - clock[1]) * 1e-9 / self.speed - (now - clock[0])
         if ahead > 2e-3:
             time.sleep(ahead)
 
