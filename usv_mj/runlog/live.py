@@ -211,9 +211,12 @@ class LiveServer:
             self._say(f"live: the run is over ({self.sent} messages served); serving until the viewer "
                       f"disconnects (Ctrl-C stops)")
             deadline = None if linger_s is None else time.monotonic() + linger_s
-            with lis.lock:
-                while lis.subs and (deadline is None or time.monotonic() < deadline):
-                    lis.changed.wait(0.2)
+            try:
+                with lis.lock:
+                    while lis.subs and (deadline is None or time.monotonic() < deadline):
+                        lis.changed.wait(0.2)
+            except KeyboardInterrupt:   # Ctrl-C ends the serving, not the run (it is over and written)
+                self._say("live: stopped serving (Ctrl-C)")
         self.close()
 
     def close(self) -> None:
