@@ -179,3 +179,26 @@ def test_render_live_replays_a_log(tmp_path, speed):
     if speed:
         wall = got["wall"][-1] - got["wall"][0]
         assert 0.9 * 2.0 / speed < wall < 2.0 / speed + 5.0, wall
+
+
+def test_env_live_serves_each_episode(tmp_path):
+    """`usv-mj env track --live`: the episode's rows as the run log's topics, the frames consistent with them."""
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "env", "track", "--policy", "ppc", "--duration", "3",
+                             "--video", "", "--live", "--live-port", "0"], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    lines: list = []
+    try:
+        port = _wait_for_url(proc, lines)
+        got = asyncio.run(asyncio.wait_for(_client(port, {"/usv/state", "/usv/control", "/usv/tf/hull"}), TIMEOUT_S))
+        assert proc.wait(TIMEOUT_S) == 0, "".join(lines)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    t = np.array([m.t for _, m in got["/usv/state"]])
+    assert t[0] == 0.0 and t[-1] == pytest.approx(3.0, abs=1e-9)
+    assert np.allclose(np.diff(t), t[1] - t[0])
+    assert [s for s, _ in got["/usv/state"]] == [round(v * 1e9) for v in t]
+    x = {s: m.x for s, m in got["/usv/state"]}
+    for stamp, m in got["/usv/tf/hull"]:
+        assert m["translation"]["x"] == x[stamp]
+    assert len(got["/usv/control"]) == len(t)
