@@ -179,7 +179,7 @@ def check_start_clear(scenario: Scenario) -> None:
 
 def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind: str | None = None,
           duration: float | None = None, plant=None, controller=None, reference=None, environment="scenario",
-          contact=None, show_safety: bool = True) -> Parts:
+          contact=None, show_safety: bool = True, plan=None) -> Parts:
     """The running parts of ``scenario`` (module docstring).
 
     ``plant_kind`` / ``controller_kind`` choose other registered kinds than the scenario's (the
@@ -187,6 +187,8 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     ``controller`` and ``reference`` hand in ready-made parts instead (a plant handed in is not
     closed by :meth:`Parts.close`). ``environment`` overrides the scenario's sea (None: calm).
     ``contact`` is the MuJoCo contact model (:class:`usv_mj.obstacles.compose.ContactParams`).
+    ``plan``: the :class:`usv_mj.obstacles.planner.Plan` of an earlier build of this scenario (the
+    half-step check runs the main run's plan); by default :func:`usv_mj.obstacles.make_plan`'s.
     """
     duration = scenario.duration if duration is None else float(duration)
     if not (math.isfinite(duration) and duration > 0):
@@ -199,7 +201,7 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     if scenario.obstacles and scenario.guidance.avoid and reference is None:
         from .obstacles.hooks import make_plan
 
-        plan = make_plan(scenario, duration)
+        plan = plan.fresh() if plan is not None else make_plan(scenario, duration)
         statics.plan = plan
     own_plant = plant is None
     if plant is None:
