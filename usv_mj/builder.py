@@ -197,11 +197,11 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     env = make_environment(scenario, duration) if environment == "scenario" else environment
     statics = Statics(environment=env, obstacles=tuple(scenario.obstacles))
     metadata: dict = {}
-    plan = None
+    given, plan = plan, None
     if scenario.obstacles and scenario.guidance.avoid and reference is None:
         from .obstacles.hooks import make_plan
 
-        plan = plan.fresh() if plan is not None else make_plan(scenario, duration)
+        plan = given.fresh() if given is not None else make_plan(scenario, duration)
         statics.plan = plan
     own_plant = plant is None
     if plant is None:

@@ -499,7 +499,7 @@ def _merged_obstacles(obstacles, inflation):
 
 #: candidate edges per bulk STRtree query: one query is a call into GEOS that Python cannot
 #: interrupt, so it is kept short (a Ctrl-C while a harbour is planned is honoured at once)
-QUERY_CHUNK = 4096
+QUERY_CHUNK = 512
 
 
 def _tangent_at(nodes, before, after, i, j):
