@@ -177,6 +177,36 @@ def check_start_clear(scenario: Scenario) -> None:
                             f"obstacles[{i}] ({scenario.obstacles[i].name}, clearance {clearance[i]:.3f} m)")
 
 
+def as_scenario(scenario, where: str) -> Scenario:
+    """``scenario`` as a :class:`Scenario`: a preset name ("paper") is loaded; anything else but a
+    Scenario is an :class:`usv_mj.errors.ArgumentTypeError` naming ``where``."""
+    from .errors import expected
+
+    if isinstance(scenario, str):
+        from .scenario import load_scenario
+
+        return load_scenario(preset=scenario)
+    if not isinstance(scenario, Scenario):
+        hint = " (a dict: load_scenario(preset=..., overrides={...}))" if isinstance(scenario, dict) else ""
+        raise expected(where, "scenario", "a Scenario (usv_mj.load_scenario) or a preset name such as 'paper'"
+                       + hint, scenario)
+    return scenario
+
+
+#: what a plant or a controller handed to :func:`build` must have (usv_mj.plants.base.Plant; the laws)
+PLANT_ATTRIBUTES = ("name", "control_period", "reset", "step", "state", "close")
+CONTROLLER_ATTRIBUTES = ("name", "reset", "__call__")
+
+
+def check_part(part, where: str, name: str, attributes) -> None:
+    """An :class:`usv_mj.errors.ArgumentTypeError` unless ``part`` has every one of ``attributes``."""
+    from .errors import expected
+
+    missing = [a for a in attributes if not hasattr(part, a)]
+    if missing:
+        raise expected(where, name, f"a {name} with {', '.join(attributes)} (it has no {', '.join(missing)})", part)
+
+
 def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind: str | None = None,
           duration: float | None = None, plant=None, controller=None, reference=None, environment="scenario",
           contact=None, show_safety: bool = True, plan=None) -> Parts:
@@ -190,6 +220,10 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     ``plan``: the :class:`usv_mj.obstacles.planner.Plan` of an earlier build of this scenario (the
     half-step check runs the main run's plan); by default :func:`usv_mj.obstacles.make_plan`'s.
     """
+    scenario = as_scenario(scenario, "build")
+    for part, name, attributes in ((plant, "plant", PLANT_ATTRIBUTES), (controller, "controller", CONTROLLER_ATTRIBUTES)):
+        if part is not None:
+            check_part(part, "build", name, attributes)
     duration = scenario.duration if duration is None else float(duration)
     if not (math.isfinite(duration) and duration > 0):
         raise ScenarioError(f"{scenario.source}: duration must be > 0 s, got {duration!r}")

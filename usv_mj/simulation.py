@@ -69,6 +69,10 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
     """
     if loop not in ("auto", "python"):
         raise ValueError(f"simulate: loop must be 'auto' or 'python', got {loop!r}")
+    if not isinstance(scenario, Parts):
+        from .builder import as_scenario
+
+        scenario = as_scenario(scenario, "simulate")  # a preset name is loaded
     if isinstance(scenario, Parts):
         parts = scenario
     else:

@@ -38,6 +38,10 @@ def actuator_description(table) -> dict | None:
 
 def summarize(record: RunRecord) -> dict:
     """A plain dict with the fields of ``summary.json``; None where a value does not exist."""
+    if not isinstance(record, RunRecord):
+        from .errors import expected
+
+        raise expected("summarize", "record", "a RunRecord (usv_mj.simulate, usv_mj.runlog.read_run)", record)
     meta = record.metadata
     t = record["t"]
     err = pose_errors(record)

@@ -576,6 +576,11 @@ def read_run(path, companions: bool = True) -> RunLog:
     companion files beside it (the main job's ``baseline.mcap``) are added; ``RunLog.files`` says
     which file each run came from.
     """
+    if not (isinstance(path, (str, Path)) or hasattr(path, "read")):
+        from usv_mj.errors import expected
+
+        raise expected("read_run", "path", "a run log's path (str or pathlib.Path) or a binary stream "
+                       "(bytes: io.BytesIO(data))", path)
     log = _read_one(path)
     if companions and isinstance(path, (str, Path)):
         for other in companion_files(path):
