@@ -27,7 +27,7 @@ reference must stay far from everything early on; a harbour scenario sets a tigh
 Planning (static obstacles): each obstacle is grown by its inflation (G at the time the reference
 passes it + margin + an allowance for the smoothing), the grown shapes are merged (shapely), a
 visibility graph over their vertices plus start and goal is searched with networkx (A*, Euclidean
-heuristic), and the polyline is smoothed by a virtual boat (pure pursuit with look-ahead L, the
+heuristic; only the vertices and tangent segments a shortest path can use, :func:`visibility_path`), and the polyline is smoothed by a virtual boat (pure pursuit with look-ahead L, the
 curvature rate-limited) into a path tabulated in arc length: x(s), y(s), psi(s), kappa(s), with
 |kappa| <= max_yaw_rate / u and |dkappa/ds| <= max_yaw_accel / u^2. The reference runs it at speed
 u: r_d = kappa u, psi_d = psi(s), x_d_dot = u cos psi_d (docs/model.md §4's unicycle-like model, v_d = 0).
