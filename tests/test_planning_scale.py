@@ -19,7 +19,7 @@ import pytest
 import shapely
 
 from usv_mj.obstacle_tables import from_tables
-from usv_mj.obstacles.planner import _grown, _merged_obstacles, visibility_path
+from usv_mj.obstacles.planner import _merged_obstacles, visibility_path
 
 
 def _circles(count, seed, half, keep_out=((0.0, 0.0), (45.0, 0.0)), clear=8.0):
