@@ -210,6 +210,11 @@ def _nested_merge(a: dict, b: dict) -> dict:
     return out
 
 
+#: [m] the harbour tasks' goal_distance: past the piers (x = 10-21 m) and the buoys drawn at 0.55-0.9
+#: of it; at most 500 m (each layout's plan is smoothed along the whole distance, 0.4 s per 100 m)
+GOAL_DISTANCE_RANGE = (30.0, 500.0)
+
+
 def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, flat_observation: bool = False,
          **options) -> USVEnvironment:
     """A new environment for ``task`` (one of :data:`ALL_TASKS`) seeded with ``seed`` (an int, a
@@ -255,6 +260,10 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
         return USVEnvironment(USVPhysics.from_plant(make_plant(scenario, "mujoco")), tsk, **env_kw)
     harbour_kw = {k: options.pop(k) for k in ("n_rays", "max_range", "goal_radius") if k in options}
     goal_distance = float(options.pop("goal_distance", 40.0))
+    lo, hi = GOAL_DISTANCE_RANGE
+    if not (math.isfinite(goal_distance) and lo <= goal_distance <= hi):
+        raise ValueError(f"usv_mj.envs.load({task!r}): goal_distance must be in [{lo:g}, {hi:g}] m (the goal "
+                         f"beyond the piers at x = 10-21 m, within reach of the planner), got {goal_distance!r}")
     if options:
         raise ValueError(f"usv_mj.envs.load({task!r}): unknown options {sorted(options)}")
     tsk = HarbourTask(scenario, margin_m=scenario.guidance.margin_m, random=seed, time_limit=time_limit,
