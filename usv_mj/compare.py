@@ -664,7 +664,7 @@ def _json_default(obj):
 def add_arguments(parser) -> None:
     """Arguments of ``usv-mj compare``: the scenario options of ``usv-mj run`` (--preset, --scenario,
     --set, --duration), --out and -q."""
-    from .cli import add_scenario_arguments
+    from .command_args import add_scenario_arguments
 
     add_scenario_arguments(parser)
     parser.add_argument("--out", metavar="DIR", default=None, help="output folder (default renders/compare-<name>)")
@@ -679,7 +679,7 @@ def run_command(args) -> int:
 
     Bad scenario input raises :class:`usv_mj.scenario.ScenarioError` (the CLI prints it, exit 2).
     """
-    from .cli import scenario_from_args
+    from .command_args import scenario_from_args
     from .scenario import ScenarioError
 
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):

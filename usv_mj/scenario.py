@@ -255,7 +255,7 @@ class Scenario:
 
     def with_overrides(self, overrides: dict) -> "Scenario":
         """A new scenario: this one's TOML table with ``overrides`` merged in and validated again."""
-        return from_dict(_merge(self.raw, overrides), source=self.source or "<overrides>")
+        return from_dict(merge_tables(self.raw, overrides), source=self.source or "<overrides>")
 
     def without(self, *sections: str) -> "Scenario":
         """A new scenario without these top-level tables (e.g. ``"obstacles"``: the same run in open
@@ -293,18 +293,22 @@ def _parsed_preset(name: str, chain: tuple) -> dict:
     data = tomllib.loads(path.read_text())
     base = data.pop("preset", None)
     if base is not None:
-        data = _merge(_parsed_preset(base, chain + (name,)), data)
+        data = merge_tables(_parsed_preset(base, chain + (name,)), data)
     return data
 
 
-def _merge(base: dict, over: dict) -> dict:
+def merge_tables(base: dict, over: dict) -> dict:
+    """``base`` with ``over`` merged in, tables recursively (``over`` wins); neither is changed."""
     out = dict(base)
     for key, value in over.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = _merge(out[key], value)
+            out[key] = merge_tables(out[key], value)
         else:
             out[key] = value
     return out
+
+
+_merge = merge_tables   # the old name, for code on branches written before it was public
 
 
 def load_scenario(path: str | Path | None = None, preset: str | None = None, overrides: dict | None = None) -> Scenario:
@@ -333,7 +337,7 @@ def load_scenario(path: str | Path | None = None, preset: str | None = None, ove
     if preset is not None:
         data["preset"] = preset
     if overrides:
-        data = _merge(data, overrides)
+        data = merge_tables(data, overrides)
     return from_dict(data, source=source)
 
 
@@ -364,7 +368,7 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
                     if (set(base[section]) - {"kind", *keep}) else None
                 known |= {f.name for f in dataclasses.fields(cls)} if cls is not None else set()
             base[section] = {k: v for k, v in base[section].items() if k in known}
-    merged = _merge(base, {k: v for k, v in data.items() if k != "preset"})
+    merged = merge_tables(base, {k: v for k, v in data.items() if k != "preset"})
     merged["preset"] = name
     return _build_scenario(merged, source)
 

@@ -18,7 +18,7 @@ with warnings.catch_warnings():
 from dm_env import specs
 
 from usv_mj.builder import make_environment, make_plant
-from usv_mj.scenario import Scenario, load_scenario
+from usv_mj.scenario import Scenario, load_scenario, merge_tables
 
 from . import ALL_TASKS
 from .physics import USVPhysics
@@ -198,16 +198,7 @@ def _scenario(task: str, options: dict, duration: float) -> Scenario:
         base["funnel"] = HARBOUR_FUNNEL
         base["trajectory"] = {"kind": "waypoints", "points": [[0.0, 0.0], [40.0, 0.0]], "speed": 0.6}
         base["initial"] = {"eta": [0.0, 0.0, 0.0]}
-    return load_scenario(preset=preset, overrides=_nested_merge(base, overrides))
-
-
-def _nested_merge(a: dict, b: dict) -> dict:
-    """``a`` with ``b`` merged in, tables recursively (``b`` wins)."""
-    out = dict(a)
-    for key, value in b.items():
-        out[key] = _nested_merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) \
-            else value
-    return out
+    return load_scenario(preset=preset, overrides=merge_tables(base, overrides))
 
 
 #: [m] the harbour tasks' goal_distance: past the piers (x = 10-21 m) and the buoys drawn at 0.55-0.9

@@ -565,7 +565,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_overwrite_argument(parser, "the .mp4 and its .png still when usv_mj wrote them")
     add_video_arguments(parser)
-    from ..cli import add_live_arguments
+    from ..command_args import add_live_arguments
 
     add_live_arguments(parser)   # --live: replay the log to Foxglove instead of drawing a video
 
@@ -615,7 +615,7 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"usv-mj render: warning: the log is incomplete, the video shows what was recovered: {log.notice}",
               file=sys.stderr)
     if getattr(args, "live", False):
-        from ..cli import live_server
+        from ..command_args import live_server
 
         live = live_server(args)
         n = live.replay(mcap)
