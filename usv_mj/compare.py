@@ -634,9 +634,9 @@ def _stopped(exc: BaseException, part: str, scenario: Scenario, out_dir: str, do
     """An interrupt (or the SystemError a signal becomes inside a compiled kernel): compare.json with
     ``passed: false`` and the parts finished, then :class:`CompareInterrupted`. Other SystemErrors
     are raised again as they are."""
-    from .simulation import _interrupt_in_chain
+    from .simulation import interrupt_in_chain
 
-    cause = exc if isinstance(exc, KeyboardInterrupt) else _interrupt_in_chain(exc)
+    cause = exc if isinstance(exc, KeyboardInterrupt) else interrupt_in_chain(exc)
     if cause is None:
         raise exc
     who = str(cause) or "Ctrl-C"

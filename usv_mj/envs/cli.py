@@ -76,10 +76,10 @@ def run_command(args: argparse.Namespace) -> int:
         args.video = None
     if args.video is not None:  # the video's size and file are checked before any episode runs
         from usv_mj.outdir import check_file
-        from usv_mj.render.video import _check_size, parse_size
+        from usv_mj.render.video import check_size, parse_size
 
         try:
-            _check_size(*parse_size(args.video_size))
+            check_size(*parse_size(args.video_size))
             check_file(args.video, args.overwrite, "--video")
         except (ValueError, argparse.ArgumentTypeError) as exc:
             print(f"usv-mj env: error: {exc}", file=sys.stderr)

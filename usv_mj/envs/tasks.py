@@ -72,7 +72,7 @@ from dm_env import specs
 from usv_mj.builder import make_quantizers
 from usv_mj.controllers.performance_funnel import funnels_of
 from usv_mj.plants.mujoco_callback import HydrodynamicCallbackError
-from usv_mj.simulation import _which_limit, make_reference
+from usv_mj.simulation import make_reference, which_limit
 
 from . import native
 from .physics import USVPhysics
@@ -302,7 +302,7 @@ class TrackTask(base.Task):
             ex, ey = x[0] - ref[0], x[1] - ref[1]
             lim = self.scenario.limits
             self._terminate("diverged", f"state left its limits at t = {physics.time():.3f} s: "
-                                        f"{_which_limit(x, ex, ey, lim)}")
+                                        f"{which_limit(x, ex, ey, lim)}")
             return
         dist = math.hypot(ev.ex, ev.ey)  # the state is finite here: ex, ey are those of the raw state
         if dist >= self.max_distance:

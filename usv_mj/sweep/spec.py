@@ -334,7 +334,7 @@ def load_sweep(path: str | Path) -> SweepPlan:
     return plan_sweep(data, source=source, directory=path.parent)
 
 
-def _load_base(source: str, base: Any, directory: Path | None) -> Scenario:
+def load_base(source: str, base: Any, directory: Path | None) -> Scenario:
     if not isinstance(base, str) or not base:
         raise SweepError(f"{source}: base must be a preset name or a scenario file, got {base!r}")
     candidate = Path(base) if directory is None else (directory / base)
@@ -356,6 +356,9 @@ def _load_base(source: str, base: Any, directory: Path | None) -> Scenario:
         raise SweepError(f"{source}: base {base!r}: {exc}") from None
 
 
+_load_base = load_base   # the old name, for code on branches written before it was public
+
+
 def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = None) -> SweepPlan:
     """Build the :class:`SweepPlan` of a sweep table (the parsed TOML): sample, then validate every run."""
     known = set(TOP_KEYS)
@@ -367,7 +370,7 @@ def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = Non
             hint = difflib.get_close_matches(key, sorted(known), n=1)
             raise SweepError(f"{source}: unknown key {key!r}" + (f" (did you mean {hint[0]!r}?)" if hint else "")
                              + f"; known keys: {', '.join(sorted(known))}")
-    base = _load_base(source, data.get("base", "paper"), directory)
+    base = load_base(source, data.get("base", "paper"), directory)
     fixed: dict = {}
     if "duration" in data:
         fixed["duration"] = _number(source, "duration", data["duration"])
