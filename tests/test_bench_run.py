@@ -208,3 +208,28 @@ def test_the_default_suite_plans(tmp_path):
     sea = [r for r in suite.plan.runs if r.values["condition"] == "sea"][0].scenario.sea
     assert sea.waves.hs == 0.2 and sea.current.speed == 0.3
     assert math.isclose(suite.plan.runs[0].scenario.duration, 120.0)
+
+
+def test_a_policy_on_the_gymnasium_observation_is_scored_like_a_controller(tmp_path, monkeypatch):
+    from usv_mj.sweep.runner import run_one
+
+    (tmp_path / "zero_policy.py").write_text("import numpy as np\n\ndef zero(obs):\n    return np.zeros(2, np.float32)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    suite = plan_suite({"duration": 5.0, "episodes": 1, "controllers": [
+        "ppc", {"name": "ppc-policy", "policy": "usv_mj.envs:PPCPolicy"}, {"name": "zero", "policy": "zero_policy:zero"}],
+        "tasks": [{"name": "line", "set": {"trajectory.kind": "line", "initial.eta": [0.0, 1.0, 0.0],
+                                           "plant.kind": "mujoco"}}]})
+    rows = {r.values["controller"]: run_one(r.run_id, r.scenario, r.values, r.options) for r in suite.plan.runs}
+    assert all(r["status"] == "ok" for r in rows.values()), {k: r["reason"] for k, r in rows.items()}
+    # the paper's law as a policy on the observation (usv_mj.envs.PPCPolicy) is the ppc controller run
+    # through the environment: the same track, within the float32 observation's rounding
+    assert rows["ppc-policy"]["m.iae_cross_track"] == pytest.approx(rows["ppc"]["m.iae_cross_track"], rel=1e-3)
+    assert rows["ppc-policy"]["m.effort_u"] == pytest.approx(rows["ppc"]["m.effort_u"], rel=1e-3)
+    # a zero action is no thrust: no effort, and the offset of 1 m from the line stays (IAE = 1 m x 5 s)
+    assert rows["zero"]["m.effort_u"] == 0.0 and rows["zero"]["m.energy"] == 0.0
+    assert rows["zero"]["m.iae_cross_track"] == pytest.approx(5.0, rel=0.02)
+    harbour = plan_suite({"duration": 5.0, "episodes": 1, "controllers": [{"name": "zero", "policy": "zero_policy:zero"}],
+                          "tasks": [{"name": "h", "base": str(ROOT / "examples/scenarios/harbour_gap.toml")}]})
+    r = harbour.plan.runs[0]
+    row = run_one(r.run_id, r.scenario, r.values, r.options)
+    assert row["status"] == "failed" and "no view of the obstacles" in row["reason"]
