@@ -150,6 +150,30 @@ def summary_table(rank: dict) -> list[str]:
     return lines
 
 
+def glance_table(agg: dict, scores: dict, controllers: list, vessels: bool) -> list[str]:
+    """Tables as rows, controllers as columns: the normalised score (the heat map's, best in bold),
+    the mean IAE of the cross-track error and the share of episodes that passed the criterion."""
+    ctrls = [c for c in controllers if any(c in cells for cells in agg.values())]
+    lines = ["| task / condition | " + " | ".join(f"`{c}`" for c in ctrls) + " |",
+             "| --- |" + " --- |" * len(ctrls)]
+    for key, cells in agg.items():
+        sc = {c: v for c, v in scores[key].items() if math.isfinite(v)}
+        top = max(sc.values()) if sc else None
+        row = [table_name(key, vessels)]
+        for c in ctrls:
+            if c not in cells:
+                row.append("-")
+                continue
+            v = cells[c]
+            score = f"{scores[key][c]:.2f}" if math.isfinite(scores[key].get(c, math.nan)) else "-"
+            if top is not None and c in sc and sc[c] == top:
+                score = f"**{score}**"
+            passed = "-" if not v["passed"].n else f"{100 * v['passed'].mean:.0f} %"
+            row.append(f"{score} (IAE {_fmt(v['iae_cross_track'].mean)}, {passed})")
+        lines.append("| " + " | ".join(row) + " |")
+    return lines
+
+
 def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) -> Path:
     """``out/report.md``, ``out/leaderboard.json`` and the figures of ``out/figures/``; returns report.md."""
     out = Path(out)
@@ -172,6 +196,10 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
              f"Mean rank of each controller over every table and the ranked metrics ({', '.join(RANKED)}); "
              f"wins: the (table, metric) pairs it is best in.", ""]
     lines += summary_table(rank)
+    lines += ["", "### At a glance", "", "Each cell: the normalised score of the heat map (1 = the best of the "
+              "table on every ranked metric, 0 = the worst; the best in bold), (the mean IAE of the cross-track "
+              "error [m s], the share of episodes that passed the controller's own criterion).", ""]
+    lines += glance_table(agg, scores, controllers, vessels)
     lines += ["", "![normalised scores](figures/heatmap.png)", ""]
     tasks_seen = []
     for key, cells in agg.items():
