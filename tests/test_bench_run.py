@@ -183,6 +183,8 @@ def test_bad_suites_say_where(tmp_path):
         plan_suite({"controllers": ["nope"], "tasks": [{"name": "a", "duration": 2.0}]})
     with pytest.raises(SweepError, match=r"task 'a': goal must be \[x, y\]"):
         plan_suite({"tasks": [{"name": "a", "goal": "there"}]})
+    with pytest.raises(SweepError, match="task 'a': bench metrics: settle_time_s = 'long' must be a finite number"):
+        plan_suite({"tasks": [{"name": "a", "settle_time_s": "long"}]})
     with pytest.raises(SweepError, match="vessel"):   # a vessel kind the scenario does not know (yet)
         plan_suite({"vessels": ["otter"], "tasks": [{"name": "a", "duration": 2.0}]})
 
@@ -204,7 +206,7 @@ def test_the_default_suite_plans(tmp_path):
     assert [c.name for c in suite.controllers] == ["ppc", "pi", "los"]
     assert len(suite.plan.runs) == 7 * 3 * 3 * 3
     harbour = [r for r in suite.plan.runs if r.values["task"] == "harbour"]
-    assert harbour[0].scenario.obstacles and harbour[0].options["metrics"]["goal"] == [45.0, 0.0]
+    assert harbour[0].scenario.obstacles and harbour[0].options["metrics"]["goal"] == (45.0, 0.0)
     sea = [r for r in suite.plan.runs if r.values["condition"] == "sea"][0].scenario.sea
     assert sea.waves.hs == 0.2 and sea.current.speed == 0.3
     assert math.isclose(suite.plan.runs[0].scenario.duration, 120.0)

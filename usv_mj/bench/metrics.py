@@ -164,16 +164,36 @@ def goal_metrics(record, goal, radius_m: float) -> dict:
     return {"goal_reached": True, "time_to_goal_s": float(t[int(np.argmax(inside))] - t[0])}
 
 
+@dataclass(frozen=True)
+class MetricOptions:
+    """A task's options of :func:`episode_metrics` (a suite's task keys of the same names)."""
+
+    settle_time_s: float = 20.0                     # s: the maximum errors are taken over t >= this
+    band_cross_track_m: float = 1.0                 # m: the settling band of the cross-track error
+    band_heading_rad: float = math.radians(10.0)    # rad: the settling band of the heading error
+    goal: tuple | None = None                       # (x m, y m): the task's goal; None: no goal
+    goal_radius_m: float = 2.0                      # m: the goal is reached within this distance
+
+    def __post_init__(self):
+        for name in ("settle_time_s", "band_cross_track_m", "band_heading_rad", "goal_radius_m"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ScenarioError(f"bench metrics: {name} = {v!r} must be a finite number >= 0")
+        g = self.goal
+        if g is not None and not (len(g) == 2 and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                      and math.isfinite(v) for v in g)):
+            raise ScenarioError(f"bench metrics: goal = {g!r} must be (x, y) in m")
+
+
 def episode_metrics(record, *, settle_time_s: float = 20.0, band_cross_track_m: float = 1.0,
                     band_heading_rad: float = math.radians(10.0), goal=None, goal_radius_m: float = 2.0) -> dict:
     """Every metric of :data:`METRICS` of one episode (module docstring), plus ``settled_cross_track``
-    and ``settled_heading`` (False: the settling time is censored); JSON-ready (None, no NaN)."""
+    and ``settled_heading`` (False: the settling time is censored); JSON-ready (None, no NaN).
+    The options: :class:`MetricOptions` (validated there)."""
     from ..criteria import criterion_of_record
 
-    for name, v in (("settle_time_s", settle_time_s), ("band_cross_track_m", band_cross_track_m),
-                    ("band_heading_rad", band_heading_rad), ("goal_radius_m", goal_radius_m)):
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-            raise ScenarioError(f"bench metrics: {name} = {v!r} must be a finite number >= 0")
+    MetricOptions(settle_time_s, band_cross_track_m, band_heading_rad, None if goal is None else tuple(goal),
+                  goal_radius_m)
     t = np.asarray(record["t"])
     e = errors(record)
     out: dict = {}

@@ -36,6 +36,7 @@ poses and seas (the pairs of ``--compare``), on any number of workers.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import difflib
 import hashlib
 import json
@@ -47,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SweepError
+from .metrics import MetricOptions
 from ..scenario import ScenarioError, from_dict, load_scenario
 from ..sweep.spec import RunSpec, SweepPlan, _check_references, _draw, _load_base, _parse_axis, apply_values
 from ..toml_values import read_toml
@@ -169,10 +171,10 @@ def _goal(source, where, spec, scenario):
         points = getattr(scenario.trajectory.options, "points", None)
         if not points:
             raise SweepError(f"{source}: {where}: goal = \"last_waypoint\" needs a waypoints trajectory")
-        return [float(points[-1][0]), float(points[-1][1])]
+        return (float(points[-1][0]), float(points[-1][1]))
     if (isinstance(spec, list) and len(spec) == 2
             and all(isinstance(v, (int, float)) and math.isfinite(v) for v in spec)):
-        return [float(v) for v in spec]
+        return tuple(float(v) for v in spec)
     raise SweepError(f"{source}: {where}: goal must be [x, y] in m or \"last_waypoint\", got {spec!r}")
 
 
@@ -238,13 +240,15 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
             raise SweepError(f"{source}: {where}: vary takes distributions ({{ uniform = [a, b] }}, ...), not grids")
         rng = np.random.default_rng([seed, ti])
         drawn = {a.path: _draw(rng, a, n_ep) for a in axes}
-        metric_opts = {
-            "settle_time_s": float(task.get("settle_time_s", 20.0)),
-            "band_cross_track_m": float(task.get("band_cross_track_m", 1.0)),
-            "band_heading_rad": math.radians(float(task.get("band_heading_deg", 10.0))),
-            "goal": _goal(source, where, task.get("goal"), base),
-            "goal_radius_m": float(task.get("goal_radius_m", 2.0)),
-        }
+        heading = task.get("band_heading_deg", 10.0)
+        try:
+            options = MetricOptions(
+                settle_time_s=task.get("settle_time_s", 20.0), band_cross_track_m=task.get("band_cross_track_m", 1.0),
+                band_heading_rad=math.radians(heading) if isinstance(heading, (int, float)) else heading,
+                goal=_goal(source, where, task.get("goal"), base), goal_radius_m=task.get("goal_radius_m", 2.0))
+        except ScenarioError as exc:
+            raise SweepError(f"{source}: {where}: {exc}") from None
+        metric_opts = dataclasses.asdict(options)
         for cname, ctable in conditions.items():
             cond = _condition(source, cname, ctable or {}, base)
             for vessel in vessels:
