@@ -235,3 +235,28 @@ def test_a_policy_on_the_gymnasium_observation_is_scored_like_a_controller(tmp_p
     r = harbour.plan.runs[0]
     row = run_one(r.run_id, r.scenario, r.values, r.options)
     assert row["status"] == "failed" and "no view of the obstacles" in row["reason"]
+
+
+def test_a_stable_baselines3_zip_is_a_controller(tmp_path):
+    sb3 = pytest.importorskip("stable_baselines3")
+    import gymnasium
+
+    import usv_mj.envs  # noqa: F401  (registers usv_mj/Track-v0)
+    from usv_mj.bench.policy import load_policy
+    from usv_mj.sweep.runner import run_one
+
+    env = gymnasium.make("usv_mj/Track-v0")
+    model = sb3.PPO("MlpPolicy", env, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
+    model.learn(total_timesteps=64)
+    model.save(tmp_path / "ppo.zip")
+    policy = load_policy(str(tmp_path / "ppo.zip"), env)
+    obs, _ = env.reset(seed=1)
+    assert policy(obs) == pytest.approx(model.predict(obs, deterministic=True)[0])   # the model's own action
+    suite = _suite(tmp_path, TINY.replace('controllers = ["ppc", "pi"]',
+                                          'controllers = [{ name = "ppo", policy = "ppo.zip" }]'))
+    run = suite.plan.runs[0]
+    assert run.options["policy"] == str((tmp_path / "ppo.zip").resolve())   # relative to the suite's folder
+    row = run_one(run.run_id, run.scenario, run.values, run.options)
+    assert row["status"] in ("ok", "diverged") and row["m.iae_cross_track"] is not None, row["reason"]
+    with pytest.raises(Exception, match="no such file"):
+        load_policy(str(tmp_path / "missing.zip"), env)
