@@ -65,3 +65,18 @@ def test_the_installed_wheel_runs_mujoco_with_video_and_an_env(installed):
             "import numpy as np; ts = e.step(np.zeros(2)); print(ts.reward is not None)")
     proc = subprocess.run([str(py), "-c", code], cwd=outside, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0 and proc.stdout.strip().endswith("True"), proc.stderr[-2000:]
+
+
+def test_the_wheel_carries_the_default_benchmark_suite(installed):
+    wheel, py, outside, env = installed
+    names = zipfile.ZipFile(wheel).namelist()
+    assert "usv_mj/bench/suites/default.toml" in names and "usv_mj/bench/suites/harbour_gap.toml" in names
+    # the harbour file is a link to examples/scenarios/harbour_gap.toml in the checkout: a copy in the wheel
+    assert zipfile.ZipFile(wheel).read("usv_mj/bench/suites/harbour_gap.toml") == \
+        (ROOT / "examples" / "scenarios" / "harbour_gap.toml").read_bytes()
+    proc = subprocess.run([str(py), "-c", "from usv_mj.bench import load_suite; s = load_suite(); "
+                           "print(len(s.plan.runs), s.source)"], cwd=outside, env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    n, source = proc.stdout.split()
+    assert n == "189" and str(ROOT) not in source
