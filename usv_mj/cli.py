@@ -11,6 +11,7 @@
     usv-mj render RUN.mcap             the video again, at another size, speed or camera
     usv-mj sweep SWEEP.toml            many runs on a Dask cluster (local by default)
     usv-mj capability --load ...       the environment capability polar of the controller
+    usv-mj bench [SUITE.toml]          the controller benchmark: a leaderboard with intervals (default suite)
     usv-mj env track --policy ppc      the USV as a dm_control task: roll out a policy, print returns, video
     usv-mj kinds                       every controller, trajectory, plant, disturbance kind and its options
     usv-mj run --live                  the run served to Foxglove as it runs (pip install "usv_mj[live]")
@@ -340,6 +341,8 @@ _EXTERNAL = {
               "Monte-Carlo sweep of many runs on a Dask cluster (local by default)"),
     "capability": ("usv_mj.sweep", "add_capability_arguments", "capability_command",
                    "environment capability polar: the largest load at which the controller's criterion holds"),
+    "bench": ("usv_mj.bench", "add_arguments", "run_command",
+              "the controller benchmark: every controller on the same tasks, seas and actuators, one leaderboard"),
     "env": ("usv_mj.envs.cli", "add_arguments", "run_command",
             "roll out a policy (ppc, random) in a dm_control task (track, track_waves, harbor): returns and a video"),
     "kinds": ("usv_mj.kinds", "add_arguments", "run_command",
@@ -376,6 +379,11 @@ _DESCRIPTIONS = {
     "view": "Open MuJoCo's interactive viewer on the scenario's scene with the hydrodynamics, the sea and\n"
             "the controller acting (needs a display; exit 3 without one). --manual: drive it yourself,\n"
             "arrow keys up/down for surge, left/right for yaw, space to zero the thrust.",
+    "bench": "Score controllers on a suite of tasks (trajectories, a harbour transit) in calm water, a\n"
+             "moderate sea with current and with thrust limits, the same episodes for each; default: the\n"
+             "suite shipped in the package. Episodes run on the sweep's Dask cluster and stream into\n"
+             "results.parquet (--resume finishes); report.md is the leaderboard with 95 % intervals and\n"
+             "figures. --compare A B tests A against B per metric (paired Wilcoxon). docs/metrics.md.",
     "env": "Roll out a policy (ppc: the paper's controller; random) in a dm_control task (track,\n"
            "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode.",
     "kinds": "List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
@@ -414,7 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, env, kinds, scene, view
+commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, bench, env, kinds, scene, view
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 

@@ -216,11 +216,14 @@ class Axis:
 
 @dataclass(frozen=True)
 class RunSpec:
-    """One run of a sweep: its id, the varied values by path, and the validated scenario."""
+    """One run of a sweep: its id, the varied values by path, the validated scenario, and options
+    of its own for :func:`usv_mj.sweep.runner.run_one` (over the sweep's; a benchmark's episode
+    function and metrics, :mod:`usv_mj.bench`)."""
 
     run_id: int
     values: dict
     scenario: Scenario = field(repr=False)
+    options: dict = field(default_factory=dict, repr=False)
 
 
 @dataclass
