@@ -609,9 +609,10 @@ def _json_default(obj):
 def add_arguments(parser) -> None:
     """Arguments of ``usv-mj compare``: the scenario options of ``usv-mj run`` (--preset, --scenario,
     --set, --duration), --out and -q."""
-    from .cli import add_scenario_arguments
+    from .cli import add_scenario_arguments, add_vessel_argument
 
     add_scenario_arguments(parser)
+    add_vessel_argument(parser)
     parser.add_argument("--out", metavar="DIR", default=None, help="output folder (default renders/compare-<name>)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
@@ -628,6 +629,8 @@ def run_command(args) -> int:
         raise ScenarioError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
     scenario = scenario_from_args(args)
     name = os.path.splitext(os.path.basename(args.scenario))[0] if args.scenario else (args.preset or "paper")
+    if getattr(args, "vessel", None):
+        name += "-" + os.path.splitext(os.path.basename(args.vessel))[0]
     out = args.out or os.path.join("renders", f"compare-{name}")
     from .preflight import check_output_path
 
