@@ -48,6 +48,11 @@ REQUIRED = ("m", "x_g", "I_z", "X_udot", "Y_vdot", "Y_rdot", "N_vdot", "N_rdot")
 TOP_KEYS = {"description", "source", "notes", "coriolis", "uncertainty_scale", "derivatives", "dimensions",
             "crossflow", "actuators"}
 RHO_WATER = 1025.0  # kg/m^3, the cross-flow drag's default density
+UNITS = {"m": "kg", "x_g": "m", "I_z": "kg m^2", "X_udot": "kg", "Y_vdot": "kg", "Y_rdot": "kg m", "N_vdot": "kg m",
+         "N_rdot": "kg m^2", "X_u": "kg/s", "X_uu": "kg/m", "X_uuu": "kg s/m^2", "Y_v": "kg/s", "Y_vv": "kg/m",
+         "Y_rv": "kg", "Y_r": "kg m/s", "Y_vr": "kg", "Y_rr": "kg m", "N_v": "kg m/s", "N_vv": "kg", "N_rv": "kg m",
+         "N_r": "kg m^2/s", "N_vr": "kg m", "N_rr": "kg m^2", "L": "m", "B": "m", "T": "m", "crossflow_cd": "-",
+         "rho": "kg/m^3", "strips": "-", "uncertainty_scale": "-", "coriolis": ""}
 
 
 class _DataOptions:
@@ -126,7 +131,8 @@ def read_file(path) -> dict:
 def _options_class(kind: str, defaults: dict):
     """The options dataclass of one file: a field per number, the file's numbers as defaults."""
     name = "VesselOptions_" + "".join(c if c.isalnum() else "_" for c in kind)
-    fields = [(k, type(v), dataclasses.field(default=v)) for k, v in defaults.items()]
+    fields = [(k, type(v), dataclasses.field(default=v, metadata={"unit": UNITS.get(k, "")}))
+              for k, v in defaults.items()]
     cls = dataclasses.make_dataclass(name, fields, bases=(_DataOptions,), frozen=True, namespace={
         "__doc__": f"Options of the vessel {kind!r} (docs/vessels.md): its data file's numbers, SI units."})
     cls.__module__ = __name__
@@ -142,6 +148,7 @@ class DataVessel:
         self.contents = contents
         self.options = _options_class(kind, contents["options"])
         self.__doc__ = contents["description"] or f"vessel data file {kind}"
+        self.__qualname__ = f"DataVessel({os.path.basename(kind)})"
 
     def __call__(self, options, scenario=None) -> Vessel:
         o = options if options is not None else self.options()
