@@ -200,6 +200,21 @@ def test_otter_propellers_are_its_actuators():
     assert own.actuators.kind == "unlimited"
 
 
+@pytest.mark.parametrize("plant", ["analytic", "mujoco"])
+def test_otter_at_full_thrust_runs_at_its_design_speed(plant):
+    """The reference sets X_u = -24.4 g / U_max: both propellers at bollard pull (2 x 0.5 x 24.4 kgf)
+    hold the hull at U_max = 6 kn = 3.0864 m/s in a straight run (the time constant m11/|X_u| is
+    1.1 s: 40 s is 36 of them)."""
+    sc = load_scenario(overrides={"vessel": {"kind": "otter"}, "disturbance": {"scale": 0.0}})  # calm, as the reference
+    full = sc.actuators.generalized_limits()[1]
+    assert full == pytest.approx(24.4 * 9.81, rel=1e-12)
+    n = 40000
+    with make_plant(sc, plant, None) as p:
+        x = run_open_loop(p, np.tile([full, 0.0], (n, 1)), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    assert x[-1, 3] == pytest.approx(6 * 0.5144, rel=1e-9)
+    assert abs(x[-1, 1]) < 1e-12 and abs(x[-1, 2]) < 1e-12  # straight: no sway, no yaw
+
+
 # --- CyberShip II (Skjetne, Smogeli and Fossen 2004) ------------------------------------------------
 
 CS2 = dict(m=23.8, x_g=0.046, I_z=1.76, X_udot=-2.0, Y_vdot=-10.0, Y_rdot=0.0, N_vdot=0.0, N_rdot=-1.0,
