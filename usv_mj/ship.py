@@ -2,7 +2,9 @@
 
 Every formula of the hull lives here (docs/model.md §1, paper Eqs. 1-2, 6-7 and 28). The analytic plant, the
 MuJoCo passive-force callback and the PPC controller's nominal model all call these functions, so a
-change of the physics is a change in this one file.
+change of the physics is a change in this one file. The other vessels (usv_mj.vessels,
+docs/vessels.md) are written onto the same packed layout; the two terms they add, C(nu)'s own masses
+and the cross-flow drag, are the paper ship's m11, m22, m23 and zero.
 
 Conventions
 -----------

@@ -164,12 +164,9 @@ def register_file(path, kind: str | None = None, replace: bool = False) -> str:
     """Register the data file ``path`` as a vessel kind (``kind``: default the path as given);
     returns the kind. A kind already registered from the same file is kept."""
     kind = kind or str(path)
-    try:
-        entry = VESSELS._entries.get(kind)
-        if entry is not None and not replace and isinstance(entry.obj, DataVessel):
-            return kind
-    except AttributeError:
-        pass
+    entry = VESSELS._entries.get(kind)
+    if entry is not None and not replace and isinstance(entry.obj, DataVessel):
+        return kind  # read once per process (edit a file, then start again or pass replace=True)
     if not os.path.isfile(path):
         raise ScenarioError(f"vessel.kind: no vessel data file {str(path)!r}")
     factory = DataVessel(kind, read_file(path))
