@@ -52,6 +52,8 @@ class Dimensions:
 #: (x = -0.98) to the bow (x = 1.0), 0.76 m wide, 0.20 m deep; a vessel of these dimensions gets the
 #: model file's geoms unchanged
 PAPER_DIMENSIONS = Dimensions(1.98, 0.76, 0.20)
+#: what C(nu) holds (:func:`from_derivatives`)
+CORIOLIS = ("full", "rigid", "none")
 
 
 @dataclass(frozen=True)
@@ -107,22 +109,23 @@ def from_derivatives(m, x_g, I_z, X_udot, Y_vdot, Y_rdot, N_vdot, N_rdot,
     d22 = -(Y_v, Y_vv, Y_rv), d23 = -(Y_r, Y_vr, Y_rr), d32 = -(N_v, N_vv, N_rv), d33 = -(N_r, N_vr, N_rr),
     exactly (the kernels' d11 = c0 + c1|u| + c2 u^2, d_ij = c0 + c1|v| + c2|r|).
 
-    ``coriolis``: "full" (C = C_RB + C_A with the Munk moment, Fossen's nonlinear model) or "rigid"
-    (C = C_RB: the damping derivatives of a linear manoeuvring model already hold C_A's terms).
+    ``coriolis``: "full" (C = C_RB + C_A with the Munk moment, Fossen's nonlinear model), "rigid"
+    (C = C_RB: the damping derivatives hold C_A's terms) or "none" (C = 0: a linear manoeuvring
+    model M nu_dot + N(U) nu = tau whose N(U) holds the linearized C(U) as well, as Clarke 1983's).
     ``crossflow_k`` = 0.5 rho T C_d [kg/m^2] over ``crossflow_L`` [m] in ``strips`` strips (0: none).
     ``uncertainty_scale``: the paper's Delta on this hull (0: none, the vessels' default).
     """
     if Y_rdot != N_vdot:
         raise ValueError(f"{where}: Y_rdot = {Y_rdot!r} and N_vdot = {N_vdot!r} differ; the mass matrix must be "
                          f"symmetric (give both their mean)")
-    if coriolis not in ("full", "rigid"):
-        raise ValueError(f"{where}: coriolis must be 'full' or 'rigid', got {coriolis!r}")
+    if coriolis not in CORIOLIS:
+        raise ValueError(f"{where}: coriolis must be one of {', '.join(CORIOLIS)}, got {coriolis!r}")
     split = RigidBodySplit(rigid=(float(m), float(x_g), float(I_z)))
     ship = ShipParams(
         m11=m - X_udot, m22=m - Y_vdot, m23=m * x_g - Y_rdot, m33=I_z - N_rdot,
         d11=(-X_u, -X_uu, -X_uuu), d22=(-Y_v, -Y_vv, -Y_rv), d23=(-Y_r, -Y_vr, -Y_rr),
         d32=(-N_v, -N_vv, -N_rv), d33=(-N_r, -N_vr, -N_rr), uncertainty_scale=uncertainty_scale,
-        coriolis_masses=None if coriolis == "full" else (m, m, m * x_g),
+        coriolis_masses={"full": None, "rigid": (m, m, m * x_g), "none": (0.0, 0.0, 0.0)}[coriolis],
         crossflow=(crossflow_k, crossflow_L, strips) if crossflow_k > 0 else (0.0, 0.0, 0.0))
     return ship, split
 

@@ -14,17 +14,19 @@ With S = pi (T/L)^2, the nondimensional (prime-system) derivatives are
 
 made dimensional with (1/2) rho L^3 (Y_vdot), L^4 (Y_rdot, N_vdot), L^5 (N_rdot) and
 (1/2) rho L^2 U (Y_v), L^3 U (Y_r, N_v), L^4 U (N_r), U the speed of the linearisation [m/s].
-Rigid body: m = rho C_b L B T, I_z = m R66^2 + m x_g^2 about the origin. Surge (not Clarke's):
-X_udot = -2.7 rho nabla^(5/3) / L^2 (Soeding 1982, Fossen's ``addedMassSurge``) and
-X_u = -(m - X_udot) / T_surge.
+Rigid body: m = rho C_b L B T, I_z = m R66^2 + m x_g^2 about the origin. Surge (not Clarke's; as
+Fossen's clarke83): X_udot = -0.1 m and X_u = -(m - X_udot) / T_surge.
 
-Mapped onto the packed layout (usv_mj.vessels.from_derivatives) with two documented choices:
+The model is Fossen's linear manoeuvring model M nu_dot + N(U) nu = tau, whose N(U) "includes
+linear damping D and the linearized Coriolis and centripetal matrix C(U)" (clarke83's docstring).
+Mapped onto the packed layout (usv_mj.vessels.from_derivatives) with these documented choices:
+- C(nu) = 0 (``coriolis = "none"``): N(U) holds it; D = N(U), exactly linear;
+- N at the option ``U`` (the kernels' damping does not depend on the speed; Fossen's
+  ``shipClarke83`` re-evaluates N at the relative speed U_r every step, and clarke83 evaluates
+  it at U + 0.001 m/s to avoid U = 0: here it is the formula at U);
 - M's off-diagonal: Clarke's m23 = m x_g - Y_rdot and m32 = m x_g - N_vdot differ; the layout (and
   MuJoCo's joint-space mass matrix) is symmetric, so both become their mean (the skew part
-  (N_vdot - Y_rdot)/2 is dropped; :func:`reference_matrices` gives the unsymmetric M as printed);
-- C(nu) = C_RB only (``coriolis = "rigid"``): the captive-test derivatives hold the added mass's
-  Coriolis terms already (Fossen's linear model M nu_dot + N(U) nu = tau with the rigid body's
-  centripetal terms); D = N(U) is exactly linear.
+  (N_vdot - Y_rdot)/2 is dropped; :func:`reference_matrices` gives the unsymmetric M as printed).
 """
 
 from __future__ import annotations
@@ -83,8 +85,7 @@ def derivatives(o: Clarke83Options) -> dict:
     m = RHO * Cb * L * B * T
     S = math.pi * (T / L) ** 2
     q = 0.5 * RHO
-    nabla = m / RHO
-    X_udot = -2.7 * RHO * nabla ** (5.0 / 3.0) / L ** 2
+    X_udot = -0.1 * m
     return {
         "m": m, "x_g": o.xg, "I_z": m * o.R66 ** 2 + m * o.xg ** 2,
         "X_udot": X_udot,
@@ -118,8 +119,9 @@ def clarke83_vessel(options, scenario=None) -> Vessel:
     d = derivatives(o)
     y_rdot, n_vdot = d.pop("Y_rdot"), d.pop("N_vdot")
     mean = 0.5 * (y_rdot + n_vdot)
-    ship, split = from_derivatives(**d, Y_rdot=mean, N_vdot=mean, coriolis="rigid", where="vessel")
+    ship, split = from_derivatives(**d, Y_rdot=mean, N_vdot=mean, coriolis="none", where="vessel")
     return Vessel("clarke83", ship, split, Dimensions(o.L, o.B, o.T), None,
                   "Clarke, Gedling and Hine (1983), Trans. RINA 125 (Fossen's clarke83)",
                   (f"M's off-diagonal symmetrized: m23 = m32 = m x_g - (Y_rdot + N_vdot)/2 (Y_rdot = {y_rdot:.6g}, "
-                   f"N_vdot = {n_vdot:.6g})", "C(nu) = C_RB: the linear derivatives hold the added mass's Coriolis"))
+                   f"N_vdot = {n_vdot:.6g})", "C(nu) = 0: N(U) holds the linearized C(U)",
+                   f"N at U = {o.U:g} m/s (the reference re-evaluates it at the relative speed)"))

@@ -7,7 +7,7 @@ or by naming it in a scenario: ``[vessel] kind = "path/to/boat.toml"``. A file::
     description = "CyberShip II, 1:70 supply-ship model"       # one line
     source = "Skjetne, Smogeli and Fossen (2004), MIC 25(1), Tables 1-2"
     notes = ["what the 3-DOF model leaves out", ...]            # optional
-    coriolis = "full"            # C = C_RB + C_A (Munk moment); "rigid": C = C_RB only
+    coriolis = "full"            # C = C_RB + C_A (Munk moment); "rigid": C = C_RB only; "none": C = 0
     [derivatives]                # SI units, Fossen's notation (usv_mj.vessels.from_derivatives)
     m = 23.8                     # kg
     x_g = 0.046                  # m, COM ahead of the body origin
@@ -39,7 +39,7 @@ from usv_mj.errors import ScenarioError
 from usv_mj.registry import VESSELS
 from usv_mj.toml_values import read_toml
 
-from . import Dimensions, Vessel, from_derivatives
+from . import CORIOLIS, Dimensions, Vessel, from_derivatives
 
 DERIVATIVES = ("m", "x_g", "I_z", "X_udot", "Y_vdot", "Y_rdot", "N_vdot", "N_rdot",
                "X_u", "X_uu", "X_uuu", "Y_v", "Y_vv", "Y_rv", "Y_r", "Y_vr", "Y_rr",
@@ -63,8 +63,8 @@ class _DataOptions:
             value = getattr(self, f.name)
             if isinstance(value, float) and not math.isfinite(value):
                 raise ValueError(f"vessel.{f.name} must be a finite number, got {value!r}")
-        if self.coriolis not in ("full", "rigid"):
-            raise ValueError(f"vessel.coriolis must be 'full' or 'rigid', got {self.coriolis!r}")
+        if self.coriolis not in CORIOLIS:
+            raise ValueError(f"vessel.coriolis must be one of {', '.join(CORIOLIS)}, got {self.coriolis!r}")
         if self.strips < 1:
             raise ValueError(f"vessel.strips must be >= 1, got {self.strips!r}")
         if self.crossflow_cd < 0 or self.rho <= 0:
@@ -115,8 +115,8 @@ def read_file(path) -> dict:
         raise ScenarioError(f"{path}: crossflow.strips must be an integer >= 1, got {strips!r}")
     options["strips"] = strips
     options["coriolis"] = data.get("coriolis", "full")
-    if options["coriolis"] not in ("full", "rigid"):
-        raise ScenarioError(f"{path}: coriolis must be 'full' or 'rigid', got {options['coriolis']!r}")
+    if options["coriolis"] not in CORIOLIS:
+        raise ScenarioError(f"{path}: coriolis must be one of {', '.join(CORIOLIS)}, got {options['coriolis']!r}")
     options["uncertainty_scale"] = _number(path, "uncertainty_scale", data.get("uncertainty_scale", 0.0))
     notes = data.get("notes", [])
     if not (isinstance(notes, list) and all(isinstance(n, str) for n in notes)):
