@@ -18,7 +18,7 @@ import pytest
 
 from usv_mj import load_scenario, simulate
 from usv_mj.builder import make_plant
-from usv_mj.compare import open_loop_inputs, realized_inputs, run_open_loop, state_differences
+from usv_mj.compare import input_scale, open_loop_inputs, realized_inputs, run_open_loop, state_differences
 from usv_mj.registry import VESSELS
 from usv_mj.ship import (RigidBodySplit, ShipParams, coriolis_damping_terms, coriolis_matrix, damping_matrix,
                          mass_matrix)
@@ -280,7 +280,7 @@ def test_model_mismatch_scales_the_controllers_model_only():
 def test_both_plants_agree_open_loop_for_every_vessel(kind):
     sc = load_scenario(overrides={"vessel": {"kind": kind}, "duration": 10.0})
     dt = sc.control_period
-    inputs, _ = realized_inputs(sc, open_loop_inputs(sc.duration, dt), dt)
+    inputs, _ = realized_inputs(sc, open_loop_inputs(sc.duration, dt, scale=input_scale(sc)), dt)
     xa = run_open_loop(make_plant(sc, "analytic", None), inputs, sc.initial.eta, sc.initial.nu)
     with make_plant(sc, "mujoco", None) as plant:
         m, x_g, iz = sc.vessel.model.rigid_body()
