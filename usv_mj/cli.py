@@ -108,6 +108,11 @@ def add_scenario_arguments(p: argparse.ArgumentParser) -> None:
                    "breeze, varying-current): waves, current and wind of docs/sea.md; `usv-mj presets` lists them")
 
 
+def add_vessel_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--vessel", metavar="KIND", help="the hull: a vessel kind (paper, cybership2, otter, clarke83; "
+                   "`usv-mj kinds vessel`) or a vessel data file; shorthand for --set vessel.kind=KIND")
+
+
 def scenario_from_args(args):
     overrides = {}
     if getattr(args, "sea", None) is not None:
@@ -130,6 +135,13 @@ def scenario_from_args(args):
             raise ScenarioError(f"--set plant={overrides['plant']!r}: [plant] must be a table (with --plant "
                                 "give --set plant.kind=... or drop one of them)")
         overrides.setdefault("plant", {})["kind"] = args.plant
+    if getattr(args, "vessel", None):  # --vessel X: shorthand for --set vessel.kind=X (docs/vessels.md)
+        if not isinstance(overrides.get("vessel", {}), dict):
+            raise ScenarioError(f"--set vessel={overrides['vessel']!r}: [vessel] must be a table")
+        if isinstance(overrides.get("ship"), dict) and args.vessel != "paper":
+            raise ScenarioError(f"--vessel {args.vessel}: --set ship.* sets the paper vessel's parameters; "
+                                f"give the vessel's own as --set vessel.KEY=VALUE")
+        overrides.setdefault("vessel", {})["kind"] = args.vessel
     return load_scenario(args.scenario, preset=args.preset, overrides=overrides)
 
 
@@ -143,6 +155,7 @@ def _add_run(sub):
                        "figures/, run.mcap (baseline.mcap), video.mp4 and video.png into --out.")
     add_scenario_arguments(p)
     p.add_argument("--plant", choices=("mujoco", "analytic"), help="which plant integrates the ship")
+    add_vessel_argument(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default renders/<preset or scenario name>)")
     p.add_argument("--no-video", action="store_true", help="skip the video")
     p.add_argument("--no-baseline", action="store_true", help="skip the PI baseline run")
