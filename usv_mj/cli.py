@@ -12,6 +12,7 @@
     usv-mj capability --load ...       the environment capability polar of the controller
     usv-mj env track --policy ppc      the USV as a dm_control task: roll out a policy, print returns, video
     usv-mj kinds                       every controller, trajectory, plant, disturbance kind and its options
+    usv-mj manoeuvre turning           a standard manoeuvre: turning, zigzag, spiral, stopping (IMO measures)
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
@@ -276,6 +277,8 @@ _EXTERNAL = {
             "roll out a policy (ppc, random) in a dm_control task (track, track_waves, harbor): returns and a video"),
     "kinds": ("usv_mj.kinds", "add_arguments", "run_command",
               "every controller, trajectory, plant and disturbance kind: where it comes from, its options"),
+    "manoeuvre": ("usv_mj.manoeuvres.cli", "add_arguments", "run_command",
+                  "a standard manoeuvre (turning circle, zig-zag, spiral, stopping): measures, IMO criteria, figures"),
 }
 
 
@@ -303,6 +306,10 @@ _DESCRIPTIONS = {
     "kinds": "List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
              "disturbance): where it comes from (built-in, an entry point's distribution, module:Name,\n"
              "registered at runtime) and its options (name, type, default, unit). --json for one object.",
+    "manoeuvre": "Run a standard manoeuvre of the vessel (turning circle, 10/10 or 20/20 zig-zag, Dieudonne's\n"
+                 "spiral, stopping test) on either plant, and write its measures (manoeuvre.json), the IMO\n"
+                 "MSC.137(76) criteria beside them, figures, report.md and run.mcap into --out (a video with\n"
+                 "--video). Options: --set manoeuvre.KEY=VALUE (README, Vessels and manoeuvres).",
 }
 
 
@@ -335,7 +342,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, compare, inspect, plot, render, sweep, capability, env, kinds
+commands: run, presets, compare, inspect, plot, render, sweep, capability, env, kinds, manoeuvre
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 

@@ -369,7 +369,7 @@ def _one_line(exc: BaseException) -> str:
 
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
             video: bool = True, log: bool = True, progress: bool = True, step_check: bool = True,
-            render_options: dict | None = None, overwrite: bool = False) -> JobResult:
+            render_options: dict | None = None, overwrite: bool = False, extra_outputs=None) -> JobResult:
     """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
 
     Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
@@ -377,7 +377,10 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     then replaced whole. The outputs are written into a staging folder beside ``out_dir`` and moved
     into place when the job ends, however it ends. Ctrl-C, SIGTERM and SIGHUP stop the job (the
     summary says where and which outputs are missing); a crash or an output that cannot be written
-    raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place."""
+    raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place.
+
+    ``extra_outputs(record, out)`` (a manoeuvre's measures, say) writes its own files into the
+    staging folder ``out`` after the figures and returns (report sections, {name: path})."""
     from .preflight import check_run
 
     out = Path(out_dir)
@@ -388,7 +391,7 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
-                                 render_opts=render_opts)
+                                 render_opts=render_opts, extra_outputs=extra_outputs)
         except RunFailed as exc:
             exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
             exc.traceback = _relocate(exc.traceback, stage.path, out)
@@ -425,7 +428,7 @@ def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
-                video, log, progress, step_check, render_opts) -> JobResult:
+                video, log, progress, step_check, render_opts, extra_outputs=None) -> JobResult:
     """The job itself, writing into the staging folder ``out``."""
     import traceback
 
@@ -539,6 +542,11 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         phase = "drawing the figures"
         files["figures"] = draw_figures(record, out / "figures", base_rec, obstacles=scenario.obstacles)
         extra_sections = []
+        if extra_outputs is not None:
+            phase = "writing the manoeuvre's outputs"
+            sections, extra_files = extra_outputs(record, out)
+            extra_sections += list(sections)
+            files.update(extra_files)
         if not scenario.sea.calm:
             phase = "drawing the sea figures"
             extra_sections.append(_sea_outputs(scenario, record, summary, summary_out, out, plant_kind, files))

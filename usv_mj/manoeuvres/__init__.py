@@ -1,0 +1,181 @@
+"""The standard manoeuvres: turning circle, zig-zag, Dieudonné's spiral, stopping test (issue 26 item 3).
+
+::
+
+    from usv_mj import load_scenario
+    from usv_mj.manoeuvres import turning_circle, zigzag, spiral, stopping
+    m = turning_circle(load_scenario(preset="paper"), plant_kind="analytic")   # dict of measures
+    m["measures"]["tactical_diameter_m"], m["imo"]["rows"]
+    zigzag(scenario, angle_deg=20, out_dir="renders/zz20")   # + figures, run.mcap, report.md, manoeuvre.json
+
+Each is one run of the scenario through the one build (:func:`usv_mj.build` via
+:func:`usv_mj.simulate`) with the manoeuvre's input as its controller (:mod:`.options`); with
+``out_dir`` it goes through :func:`usv_mj.main_job.run_job` (the MCAP log, the run's figures and
+report, a video on request) and adds the manoeuvre's figures (:mod:`.figures`), a section of
+``report.md`` and ``manoeuvre.json``. The measures are those of :mod:`.measures`; the criteria of
+IMO MSC.137(76) (:mod:`.imo`) are printed beside them, with whether they apply to the vessel.
+The command line: ``usv-mj manoeuvre turning|zigzag|spiral|stopping`` (:mod:`.cli`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, replace
+from pathlib import Path
+
+from . import imo
+from .measures import spiral_measures, stopping_measures, turning_measures, zigzag_measures
+from .options import KINDS, ManoeuvreSpec, execute_time, manoeuvre_from_table, manoeuvre_scenario
+
+__all__ = ["run_manoeuvre", "turning_circle", "zigzag", "spiral", "stopping", "measure", "vessel_length",
+           "ManoeuvreSpec", "KINDS"]
+
+#: the paper's hull: models/usv.xml spans x = -0.98 m (transom) to +1.00 m (bow)
+PAPER_HULL_LENGTH_M = 2.0
+
+
+def vessel_length(scenario) -> float:
+    """The vessel's length L [m]: the ``[vessel]``'s when the scenario has one that states it, the
+    paper hull's 2 m otherwise."""
+    vessel = getattr(scenario, "vessel", None)
+    for holder in (vessel, getattr(vessel, "options", None)):
+        for name in ("L", "length", "lpp", "length_m"):
+            value = getattr(holder, name, None) if holder is not None else None
+            if isinstance(value, (int, float)) and value > 0:
+                return float(value)
+    return PAPER_HULL_LENGTH_M
+
+
+def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
+    """The measures of manoeuvre ``spec`` in a run's ``record`` (:mod:`.measures`) with the IMO rows."""
+    o = spec.options
+    t = record["t"]
+    if spec.kind == "turning":
+        m = turning_measures(t, record["x"], record["y"], record["psi"], record["u"], record["v"], record["r"],
+                             t_execute=o.approach_s, steady_after_deg=o.steady_after_deg, length=length)
+        crit = imo.criteria("turning", m, length, o.approach_speed)
+    elif spec.kind == "zigzag":
+        m = zigzag_measures(t, record["heading_change"], record["tau_r"], o.angle_deg)
+        crit = imo.criteria("zigzag", m, length, o.approach_speed, switch_deg=o.angle_deg)
+    elif spec.kind == "spiral":
+        holds = [(i * o.hold_s, (i + 1) * o.hold_s, c, b) for i, (c, b) in enumerate(o.commands())]
+        m = spiral_measures(t, record["r"], holds, o.settle_fraction)
+        crit = imo.criteria("spiral", m, length, o.approach_speed)
+        crit["note"] += "; MSC.137(76) sets no criterion on the spiral"
+    else:
+        m = stopping_measures(t, record["x"], record["y"], record["psi"], record["u"], record["v"],
+                              stop_speed=o.stop_speed, t_execute=o.approach_s, length=length)
+        crit = imo.criteria("stopping", m, length, o.approach_speed)
+    return {"kind": spec.kind, "options": asdict(o), "length_m": length, "plant": record.metadata.get("plant"),
+            "status": record.status, "simulated_s": float(t[-1]) if len(t) else 0.0,
+            "rudder": "commanded yaw moment tau_r [N m] (the hull has no rudder; docs/model.md §9)",
+            "measures": m, "imo": crit}
+
+
+def _fmt(v, unit=""):
+    if v is None:
+        return "—"
+    if isinstance(v, float):
+        return f"{v:.3f}{unit}"
+    return f"{v}{unit}"
+
+
+def report_section(result: dict) -> str:
+    """The manoeuvre's part of ``report.md``: the measures, the IMO rows, the figures."""
+    m, kind = result["measures"], result["kind"]
+    lines = [f"## Manoeuvre: {kind}", "",
+             f"Options: {json.dumps(result['options'])}. Vessel length L = {result['length_m']:g} m; the "
+             f"\"rudder\" is the {result['rudder']}.", "", "| measure | value |", "|---|---|"]
+    for key, value in m.items():
+        if key in ("points",) or isinstance(value, (list, dict)) and key != "loop_commands":
+            continue
+        lines.append(f"| {key} | {_fmt(value)} |")
+    if kind == "spiral":
+        lines += ["", "| command [N m] | branch | steady r [rad/s] | spread [rad/s] |", "|---|---|---|---|"]
+        lines += [f"| {p['command']:g} | {p['branch']} | {p['yaw_rate']:+.4f} | {p['spread']:.1e} |" for p in m["points"]]
+    c = result["imo"]
+    lines += ["", f"**{c['standard']}**: {c['note']}.", ""]
+    if c["rows"]:
+        lines += ["| criterion | value | limit | met |", "|---|---|---|---|"]
+        lines += [f"| {r['criterion']} | {_fmt(r['value'])} {r['unit']} | {r['limit']:g} {r['unit']} | "
+                  f"{'—' if r['met'] is None else ('yes' if r['met'] else 'no')} |" for r in c["rows"]]
+    lines += ["", "![track](figures/manoeuvre_track.png)", "", "![time series](figures/manoeuvre_time.png)"]
+    if kind == "spiral":
+        lines += ["", "![spiral](figures/manoeuvre_spiral.png)"]
+    return "\n".join(lines)
+
+
+def _check_finished(result: dict) -> None:
+    for key, value in result["measures"].items():
+        if isinstance(value, float) and not math.isfinite(value):
+            result["measures"][key] = None
+
+
+def run_manoeuvre(scenario, spec: ManoeuvreSpec | None = None, *, plant_kind: str | None = None, out_dir=None,
+                  video: bool = False, progress: bool = False, overwrite: bool = False,
+                  render_options: dict | None = None) -> dict:
+    """Run manoeuvre ``spec`` (default: the scenario's ``[manoeuvre]``) and return its measures (module
+    docstring); with ``out_dir`` write every output there (``result["job"]``: the JobResult)."""
+    from usv_mj.simulation import simulate
+
+    ms = manoeuvre_scenario(scenario, spec)
+    spec = ms.manoeuvre
+    length = vessel_length(ms)
+    if out_dir is None:
+        record = simulate(ms, plant_kind=plant_kind)
+        result = measure(record, spec, length)
+        _check_finished(result)
+        return result
+    from usv_mj.main_job import _write_json, run_job
+
+    from .figures import draw_manoeuvre_figures
+
+    holder = {}
+
+    def outputs(record, out: Path):
+        result = measure(record, spec, length)
+        _check_finished(result)
+        label = f"{record.metadata.get('plant')} plant"
+        figs = draw_manoeuvre_figures(record, spec.kind, result, out / "figures", execute_time(spec), label)
+        _write_json(out / "manoeuvre.json", result)
+        holder["result"] = result
+        return [report_section(result)], {"manoeuvre": out / "manoeuvre.json", "manoeuvre_figures": figs}
+
+    job = run_job(ms, out_dir, plant_kind=plant_kind, baseline=False, video=video, log=True, progress=progress,
+                  step_check=False, render_options=render_options, overwrite=overwrite, extra_outputs=outputs)
+    result = holder.get("result") or {"kind": spec.kind, "measures": {}, "status": job.summary.get("status")}
+    result["job"] = job
+    return result
+
+
+def _run_kind(kind, scenario, plant_kind, out_dir, video, options):
+    base = scenario.manoeuvre.options if (scenario.manoeuvre is not None and scenario.manoeuvre.kind == kind) \
+        else KINDS[kind]()
+    try:
+        opts = replace(base, **options)
+    except TypeError as exc:
+        from usv_mj.errors import ScenarioError
+
+        raise ScenarioError(f"manoeuvre {kind}: {exc}") from None
+    return run_manoeuvre(scenario, ManoeuvreSpec(kind, opts), plant_kind=plant_kind, out_dir=out_dir, video=video)
+
+
+def turning_circle(scenario, *, plant_kind=None, out_dir=None, video=False, **options) -> dict:
+    """The turning circle of ``scenario``'s vessel; ``options``: :class:`.options.TurningOptions`'s fields."""
+    return _run_kind("turning", scenario, plant_kind, out_dir, video, options)
+
+
+def zigzag(scenario, *, plant_kind=None, out_dir=None, video=False, **options) -> dict:
+    """The zig-zag (10/10 by default; ``angle_deg=20`` for 20/20): :class:`.options.ZigzagOptions`."""
+    return _run_kind("zigzag", scenario, plant_kind, out_dir, video, options)
+
+
+def spiral(scenario, *, plant_kind=None, out_dir=None, video=False, **options) -> dict:
+    """Dieudonné's spiral: :class:`.options.SpiralOptions`."""
+    return _run_kind("spiral", scenario, plant_kind, out_dir, video, options)
+
+
+def stopping(scenario, *, plant_kind=None, out_dir=None, video=False, **options) -> dict:
+    """The stopping test: :class:`.options.StoppingOptions`."""
+    return _run_kind("stopping", scenario, plant_kind, out_dir, video, options)
