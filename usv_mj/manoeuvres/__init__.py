@@ -69,7 +69,7 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
         crit = imo.criteria("stopping", m, length, o.approach_speed)
     return {"kind": spec.kind, "options": asdict(o), "length_m": length, "plant": record.metadata.get("plant"),
             "status": record.status, "simulated_s": float(t[-1]) if len(t) else 0.0,
-            "rudder": "commanded yaw moment tau_r [N m] (the hull has no rudder; docs/model.md §9)",
+            "rudder": "commanded yaw moment tau_r [N m] (the hull has no rudder; docs/manoeuvres.md)",
             "measures": m, "imo": crit}
 
 

@@ -50,15 +50,25 @@ def _scenario(args):
             raise ScenarioError(f"--vessel {args.vessel}: no vessel registry yet")
         args.set = list(args.set) + [f"vessel.kind={args.vessel}"]
     duration, args.duration = args.duration, None   # the manoeuvre's duration, not the scenario's
+    own = None
+    if args.scenario:
+        from usv_mj.toml_values import read_toml
+
+        table = read_toml(args.scenario, ScenarioError, "scenario file").get("manoeuvre")
+        own = table.get("kind", "turning") if isinstance(table, dict) else None
+    if args.kind and own is not None and own != args.kind:
+        raise ScenarioError(f"manoeuvre {args.kind}: {args.scenario}'s [manoeuvre] is kind {own!r}; "
+                            "name that one or drop the table")
+    if args.kind and not any(item.split("=", 1)[0].strip() == "manoeuvre.kind" for item in args.set):
+        args.set = [f"manoeuvre.kind={args.kind}"] + list(args.set)  # before the kind's own --set keys
     scenario = scenario_from_args(args)
     spec = scenario.manoeuvre
-    kind = args.kind or (spec.kind if spec is not None else None)
+    kind = spec.kind if spec is not None else None
     if kind is None:
         raise ScenarioError("name the manoeuvre (turning, zigzag, spiral, stopping) or give a scenario with "
                             "a [manoeuvre] table")
-    if spec is not None and spec.kind != kind:
-        raise ScenarioError(f"manoeuvre {kind}: the scenario's [manoeuvre] is kind {spec.kind!r}; "
-                            "name that one or drop the table")
+    if args.kind and kind != args.kind:
+        raise ScenarioError(f"manoeuvre {args.kind}: --set manoeuvre.kind={kind} names another one")
     over = {"manoeuvre": {"kind": kind}}
     if duration is not None:
         if kind == "spiral":

@@ -84,7 +84,7 @@ class ZigzagOptions:
     angle_deg: float = 10.0          # deg: the switching heading change (10 for 10/10, 20 for 20/20)
     first_turn: str = "starboard"    # "starboard" or "port"
     duration: float = 60.0           # s
-    control_period: float = 0.01     # s
+    control_period: float = 0.001    # s: the switch acts within one period (10 ms moved the overshoot 0.4 deg)
     conditions: str = "calm"
 
     def __post_init__(self):
