@@ -69,7 +69,7 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
         crit = imo.criteria("stopping", m, length, o.approach_speed)
     return {"kind": spec.kind, "options": asdict(o), "length_m": length, "plant": record.metadata.get("plant"),
             "status": record.status, "simulated_s": float(t[-1]) if len(t) else 0.0,
-            "rudder": "commanded yaw moment tau_r [N m] (the hull has no rudder; docs/manoeuvres.md)",
+            "rudder": "commanded yaw moment tau_r [N m], realized by the vessel's actuators (docs/manoeuvres.md)",
             "measures": m, "imo": crit}
 
 
@@ -100,7 +100,8 @@ def report_section(result: dict) -> str:
         lines += ["| criterion | value | limit | met |", "|---|---|---|---|"]
         lines += [f"| {r['criterion']} | {_fmt(r['value'])} {r['unit']} | {r['limit']:g} {r['unit']} | "
                   f"{'—' if r['met'] is None else ('yes' if r['met'] else 'no')} |" for r in c["rows"]]
-    lines += ["", "![track](figures/manoeuvre_track.png)", "", "![time series](figures/manoeuvre_time.png)"]
+    lines += ["", "The sections above compare the run with its reference, the original course at the approach "
+              "speed; a manoeuvre is not judged on it.", "", "![track](figures/manoeuvre_track.png)", "", "![time series](figures/manoeuvre_time.png)"]
     if kind == "spiral":
         lines += ["", "![spiral](figures/manoeuvre_spiral.png)"]
     return "\n".join(lines)

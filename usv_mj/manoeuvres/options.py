@@ -228,7 +228,8 @@ def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
 
 def manoeuvre_scenario(scenario, spec: ManoeuvreSpec | None = None):
     """``scenario`` made to run manoeuvre ``spec`` (default: its own ``[manoeuvre]``), validated
-    again; its ``[controller]`` is replaced whole by the manoeuvre's input."""
+    again; its ``[controller]`` is replaced whole by the manoeuvre's input and its ``[trajectory]``
+    by the original course (a line from the start at the approach speed)."""
     from usv_mj.scenario import _merge, from_dict
 
     spec = spec if spec is not None else scenario.manoeuvre
@@ -236,11 +237,14 @@ def manoeuvre_scenario(scenario, spec: ManoeuvreSpec | None = None):
         raise ScenarioError(f"{scenario.source}: no [manoeuvre] to run (give its kind)")
     over = manoeuvre_overrides(scenario, spec)
     ctrl = over.pop("controller")
-    raw = {k: v for k, v in scenario.raw.items() if k != "controller"}
+    raw = {k: v for k, v in scenario.raw.items() if k not in ("controller", "trajectory")}
     if spec.options.conditions == "calm":
         raw.pop("sea", None)
     data = _merge(raw, over)
     data["controller"] = ctrl
+    # the reference: the original course at the approach speed (what the run's figures and video
+    # show the track against; a manoeuvre is not judged on it)
+    data["trajectory"] = {"kind": "line", "speed": spec.options.approach_speed, "start": [0.0, 0.0], "heading_deg": 0.0}
     data["manoeuvre"] = {"kind": spec.kind, **{f.name: getattr(spec.options, f.name) for f in fields(spec.options)}}
     return from_dict(data, source=scenario.source or "<manoeuvre>")
 
