@@ -236,6 +236,12 @@ def test_cli_manoeuvre_writes_its_outputs(kind, extra, keys, tmp_path):
     if kind == "spiral":
         assert (out / "figures/manoeuvre_spiral.png").is_file()
         assert result["measures"]["hysteresis"]    # the paper's hull is directionally unstable
+    if kind == "turning":   # usv-mj plot remakes the manoeuvre's outputs from the log alone
+        assert main(["plot", str(out / "run.mcap"), "--out", str(tmp_path / "replot")]) == 0
+        again = json.loads((tmp_path / "replot" / "manoeuvre.json").read_text())
+        scalars = {k: v for k, v in result["measures"].items() if isinstance(v, float)}
+        assert {k: again["measures"][k] for k in scalars} == pytest.approx(scalars, rel=1e-12)
+        assert f"## Manoeuvre: {kind}" in (tmp_path / "replot" / "report.md").read_text()
 
 
 def test_cli_manoeuvre_bad_input_is_one_line(tmp_path, capsys):

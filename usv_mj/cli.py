@@ -251,10 +251,13 @@ def _plot_command(args) -> int:
     check_output_path(out)
     out.mkdir(parents=True, exist_ok=True)
     draw_figures(log.record, out / "figures", log.baseline)
+    from .manoeuvres import record_outputs
+
+    sections = record_outputs(log.record, out)[0]  # a manoeuvre's figures, manoeuvre.json, its section
     summary = summarize(log.record)
     base = summarize(log.baseline, criterion_of_record(log.record)) if log.baseline is not None else None
     write_report(out / "report.md", summary, base,
-                 log.metadata.get("step_check"))
+                 log.metadata.get("step_check"), sections)
     print(f"figures and report from {path} written to {out}/")
     return EXIT_OK
 

@@ -29,6 +29,7 @@ from .measures import spiral_measures, stopping_measures, turning_measures, zigz
 from .options import KINDS, ManoeuvreSpec, execute_time, manoeuvre_from_table, manoeuvre_scenario
 
 __all__ = ["run_manoeuvre", "turning_circle", "zigzag", "spiral", "stopping", "measure", "vessel_length",
+           "record_outputs", "spec_of_record",
            "ManoeuvreSpec", "KINDS"]
 
 #: the paper's hull: models/usv.xml spans x = -0.98 m (transom) to +1.00 m (bow)
@@ -36,15 +37,49 @@ PAPER_HULL_LENGTH_M = 2.0
 
 
 def vessel_length(scenario) -> float:
-    """The vessel's length L [m]: the ``[vessel]``'s when the scenario has one that states it, the
-    paper hull's 2 m otherwise."""
-    vessel = getattr(scenario, "vessel", None)
-    for holder in (vessel, getattr(vessel, "options", None)):
+    """The vessel's length L [m]: the ``[vessel]``'s when the scenario (or its ``to_dict()``, from a
+    run's metadata) has one that states it, the paper hull's 2 m otherwise."""
+    def get(obj, name):
+        return obj.get(name) if isinstance(obj, dict) else getattr(obj, name, None)
+
+    vessel = get(scenario, "vessel")
+    for holder in (vessel, get(vessel, "options") if vessel is not None else None):
         for name in ("L", "length", "lpp", "length_m"):
-            value = getattr(holder, name, None) if holder is not None else None
-            if isinstance(value, (int, float)) and value > 0:
+            value = get(holder, name) if holder is not None else None
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
                 return float(value)
     return PAPER_HULL_LENGTH_M
+
+
+def spec_of_record(record) -> ManoeuvreSpec | None:
+    """The manoeuvre a run's record was made by (from its metadata), or None for any other run."""
+    table = (record.metadata.get("scenario") or {}).get("manoeuvre")
+    if not isinstance(table, dict) or "kind" not in table:
+        return None
+    return manoeuvre_from_table({"kind": table["kind"], **(table.get("options") or {})}, "the run's metadata")
+
+
+def record_outputs(record, out, spec: ManoeuvreSpec | None = None, length: float | None = None):
+    """The manoeuvre's outputs of a finished run into folder ``out``: its figures in ``figures/``,
+    ``manoeuvre.json``; returns (report sections, {name: path}, result). ``spec`` and ``length``
+    default to the record's own (:func:`spec_of_record`, :func:`vessel_length` of its metadata); a
+    record of no manoeuvre gives ([], {}, None). ``usv-mj plot`` remakes them from a log."""
+    from usv_mj.main_job import _write_json
+
+    from .figures import draw_manoeuvre_figures
+
+    spec = spec if spec is not None else spec_of_record(record)
+    if spec is None:
+        return [], {}, None
+    if length is None:
+        length = vessel_length(record.metadata.get("scenario") or {})
+    out = Path(out)
+    result = measure(record, spec, length)
+    _check_finished(result)
+    label = f"{record.metadata.get('plant')} plant"
+    figs = draw_manoeuvre_figures(record, spec.kind, result, out / "figures", execute_time(spec), label)
+    _write_json(out / "manoeuvre.json", result)
+    return [report_section(result)], {"manoeuvre": out / "manoeuvre.json", "manoeuvre_figures": figs}, result
 
 
 def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
@@ -128,20 +163,13 @@ def run_manoeuvre(scenario, spec: ManoeuvreSpec | None = None, *, plant_kind: st
         result = measure(record, spec, length)
         _check_finished(result)
         return result
-    from usv_mj.main_job import _write_json, run_job
-
-    from .figures import draw_manoeuvre_figures
+    from usv_mj.main_job import run_job
 
     holder = {}
 
     def outputs(record, out: Path):
-        result = measure(record, spec, length)
-        _check_finished(result)
-        label = f"{record.metadata.get('plant')} plant"
-        figs = draw_manoeuvre_figures(record, spec.kind, result, out / "figures", execute_time(spec), label)
-        _write_json(out / "manoeuvre.json", result)
-        holder["result"] = result
-        return [report_section(result)], {"manoeuvre": out / "manoeuvre.json", "manoeuvre_figures": figs}
+        sections, files, holder["result"] = record_outputs(record, out, spec, length)
+        return sections, files
 
     job = run_job(ms, out_dir, plant_kind=plant_kind, baseline=False, video=video, log=True, progress=progress,
                   step_check=False, render_options=render_options, overwrite=overwrite, extra_outputs=outputs)
