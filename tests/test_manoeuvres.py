@@ -102,12 +102,15 @@ def test_sinusoidal_heading_overshoot_is_amplitude_minus_switch(amp_deg, switch_
     A, s, w = math.radians(amp_deg), math.radians(switch_deg), 0.7
     t = np.linspace(0.0, 40.0, 400001)
     h = -A * np.sin(w * t)                      # a first turn to starboard
-    m = zigzag_measures(t, h, _zigzag_logic(h, s), switch_deg)
+    U = 1.2                                     # m/s along a straight line: the track is U t
+    m = zigzag_measures(t, h, _zigzag_logic(h, s), switch_deg, U * t, np.zeros_like(t), length=4.0)
     dt = t[1] - t[0]
     assert m["first_overshoot_deg"] == pytest.approx(amp_deg - switch_deg, abs=1e-6)
     assert m["second_overshoot_deg"] == pytest.approx(amp_deg - switch_deg, abs=1e-6)
     t1 = math.asin(s / A) / w                     # the second execute: -A sin(w t) = -s
     assert m["time_to_second_execute_s"] == pytest.approx(t1, abs=dt)
+    assert m["track_to_second_execute_m"] == pytest.approx(U * t1, abs=U * dt)
+    assert m["track_to_second_execute_L"] == pytest.approx(U * t1 / 4.0, abs=U * dt)
     assert m["time_to_first_overshoot_s"] == pytest.approx(math.pi / 2 / w, abs=dt)
     assert m["period_s"] == pytest.approx(2 * math.pi / w, abs=2 * dt)
 
@@ -134,6 +137,7 @@ def test_spiral_of_an_unstable_cubic_model_shows_its_loop():
     m = spiral_measures(t, r, holds)
     inside = sorted(c for c in set(levels) if abs(c) < fold)
     assert m["hysteresis"] and m["loop_commands"] == inside and m["loop_width"] == pytest.approx(2.0)
+    assert m["loop_width_upper"] == pytest.approx(4.0)   # the fold lies between the held 1 and 2
     for p in m["points"]:       # every steady r is a root of the cubic on its branch
         assert p["yaw_rate"] - a * p["yaw_rate"] ** 3 == pytest.approx(-K * p["command"], abs=1e-8)
     assert m["yaw_rate_at_zero"]["down"] == pytest.approx(1 / math.sqrt(a), rel=1e-8)
@@ -270,3 +274,21 @@ def test_turning_circle_from_the_api_agrees_on_both_plants():
         assert isinstance(a["measures"][key], float)
         assert m["measures"][key] == pytest.approx(a["measures"][key], abs=1e-9), key
     assert a["measures"]["steady_diameter_m"] is None       # 7 s of turn: not yet 360 deg
+
+
+def test_paper_hull_spiral_has_its_loop_above_0_2_m_s_only():
+    """docs/model.md §8: the straight run of the paper's hull is unstable above 0.201 m/s (the
+    eigenvalue of the linearized sway-yaw dynamics crosses zero there) and at 0.6 m/s it settles,
+    with no yaw moment, in a steady turn of 0.376 rad/s. So its spiral at 0.6 m/s keeps that turn
+    to the side it came from at zero command (the loop), and at 0.15 m/s it has no loop."""
+    from usv_mj import load_scenario
+    from usv_mj.manoeuvres import spiral
+
+    scenario = load_scenario(preset="paper")
+    fast = spiral(scenario, plant_kind="analytic", approach_speed=0.6, steps=1, hold_s=30.0)["measures"]
+    assert fast["hysteresis"] and fast["loop_commands"] == [0.0]
+    assert fast["yaw_rate_at_zero"]["down"] == pytest.approx(0.376, abs=5e-4)
+    assert fast["yaw_rate_at_zero"]["up"] == pytest.approx(-0.376, abs=5e-4)
+    slow = spiral(scenario, plant_kind="analytic", approach_speed=0.15, max_yaw_moment=2.0, steps=1,
+                  hold_s=40.0)["measures"]
+    assert not slow["hysteresis"] and abs(slow["yaw_rate_at_zero"]["down"]) < 0.01

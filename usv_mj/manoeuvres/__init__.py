@@ -91,7 +91,8 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
                              t_execute=o.approach_s, steady_after_deg=o.steady_after_deg, length=length)
         crit = imo.criteria("turning", m, length, o.approach_speed)
     elif spec.kind == "zigzag":
-        m = zigzag_measures(t, record["heading_change"], record["tau_r"], o.angle_deg)
+        m = zigzag_measures(t, record["heading_change"], record["tau_r"], o.angle_deg, record["x"], record["y"],
+                            length)
         crit = imo.criteria("zigzag", m, length, o.approach_speed, switch_deg=o.angle_deg)
     elif spec.kind == "spiral":
         holds = [(i * o.hold_s, (i + 1) * o.hold_s, c, b) for i, (c, b) in enumerate(o.commands())]

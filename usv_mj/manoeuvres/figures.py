@@ -114,9 +114,12 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
         ax.axvline(0, color="k", lw=0.6)
         ax.set_xlabel("commanded yaw moment tau_r [N m] (the \"rudder\"; > 0 to port)")
         ax.set_ylabel("steady yaw rate r [rad/s]")
-        width = m["loop_width"]
-        ax.set_title(f"Dieudonné spiral ({label}): hysteresis loop width {width:g} N m" if width
-                     else f"Dieudonné spiral ({label}): no hysteresis loop")
+        if m["hysteresis"]:
+            upper = m.get("loop_width_upper")
+            width = f"{m['loop_width']:g} to {upper:g}" if upper is not None else f">= {m['loop_width']:g}"
+            ax.set_title(f"Dieudonné spiral ({label}): hysteresis loop, width {width} N m")
+        else:
+            ax.set_title(f"Dieudonné spiral ({label}): no hysteresis loop")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
         fig.tight_layout()

@@ -6,6 +6,9 @@ the zig-zags, in deep unrestricted water at the test speed (85 % of the engine o
 vessel, or one with no rudder (the paper's 2 m hull, turned by a commanded yaw moment), they do not
 formally apply; they are printed beside its results for orientation only.
 
+- §5.2.1 initial turning ability: with 10 deg of rudder, the ship has travelled no more than 2.5 L
+  by the time the heading has changed by 10 deg (measured in the 10/10 zig-zag: the track to its
+  second execute);
 - §5.2.2 turning ability: advance < 4.5 L, tactical diameter < 5 L;
 - §5.2.3 yaw-checking and course-keeping, 10/10 zig-zag: the first overshoot angle is below
   10 deg if L/V < 10 s, 20 deg if L/V >= 30 s, (5 + 0.5 L/V) deg in between; the second overshoot
@@ -53,7 +56,8 @@ def criteria(kind: str, measures: dict, length: float, speed: float, switch_deg:
         rows = [_row("advance < 4.5 L", measures.get("advance_L"), 4.5, "L"),
                 _row("tactical diameter < 5 L", measures.get("tactical_diameter_L"), 5.0, "L")]
     elif kind == "zigzag" and switch_deg is not None and round(switch_deg) == 10:
-        rows = [_row("10/10 first overshoot", measures.get("first_overshoot_deg"),
+        rows = [_row("initial turning: track to 10 deg < 2.5 L", measures.get("track_to_second_execute_L"), 2.5, "L"),
+                _row("10/10 first overshoot", measures.get("first_overshoot_deg"),
                      first_overshoot_limit_10(length, speed), "deg"),
                 _row("10/10 second overshoot", measures.get("second_overshoot_deg"),
                      second_overshoot_limit_10(length, speed), "deg")]

@@ -120,11 +120,14 @@ def execute_times(t, command) -> list[float]:
     return [float(t[0])] + [float(t[k]) for k in changes]
 
 
-def zigzag_measures(t, heading_change, command, switch_deg: float) -> dict:
+def zigzag_measures(t, heading_change, command, switch_deg: float, x=None, y=None,
+                    length: float | None = None) -> dict:
     """Overshoot angles [deg] and the initial turning time [s] of a zig-zag (module docstring).
 
     ``heading_change`` [rad]: psi - psi_0, unwrapped; ``command`` the "rudder" (its sign is the turn);
-    ``switch_deg`` the switching angle (10 for the 10/10 test)."""
+    ``switch_deg`` the switching angle (10 for the 10/10 test). With the track ``x``, ``y`` [m]:
+    ``track_to_second_execute_m``, the path length until the heading has changed by the switching
+    angle (IMO's initial turning ability, in L with ``length``)."""
     t, dpsi = np.asarray(t, float), np.asarray(heading_change, float)
     ex = execute_times(t, command)
     overshoots, times = [], []
@@ -134,7 +137,11 @@ def zigzag_measures(t, heading_change, command, switch_deg: float) -> dict:
         j = k[int(np.argmax(np.abs(dpsi[k])))]
         overshoots.append(float(math.degrees(abs(dpsi[j]))) - switch_deg)
         times.append(float(t[j]))
-    return {
+    track = None
+    if x is not None and y is not None and len(ex) > 1:
+        k = int(np.searchsorted(t, ex[1]))
+        track = float(np.sum(np.hypot(np.diff(np.asarray(x, float)[:k + 1]), np.diff(np.asarray(y, float)[:k + 1]))))
+    out = {
         "switch_deg": float(switch_deg),
         "executes_s": ex,
         "initial_turning_time_s": ex[1] - ex[0] if len(ex) > 1 else None,   # = the time to the second execute
@@ -144,14 +151,22 @@ def zigzag_measures(t, heading_change, command, switch_deg: float) -> dict:
         "time_to_first_overshoot_s": times[0] - ex[0] if times else None,
         "overshoots_deg": overshoots,
         "period_s": ex[3] - ex[1] if len(ex) > 3 else None,
+        "track_to_second_execute_m": track,
     }
+    if length:
+        out["track_to_second_execute_L"] = track / length if track is not None else None
+    return out
 
 
-def spiral_measures(t, r, holds, settle_fraction: float = 0.25) -> dict:
+def spiral_measures(t, r, holds, settle_fraction: float = 0.25, r_tol: float = 0.01) -> dict:
     """The spiral's steady yaw rate per hold of the command. ``holds`` is a list of (t_start, t_end,
     command value, branch) with branch "down" or "up"; the steady r is the mean over the hold's last
-    ``settle_fraction`` [rad/s] (``spread``: its peak-to-peak there, small when the turn is steady). The *loop* is where the two branches' yaw rates have opposite signs at the same
-    command: its width [command units] is the span of those commands (0: no hysteresis)."""
+    ``settle_fraction`` [rad/s] (``spread``: its peak-to-peak there, small when the turn is steady).
+    The *loop* is where the two branches turn to opposite sides at the same command, each faster
+    than ``r_tol`` [rad/s] (a slower yaw rate counts as a straight course, or a decay not yet
+    over): ``loop_commands`` are those commands, ``loop_width`` their span (a lower bound of the
+    loop's width, 0 when only one command is inside) and ``loop_width_upper`` the span to the next
+    held commands outside it (an upper bound; None at the ends of the steps)."""
     t, r = np.asarray(t, float), np.asarray(r, float)
     points = []
     for t0, t1, value, branch in holds:
@@ -164,10 +179,16 @@ def spiral_measures(t, r, holds, settle_fraction: float = 0.25) -> dict:
     down = {p["command"]: p["yaw_rate"] for p in points if p["branch"] == "down"}
     up = {p["command"]: p["yaw_rate"] for p in points if p["branch"] == "up"}
     both = sorted(set(down) & set(up))
-    split = [c for c in both if down[c] * up[c] < 0]
+    split = [c for c in both if down[c] * up[c] < 0 and min(abs(down[c]), abs(up[c])) > r_tol]
+    upper = None
+    if split:
+        below = [c for c in both if c < min(split)]
+        above = [c for c in both if c > max(split)]
+        upper = (min(above) - max(below)) if below and above else None
     return {"points": points,
             "loop_commands": split,
             "loop_width": (max(split) - min(split)) if split else 0.0,
+            "loop_width_upper": upper,
             "hysteresis": bool(split),
             "yaw_rate_at_zero": {"down": down.get(0.0), "up": up.get(0.0)}}
 
