@@ -130,7 +130,7 @@ def summary_lines(result: dict, out: Path, wall_s: float) -> str:
         for r in c["rows"]:
             value = "—" if r["value"] is None else f"{r['value']:.3f}"
             met = "—" if r["met"] is None else ("met" if r["met"] else "NOT met")
-            lines.append(f"    {r['criterion']:28s} {value:>8} {r['unit']} (limit {r['limit']:g} {r['unit']}): {met}")
+            lines.append(f"    {r['criterion']:40s} {value:>8} {r['unit']} (limit {r['limit']:g} {r['unit']}): {met}")
     lines.append(f"  outputs in {out}/: manoeuvre.json, report.md, figures/, run.mcap, summary.json"
                  + (", video.mp4" if "video" in result["job"].files else ""))
     return "\n".join(lines)
