@@ -105,7 +105,11 @@ def test_run_command_writes_and_rejects_bad_input(tmp_path, capsys):
     args = parser.parse_args(["--duration", "2", "--out", str(tmp_path / "c"), "-q"])
     assert compare.run_command(args) == 0
     assert os.path.isfile(tmp_path / "c" / "compare.json")
-    assert "closed loop" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "closed loop" in out
+    md = (tmp_path / "c" / "compare.md").read_text()      # what --help promises (issue 27)
+    assert "closed loop (2 s): max position" in md and "![Closed loop](closed_loop.png)" in md
+    assert next(line for line in out.splitlines() if line.startswith("closed loop (")) in md
     with pytest.raises(ScenarioError, match="duration"):
         compare.run_command(parser.parse_args(["--duration", "-1"]))
     with pytest.raises(ScenarioError):

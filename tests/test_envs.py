@@ -566,6 +566,13 @@ def test_gymnasium_info_says_why_the_episode_ended():
             n += 1
         assert truncated and not terminated and n == 20
         assert info["kind"] == "time_limit" and "time limit" in info["reason"]
+        # a step after the last one: gymnasium's ResetNeeded, not TypeError: float() ... NoneType (issue 27)
+        from gymnasium.error import ResetNeeded
+
+        with pytest.raises(ResetNeeded, match="call reset"):
+            g.step(np.zeros(2, np.float32))
+        g.reset(seed=1)
+        assert g.step(np.zeros(2, np.float32))[1] is not None     # a new episode steps again
     finally:
         g.close()
     # a lost hull: terminated, with the distance in the reason
@@ -706,3 +713,97 @@ def test_stable_baselines3_ppo_takes_the_gymnasium_view_as_is():
         assert env.action_space.contains(action)
     finally:
         env.close()
+
+
+_CLOSE_SEQUENCE = r"""
+import numpy as np
+import gymnasium
+from usv_mj import envs
+for task in ("usv_mj/Track-v0", "usv_mj/TrackWaves-v0", "usv_mj/Harbor-v0"):
+    g = gymnasium.make(task, render_mode="rgb_array", render_size=(64, 48))
+    g.reset(seed=0)
+    assert g.render().shape == (48, 64, 3)
+    g.close()
+e = envs.load("track", seed=0, duration=0.5)
+e.reset()
+e.physics.render(48, 64)
+e.close()
+left_open = envs.load("track", seed=1, duration=0.5)   # closed by the interpreter's exit
+left_open.reset()
+left_open.physics.render(48, 64)
+print("rendered")
+"""
+
+
+def test_closing_rendering_environments_in_sequence_prints_nothing_at_exit():
+    """Issue 28: with MUJOCO_GL unset, closing environments one after another (and one left open
+    at exit) never prints 'Exception ignored in atexit callback' (_close_open_renderers)."""
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("gymnasium")
+    from usv_mj.render.gl_backend import GLUnavailableError, select_backend
+
+    try:
+        select_backend()
+    except GLUnavailableError as exc:
+        pytest.skip(str(exc).splitlines()[0])
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    for _ in range(2):
+        proc = subprocess.run([sys.executable, "-c", _CLOSE_SEQUENCE], env=env, capture_output=True, text=True,
+                              timeout=600)
+        assert proc.returncode == 0 and "rendered" in proc.stdout, proc.stderr[-3000:]
+        assert "Exception ignored" not in proc.stderr and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+
+
+def test_the_exit_hook_frees_every_renderer_even_when_one_fails():
+    """The at-exit hook goes on past a renderer whose close fails (a GL context already gone)."""
+    from usv_mj.render import replay
+
+    closed = []
+
+    class Broken:
+        def close(self):
+            raise RuntimeError("EGL_BAD_DISPLAY")
+
+    class Fine:
+        def close(self):
+            closed.append(self)
+
+    objs = [Broken(), Fine(), Broken(), Fine()]
+    for o in objs:
+        replay._OPEN.add(o)
+    try:
+        replay._close_open_renderers()           # raises nothing
+    finally:
+        for o in objs:
+            replay._OPEN.discard(o)
+    assert len(closed) == 2
+
+
+def test_env_command_skips_the_video_with_none(tmp_path, capsys, monkeypatch):
+    """`usv-mj env ... --video none` (the skip value its --help names) runs the episode and writes nothing."""
+    from usv_mj.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["env", "track", "--policy", "ppc", "--duration", "0.5", "--video", "none"]) == 0
+    out = capsys.readouterr().out
+    assert "episode 1: return" in out and "video:" not in out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_missing_gymnasium_is_named_with_its_pip_command(monkeypatch):
+    """Without the [gym] extra the Gymnasium view says so in one line, with the pip command."""
+    import importlib
+    import sys
+
+    from usv_mj.errors import MissingExtra
+
+    monkeypatch.setitem(sys.modules, "gymnasium", None)          # as if not installed
+    monkeypatch.delitem(sys.modules, "usv_mj.envs.gymnasium_env", raising=False)
+    with pytest.raises(MissingExtra) as info:
+        importlib.import_module("usv_mj.envs.gymnasium_env")
+    text = str(info.value)
+    assert "\n" not in text and 'pip install "usv_mj[gym]"' in text and "gymnasium" in text
+    assert isinstance(info.value, ImportError)

@@ -159,6 +159,7 @@ def test_read_only_out_is_refused_before_the_simulation(tmp_path, capsys):
 def test_killed_runs_staging_is_cleaned_up_by_the_next_run(tmp_path):
     dead = tmp_path / ".out.staging-999999999"
     dead.mkdir()
+    (dead / ".usv_mj-staging").touch()    # what a job leaves in its staging folder until it ends
     (dead / "run.mcap.tmp").write_bytes(b"x")
     assert main([*FAST, "--duration", "0.3", "--no-log", "--out", str(tmp_path / "out")]) == 0
     assert leftovers(tmp_path) == []
@@ -175,15 +176,23 @@ def _start(tmp_path, *extra):
                             stderr=subprocess.PIPE, text=True, env=env)
 
 
-def _wait_for_staging(tmp_path, proc, seconds=40):
+def _wait_for_staging(tmp_path, proc, seconds=300):
+    """Until the loop is running: the staging folder's log holds a complete chunk of rows (the run
+    reports it by writing it), not a fixed time."""
+    from usv_mj.runlog.reader import RunLogReadError, scan_summary
+
     t0 = time.perf_counter()
     while time.perf_counter() - t0 < seconds:
         staging = list(tmp_path.glob(".out.staging-*"))
-        if staging and (staging[0] / "run.mcap").exists() and (staging[0] / "run.mcap").stat().st_size > 0:
-            time.sleep(1.5)            # inside the loop
-            return
+        log = staging[0] / "run.mcap" if staging else None
+        if log is not None and log.exists() and log.stat().st_size > 0:
+            try:
+                if scan_summary(log)["topics"].get("/usv/state", {}).get("count", 0) > 0:
+                    return
+            except (RunLogReadError, OSError):   # the header not written yet
+                pass
         assert proc.poll() is None, proc.communicate()
-        time.sleep(0.1)
+        time.sleep(0.05)              # a poll interval
     pytest.fail("the run never started")
 
 

@@ -111,14 +111,28 @@ def test_a_second_run_into_the_same_out_while_one_runs_is_refused(tmp_path, caps
     assert not list(tmp_path.glob(".*.lock"))
 
 
+def _catches(pid: int, sig: int) -> bool:
+    """The process has a handler for ``sig`` (Linux: the SigCgt mask of /proc/PID/status)."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("SigCgt:"):
+            return bool(int(line.split()[1], 16) >> (sig - 1) & 1)
+    return False
+
+
 def test_sigterm_while_starting_up_exits_1_not_killed(tmp_path):
-    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", *FAST, "--out", str(tmp_path / "o")],
+    """SIGTERM as soon as the program handles it (usv_mj.cli's first lines, before the imports and
+    long before run_job's handlers): exit 1, one line, nothing left. The run is long (600 s), so
+    the signal always lands before it ends: one outcome (before: a fixed 0.6 s wait, and exit 0 or 1)."""
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", *FAST[:-1], "600", "--out", str(tmp_path / "o")],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(0.6)                             # importing: before run_job installs its handlers
+    deadline = time.monotonic() + 120
+    while not _catches(proc.pid, signal.SIGTERM):
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.001)                       # a poll interval
     proc.send_signal(signal.SIGTERM)
-    out, err = proc.communicate(timeout=120)
-    assert proc.returncode in (0, 1), (proc.returncode, err)   # 0 only if the 1 s run beat the signal
-    assert "Traceback" not in err, err
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 1, (proc.returncode, err)
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
     assert not [p for p in tmp_path.rglob("*") if ".staging-" in p.name]
 
 

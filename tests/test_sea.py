@@ -98,8 +98,15 @@ def test_from_table_reads_the_issue_example():
                       "seed": 2}}
     s = SeaSettings.from_table(table)
     assert s.waves.tp == 2.0 and isinstance(s.waves.tp, float)
-    assert s.to_dict() == {k: {kk: (float(vv) if kk == "tp" else vv) for kk, vv in v.items()}
-                           for k, v in table.items()}
+    # to_dict writes the directions as a user does (compass, clockwise from north): going toward +x
+    # (east) is waves from the west (270); toward 30 deg counter-clockwise from east is a current
+    # setting toward compass 060; toward +y (north) is a wind from the south (180)
+    marine = {"waves": ("from_deg", 270.0), "current": ("toward_deg", 60.0), "wind": ("from_deg", 180.0)}
+    expected = {k: {(marine[k][0] if kk == "direction_deg" else kk):
+                    (marine[k][1] if kk == "direction_deg" else float(vv) if kk == "tp" else vv)
+                    for kk, vv in v.items()} for k, v in table.items()}
+    assert s.to_dict() == expected
+    assert SeaSettings.from_table(s.to_dict()) == s
 
 
 # --- check 1 (analytic half): calm is bit-identical ---------------------------------------------

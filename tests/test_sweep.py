@@ -191,7 +191,14 @@ def test_local_default_and_two_worker_cluster_give_identical_rows(tmp_path):
                                "--no-dashboard"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                               start_new_session=True)]
     try:
-        time.sleep(1.0)
+        deadline = time.monotonic() + 120
+        while True:                     # until the scheduler accepts connections on its port
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                assert time.monotonic() < deadline and procs[0].poll() is None, "the scheduler never started"
+                time.sleep(0.05)        # a poll interval
         procs.append(subprocess.Popen(["dask", "worker", address, "--nworkers", "2", "--nthreads", "1",
                                        "--no-dashboard"], env=env, stdout=subprocess.DEVNULL,
                                       stderr=subprocess.DEVNULL, start_new_session=True))
@@ -331,24 +338,34 @@ def test_keep_logs_writes_one_mcap_per_run_with_the_same_run(tmp_path, client):
 
 
 @pytest.mark.slow
-def test_ctrl_c_keeps_the_finished_runs_and_resume_completes(tmp_path, client):
-    """The real thing: SIGINT to `python -m usv_mj.sweep`, exit 1 (stopped early) with the rows so far, then resume."""
-    text = SMALL.replace("duration = 5.0", "duration = 10.0").replace("samples = 3", "samples = 6")
+def test_ctrl_c_keeps_the_finished_runs_and_resume_completes(tmp_path, client, monkeypatch):
+    """The real thing: SIGINT to `python -m usv_mj.sweep`, exit 1 (stopped early) with the rows so far, then resume.
+
+    Runs 6-11 are held (test hook ``hold``: each says it started, then waits for a file), so the
+    interrupt lands while the sweep is certainly unfinished, on a fast machine as on a slow one; it is
+    sent once the one worker has started run 6, i.e. after runs 0-5 (before: a fixed wait for
+    results.parquet, and all 12 runs could finish first)."""
+    text = SMALL.replace("samples = 3", "samples = 6") + "[test_hooks]\nhold = [6, 7, 8, 9, 10, 11]\n"
     path = _write(tmp_path, text)
     out = tmp_path / "out"
+    release = tmp_path / "release"
+    monkeypatch.setenv("USV_MJ_SWEEP_TEST_HOOKS", "1")     # the sweep file's test_hooks table is read
+    env = dict(os.environ, USV_MJ_SWEEP_TEST_RELEASE=str(release))
     cmd = [sys.executable, "-m", "usv_mj.sweep", str(path), "--out", str(out), "--workers", "1", "--no-progress"]
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 120
-    while not (out / "results.parquet").exists() and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.1)
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    started = tmp_path / "release.started-6"
+    deadline = time.monotonic() + 600
+    while not started.exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "run 6 never started"
+        time.sleep(0.02)                      # a poll interval, not a wait for the outcome
     proc.send_signal(signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=120)
-    rows, _ = read_results(out / "results.parquet")
-    if proc.returncode == 0:  # pragma: no cover - the machine was faster than the interrupt
-        pytest.skip("the sweep finished before the interrupt arrived")
+    stdout, stderr = proc.communicate(timeout=300)
     assert proc.returncode == 1, stderr
-    assert "--resume" in stderr
-    assert 1 <= len(rows) < 12
+    assert "--resume" in stderr and "Traceback" not in stderr and "CRITICAL" not in stderr, stderr
+    rows, _ = read_results(out / "results.parquet")
+    assert [r["run_id"] for r in rows] == list(range(len(rows))) and 1 <= len(rows) <= 6
+    release.touch()                           # the held runs go on from here
     plan = load_sweep(path)
     resumed = run_sweep(plan, out, client=client, resume=True, progress=False, echo=None)
     assert resumed.ran == 12 - len(rows)

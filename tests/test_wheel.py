@@ -65,3 +65,33 @@ def test_the_installed_wheel_runs_mujoco_with_video_and_an_env(installed):
             "import numpy as np; ts = e.step(np.zeros(2)); print(ts.reward is not None)")
     proc = subprocess.run([str(py), "-c", code], cwd=outside, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0 and proc.stdout.strip().endswith("True"), proc.stderr[-2000:]
+
+
+def test_the_wheel_finds_the_examples_by_name_and_registers_the_gymnasium_ids(installed):
+    wheel, py, outside, env = installed
+    names = zipfile.ZipFile(wheel).namelist()
+    shipped = sorted(n for n in names if n.startswith("usv_mj/examples/"))
+    expected = sorted(f"usv_mj/examples/{p.relative_to(ROOT / 'examples').as_posix()}"
+                      for kind in ("scenarios", "sweeps") for p in (ROOT / "examples" / kind).glob("*.toml"))
+    assert shipped == expected                               # the .toml files only: no plug-in package as data
+    proc = subprocess.run([str(py), "-m", "usv_mj.cli", "examples"], cwd=outside, env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0 and "harbour_gap" in proc.stdout and "quick" in proc.stdout, proc.stderr
+    assert str(ROOT) not in proc.stdout                      # the wheel's copies, not the checkout's
+    proc = subprocess.run([str(py), "-m", "usv_mj.cli", "run", "--scenario", "harbour_gap", "--plant", "analytic",
+                           "--duration", "0.2", "--no-video", "-q", "--out", str(outside / "harbour")],
+                          cwd=outside, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert json.loads((outside / "harbour" / "summary.json").read_text())["min_clearance_m"] is not None
+    code = ("from usv_mj.sweep import load_sweep; import importlib.metadata as md; "
+            "p = load_sweep('quick'); print(len(p.runs), p.source); "
+            "ep = [e for e in md.entry_points(group='gymnasium.envs') if e.name == 'usv_mj']; ep[0].load()(); "
+            "import gymnasium; print('usv_mj/Track-v0' in gymnasium.registry); "
+            "from usv_mj import load_scenario; print(load_scenario('examples/scenarios/harbour_gap.toml').source); "
+            "e = gymnasium.make('usv_mj.envs:usv_mj/Track-v0'); print(e.reset(seed=0)[0].shape)")
+    proc = subprocess.run([str(py), "-c", code], cwd=outside, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.split("\n")
+    assert lines[0].split()[1].endswith("usv_mj/examples/sweeps/quick.toml") and str(ROOT) not in lines[0]
+    assert lines[1] == "True"
+    assert lines[2].endswith("usv_mj/examples/scenarios/harbour_gap.toml") and str(ROOT) not in lines[2]

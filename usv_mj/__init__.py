@@ -16,6 +16,9 @@ from importlib.machinery import PathFinder
 from pathlib import Path
 
 from .lazy_names import lazy_names
+from .numba_cache import install_when_imported
+
+install_when_imported()     # a damaged numba cache file is compiled again, not EOFError for ever
 
 __version__ = "0.1.0"
 

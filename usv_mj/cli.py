@@ -4,6 +4,7 @@
     usv-mj run --preset harsh --plant analytic --duration 60 --no-video
     usv-mj run --scenario my.toml --set controller.k1=5 --out runs/k1-5
     usv-mj presets                     list the presets; `usv-mj presets paper` prints one
+    usv-mj examples                    list the example scenarios and sweeps (--scenario harbour_gap)
     usv-mj compare                     the same scenario on both plants, with the differences
     usv-mj inspect RUN.mcap            what a run log holds
     usv-mj plot RUN.mcap               figures and report again, from the log alone
@@ -17,7 +18,8 @@
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
 message names the Debian packages to install; --no-video skips the video); 141 the output pipe closed.
-`usv-mj run` refuses an --out that already holds a run unless --overwrite (which replaces it whole).
+An --out that holds an earlier output is refused unless --overwrite, which replaces only what a usv_mj
+command wrote (listed in the folder's .usv_mj-manifest.json); a folder holding anything else is refused.
 """
 
 from __future__ import annotations
@@ -107,13 +109,15 @@ def scenario_from_args(args):
     if getattr(args, "sea", None) is not None:
         overrides["sea"] = {"preset": args.sea}
     sets = _parse_set(args.set)
-    # every value of the file and of --set is checked, even one that a flag below replaces
+    # every value of the file and of --set is checked, even one that a flag below replaces; but the
+    # step count (duration / control_period) only on the duration that runs: --duration's, if given
     try:
         load_scenario(args.scenario, preset=args.preset, overrides=_merge(overrides, sets) or None)
     except ScenarioError as exc:
-        if not sets:
-            raise
-        raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
+        if not (args.duration is not None and "over 5e7 steps" in str(exc)):   # scenario.Scenario's check
+            if not sets:
+                raise
+            raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
     overrides = _merge(overrides, sets)
     if args.duration is not None:
         overrides["duration"] = args.duration
@@ -139,8 +143,11 @@ def _add_run(sub):
     p.add_argument("--no-video", action="store_true", help="skip the video")
     p.add_argument("--no-baseline", action="store_true", help="skip the PI baseline run")
     p.add_argument("--no-log", action="store_true", help="skip the MCAP log")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an earlier run in --out (it is replaced whole); without it such a folder is refused")
+    p.add_argument("--log-rate", type=float, metavar="HZ",
+                   help="log every n-th control step to the MCAP (e.g. 10: 10 Hz); default every step")
+    from .outdir import add_overwrite_argument
+
+    add_overwrite_argument(p, "--out whole when it holds an earlier usv_mj output")
     p.add_argument("--debug", action="store_true", help="print the traceback of a crash (always in traceback.txt)")
     from .render import add_video_arguments
 
@@ -167,7 +174,7 @@ def _run_command(args) -> int:
     try:
         result = run_job(scenario, out, baseline=False if args.no_baseline else None, video=not args.no_video,
                          log=not args.no_log, progress=not args.quiet,
-                         render_options=render_options, overwrite=args.overwrite)
+                         render_options=render_options, overwrite=args.overwrite, log_rate=args.log_rate)
     except RunFailed as exc:
         if args.debug and exc.traceback is not None and Path(exc.traceback).is_file():
             sys.stderr.write(Path(exc.traceback).read_text())
@@ -216,12 +223,29 @@ def _presets_command(args) -> int:
     return EXIT_OK
 
 
+def _add_examples(sub):
+    p = sub.add_parser("examples", formatter_class=_Formatter, help="list the example scenarios and sweeps",
+                       description="The example scenarios and sweeps shipped with the package, each found by its "
+                       "name: usv-mj run --scenario harbour_gap, usv-mj sweep quick (a path works too).")
+    p.set_defaults(func=_examples_command)
+
+
+def _examples_command(args) -> int:
+    from .example_files import listing
+
+    print(listing())
+    return EXIT_OK
+
+
 def _add_plot(sub):
     p = sub.add_parser("plot", formatter_class=_Formatter, help="figures and report again from a run's MCAP log",
                        description="Remake figures/ and report.md from RUN (an .mcap file or a run folder "
                        "holding run.mcap) without simulating.")
     p.add_argument("run", metavar="RUN", help="a run log (run.mcap) or the run folder that holds it")
     p.add_argument("--out", metavar="DIR", help="output folder (default: beside the log)")
+    from .outdir import add_overwrite_argument
+
+    add_overwrite_argument(p, "report.md and figures/ in --out that usv_mj wrote")
     p.set_defaults(func=_plot_command)
 
 
@@ -246,19 +270,28 @@ def _plot_command(args) -> int:
         why = f": {log.problem}" if log.problem else ""
         raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot){why}")
     out = Path(args.out) if args.out else path.parent
-    from .preflight import check_output_path
+    from .manoeuvres import record_outputs, spec_of_record
+    from .outdir import check_folder, record
 
-    check_output_path(out)
+    manoeuvre = ("manoeuvre.json",) if spec_of_record(log.record) is not None else ()
+    check_folder(out, args.overwrite, writes=("report.md", "figures", *manoeuvre))
     out.mkdir(parents=True, exist_ok=True)
-    draw_figures(log.record, out / "figures", log.baseline)
-    from .manoeuvres import record_outputs
-
-    sections = record_outputs(log.record, out)[0]  # a manoeuvre's figures, manoeuvre.json, its section
+    if log.notice:
+        print(f"usv-mj plot: warning: the log is incomplete: {log.notice}", file=sys.stderr)
+    figures = draw_figures(log.record, out / "figures", log.baseline, note=log.notice)
+    # a manoeuvre's figures, manoeuvre.json and its report section (nothing for another run)
+    sections, manoeuvre_files, _ = record_outputs(log.record, out)
+    figures = list(figures) + list(manoeuvre_files.get("manoeuvre_figures", []))
     summary = summarize(log.record)
     base = summarize(log.baseline, criterion_of_record(log.record)) if log.baseline is not None else None
     write_report(out / "report.md", summary, base,
-                 log.metadata.get("step_check"), sections)
-    print(f"figures and report from {path} written to {out}/")
+                 log.metadata.get("step_check"),
+                 extra_sections=sections + ([f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers "
+                                             "above are of what was recovered."] if log.notice else []) or None)
+    record(out, ["report.md", *(["manoeuvre.json"] if sections else []),
+                 *(Path(f).relative_to(out).as_posix() for f in figures)])
+    print(f"figures and report from {path} written to {out}/" + (" (from an incomplete log, see above)"
+                                                                 if log.notice else ""))
     return EXIT_OK
 
 
@@ -337,6 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_run(sub)
     _add_presets(sub)
+    _add_examples(sub)
     _add_plot(sub)
     for name, spec in _EXTERNAL.items():
         _add_external(sub, name, spec)
@@ -345,7 +379,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, compare, inspect, plot, render, sweep, capability, env, kinds, manoeuvre
+commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, env, kinds, manoeuvre
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 
@@ -382,6 +416,9 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help (0), or a bad option already said in one line (2)
         return int(exc.code or 0)
+    from .outdir import set_command
+
+    set_command(["usv-mj", *argv])   # what the output folders' manifests record
     if not getattr(args, "func", None):
         print(SHORT_USAGE, file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -58,8 +58,13 @@ Actuators: the open loop's inputs go through the scenario's actuator model
 (:func:`compare_closed_loop_saturated`) runs the scenario again on both plants with actuators that
 saturate (its own, or those of the ``paper-limited`` preset), at the closed-loop tolerance.
 
-Outputs in ``out_dir``: ``compare.json``, ``open_loop.png``, ``closed_loop.png``,
-``convergence.png``.
+Outputs in ``out_dir``: ``compare.json``, ``compare.md`` (what the command prints, with the
+figures), ``open_loop.png``, ``closed_loop.png``, ``convergence.png``.
+
+Interrupted (Ctrl-C, SIGTERM, SIGHUP): the comparison stops at once (a run of ``simulate`` that
+comes back interrupted stops it too), ``compare.json`` says ``"passed": false`` with
+``"interrupted"`` (which signal, in which part) and the parts finished before it, and the command
+exits 1 with one line.
 """
 
 from __future__ import annotations
@@ -368,10 +373,20 @@ def _open_convergence(scenario: Scenario, horizon: float, one_signed: bool, envi
     }
 
 
+class CompareInterrupted(KeyboardInterrupt):
+    """The comparison was interrupted; its text: the signal and the part it stopped."""
+
+
 def _closed_loop_pair(scenario: Scenario):
+    """``simulate`` on both plants; a run that comes back interrupted stops the comparison."""
     from .simulation import simulate
 
-    return {kind: simulate(scenario, plant_kind=kind) for kind in ("analytic", "mujoco")}
+    runs = {}
+    for kind in ("analytic", "mujoco"):
+        runs[kind] = simulate(scenario, plant_kind=kind)
+        if runs[kind].status == "interrupted":
+            raise KeyboardInterrupt(f"{runs[kind].stop_reason} on the {kind} plant")
+    return runs
 
 
 def _record_states(record) -> np.ndarray:
@@ -556,9 +571,18 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
         raise TypeError(f"compare_plants: scenario must be a usv_mj.scenario.Scenario, got {type(scenario).__name__}")
     os.makedirs(out_dir, exist_ok=True)
     wall0 = time.perf_counter()
-    open_loop, open_hist = compare_open_loop(scenario, progress)
-    closed_loop, closed_hist = compare_closed_loop(scenario, progress)
-    saturated = compare_closed_loop_saturated(scenario, progress)
+    done: dict = {}
+    part = "the open loop"
+    try:
+        open_loop, open_hist = compare_open_loop(scenario, progress)
+        done["open_loop"] = open_loop
+        part = "the closed loop"
+        closed_loop, closed_hist = compare_closed_loop(scenario, progress)
+        done["closed_loop"] = closed_loop
+        part = "the saturated closed loop"
+        saturated = compare_closed_loop_saturated(scenario, progress)
+    except (KeyboardInterrupt, SystemError) as exc:
+        _stopped(exc, part, scenario, out_dir, done, wall0)
     if "within_sensitivity" in open_loop:  # a sea: the open loop is sensitive (module docstring)
         open_check = {"open_loop_adrift_position_below_1e-6_m":
                       open_loop["adrift"]["max_position_m"] < OPEN_LOOP_TOLERANCE_M,
@@ -586,6 +610,17 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
         "wall_time_s": time.perf_counter() - wall0,
     }
     _say(progress, "plots")
+    try:
+        _plots(scenario, out_dir, open_loop, open_hist, closed_loop, closed_hist)
+    except (KeyboardInterrupt, SystemError) as exc:
+        _stopped(exc, "the plots", scenario, out_dir, {k: result[k] for k in ("open_loop", "closed_loop",
+                                                                            "closed_loop_saturated")}, wall0)
+    with open(os.path.join(out_dir, "compare.json"), "w") as fh:
+        json.dump(result, fh, indent=2, allow_nan=False, default=_json_default)
+    return result
+
+
+def _plots(scenario, out_dir, open_loop, open_hist, closed_loop, closed_hist):
     _plot_pair(os.path.join(out_dir, "open_loop.png"),
                f"open loop, {scenario.duration:g} s, dt = {scenario.control_period * 1e3:g} ms: max position "
                f"difference {open_loop['max_position_m']:.2e} m", open_hist)
@@ -593,9 +628,29 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
                f"closed loop ({scenario.preset}), {scenario.duration:g} s: max position difference "
                f"{closed_loop['max_position_m']:.2e} m", closed_hist, closed_hist["reference"])
     _plot_convergence(os.path.join(out_dir, "convergence.png"), open_loop, closed_loop)
-    with open(os.path.join(out_dir, "compare.json"), "w") as fh:
-        json.dump(result, fh, indent=2, allow_nan=False, default=_json_default)
-    return result
+
+
+def _stopped(exc: BaseException, part: str, scenario: Scenario, out_dir: str, done: dict, wall0: float):
+    """An interrupt (or the SystemError a signal becomes inside a compiled kernel): compare.json with
+    ``passed: false`` and the parts finished, then :class:`CompareInterrupted`. Other SystemErrors
+    are raised again as they are."""
+    from .simulation import _interrupt_in_chain
+
+    cause = exc if isinstance(exc, KeyboardInterrupt) else _interrupt_in_chain(exc)
+    if cause is None:
+        raise exc
+    who = str(cause) or "Ctrl-C"
+    reason = who if " on the " in who else f"interrupted by {who} during {part}"
+    result = {"scenario": {"preset": scenario.preset, "source": scenario.source, "duration_s": scenario.duration,
+                           "control_period_s": scenario.control_period},
+              **done,
+              "interrupted": reason, "checks": {}, "passed": False, "wall_time_s": time.perf_counter() - wall0}
+    try:
+        with open(os.path.join(out_dir, "compare.json"), "w") as fh:
+            json.dump(result, fh, indent=2, allow_nan=False, default=_json_default)
+    except (OSError, ValueError):
+        pass
+    raise CompareInterrupted(reason) from None
 
 
 def _json_default(obj):
@@ -613,6 +668,9 @@ def add_arguments(parser) -> None:
 
     add_scenario_arguments(parser)
     parser.add_argument("--out", metavar="DIR", default=None, help="output folder (default renders/compare-<name>)")
+    from .outdir import add_overwrite_argument
+
+    add_overwrite_argument(parser, "--out whole when it holds an earlier usv_mj output")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
 
 
@@ -629,40 +687,77 @@ def run_command(args) -> int:
     scenario = scenario_from_args(args)
     name = os.path.splitext(os.path.basename(args.scenario))[0] if args.scenario else (args.preset or "paper")
     out = args.out or os.path.join("renders", f"compare-{name}")
-    from .preflight import check_output_path
+    from .outdir import Staging, check_folder
 
-    check_output_path(out)
-    result = compare_plants(scenario, out, progress=not args.quiet)
+    check_folder(out, args.overwrite)
+    stage = Staging(out)
+    try:
+        result = compare_plants(scenario, str(stage.path), progress=not args.quiet)
+    except CompareInterrupted as exc:  # compare.json (passed: false, what stopped) is put in place
+        stage.commit()
+        print(f"usv-mj compare: {exc}; nothing was judged (compare.json says passed: false)", file=sys.stderr)
+        return 1
+    except BaseException:
+        stage.discard()
+        raise
+    lines = _report_lines(result)
+    for line in lines:
+        print(line)
+    try:
+        _write_markdown(os.path.join(str(stage.path), "compare.md"), scenario, lines)
+    except OSError as exc:
+        stage.discard()
+        print(f"usv-mj compare: cannot write {out}/compare.md: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    stage.commit()
+    print(f"written to {out}/compare.json, compare.md (+ open_loop.png, closed_loop.png, convergence.png)")
+    return 0 if result["passed"] else 1
+
+
+def _write_markdown(path: str, scenario: Scenario, lines: list[str]) -> None:
+    """compare.md: the lines the command prints, and the three figures."""
+    text = [f"# usv-mj compare: preset `{scenario.preset}`, {scenario.duration:g} s at "
+            f"dt = {scenario.control_period * 1e3:g} ms", "", "```"] + lines + ["```", ""]
+    for name, title in (("open_loop.png", "Open loop"), ("closed_loop.png", "Closed loop"),
+                        ("convergence.png", "Convergence")):
+        text += [f"## {title}", "", f"![{title}]({name})", ""]
+    with open(path, "w") as fh:
+        fh.write("\n".join(text))
+
+
+def _report_lines(result: dict) -> list[str]:
+    """What ``usv-mj compare`` prints about a finished comparison (also the body of compare.md)."""
+    lines = []
+    say = lines.append
     ol, cl = result["open_loop"], result["closed_loop"]
     if "predictable_horizon_s" in ol:
-        print(f"open loop in a sea: a {SENSITIVITY_OFFSET_M:g} m offset of the start stays within 1e-6 m for "
+        say(f"open loop in a sea: a {SENSITIVITY_OFFSET_M:g} m offset of the start stays within 1e-6 m for "
               f"{ol['predictable_horizon_s']:g} s (plants' difference there "
               f"{ol['max_position_m_within_predictable_horizon']:.3e} m); plants' difference / its growth: "
               f"max {ol['max_difference_over_sensitivity']:.3g} over {ol['sensitivity_linear_horizon_s']:g} s")
     if "adrift" in ol:
         ad = ol["adrift"]
-        print(f"open loop adrift in the sea ({ol['duration_s']:g} s, {ad['path_length_m']:.0f} m drifted, "
+        say(f"open loop adrift in the sea ({ol['duration_s']:g} s, {ad['path_length_m']:.0f} m drifted, "
               f"|r| up to {ad['max_yaw_rate_rad_s']:.2f} rad/s): max position {ad['max_position_m']:.3e} m, "
               f"heading {ad['max_heading_rad']:.3e} rad (a {SENSITIVITY_OFFSET_M:g} m offset of the start: "
               f"{ad['sensitivity_max_position_m']:.1e} m)")
-    print(f"open loop   ({ol['duration_s']:g} s): max position {ol['max_position_m']:.3e} m, heading "
+    say(f"open loop   ({ol['duration_s']:g} s): max position {ol['max_position_m']:.3e} m, heading "
           f"{ol['max_heading_rad']:.3e} rad, velocity {ol['max_velocity']:.3e}; order "
           f"{_fmt(ol['convergence_order']['plants_difference'])} (plants), "
           f"{_fmt(ol['convergence_order']['mujoco_vs_reference'])} (MuJoCo vs reference), "
           f"{_fmt(ol['convergence_one_signed_inputs']['order']['mujoco_vs_reference'])} (MuJoCo vs reference, "
           f"one-signed inputs)")
-    print(f"closed loop ({cl['duration_s']:g} s): max position {cl['max_position_m']:.3e} m, heading "
-          f"{cl['max_heading_rad']:.3e} rad, velocity {cl['max_velocity']:.3e}; "
-          + (f"inside funnels {cl['inside_funnels']}" if "inside_funnels" in cl else
-             f"passed ({cl['criterion']}) {cl['passed_criterion']}")
-          + f"; order {_fmt(cl['convergence_order']['plants_difference'])}")
+    say(f"closed loop ({cl['duration_s']:g} s): max position {cl['max_position_m']:.3e} m, heading "
+        f"{cl['max_heading_rad']:.3e} rad, velocity {cl['max_velocity']:.3e}; "
+        + (f"inside funnels {cl['inside_funnels']}" if "inside_funnels" in cl else
+           f"passed ({cl['criterion']}) {cl['passed_criterion']}")
+        + f"; order {_fmt(cl['convergence_order']['plants_difference'])}")
     cs = result["closed_loop_saturated"]
-    print(f"closed loop saturated ({cs['actuators']}): max position {cs['max_position_m']:.3e} m; saturated "
+    say(f"closed loop saturated ({cs['actuators']}): max position {cs['max_position_m']:.3e} m; saturated "
           f"fraction {cs['saturated_fraction']}")
     for check, ok in result["checks"].items():
-        print(f"  {'ok  ' if ok else 'FAIL'} {check}")
-    print(f"written to {out}/compare.json (+ open_loop.png, closed_loop.png, convergence.png)")
-    return 0 if result["passed"] else 1
+        say(f"  {'ok  ' if ok else 'FAIL'} {check}")
+    return lines
 
 
 def _fmt(x) -> str:

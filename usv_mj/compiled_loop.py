@@ -60,15 +60,15 @@ from usv_mj.limits import within_limits
 
 
 @njit(cache=True)
-def run_block(k, stop, n, dt, data, n_diag, max_force, max_speed, max_yaw_rate, max_distance, x, out, resume,
+def run_block(k, stop, n, dt, data, base, n_diag, max_force, max_speed, max_yaw_rate, max_distance, x, out, resume,
               {tuples}):
     while True:
         if k > 0 and not resume:  # the plant's step from the previous row, then the divergence check
-            x, failed = plant_fn(k - 1, x, data[k - 1, {c_f_u}], data[k - 1, {c_f_r}], {plant_args})
+            x, failed = plant_fn(k - 1, x, data[k - 1 - base, {c_f_u}], data[k - 1 - base, {c_f_r}], {plant_args})
             if failed:
                 return k, {PLANT_FAILED}, x
-            ex = x[0] - data[k - 1, {c_x_d}]
-            ey = x[1] - data[k - 1, {c_y_d}]
+            ex = x[0] - data[k - 1 - base, {c_x_d}]
+            ey = x[1] - data[k - 1 - base, {c_y_d}]
             if not within_limits(x, ex, ey, max_speed, max_yaw_rate, max_distance):
                 return k, {DIVERGED}, x
         t = k * dt
@@ -77,7 +77,7 @@ def run_block(k, stop, n, dt, data, n_diag, max_force, max_speed, max_yaw_rate, 
         resume = False
         ref = ref_fn(t, {ref_args})
         tau_u, tau_r, diag = ctrl_fn(t, x, ref, {ctrl_args})
-        row = data[k]
+        row = data[k - base]  # data holds the record's window: rows base..
         if not (abs(tau_u) < max_force and abs(tau_r) < max_force):
             row[{c_t}] = t
             for i in range(6):
@@ -259,7 +259,7 @@ def run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()):
     A hook kernel that answers "Python" gets the Python hooks called for that row (the plant and
     the parts synced first), then the block goes on from the same row."""
     plant = parts.plant
-    data = record.data
+    data = record.buffer
     n_diag = len(record.diagnostic_fields)
     x = np.array(plant.state, dtype=np.float64)
     out = np.zeros(2)
@@ -271,7 +271,7 @@ def run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()):
     try:
         while True:
             if not resume:
-                stop = min(k + block, n + 1)
+                stop = min(k + block, n + 1, record.base + len(data))  # never past the window
                 pk = plant.kernel(stop * dt)
                 if pk is None:  # cannot happen after kernels_of, but keep the loop honest
                     raise RuntimeError("the plant's kernel went away during the run")
@@ -279,7 +279,7 @@ def run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()):
                 if run_block is None:
                     run_block = compiled_block(kernels)
                     release = _hold_signals()   # its first call may compile it
-            k, status, x = run_block(k, stop, n, dt, data, n_diag, limits.max_force, limits.max_speed,
+            k, status, x = run_block(k, stop, n, dt, data, record.base, n_diag, limits.max_force, limits.max_speed,
                                      limits.max_yaw_rate, limits.max_distance, x, out, resume,
                                      *(kernels[r].args for r in _ROLES))
             resume = False
@@ -345,8 +345,8 @@ def _after(record, k, status, x, pk, syncs, flush, block) -> bool:
         return False
     if status == HOOK:
         return True
-    if k - flush.mark >= block:  # where the Python loop flushes: before the next step
-        flush(k)
+    if k - flush.mark >= block or k >= record.base + len(record.buffer):  # where the Python loop
+        flush(k)                                                     # flushes, or the window is full
     return status == BLOCK_END
 
 

@@ -17,7 +17,8 @@ Contract (each criterion):
 - ``noun``: what holds or is lost, in the outputs' sentences ("the funnel", "the pose tolerance");
 - ``describe() -> str``: one line in plain words, for the report and the console;
 - ``to_dict() -> dict`` and :func:`criterion_from_dict` (its inverse);
-- ``evaluate(record) -> dict``: ``{"kind": kind, "noun": noun, "description": str, "passed": bool | None,
+- ``evaluate(record) -> dict`` (the built-ins: :func:`_evaluate` over ``columns``, read chunk by
+  chunk through ``judge(chunk)``, so a stored ten-hour record is never loaded whole): ``{"kind": kind, "noun": noun, "description": str, "passed": bool | None,
   "violations": int | None (control steps that broke it), "first_violation_s": float | None,
   "judged_steps": int, ...}`` plus the criterion's own largest errors, every value JSON-ready
   (no inf or NaN: None). ``passed`` is False as soon as one judged step broke it; True when none
@@ -50,22 +51,42 @@ def _params(criterion) -> dict:
     return {k: (_finite(v) if isinstance(v, float) else v) for k, v in asdict(criterion).items()}
 
 
-def _verdict(criterion, record, broken: np.ndarray, judged: np.ndarray, **extra) -> dict:
-    """The result dict of the module docstring from the per-row flags ``broken`` (a step broke the
-    criterion) and ``judged`` (the step is in the criterion's window)."""
-    t = np.asarray(record["t"])
-    bad = broken & judged
-    n_bad = int(bad.sum())
+def _chunks(record, names):
+    """Aligned chunks of the columns ``names`` (a dict per chunk): a RunRecord's column_chunks, so
+    that a stored ten-hour record is read a few pages at a time; a plain mapping whole."""
+    if hasattr(record, "column_chunks"):
+        for arrays in zip(*(record.column_chunks(n) for n in names)):
+            yield dict(zip(names, arrays))
+    else:
+        yield {n: np.asarray(record[n]) for n in names}
+
+
+def _evaluate(criterion, record) -> dict:
+    """The result dict of the module docstring, from ``criterion.judge(chunk) -> (broken, judged,
+    errors)`` over the record's chunks: ``broken`` (a step broke the criterion), ``judged`` (the
+    step is in the criterion's window), ``errors`` (name -> values whose largest |value| over the
+    judged steps is reported as ``name``; a non-finite one as None)."""
+    names = ("t",) + tuple(c for c in criterion.columns if c != "t")
+    n_bad = n_judged = 0
+    first, peaks = None, {}
+    for c in _chunks(record, names):
+        broken, judged, errors = criterion.judge(c)
+        bad = broken & judged
+        k = int(bad.sum())
+        if k and first is None:
+            first = _finite(c["t"][np.argmax(bad)])
+        n_bad += k
+        n_judged += int(judged.sum())
+        for name, values in errors.items():
+            peaks.setdefault(name, None)
+            if judged.any():
+                m = np.max(np.abs(values[judged]))
+                peaks[name] = m if peaks[name] is None else np.maximum(peaks[name], m)   # NaN wins, as np.max
     completed = getattr(record, "status", "completed") == "completed"
-    passed = False if n_bad else (True if completed and judged.any() else None)
+    passed = False if n_bad else (True if completed and n_judged else None)
     return {"kind": criterion.kind, "noun": criterion.noun, "description": criterion.describe(), "passed": passed,
-            "violations": n_bad, "first_violation_s": _finite(t[np.argmax(bad)]) if n_bad else None,
-            "judged_steps": int(judged.sum()), **extra, "params": _params(criterion)}
-
-
-def _max_abs(values: np.ndarray, judged: np.ndarray) -> float | None:
-    """max |values| over the judged rows (None: none judged, or not finite)."""
-    return _finite(np.max(np.abs(values[judged]))) if judged.any() else None
+            "violations": n_bad, "first_violation_s": first, "judged_steps": n_judged,
+            **{k: (_finite(v) if v is not None else None) for k, v in peaks.items()}, "params": _params(criterion)}
 
 
 @dataclass(frozen=True)
@@ -87,9 +108,13 @@ class FunnelCriterion:
         if not all(f"z{i}" in record for i in (1, 2, 3)):
             raise ScenarioError(f"criterion {self.kind}: the record has no funnel columns z1, z2, z3 "
                                 f"(controller {record.metadata.get('controller', '?')!r} declares none)")
-        z = np.stack([record["z1"], record["z2"], record["z3"]])
-        broken = np.any(~(np.abs(z) < 1.0), axis=0)
-        return _verdict(self, record, broken, np.ones(len(broken), bool))
+        return _evaluate(self, record)
+
+    columns = ("t", "z1", "z2", "z3")
+
+    def judge(self, c):
+        broken = ~(np.abs(c["z1"]) < 1.0) | ~(np.abs(c["z2"]) < 1.0) | ~(np.abs(c["z3"]) < 1.0)
+        return broken, np.ones(len(broken), bool), {}
 
 
 @dataclass(frozen=True)
@@ -125,12 +150,16 @@ class PoseTolerance:
         e = pose_errors(record)
         return {"position": np.hypot(e["x"], e["y"]), "heading": np.abs(e["psi"])}
 
+    columns = ("t", "x", "x_d", "y", "y_d", "psi", "psi_d")
+
     def evaluate(self, record) -> dict:
-        e = self.errors(record)
-        judged = np.asarray(record["t"]) >= self.settle_time_s
+        return _evaluate(self, record)
+
+    def judge(self, c):
+        e = self.errors(c)
+        judged = c["t"] >= self.settle_time_s
         broken = ~(e["position"] < self.position_m) | ~(e["heading"] < math.radians(self.heading_deg))
-        return _verdict(self, record, broken, judged, max_position_error_m=_max_abs(e["position"], judged),
-                        max_heading_error_rad=_max_abs(e["heading"], judged))
+        return broken, judged, {"max_position_error_m": e["position"], "max_heading_error_rad": e["heading"]}
 
 
 @dataclass(frozen=True)
@@ -175,16 +204,20 @@ class PathTolerance:
         c, s = np.cos(chi), np.sin(chi)
         return {"along": c * e["x"] + s * e["y"], "cross": -s * e["x"] + c * e["y"]}
 
+    columns = ("t", "x", "x_d", "y", "y_d", "psi", "psi_d", "x_d_dot", "y_d_dot")
+
     def evaluate(self, record) -> dict:
-        e = self.errors(record)
-        judged = np.asarray(record["t"]) >= self.settle_time_s
+        return _evaluate(self, record)
+
+    def judge(self, c):
+        e = self.errors(c)
+        judged = c["t"] >= self.settle_time_s
         broken = ~(np.abs(e["cross"]) < self.cross_track_m)
         if self.along_track_m != float("inf"):
             broken |= ~(np.abs(e["along"]) < self.along_track_m)
         else:  # not judged along the path, but a non-finite error is
             broken |= ~np.isfinite(e["along"])
-        return _verdict(self, record, broken, judged, max_cross_track_m=_max_abs(e["cross"], judged),
-                        max_along_track_m=_max_abs(e["along"], judged))
+        return broken, judged, {"max_cross_track_m": e["cross"], "max_along_track_m": e["along"]}
 
 
 @dataclass(frozen=True)

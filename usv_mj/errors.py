@@ -38,3 +38,18 @@ class PluginImportError(UnknownKindError):
 class Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised like Ctrl-C's KeyboardInterrupt (its text: the signal's name), so
     that every ending by a signal is recorded as an interruption."""
+
+
+#: The optional dependencies (pyproject.toml's extras): import name -> (pip name, extra).
+EXTRAS = {"gymnasium": ("gymnasium", "gym"), "shimmy": ("shimmy", "gym"), "dask_jobqueue": ("dask-jobqueue", "hpc"),
+          "bokeh": ("bokeh", "hpc"), "stable_baselines3": ("stable-baselines3", "rl")}
+
+
+class MissingExtra(UsvMjError, ImportError):
+    """An optional dependency is not installed; the message names it and the pip command."""
+
+
+def missing_extra(module: str, what: str) -> MissingExtra:
+    """The one-line error for ``what`` needing the optional ``module``: ``pip install "usv_mj[gym]"``."""
+    package, extra = EXTRAS[module]
+    return MissingExtra(f"{what} needs {package}, which is not installed: pip install \"usv_mj[{extra}]\"")

@@ -16,9 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
-import os
-import shutil
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +26,7 @@ from .record import RunRecord
 from .report import write_report
 from .scenario import Scenario
 from .simulation import simulate
-from .summary import CHECK_TIMES, baseline_line, criterion_line, outcome_sentence, pose_errors, summarize
+from .summary import CHECK_TIMES, baseline_line, criterion_line, outcome_sentence, pose_errors_at, summarize
 
 
 @dataclass
@@ -65,7 +62,7 @@ def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | Non
     5 / 10 / 20 s move? (bound: 1 cm and 0.01 rad)."""
     horizon = max(CHECK_TIMES)
     dt = scenario.control_period
-    if record["t"][-1] < horizon:
+    if record.value("t", -1) < horizon:
         return {}
     half = scenario.with_overrides({"control_period": dt / 2, "duration": horizon,
                                     "baseline": {"enabled": False}})
@@ -73,12 +70,12 @@ def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | Non
     if fine.status != "completed":
         return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": None,  # JSON has no inf
                 "max_heading_rad": None, "ok": False, "status": fine.status, "stop_reason": fine.stop_reason}
-    e_c, e_f = pose_errors(record), pose_errors(fine)
     dpos, dpsi = 0.0, 0.0
     for tc in CHECK_TIMES:
         kc, kf = int(round(tc / dt)), int(round(tc / (dt / 2)))
-        dpos = max(dpos, abs(e_c["x"][kc] - e_f["x"][kf]), abs(e_c["y"][kc] - e_f["y"][kf]))
-        dpsi = max(dpsi, abs(e_c["psi"][kc] - e_f["psi"][kf]))
+        e_c, e_f = pose_errors_at(record, kc), pose_errors_at(fine, kf)
+        dpos = max(dpos, abs(e_c["x"] - e_f["x"]), abs(e_c["y"] - e_f["y"]))
+        dpsi = max(dpsi, abs(e_c["psi"] - e_f["psi"]))
     return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": float(dpos),
             "max_heading_rad": float(dpsi), "ok": bool(dpos < 0.01 and dpsi < 0.01)}
 
@@ -114,9 +111,14 @@ def _start_video(pool, record: RunRecord, path: Path, render_opts: dict) -> _Vid
     return _VideoJob(lambda: render_run(record, path, progress=False, pool=pool, **render_opts))
 
 
-def _simulate(scenario: Scenario, plant_kind: str, controller_kind: str | None, sinks, progress) -> RunRecord:
-    """One closed-loop run through :func:`usv_mj.build` (obstacles, sea and guidance included)."""
-    return simulate(scenario, plant_kind=plant_kind, controller_kind=controller_kind, sinks=sinks, progress=progress)
+def _simulate(scenario: Scenario, plant_kind: str, controller_kind: str | None, sinks, progress,
+              store=None) -> RunRecord:
+    """One closed-loop run through :func:`usv_mj.build` (obstacles, sea and guidance included);
+    ``store``: the folder a long run's record streams into (``simulate(store=..., stream_above=...)``)."""
+    from .simulation import STREAM_BYTES
+
+    return simulate(scenario, plant_kind=plant_kind, controller_kind=controller_kind, sinks=sinks, progress=progress,
+                    store=store, stream_above=STREAM_BYTES if store is not None else None)
 
 
 def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_out: dict, out: Path,
@@ -133,7 +135,8 @@ def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_o
     summary_out["calm"] = {k: calm_summary[k] for k in ("status", "errors_at", "max_abs_error_after_20s", "criterion",
                                                          "funnel_violations", "first_violation_s") if k in calm_summary}
     lines = ["## The controller in this sea", "",
-             f"Sea: {json.dumps(scenario.sea.to_dict())}; significant wave height seen at the hull "
+             f"Sea: {scenario.sea.describe()} (compass degrees clockwise from north; waves and wind coming "
+             f"from, the current setting toward; every setting in summary.json); significant wave height seen at the hull "
              f"{summary_out['hs_at_hull_m']:.3f} m. {outcome_sentence(summary['criterion'])} "
              "The same scenario in calm water beside it "
              "(the controller is not tuned to the sea: the capability study is `usv-mj capability`):", "",
@@ -218,8 +221,10 @@ from .errors import Terminated  # noqa: E402  (SIGTERM / SIGHUP as Ctrl-C)
 
 class _Signals:
     """While a job runs in the main thread: SIGTERM and SIGHUP raise :class:`Terminated` as Ctrl-C
-    raises KeyboardInterrupt; :meth:`deferred` holds every one of them back over a section that
-    must not be cut (closing the log, moving the outputs into place). Handlers restored on exit."""
+    raises KeyboardInterrupt; the first signal only: after it the job finishes (summary, report)
+    and later ones are noted in :attr:`received`. :meth:`deferred` holds every one of them back
+    over a section that must not be cut (closing the log, moving the outputs into place).
+    Handlers restored on exit."""
 
     NAMES = {"SIGINT": "Ctrl-C", "SIGTERM": "SIGTERM", "SIGHUP": "SIGHUP"}
 
@@ -230,11 +235,18 @@ class _Signals:
         self.signal = signal
         self.active = threading.current_thread() is threading.main_thread()
         self.received: list[str] = []     # every signal seen, in order
+        self.stopping = False              # a signal has stopped the job: the next ones only noted
         self._old = {}
 
     def _raise(self, signum, frame):
         name = self.NAMES.get(self.signal.Signals(signum).name, self.signal.Signals(signum).name)
         self.received.append(name)
+        if self.stopping:
+            # a burst (SIGTERM, Ctrl-C, SIGHUP ms apart): the first stops the job, the others are noted.
+            # Two signals that arrive together are handled at once, the second at the first bytecode
+            # of the first one's except clause: raising there would skip the summary.
+            return
+        self.stopping = True
         raise (KeyboardInterrupt if name == "Ctrl-C" else Terminated)(name)
 
     def __enter__(self):
@@ -290,59 +302,6 @@ class _Signals:
         return hold()
 
 
-class _Staging:
-    """A job writes into ``.<name>.staging-<pid>`` beside ``out`` and :meth:`commit` moves that folder
-    into place at the end, whatever the end: ``out`` then holds this run alone (an earlier run there
-    is replaced whole; :func:`usv_mj.preflight.check_out_dir` refuses one without ``overwrite``).
-    Staging folders of killed jobs (their process is gone) are removed first."""
-
-    def __init__(self, out: Path):
-        self.out = out
-        parent = out.parent
-        parent.mkdir(parents=True, exist_ok=True)
-        self._cleanup_killed(parent, out.name)
-        self.path = parent / f".{out.name}.staging-{os.getpid()}"
-        if self.path.exists():
-            shutil.rmtree(self.path)
-        self.path.mkdir()
-
-    @staticmethod
-    def _cleanup_killed(parent: Path, name: str) -> None:
-        for p in list(parent.glob(f".{name}.staging-*")) + list(parent.glob(f".{name}.old-*")):
-            try:
-                pid = int(p.name.rsplit("-", 1)[1])
-                os.kill(pid, 0)
-                continue                          # a job still running
-            except (ValueError, ProcessLookupError):
-                pass
-            except PermissionError:
-                continue
-            if p.name.startswith(f".{name}.old-") and not (parent / name).exists():
-                p.rename(parent / name)           # killed between the two renames of a commit
-            else:
-                shutil.rmtree(p, ignore_errors=True)
-
-    def commit(self) -> None:
-        """Drop temporary files, then put the staging folder in place of ``out`` (nothing written:
-        ``out`` stays as it was)."""
-        if not self.path.exists():
-            return
-        for tmp in list(self.path.rglob("*.tmp")) + list(self.path.rglob("*.segments.txt")):
-            tmp.unlink(missing_ok=True)
-        for tmp in self.path.glob(".render-*"):
-            shutil.rmtree(tmp, ignore_errors=True)
-        if not any(self.path.iterdir()):
-            self.path.rmdir()
-            return
-        old = None
-        if self.out.exists():
-            old = self.out.parent / f".{self.out.name}.old-{os.getpid()}"
-            self.out.rename(old)
-        self.path.rename(self.out)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-
-
 def _relocate(obj, stage: Path, out: Path):
     """``obj`` with every path (or path string) under ``stage`` moved under ``out``."""
     if isinstance(obj, dict):
@@ -369,29 +328,38 @@ def _one_line(exc: BaseException) -> str:
 
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
             video: bool = True, log: bool = True, progress: bool = True, step_check: bool = True,
-            render_options: dict | None = None, overwrite: bool = False, extra_outputs=None) -> JobResult:
+            render_options: dict | None = None, overwrite: bool = False, log_rate: float | None = None,
+            extra_outputs=None) -> JobResult:
     """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
 
     Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
-    ``out_dir`` as it was); ``out_dir`` holding an earlier run is refused unless ``overwrite``, and
-    then replaced whole. The outputs are written into a staging folder beside ``out_dir`` and moved
+    ``out_dir`` as it was); ``out_dir`` holding an earlier usv_mj output is refused unless
+    ``overwrite``, and then replaced whole; a folder holding anything usv_mj did not write is
+    always refused (:mod:`usv_mj.outdir`). The outputs are written into a staging folder beside ``out_dir`` and moved
     into place when the job ends, however it ends. Ctrl-C, SIGTERM and SIGHUP stop the job (the
     summary says where and which outputs are missing); a crash or an output that cannot be written
     raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place.
+    ``log_rate`` [Hz]: the MCAP logs every n-th control step (None: every step). A run whose
+    record exceeds ``simulation.STREAM_BYTES`` streams it into ``record/`` (``baseline_record/``):
+    ``RunRecord.open`` reads it back.
 
     ``extra_outputs(record, out)`` (a manoeuvre's measures, say) writes its own files into the
     staging folder ``out`` after the figures and returns (report sections, {name: path})."""
     from .preflight import check_run
+    from .runlog.writer import log_every
+
+    log_every(log_rate, scenario.control_period)   # a bad rate is refused before anything is written
+    from .outdir import Staging
 
     out = Path(out_dir)
     render_opts = dict(render_options or {})
     check_run(scenario, out, video=video, render_options=render_opts, overwrite=overwrite)
     with _OutLock(out), _Signals() as signals:
-        stage = _Staging(out)
+        stage = Staging(out)
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
-                                 render_opts=render_opts, extra_outputs=extra_outputs)
+                                 render_opts=render_opts, log_rate=log_rate, extra_outputs=extra_outputs)
         except RunFailed as exc:
             exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
             exc.traceback = _relocate(exc.traceback, stage.path, out)
@@ -401,6 +369,9 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
             with signals.deferred():
                 stage.commit()
     result.out_dir = out
+    for rec in (result.record, result.baseline):   # a streamed record's folder moved with the outputs
+        if rec is not None and rec.stored:
+            rec.relocated(_relocate(rec.path, stage.path, out))
     result.files = _relocate(result.files, stage.path, out)
     result.summary = _relocate(result.summary, stage.path, out)
     result.render_stats = _relocate(result.render_stats, stage.path, out)
@@ -428,7 +399,7 @@ def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
-                video, log, progress, step_check, render_opts, extra_outputs=None) -> JobResult:
+                video, log, progress, step_check, render_opts, log_rate=None, extra_outputs=None) -> JobResult:
     """The job itself, writing into the staging folder ``out``."""
     import traceback
 
@@ -474,20 +445,24 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
             from .runlog import RunLogWriter
 
             writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario))
-            sink_main = [writer.sink(run="main")]
+            from .runlog.writer import log_every
+
+            every = log_every(log_rate, dt)
+            sink_main = [writer.sink(run="main", log_every=every)]
             files["mcap"] = out / "run.mcap"
         cb, close = progress_bar(scenario.duration, f"{scenario.controller.kind.upper()} on {plant_kind}", progress, dt)
         try:
-            record = _simulate(scenario, plant_kind, None, sink_main, cb)
+            record = _simulate(scenario, plant_kind, None, sink_main, cb, store=out / "record")
         finally:
             close()
     except KeyboardInterrupt:
         # outside the loop's own handler (setting up, or a second signal while it finished)
         close_all()
         reason = f"interrupted ({signals.last}) before the run could be summarized"
-        _write_failure(out, _failed_summary(scenario, plant_kind, "interrupted", reason,
-                                            [n for n in expected if n not in ("summary.json", "report.md", "run.mcap")]),
-                       None)
+        with signals.deferred():      # a burst of signals: the next ones wait until the summary is written
+            _write_failure(out, _failed_summary(scenario, plant_kind, "interrupted", reason,
+                                                [n for n in expected if n not in ("summary.json", "report.md",
+                                                                                  "run.mcap")]), None)
         raise RunFailed(f"{reason}; outputs in {final_out}/", final_out, None) from None
     except Exception as exc:
         close_all()
@@ -507,11 +482,13 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         _write_failure(out, summary_fail, tb)
         raise RunFailed(f"the run {status}: {reason} (traceback in {final_out}/traceback.txt)", final_out,
                         summary_fail, out / "traceback.txt") from None
-    if record.status == "interrupted" and signals.last != "Ctrl-C":
-        # the loop says Ctrl-C for every KeyboardInterrupt; say which signal it was
-        record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", signals.last)
+    first = signals.received[0] if signals.received else "Ctrl-C"     # the one that stopped the loop
+    if record.status == "interrupted" and first != "Ctrl-C":
+        # the loop says Ctrl-C for every KeyboardInterrupt; say which signal it was (in a burst, the first)
+        record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", first)
         if record.events and record.events[-1].kind == "interrupted":
             record.events[-1] = dataclasses.replace(record.events[-1], message=record.stop_reason)
+        record.finish_store()   # a streamed record's record.json says it too
 
     phase = "starting the video"
     video_job = None
@@ -527,10 +504,12 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
             phase = f"running the {scenario.baseline.kind.upper()} baseline"
             if log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
                 base_writer = stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario, companion_of=writer))
-                sink_base, files["baseline_mcap"] = [base_writer.sink(run="baseline")], out / "baseline.mcap"
+                sink_base = [base_writer.sink(run="baseline", log_every=every)]
+                files["baseline_mcap"] = out / "baseline.mcap"
             cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", progress, dt)
             try:
-                base_rec = _simulate(scenario, plant_kind, scenario.baseline.kind, sink_base, cb)
+                base_rec = _simulate(scenario, plant_kind, scenario.baseline.kind, sink_base, cb,
+                                     store=out / "baseline_record")
             finally:
                 close()
         summary = summarize(record)
@@ -569,6 +548,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         stopped = fault
     if not stopped and len(signals.received) > seen_in_loop:
         stopped = f"interrupted ({signals.last}) while {phase}"
+    hold = signals.deferred()       # the finish holds further signals: the summary and report are written whole
+    hold.__enter__()
     try:
         if summary is None:
             summary = summarize(record)
@@ -597,6 +578,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
     except OSError as exc:
         fault = fault or _one_line(exc)
         files.pop("summary", None)
+    finally:
+        hold.__exit__(None, None, None)
     if fault:
         message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
         raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),
@@ -665,8 +648,30 @@ def one_screen_summary(result: JobResult, wall_s: float) -> str:
         r = s["render"]
         lines.append(f"  video: {r.get('frames')} frames {r.get('width')}x{r.get('height')} in {r.get('wall_s', 0):.1f} s "
                      f"({r.get('fps', 0):.1f} frames/s rendered, {r.get('gl')}), played at {r.get('speedup', 0):.1f}x")
-    lines.append(f"  outputs in {result.out_dir}/: " + ", ".join(sorted(
-        p.name if isinstance(p, Path) else k for k, p in result.files.items())))
+    lines.append(f"  outputs in {result.out_dir}/: " + ", ".join(written_outputs(result)))
     return "\n".join(lines)
+
+
+def written_outputs(result: JobResult) -> list[str]:
+    """The names in ``result.out_dir`` of what the job wrote and is there: files by name, a folder
+    as ``figures/`` (every figure, the sea's too, is in that folder); nothing that was not written."""
+    base = Path(result.out_dir).resolve()
+    names = set()
+
+    def add(value):
+        if isinstance(value, dict):
+            value = list(value.values())
+        if isinstance(value, (list, tuple)):
+            for v in value:
+                add(v)
+        elif isinstance(value, (str, Path)) and value and Path(value).exists():
+            try:
+                rel = Path(value).resolve().relative_to(base)
+            except ValueError:
+                return
+            names.add(rel.parts[0] + ("/" if len(rel.parts) > 1 or Path(value).is_dir() else ""))
+
+    add(result.files)
+    return sorted(names)
 
 

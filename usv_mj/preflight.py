@@ -9,16 +9,10 @@ runs it for every distinct path of a sweep up front.
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
 
 from .errors import ScenarioError
 from .scenario import Scenario
-
-#: Files that mark a folder as holding the outputs of a run (``usv-mj run`` or :func:`run_job`).
-RUN_MARKERS = ("summary.json", "run.mcap", "report.md")
-
 
 def reference_error(scenario: Scenario) -> str | None:
     """Why the reference path of ``scenario`` cannot be built (None: it can). The scenario format
@@ -80,78 +74,12 @@ def check_video(render_options: dict | None) -> None:
             raise ScenarioError(f"--{key}: must be a finite number > 0, got {v!r}")
 
 
-def holds_run(folder: Path) -> bool:
-    return any((folder / name).exists() for name in RUN_MARKERS)
-
-
 def check_out_dir(out, overwrite: bool = False, flag: str = "--out") -> Path:
-    """``out`` can take a run: not empty, not a file nor under one, writable (probed with a folder
-    created and removed again beside it), and not an earlier run unless ``overwrite``."""
-    if str(out) == "":
-        raise ScenarioError(f"{flag} '': an empty path; name the output folder")
-    out = Path(out)
-    check_path_names(out, flag)
-    if out.exists() and not out.is_dir():
-        raise ScenarioError(f"{flag} {out}: is a file, not a folder")
-    resolved = out.resolve()
-    if resolved == Path(resolved.anchor) or resolved == Path.cwd().resolve() or os.path.ismount(resolved):
-        # the run's files are moved in by renaming the folder: impossible for /, the current folder
-        # or a mount point (and replacing the current folder whole is never what was meant)
-        raise ScenarioError(f"{flag} {out}: is the current folder, the root or a mount point; name a folder "
-                            "inside it")
-    ancestor = out
-    while not ancestor.exists():
-        if ancestor.is_symlink():
-            raise ScenarioError(f"{flag} {out}: {ancestor} is a broken symbolic link")
-        ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        raise ScenarioError(f"{flag} {out}: {ancestor} is a file, so no folder can be made under it")
-    if out.is_dir():
-        if holds_run(out) and not overwrite:
-            raise ScenarioError(f"{flag} {out}: already holds a run (summary.json, run.mcap or report.md); "
-                                "pass --overwrite to replace it whole, or choose another folder")
-        if not holds_run(out) and any(out.iterdir()) and not overwrite:
-            raise ScenarioError(f"{flag} {out}: is not empty and holds no run; choose an empty or a new folder "
-                                "(--overwrite replaces it whole)")
-        ancestor = out.parent if out.parent.exists() else ancestor
-    try:
-        probe = tempfile.mkdtemp(prefix=".usv-mj-probe-", dir=ancestor)
-        os.rmdir(probe)
-    except OSError as exc:
-        raise ScenarioError(f"{flag} {out}: cannot write in {ancestor} ({exc.strerror or exc})") from None
-    return out
+    """``out`` can take a run (see :func:`usv_mj.outdir.check_folder`: new, empty, or an earlier
+    usv_mj output that ``overwrite`` replaces; never a folder holding anything usv_mj did not write)."""
+    from .outdir import check_folder
 
-
-def check_path_names(path: Path, flag: str) -> None:
-    """Every part of ``path`` fits the file system's name limit (255 bytes on Linux)."""
-    for part in Path(path).parts:
-        if len(os.fsencode(part)) > 255:
-            raise ScenarioError(f"{flag} {str(path)[:80]}...: the name {part[:40]}... is over 255 bytes")
-
-
-def check_output_path(out, flag: str = "--out", *, folder: bool = True) -> Path:
-    """An output of a command other than ``run`` (sweep, capability, compare: a folder; render: a
-    file): not a file where a folder belongs, not under a file, names within limits, writable."""
-    if str(out) == "":
-        raise ScenarioError(f"{flag} '': an empty path; name the output")
-    out = Path(out)
-    check_path_names(out, flag)
-    if folder and out.resolve() == Path(out.resolve().anchor):
-        raise ScenarioError(f"{flag} {out}: is the root folder; name a folder for the outputs")
-    if not folder and out.suffix.lower() != ".mp4":
-        raise ScenarioError(f"{flag} {out}: a video file ends in .mp4")
-    if folder and out.exists() and not out.is_dir():
-        raise ScenarioError(f"{flag} {out}: is a file, not a folder")
-    if not folder and out.is_dir():
-        raise ScenarioError(f"{flag} {out}: is a folder; name the video file (e.g. {out / 'video.mp4'})")
-    ancestor = out if folder else out.parent
-    while not ancestor.exists():
-        ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        raise ScenarioError(f"{flag} {out}: {ancestor} is a file, so nothing can be made under it")
-    if not os.access(ancestor, os.W_OK):
-        raise ScenarioError(f"{flag} {out}: {ancestor} is not writable")
-    return out
+    return check_folder(out, overwrite, flag)
 
 
 def check_run(scenario: Scenario, out, *, video: bool, render_options: dict | None, overwrite: bool) -> Path:

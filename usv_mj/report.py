@@ -41,6 +41,9 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     viol = summary.get("funnel_violations")
     name = str(summary.get("controller") or "run").upper()
     bname = str((baseline_summary or {}).get("controller") or "baseline").upper()
+    # without a baseline run its column is left out (no placeholder name, no column of dashes)
+    bcol = f" {bname} baseline |" if baseline_summary else ""
+    bsep = "---|" if baseline_summary else ""
     if not funnel:
         lines.append(f"The {name} controller is judged by its own criterion: {crit['description']}. "
                      f"Outcome: **{verdict(crit)}**.")
@@ -54,13 +57,13 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
               "Errors are x - x_d, y - y_d and wrap(psi - psi_d), as in the paper's tables. The paper's "
               "numbers do not fit its own start pose (eta0 = (2, -3, 0): they imply that the error grows "
               "from 3.6 m to 8.3 m in 5 s, docs/model.md §5), so they are shown, not matched.", "",
-              f"| error | t | this run ({name}) | {bname} baseline | paper Table 1 | paper Table 2 (ref. [26]) |",
-              "|---|---|---|---|---|---|"]
+              f"| error | t | this run ({name}) |{bcol} paper Table 1 | paper Table 2 (ref. [26]) |",
+              f"|---|---|---|{bsep}---|---|"]
     for axis in ("x", "y", "psi"):
         for i, tc in enumerate(("5", "10", "20")):
             ours = summary["errors_at"][tc][axis]
-            base = baseline_summary["errors_at"][tc][axis] if baseline_summary else None
-            lines.append(f"| {axis} [{UNITS[axis]}] | {tc} s | {_fmt(ours)} | {_fmt(base)} | "
+            base = f" {_fmt(baseline_summary['errors_at'][tc][axis])} |" if baseline_summary else ""
+            lines.append(f"| {axis} [{UNITS[axis]}] | {tc} s | {_fmt(ours)} |{base} "
                          f"{PAPER_TABLE_1[axis][i]:.2f} | {PAPER_TABLE_2[axis][i]:.2f} |")
     m = summary["max_abs_error_after_20s"]
     lines += ["", f"Largest error after 20 s: |x| {_fmt(m['x'])} m, |y| {_fmt(m['y'])} m, "
@@ -68,11 +71,14 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     clamps = summary.get("s2_clamps") is not None
     lines += ["## " + ("Funnel, adaptation and quantizer" if funnel else
                        "Success criterion" + (", adaptation" if clamps else "") + " and quantizer"), "",
-              f"| quantity | {name} | {bname} baseline |", "|---|---|---|"]
+              f"| quantity | {name} |{bcol}", f"|---|---|{bsep}"]
+
+    def cell(value, fmt=str) -> str:
+        return (f" {fmt(value) if value is not None else '—'} |") if baseline_summary else ""
 
     def both(key, fmt=str, get=lambda s, key: s.get(key)):
         b = get(baseline_summary, key) if baseline_summary else None
-        return f"| {key} | {fmt(get(summary, key))} | {fmt(b) if b is not None else '—'} |"
+        return f"| {key} | {fmt(get(summary, key))} |{cell(b, fmt)}"
 
     if funnel:
         lines.append(both("funnel_violations"))
@@ -88,8 +94,8 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
         lines.append(both("s2_clamps"))
     qs = summary["quantizer_switches"]
     qb = baseline_summary["quantizer_switches"] if baseline_summary else {"u": None, "r": None}
-    lines.append(f"| quantizer output changes, surge | {qs['u']} | {qb['u'] if qb['u'] is not None else '—'} |")
-    lines.append(f"| quantizer output changes, yaw | {qs['r']} | {qb['r'] if qb['r'] is not None else '—'} |")
+    lines.append(f"| quantizer output changes, surge | {qs['u']} |{cell(qb['u'])}")
+    lines.append(f"| quantizer output changes, yaw | {qs['r']} |{cell(qb['r'])}")
     lines += ["", "## Actuators", ""]
     act = summary.get("actuators")
     if act is None:

@@ -315,6 +315,9 @@ def load_scenario(path: str | Path | None = None, preset: str | None = None, ove
     data: dict = {}
     source = f"preset {preset or 'paper'}"
     if path is not None:
+        from .example_files import resolve
+
+        path = resolve(path, "scenarios")     # an example's name (harbour_gap) finds its file
         source = str(path)
         data = read_toml(path, ScenarioError, "scenario file")
     if preset is not None:

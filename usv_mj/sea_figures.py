@@ -26,6 +26,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .record_store import CHUNK_ROWS  # noqa: E402
 from .sea import layout as lay  # noqa: E402
 
 SPECTRUM_FIGURE = "sea_spectrum.png"
@@ -39,17 +40,32 @@ def _check_env(env, where: str):
         raise TypeError(f"{where}: env must be a usv_mj.sea.Environment, got {type(env).__name__}")
 
 
-def _state_columns(record, where: str, stride: int = 1):
+def _strided(record, name: str, stride: int, lo: int = 0, hi: int | None = None) -> np.ndarray:
+    """Rows lo, lo + stride, ... (< hi) of a column, read chunk by chunk (a stored record stays on disk)."""
+    hi = len(record) if hi is None else hi
+    out, at = [], 0
+    for chunk in record.column_chunks(name):
+        a, b = max(lo, at), min(hi, at + len(chunk))
+        if a < b:
+            first = a + (-(a - lo)) % stride
+            out.append(chunk[first - at:b - at:stride])
+        at += len(chunk)
+        if at >= hi:
+            break
+    return np.ascontiguousarray(np.concatenate(out)) if out else np.empty(0)
+
+
+def _state_columns(record, where: str, stride: int = 1, lo: int = 0, hi: int | None = None):
     n = len(record)
     if n == 0:
         raise ValueError(f"{where}: the record has no rows")
-    ts = np.ascontiguousarray(record["t"][::stride])
-    etas = np.ascontiguousarray(np.stack([record[c][::stride] for c in ("x", "y", "psi")], axis=1))
-    nus = np.ascontiguousarray(np.stack([record[c][::stride] for c in ("u", "v", "r")], axis=1))
+    ts = _strided(record, "t", stride, lo, hi)
+    etas = np.ascontiguousarray(np.stack([_strided(record, c, stride, lo, hi) for c in ("x", "y", "psi")], axis=1))
+    nus = np.ascontiguousarray(np.stack([_strided(record, c, stride, lo, hi) for c in ("u", "v", "r")], axis=1))
     finite = np.isfinite(ts) & np.all(np.isfinite(etas), axis=1) & np.all(np.isfinite(nus), axis=1)
     if not np.all(finite):  # a diverged run's last row, say: keep the rows before it
         bad = int(np.flatnonzero(~finite)[0])
-        if bad == 0:
+        if bad == 0 and lo == 0:
             raise ValueError(f"{where}: the record's first row has a non-finite time or state")
         ts, etas, nus = ts[:bad], etas[:bad], nus[:bad]
     return ts, etas, nus
@@ -67,7 +83,8 @@ def sea_summary(record, env) -> dict:
 
     ``sea``: the settings as the nested ``[sea]`` dict (None without an environment);
     ``hs_at_hull_m``: 4 x the standard deviation of zeta at the hull position over the run [m]
-    (docs/sea.md §3 elevation with its start-up ramp, evaluated at every recorded row; 0 in calm water).
+    (docs/sea.md §3 elevation with its start-up ramp, evaluated at every recorded row, chunk by chunk:
+    the mean, then the mean square deviation; 0 in calm water).
     """
     if env is None:
         return {"sea": None, "hs_at_hull_m": 0.0}
@@ -75,8 +92,20 @@ def sea_summary(record, env) -> dict:
     settings = env.settings.to_dict()
     if env.components.n == 0 or len(record) == 0:
         return {"sea": settings, "hs_at_hull_m": 0.0}
-    _, zeta = hull_elevation(record, env)
-    return {"sea": settings, "hs_at_hull_m": float(4.0 * np.std(zeta))}
+    total, count, pieces = 0.0, 0, []
+    for lo in range(0, len(record), CHUNK_ROWS):
+        ts, etas, _ = _state_columns(record, "sea_summary", 1, lo, lo + CHUNK_ROWS)
+        zeta = np.asarray(env.elevation(etas[:, 0], etas[:, 1], ts), dtype=float).reshape(ts.shape)
+        pieces.append((lo, len(ts)))
+        total, count = total + float(np.sum(zeta)), count + len(ts)
+        if len(ts) < min(CHUNK_ROWS, len(record) - lo):   # a non-finite row: the rows before it
+            break
+    mean, square = total / count, 0.0
+    for lo, m in pieces:   # second pass: the deviations from the mean (as np.std)
+        ts, etas, _ = _state_columns(record, "sea_summary", 1, lo, lo + m)
+        zeta = np.asarray(env.elevation(etas[:, 0], etas[:, 1], ts), dtype=float).reshape(ts.shape)
+        square += float(np.sum((zeta - mean) ** 2))
+    return {"sea": settings, "hs_at_hull_m": float(4.0 * np.sqrt(square / count))}
 
 
 def spectrum_figure(env, path) -> Path | None:

@@ -4,7 +4,9 @@ The loop knows its parts only through their interfaces (:mod:`usv_mj.plants.base
 :mod:`usv_mj.controllers.base`), and gets them from :func:`usv_mj.build` (or from a caller that
 built them). Each step it records one row of the :class:`~usv_mj.record.RunRecord` (the core
 columns, then the controller's declared diagnostics); every ``block`` rows it hands the new rows
-to the sinks (the MCAP writer, say), so that a long run streams out with bounded memory.
+to the sinks (the MCAP writer, say). A long run's record streams to disk as it is made
+(:mod:`usv_mj.record_store`, one file per column, appended every block): only a window of two
+blocks is in memory, so a run's memory does not grow with its duration (``store``).
 
 A run stops early, with a recorded event and a status, on divergence (a non-finite or out-of-limit
 state or force, :class:`usv_mj.scenario.LimitsSpec`), on an exception in a part, or on Ctrl-C;
@@ -21,9 +23,12 @@ import numpy as np
 
 from .limits import within_limits
 from .builder import Parts, build, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
-from .record import COL, SL_REF, SL_STATE, Event, RunRecord
+from .record import COL, N_CORE, SL_REF, SL_STATE, Event, RunRecord
 from .scenario import Scenario
 from .trajectories import make_reference as _make_reference
+
+#: a record bigger than this (rows x columns x 8 bytes) streams to disk when ``store`` is None
+STREAM_BYTES = 256 * 2 ** 20
 
 
 class RunSink(Protocol):
@@ -51,7 +56,8 @@ def state_limit_exceeded(x, ex: float, ey: float, limits) -> bool:
 def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_kind: str | None = None,
              controller_kind: str | None = None, sinks: Iterable[RunSink] = (), block: int = 2000,
              progress: Callable[[int], None] | None = None, duration: float | None = None,
-             reference=None, hooks: Iterable[Callable] = (), loop: str = "auto") -> RunRecord:
+             reference=None, hooks: Iterable[Callable] = (), loop: str = "auto", store=None,
+             stream_above: float | None = None) -> RunRecord:
     """Run in closed loop and return the :class:`RunRecord`.
 
     ``scenario`` is a :class:`Scenario` (built here with :func:`usv_mj.build`, with ``plant_kind``,
@@ -65,6 +71,13 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
     kernel (and the hook, if any: the obstacles' hook has one for standing obstacles without
     guidance), the Python loop otherwise; "python" always runs the Python loop.
     ``record.metadata["loop"]`` says which ran (``"loop_reason"``: why not the compiled one).
+
+    ``store``: where the record's rows go. None: in memory, but a record of more than
+    :data:`STREAM_BYTES` streams into a temporary folder (removed with the record); False: in
+    memory; True: a temporary folder; a path: that folder, kept (:meth:`RunRecord.open` reads it
+    back), or with ``stream_above`` [bytes] only for a record bigger than that (in memory
+    otherwise). A streamed record keeps two blocks of rows in memory and has the same values, bit
+    for bit.
     """
     if loop not in ("auto", "python"):
         raise ValueError(f"simulate: loop must be 'auto' or 'python', got {loop!r}")
@@ -75,12 +88,31 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
                       plant=plant, controller=controller, reference=reference)
     try:
         return _run(parts, list(parts.sinks) + list(sinks), block, progress, tuple(parts.hooks) + tuple(hooks),
-                    use_compiled=loop == "auto")
+                    use_compiled=loop == "auto", store=store, stream_above=stream_above)
     finally:
         parts.close()
 
 
-def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_compiled: bool = True) -> RunRecord:
+def _new_record(rows: int, block: int, store, metadata: dict, fields: tuple, events,
+                stream_above: float | None = None) -> RunRecord:
+    """The empty record of a run of ``rows`` rows: in memory, or streamed (``store``, see simulate)."""
+    size = rows * (N_CORE + len(fields)) * 8
+    if store is None:
+        store = size > STREAM_BYTES
+    elif store is not False and store is not True and stream_above is not None and size <= stream_above:
+        store = False
+    if store is False:
+        return RunRecord(rows, metadata=metadata, diagnostic_fields=fields, diagnostic_events=events)
+    import tempfile
+
+    temporary = store is True
+    folder = tempfile.mkdtemp(prefix="usv_mj_record_") if temporary else store
+    window = min(rows, 2 * block + 2)   # a block, the row before it, and room for a block not yet flushed
+    return RunRecord.streamed(folder, window, metadata, fields, events, temporary=temporary)
+
+
+def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_compiled: bool = True,
+         store=None, stream_above=None) -> RunRecord:
     scenario, plant, controller, reference = parts.scenario, parts.plant, parts.controller, parts.reference
     duration = parts.duration
     dt = scenario.control_period
@@ -94,12 +126,12 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
 
     compiled, why = (None, "asked for (loop='python')") if not use_compiled else kernels_of(parts, hooks)
     loop = {"loop": "compiled"} if compiled is not None else {"loop": "python", "loop_reason": why}
-    record = RunRecord(n + 1, metadata={
+    record = _new_record(n + 1, block, store, {
         "preset": scenario.preset, "plant": plant.name, "controller": controller.name,
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
         "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata, **loop,
         "criterion": criterion_of(controller).to_dict(),  # how the outputs judge the run (usv_mj.criteria)
-    }, diagnostic_fields=fields, diagnostic_events=getattr(controller, "diagnostic_events", None))
+    }, fields, getattr(controller, "diagnostic_events", None), stream_above)
     record.statics = parts.statics
     for sink in sinks:
         sink.start(record)
@@ -108,7 +140,8 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     quant_u.reset()
     quant_r.reset()
     actuators.reset()
-    data = record.data
+    data = record.buffer   # the rows from record.base on (all of them when in memory)
+    base = 0
     sl_diag = slice(len(COL), len(COL) + len(fields))
     c_t = COL["t"]
     c_tau_u, c_tau_r, c_q_u, c_q_r, c_k_u, c_k_r, c_f_u, c_f_r, c_s_u, c_s_r = (COL[c] for c in (
@@ -131,13 +164,13 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             if not (abs(tau_u) < limits.max_force and abs(tau_r) < limits.max_force):
                 _stop_diverged(record, t, f"control force out of limits or not finite: tau_u = {tau_u!r}, "
                                f"tau_r = {tau_r!r}", {"tau_u": _json_number(tau_u), "tau_r": _json_number(tau_r)},
-                               data, k, x, ref, diag, sl_diag)
+                               data, k - base, x, ref, diag, sl_diag)
                 k += 1
                 break
             q_u = quant_u.step(tau_u)
             q_r = quant_r.step(tau_r)
             f_u, f_r, s_u, s_r = actuators.apply(q_u, q_r)
-            row = data[k]
+            row = data[k - base]
             row[c_t] = t
             row[SL_STATE] = x
             row[SL_REF] = ref
@@ -156,6 +189,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             record.n_rows = k
             if k - flush.mark >= block:
                 flush(k)
+                base = record.base
             if k > n:
                 break
             plant.step(f_u, f_r)
@@ -227,7 +261,7 @@ def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=())
         record.stop_reason = message
         return k + 1
     if status == DIVERGED:
-        row = record.data[k - 1]
+        row = record.buffer[k - 1 - record.base]
         ex, ey = x[0] - row[COL["x_d"]], x[1] - row[COL["y_d"]]
         _state_diverged(record, k * dt, x, ex, ey, limits)
     return k
@@ -264,13 +298,13 @@ def _which_limit(x, ex, ey, limits) -> str:
     return "heading psi is not finite"
 
 
-def _stop_diverged(record, t, message, values, data, k, x, ref, diag, sl_diag):
-    row = data[k]
+def _stop_diverged(record, t, message, values, data, i, x, ref, diag, sl_diag):
+    row = data[i]   # i: the row's index in the window
     row[COL["t"]] = t
     row[SL_STATE] = x
     row[SL_REF] = ref
     row[sl_diag] = diag
-    record.n_rows = k + 1
+    record.n_rows = record.base + i + 1
     record.events.append(Event(t, "divergence", message, values))
     record.status = "diverged"
     record.stop_reason = message
@@ -290,6 +324,7 @@ class _Flusher:
 
     def __call__(self, hi: int) -> None:
         self.mark = max(self.mark, hi)
+        self.record.spill(hi)   # a streamed record's rows to its column files first
         if hi > self.events_to:
             new = detect_events(self.record, self.events_to, hi)
             self.events_to = hi
@@ -298,6 +333,9 @@ class _Flusher:
             if hi > self.sent[i]:
                 sink.rows(self.record, self.sent[i], hi)
                 self.sent[i] = hi
+        if self.record.stored:   # every part has these rows: a streamed record drops them from memory
+            with _signals_held():   # (no Ctrl-C between moving the window and its new base)
+                self.record.slide(hi)
         if self.progress is not None and hi > self.counted:
             n, self.counted = hi - self.counted, hi
             self.progress(n)
@@ -333,12 +371,13 @@ def _finish_sinks(record, sinks, flush, wall0, quant_u, quant_r):
     flush(record.n_rows)
     record.events.sort(key=lambda e: e.t)
     wall = time.perf_counter() - wall0
-    sim_t = record["t"][-1] if record.n_rows else 0.0
+    sim_t = record.value("t", -1) if record.n_rows else 0.0
     record.metadata.update({
         "status": record.status, "stop_reason": record.stop_reason, "wall_time_s": wall,
         "realtime_factor": sim_t / wall if wall > 0 else float("inf"),
         "quantizer_switches": {"u": quant_u.switches, "r": quant_r.switches},
     })
+    record.finish_store()   # a streamed record's last rows, headers and record.json, before the sinks end
     for sink in sinks:
         sink.finish(record)
 
@@ -349,8 +388,9 @@ def detect_events(record: RunRecord, lo: int, hi: int) -> list[Event]:
     sat_u / sat_r: "actuator_saturation" with values channel, state), and the episodes of its declared 0/1 event fields (the
     PPC law's s2 clamps)."""
     events = []
-    data = record.data
     col = record.col
+    data = record.buffer[lo - record.base - (1 if lo > 0 else 0):hi - record.base]  # from the row before lo
+    lo, hi = (1, hi - lo + 1) if lo > 0 else (0, hi - lo)    # rows of ``data`` from here on
     t = data[lo:hi, COL["t"]]
     if record.has_funnel:
         for axis in (1, 2, 3):

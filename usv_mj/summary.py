@@ -1,4 +1,10 @@
-"""The numbers of a run that go into ``summary.json`` and the report (works on any RunRecord)."""
+"""The numbers of a run that go into ``summary.json`` and the report (works on any RunRecord).
+
+The whole-run reductions (the max error after 20 s, the funnel violations, the s2 clamps, the
+saturation fractions and episodes) read the columns chunk by chunk (``RunRecord.column_chunks``),
+and the errors at 5 / 10 / 20 s read single rows, so summarizing a ten-hour record streamed to disk
+needs a few MB, and gives the same numbers as the same record in memory.
+"""
 
 from __future__ import annotations
 
@@ -21,6 +27,38 @@ def pose_errors(record: RunRecord) -> dict:
     """x - x_d [m], y - y_d [m] and wrap(psi - psi_d) [rad] at every row (the paper's Table 1 errors)."""
     return {"x": record["x"] - record["x_d"], "y": record["y"] - record["y_d"],
             "psi": wrap_angle(record["psi"] - record["psi_d"])}
+
+
+def pose_errors_at(record: RunRecord, k: int) -> dict:
+    """The pose errors of :func:`pose_errors` at row ``k`` only (floats; a single read of each column)."""
+    v = {c: record.value(c, k) for c in ("x", "x_d", "y", "y_d", "psi", "psi_d")}
+    return {"x": v["x"] - v["x_d"], "y": v["y"] - v["y_d"], "psi": float(wrap_angle(v["psi"] - v["psi_d"]))}
+
+
+def column_chunks(record: RunRecord, names) -> "iter":
+    """Aligned chunks of several columns: tuples of arrays, one per name (RunRecord.column_chunks)."""
+    return zip(*(record.column_chunks(n) for n in names))
+
+
+def _episodes(record: RunRecord, name: str) -> tuple[int, int, int]:
+    """(rows where ``name`` > 0.5, episodes of consecutive such rows, the longest episode's rows)."""
+    total = episodes = longest = run = 0
+    for (chunk,) in column_chunks(record, (name,)):
+        flag = chunk > 0.5
+        if not flag.any():
+            run = 0
+            continue
+        total += int(flag.sum())
+        edges = np.diff(np.concatenate(([0], flag.astype(np.int8), [0])))
+        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        lengths = ends - starts
+        if run and starts[0] == 0:   # the episode that the chunk before ended in goes on
+            lengths[0] += run
+            episodes -= 1
+        episodes += len(starts)
+        longest = max(longest, int(lengths.max()))
+        run = int(lengths[-1]) if ends[-1] == len(flag) else 0
+    return total, episodes, longest
 
 
 def actuator_description(table) -> dict | None:
@@ -97,29 +135,30 @@ def summarize(record: RunRecord, criterion=None) -> dict:
     criterion = criterion_of_record(record) if criterion is None else criterion
     judged = criterion.evaluate(record)
     meta = record.metadata
-    t = record["t"]
-    err = pose_errors(record)
-    dt = meta.get("control_period_s", t[1] - t[0] if len(t) > 1 else 0.0)
+    n = len(record)
+    dt = meta.get("control_period_s", record.value("t", 1) - record.value("t", 0) if n > 1 else 0.0)
     errors_at = {}
     for tc in CHECK_TIMES:
         k = int(round(tc / dt)) if dt else -1
-        if 0 <= k < len(t):
-            errors_at[f"{tc:g}"] = {a: _finite(err[a][k]) for a in ("x", "y", "psi")}
+        if 0 <= k < n:
+            errors_at[f"{tc:g}"] = {a: _finite(e) for a, e in pose_errors_at(record, k).items()}
         else:
             errors_at[f"{tc:g}"] = {a: None for a in ("x", "y", "psi")}
-    after = t > 20.0
-    max_after = {a: (_finite(np.max(np.abs(err[a][after]))) if after.any() else None) for a in ("x", "y", "psi")}
-    clamps = int(np.sum(record["s2_clamped"] > 0.5)) if "s2_clamped" in record else None
-    saturated = {ch: (float(np.mean(record[f"sat_{ch}"] > 0.5)) if len(t) else 0.0) for ch in ("u", "r")}
-    episodes = {ch: 0 for ch in ("u", "r")}
-    longest = {ch: 0.0 for ch in ("u", "r")}
+    peak = {a: None for a in ("x", "y", "psi")}
+    for t, x, x_d, y, y_d, psi, psi_d in column_chunks(record, ("t", "x", "x_d", "y", "y_d", "psi", "psi_d")):
+        after = t > 20.0
+        if after.any():
+            for a, e in (("x", x - x_d), ("y", y - y_d), ("psi", wrap_angle(psi - psi_d))):
+                m = np.max(np.abs(e[after]))
+                peak[a] = m if peak[a] is None else np.maximum(peak[a], m)   # NaN, as np.max, wins
+    max_after = {a: (_finite(v) if v is not None else None) for a, v in peak.items()}
+    clamps = _episodes(record, "s2_clamped")[0] if "s2_clamped" in record else None
+    saturated, episodes, longest = {}, {}, {}
     for ch in ("u", "r"):
-        flag = record[f"sat_{ch}"] > 0.5
-        if flag.any():
-            edges = np.diff(np.concatenate(([0], flag.astype(np.int8), [0])))
-            starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-            episodes[ch] = int(len(starts))
-            longest[ch] = float(np.max(ends - starts) * dt)
+        total, count, rows = _episodes(record, f"sat_{ch}")
+        saturated[ch] = float(total / n) if n else 0.0
+        episodes[ch] = count
+        longest[ch] = float(rows * dt)
     actuators = actuator_description((meta.get("scenario") or {}).get("actuators"))
     funnel = {"funnel_violations": judged["violations"], "first_violation_s": judged["first_violation_s"]} \
         if judged["kind"] == "funnel" else {}
@@ -130,7 +169,7 @@ def summarize(record: RunRecord, criterion=None) -> dict:
         "status": record.status,
         "stop_reason": record.stop_reason or None,
         "duration_s": meta.get("duration_s"),
-        "simulated_s": _finite(t[-1]) if len(t) else 0.0,
+        "simulated_s": _finite(record.value("t", -1)) if n else 0.0,
         "control_period_s": dt,
         "errors_at": errors_at,
         "max_abs_error_after_20s": max_after,

@@ -70,9 +70,12 @@ __all__ = ["ALL_TASKS", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "
            "USVGymEnv", "USVPhysics", "episode_record", "gym_env", "load"]
 
 
-def _register_gymnasium() -> None:
+def register_gymnasium() -> None:
     """Register :data:`GYM_IDS` with Gymnasium's registry when gymnasium is installed (it imports
-    neither dm_control nor mujoco: the entry point is resolved by ``gymnasium.make``)."""
+    neither dm_control nor mujoco: the entry point is resolved by ``gymnasium.make``). Also the
+    ``gymnasium.envs`` entry point of the package (pyproject.toml), which Gymnasium before 1.0
+    calls on its import; with Gymnasium 1.x, ``gymnasium.make("usv_mj.envs:usv_mj/Track-v0")``
+    imports this module first."""
     try:
         from gymnasium.envs.registration import register, registry
     except ImportError:  # pragma: no cover - optional dependency
@@ -82,7 +85,7 @@ def _register_gymnasium() -> None:
             register(id=env_id, entry_point="usv_mj.envs.gymnasium_env:USVGymEnv", kwargs={"task": task})
 
 
-_register_gymnasium()
+register_gymnasium()
 
 
 # names imported on first use, so ``usv-mj --help`` does not import dm_control

@@ -36,6 +36,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--video", default="renders/env.mp4",
                         help="video of the first episode (default renders/env.mp4); 'none' to skip")
     parser.add_argument("--video-size", default="640x360", help="WIDTHxHEIGHT of the video (default 640x360)")
+    from usv_mj.outdir import add_overwrite_argument
+
+    add_overwrite_argument(parser, "the --video file and its .png still when usv_mj wrote them")
 
 
 def rollout(env, policy):
@@ -66,15 +69,17 @@ def run_command(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         print(f"usv-mj env: error: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
         return 2
-    if args.video and args.video.lower() != "none":  # the video's size and file are checked before any episode runs
-        from usv_mj.preflight import check_output_path
+    if args.video.lower() == "none":
+        args.video = None
+    if args.video is not None:  # the video's size and file are checked before any episode runs
+        from usv_mj.outdir import check_file
         from usv_mj.render.video import _check_size, parse_size
 
         try:
             _check_size(*parse_size(args.video_size))
-            check_output_path(args.video, "--video", folder=False)
+            check_file(args.video, args.overwrite, "--video")
         except (ValueError, argparse.ArgumentTypeError) as exc:
-            print(f"usv-mj env: error: --video/--size: {exc}", file=sys.stderr)
+            print(f"usv-mj env: error: {exc}", file=sys.stderr)
             return 2
     options = {"quantize": not args.no_quantize}
     if args.set:
@@ -108,7 +113,7 @@ def run_command(args: argparse.Namespace) -> int:
             total, n, info, rows = rollout(env, policy)
             wall = time.perf_counter() - wall
             returns.append(total)
-            if ep == 0 and args.video and args.video.lower() != "none":
+            if ep == 0 and args.video is not None:
                 first_rows = rows  # rendered now: the harbor model of this episode goes at the next reset
             end = info["reason"] or "time limit"
             print(f"episode {ep + 1}: return {total:.2f} over {n} steps ({total / max(n, 1):.3f} per step), "
@@ -139,6 +144,9 @@ def _video(env, rows, args) -> None:
         if args.task.startswith("harbor"):
             kwargs["model"] = env.physics.plant.render_model_path  # the episode's own harbour layout
         info = render_run(record, out, width=w, height=h, progress=False, **kwargs)
+        from usv_mj.outdir import record_file
+
+        record_file(out)
         print(f"video: {info['mp4']} ({info['frames']} frames)")
     except Exception as exc:  # noqa: BLE001 - the rollout is the result; the video is a bonus
         print(f"usv-mj env: no video ({type(exc).__name__}: {exc})", file=sys.stderr)

@@ -2,8 +2,9 @@
 
 ::
 
-    import gymnasium, usv_mj.envs                       # importing usv_mj.envs registers the ids
-    env = gymnasium.make("usv_mj/Track-v0")             # or usv_mj.envs.gym_env("track")
+    import gymnasium
+    env = gymnasium.make("usv_mj.envs:usv_mj/Track-v0") # Gymnasium imports usv_mj.envs, which registers the ids
+    env = gymnasium.make("usv_mj/Track-v0")             # the same once usv_mj.envs is imported; or gym_env("track")
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
     info["kind"], info["reason"]                        # why the episode ended (None while it runs)
@@ -57,8 +58,10 @@ import numpy as np
 try:
     import gymnasium
     from gymnasium import spaces
-except ImportError as exc:  # pragma: no cover - optional dependency
-    raise ImportError("usv_mj.envs.gym_env needs gymnasium (pip install gymnasium)") from exc
+except ImportError:  # pragma: no cover - optional dependency
+    from ..errors import missing_extra
+
+    raise missing_extra("gymnasium", "usv_mj's Gymnasium view (usv_mj.envs.gym_env, gymnasium.make)") from None
 
 from . import GYM_IDS  # noqa: F401 (API: id -> task)
 
@@ -187,12 +190,22 @@ class USVGymEnv(gymnasium.Env):
         if seed is not None:
             self.dm_env.reseed(int(seed))
         ts = self.dm_env.reset()
+        self._episode_over = False
         return self._observe(ts.observation), self._info()
 
     def step(self, action):
+        """One control step. After the step that ended the episode (terminated or truncated), or
+        before the first reset, raises ``gymnasium.error.ResetNeeded``: call reset() first (the
+        dm_control environment underneath would start a new episode without saying so)."""
+        if getattr(self, "_episode_over", True):
+            from gymnasium.error import ResetNeeded
+
+            raise ResetNeeded("USVGymEnv.step: the episode has ended (the last step returned terminated or "
+                              "truncated) or was never started; call reset() before step()")
         ts = self.dm_env.step(self.physical_action(action))
         terminated = bool(ts.last() and ts.discount == 0.0)
         truncated = bool(ts.last() and not terminated)
+        self._episode_over = terminated or truncated
         return self._observe(ts.observation), float(ts.reward), terminated, truncated, self._info()
 
     def render(self):

@@ -62,6 +62,12 @@ class _Drawer:
         if self.local is not None:
             self.local.close()
         if self.pool is not None:
+            from usv_mj.render.video import _worker_close
+
+            try:
+                self.pool.apply(_worker_close)     # the worker frees its GL context before it is stopped
+            except Exception:  # noqa: BLE001 - a worker that is gone has nothing to free
+                pass
             self.pool.terminate()
             self.pool.join()
         self.local = self.pool = None

@@ -97,8 +97,15 @@ _atexit_registered = False
 
 
 def _close_open_renderers() -> None:
+    """At exit: free every renderer still open, each in its own GL context. Nothing may escape:
+    an error here would be printed as "Exception ignored in atexit callback" (issue 28), and a
+    context that cannot be freed any more costs nothing in a process that is ending (a worker
+    terminated by its pool while it exits, say)."""
     for r in list(_OPEN):
-        r.close()
+        try:
+            r.close()
+        except BaseException:  # noqa: BLE001 - see the docstring
+            pass
 
 
 def load_scene_spec(model_path: str | os.PathLike | None = None) -> tuple[mujoco.MjSpec, str]:
@@ -541,6 +548,12 @@ class FrameRenderer:
             self._add_obstacle_outlines(spec, z, w)
 
     def close(self) -> None:
-        if self.renderer is not None:
-            self.renderer.close()
-            self.renderer = None
+        """Free the GL resources, with this renderer's own context current (freeing one while
+        another renderer's context is current frees the wrong objects)."""
+        renderer, self.renderer = self.renderer, None
+        if renderer is not None:
+            gl = getattr(renderer, "_gl_context", None)
+            if gl is not None:
+                gl.make_current()
+            renderer.close()
+        _OPEN.discard(self)

@@ -90,6 +90,15 @@ def _worker_render(spec):
     return _worker_renderer.render(spec)
 
 
+def _worker_close() -> None:
+    """Free the worker's renderer now, so that nothing is left for its exit (a pool terminates
+    its workers with SIGTERM, which may land while one is exiting)."""
+    global _worker_renderer
+    if _worker_renderer is not None:
+        _worker_renderer.close()
+        _worker_renderer = None
+
+
 def _open_writer(path, width, height, fps, encoder):
     import imageio_ffmpeg
 
@@ -551,11 +560,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default=None,
                         help="the .mp4 to write, or a directory (default: beside the run, <stem>.mp4)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from ..outdir import add_overwrite_argument
+
+    add_overwrite_argument(parser, "the .mp4 and its .png still when usv_mj wrote them")
     add_video_arguments(parser)
 
 
 def load_run_record(path: str | os.PathLike):
     """The RunRecord of a run directory (its run.mcap) or of an .mcap file (via usv_mj.runlog)."""
+    log, p = load_run_log(path)
+    return log.record, p
+
+
+def load_run_log(path: str | os.PathLike):
+    """(the RunLog, the .mcap path) of a run directory (its run.mcap) or of an .mcap file."""
     p = Path(path)
     if p.is_dir():
         candidates = [p / "run.mcap"] + sorted(p.glob("*.mcap"))
@@ -571,7 +589,7 @@ def load_run_record(path: str | os.PathLike):
         from usv_mj.runlog import read_run
     except ImportError as exc:  # pragma: no cover - until the MCAP issue lands
         raise RuntimeError(f"reading {str(p)!r} needs usv_mj.runlog (the MCAP run log): {exc}") from exc
-    return read_run(p).record, p
+    return read_run(p), p
 
 
 def default_output(run_path: Path, mcap_path: Path) -> Path:
@@ -584,20 +602,25 @@ def default_output(run_path: Path, mcap_path: Path) -> Path:
 def run_command(args: argparse.Namespace) -> int:
     """``usv-mj render RUN``: 0 on success, 2 on bad input, 3 when no OpenGL backend starts."""
     try:
-        record, mcap = load_run_record(args.run)
+        log, mcap = load_run_log(args.run)
+        record = log.record
     except (FileNotFoundError, ValueError, RuntimeError) as exc:
         print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
+    if log.notice:
+        print(f"usv-mj render: warning: the log is incomplete, the video shows what was recovered: {log.notice}",
+              file=sys.stderr)
     out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
     try:
-        from ..preflight import check_output_path
+        from ..outdir import check_file, record_file
 
-        check_output_path(out, folder=False)
+        check_file(out, args.overwrite)
     except ValueError as exc:
         print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
     try:
         result = render_run(record, out, progress=not args.no_progress, **video_options(args))
+        record_file(out)
     except GLUnavailableError as exc:
         print(f"usv-mj render: {exc}", file=sys.stderr)
         return 3

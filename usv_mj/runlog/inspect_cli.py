@@ -1,7 +1,10 @@
 """``usv-mj inspect RUN.mcap``: topics, message counts, duration, metadata and status of a run log.
 
 The lead wires :func:`add_inspect_arguments` and :func:`inspect_command` into ``usv_mj/cli.py``.
-Exit codes: 0 read (also a cut file, which is reported), 2 missing file / not an MCAP run log.
+Exit codes: 0 read (also a cut or damaged file, which is reported), 2 missing file / not an MCAP run log.
+"complete" means every check held: the footer and the closing magic are there, and the CRCs of
+every chunk, of the data section (DataEnd) and of the summary (footer) match; otherwise the file is
+"cut short" (it ends early) or "damaged" (a CRC does not hold), with the reason (``problem`` in --json).
 """
 
 from __future__ import annotations
@@ -56,8 +59,12 @@ def inspect_command(args) -> int:
         print(json.dumps({**info, "metadata": {n: m for n, m in info["metadata"]},
                           "companions": [str(c) for c in companions]}, indent=1, default=str))
         return 0
-    state = "complete (summary and footer present)" if info["complete"] else \
-        f"CUT SHORT: {info['problem'] or 'no summary'}"
+    if info["complete"]:
+        state = "complete (summary, footer and closing magic present; the chunk, data-section and summary CRCs hold)"
+    elif info["damaged"]:
+        state = f"DAMAGED: {info['problem']}"
+    else:
+        state = f"CUT SHORT: {info['problem'] or 'no summary'}"
     print(f"{path}: MCAP run log, {_fmt_size(info['size'])}, {info['chunks']} chunks, {state}")
     t0, t1 = info["start_ns"] / 1e9, info["end_ns"] / 1e9
     print(f"log time: {t0:.3f} .. {t1:.3f} s (duration {t1 - t0:.3f} s)")

@@ -1,10 +1,19 @@
 """Reading a run log back: whole runs as :class:`~usv_mj.record.RunRecord`, or one topic as arrays.
 
 The file is read front to back (``mcap.stream_reader.StreamReader``, which also works on a
-non-seekable stream), chunk by chunk; every chunk's CRC is checked. A file that ends early (a killed
-process: no summary, maybe half a chunk) is read up to its last complete chunk, and
-:attr:`RunLog.truncated` says so. Numbers come back bit-exactly (see :mod:`usv_mj.runlog.topics`
-for the NaN / infinity convention).
+non-seekable stream), chunk by chunk. What is checked before a file is called complete: every
+chunk's CRC (of its uncompressed records), the data section's CRC (in the DataEnd record: it
+covers the header, schemas, channels, metadata and indexes), the summary's CRC (in the footer) and
+the closing magic. A file that ends early (a killed process: no summary, maybe half a chunk) is read
+up to its last complete chunk and :attr:`RunLog.truncated` says so; a damaged chunk stops the
+reading there; a damage outside the chunks sets :attr:`RunLog.damaged`. :attr:`RunLog.notice` is
+the one line the commands print about it. Messages outside chunks (an unchunked MCAP) are read
+too. Each topic comes back in log-time order (a stable sort when the file holds it otherwise).
+Numbers come back bit-exactly (see :mod:`usv_mj.runlog.topics` for the NaN / infinity convention).
+
+Memory: a row topic is decoded chunk by chunk into one growing (rows x fields) array
+(:class:`_Rows`, grown in place by ``realloc``), not into per-chunk pieces joined at the end, so
+reading a run needs about the record's own size twice (the topic arrays and the RunRecord).
 """
 
 from __future__ import annotations
@@ -18,11 +27,12 @@ from pathlib import Path
 import numpy as np
 import zstandard
 from mcap.data_stream import ReadDataStream
-from mcap.records import Attachment, Channel, Chunk, Footer, Header, Metadata, Schema
+from mcap.records import Attachment, Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from numba import njit
 
 from . import json_codec, protobuf_rows
+from .mcap_file import message_record
 
 from ..record import COL, CORE_COLUMNS, Event, RunRecord
 from .extra_topics import environment_arrays, obstacle_arrays
@@ -136,18 +146,121 @@ def _gather_values(buf, starts, ends, out):
     return p
 
 
+class _Checked:
+    """The file as the StreamReader reads it, with the CRCs its records promise computed on the way:
+    ``crc`` of every byte read so far, ``before`` = the CRC before each of the last two reads (the
+    opcode and the length of the record being read), ``summary`` = the bytes read after DataEnd."""
+
+    def __init__(self, raw):
+        self._raw = raw
+        self.crc = 0
+        self.before = [0, 0]
+        self.summary: bytearray | None = None
+
+    def read(self, n=-1):
+        data = self._raw.read(n)
+        self.before = [self.before[1], self.crc]
+        self.crc = zlib.crc32(data, self.crc)
+        if self.summary is not None:
+            self.summary += data
+        return data
+
+    def close(self):
+        self._raw.close()
+
+
 class _DataReader(StreamReader):
     """mcap's StreamReader without the index records (message, chunk, attachment and metadata
     indexes, statistics, summary offsets), which it parses pair by pair in Python (four fifths of
-    reading a run log) and which a front-to-back reader does not need: their bytes are skipped.
+    reading a run log) and which a front-to-back reader does not need: their bytes are skipped (and
+    still counted in the data-section CRC). The DataEnd record's data-section CRC and the footer's
+    summary CRC are checked against ``checked`` (:class:`_Checked`); a mismatch is noted in
+    ``crc_problems``, not raised, so the records read stay usable.
     If a later mcap has no ``_read_record`` to override, every record is parsed as before."""
 
     _SKIP = frozenset({0x07, 0x08, 0x0A, 0x0B, 0x0D, 0x0E})
 
+    def __init__(self, checked: _Checked, **kwargs):
+        super().__init__(checked, **kwargs)
+        self.checked = checked
+        self.crc_problems: list[str] = []
+
     def _read_record(self, opcode, length):
         if opcode in self._SKIP:
             return None
+        if opcode == 0x0F:                                   # DataEnd
+            crc = self.checked.before[0]                    # of every byte before this record
+            rec = super()._read_record(opcode, length)
+            if rec.data_section_crc and rec.data_section_crc != crc:
+                self.crc_problems.append(
+                    "the data section's CRC does not match its DataEnd record: a record outside the chunks "
+                    "(header, schema, channel, metadata or index) is damaged; the chunks' own CRCs held")
+            self.checked.summary = bytearray()
+            return rec
+        if opcode == 0x02 and self.checked.summary is not None:   # Footer
+            rec = super()._read_record(opcode, length)
+            if rec.summary_crc and zlib.crc32(bytes(self.checked.summary[:-4])) != rec.summary_crc:
+                self.crc_problems.append("the summary's CRC does not match the footer (the summary section "
+                                         "is damaged; the data section was read whole)")
+            return rec
         return super()._read_record(opcode, length)
+
+
+class _Rows:
+    """One row topic's messages as they are decoded: log times and a (rows x fields) float64 array,
+    grown in place (``ndarray.resize``: a ``realloc``, which for big arrays remaps pages instead of
+    copying them) so that reading needs no per-chunk pieces joined at the end."""
+
+    def __init__(self, keys: tuple, width: int, capacity: int = 0):
+        """``capacity``: the rows expected (the summary's message count when the file has one)."""
+        self.keys = keys
+        cap = max(int(capacity), 1024)
+        try:
+            self.lt = np.empty(cap, np.int64)
+            self.values = np.empty((cap, width), np.float64)
+        except MemoryError:                 # a hint from a damaged summary: grow as the rows come instead
+            self.lt = np.empty(1024, np.int64)
+            self.values = np.empty((1024, width), np.float64)
+        self.n = 0
+
+    def append(self, lt, values) -> None:
+        m = len(lt)
+        need = self.n + m
+        if need > len(self.lt):
+            cap = max(need, 2 * len(self.lt))
+            self.lt.resize(cap, refcheck=False)
+            self.values.resize((cap, self.values.shape[1]), refcheck=False)
+        self.lt[self.n:need] = lt
+        self.values[self.n:need] = values
+        self.n = need
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.lt[:self.n], self.values[:self.n]
+
+    def trim(self) -> None:
+        """Give back the capacity not used (a shrinking ``realloc`` unmaps the tail)."""
+        if len(self.lt) > self.n:
+            self.lt.resize(max(self.n, 1), refcheck=False)
+            self.values.resize((max(self.n, 1), self.values.shape[1]), refcheck=False)
+
+
+def _add_rows(scan, ch: int, lt, keys: tuple, values) -> None:
+    """A chunk's decoded rows of channel ``ch``, appended to its last :class:`_Rows` when the fields agree."""
+    pieces = scan.pieces.setdefault(ch, [])
+    if not pieces or not isinstance(pieces[-1], _Rows) or pieces[-1].keys != tuple(keys) \
+            or pieces[-1].values.shape[1] != values.shape[1]:
+        pieces.append(_Rows(tuple(keys), values.shape[1], scan.expected.get(ch, 0) if not pieces else 0))
+    pieces[-1].append(lt, values)
+
+
+def _in_time_order(lt: np.ndarray, *arrays):
+    """``lt`` and the arrays (rows along the first axis) sorted by log time (stable: messages of one
+    log time keep the order of the file); the same objects when already in order."""
+    if lt.size > 1 and np.any(lt[1:] < lt[:-1]):
+        order = np.argsort(lt, kind="stable")
+        return (lt[order],) + tuple(a[order] if isinstance(a, np.ndarray) else [a[i] for i in order.tolist()]
+                                    for a in arrays)
+    return (lt,) + arrays
 
 
 @dataclass
@@ -157,11 +270,12 @@ class _Scan:
     metadata: list = field(default_factory=list)      # (name, dict)
     attachments: dict = field(default_factory=dict)   # name -> bytes
     media_types: dict = field(default_factory=dict)
-    pieces: dict = field(default_factory=dict)        # channel id -> list of (log_times, keys or None, data)
+    pieces: dict = field(default_factory=dict)        # channel id -> list of _Rows or (log_times, None, data)
     counts: dict = field(default_factory=dict)        # channel id -> messages
     header: Header | None = None
-    complete: bool = False                            # the footer was reached
-    truncated: bool = False
+    complete: bool = False                            # footer and closing magic reached, every CRC held
+    truncated: bool = False                           # the reading stopped before the end (cut or damaged chunk)
+    damaged: bool = False                             # bytes are wrong somewhere (a CRC did not hold)
     problem: str = ""
     chunks: int = 0
     end_time: int = 0
@@ -170,9 +284,37 @@ class _Scan:
     flat: object = None                               # predicate: channel holds flat numeric objects
     protobuf: dict = field(default_factory=dict)      # channel id -> (message class, FixedLayout or None)
     strings: dict = field(default_factory=dict)       # channel id -> the fixed strings of its messages
+    expected: dict = field(default_factory=dict)      # channel id -> messages the summary counts (a capacity hint)
+
+
+def _expected_counts(source) -> dict:
+    """The summary's message count per channel of a file with a summary ({} for a stream, a cut
+    file or a damaged summary: then the row arrays grow as they are read). Only a hint for the
+    arrays' capacity; nothing read is trusted from it."""
+    if not isinstance(source, (str, Path)):
+        return {}
+    try:
+        from mcap.reader import make_reader
+
+        with open(source, "rb") as f:
+            size = f.seek(0, 2)
+            f.seek(max(0, size - 37))              # footer record (29 bytes) and the closing magic (8)
+            tail = f.read(37)
+            start = int.from_bytes(tail[9:17], "little") if len(tail) == 37 and tail[0] == 0x02 else 0
+            if not 0 < start < size or size - start > 64 << 20:   # no footer, or a damaged one: no hint
+                return {}
+            f.seek(0)
+            summary = make_reader(f).get_summary()
+        stats = summary.statistics if summary is not None else None
+        return {int(k): int(v) for k, v in (stats.channel_message_counts if stats else {}).items() if 0 <= v < 1 << 34}
+    except Exception:  # noqa: BLE001 - a cut or damaged file has no usable summary: no hint
+        return {}
 
 
 def _open(source):
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        raise RunLogReadError(f"a run log is read from a path or a binary stream, not from {type(source).__name__} "
+                              "(wrap the bytes in io.BytesIO)")
     if isinstance(source, (str, Path)):
         path = Path(source)
         if not path.exists():
@@ -186,10 +328,12 @@ def _open(source):
             raise RunLogReadError(f"{path}: not an MCAP file (it starts with {head!r}, not the MCAP magic)")
         f.seek(0)
         return f, str(path), path.stat().st_size
+    if not hasattr(source, "read"):
+        raise RunLogReadError(f"a run log is read from a path or a binary stream, not from {type(source).__name__}")
     head = source.read(8)
     if head != MAGIC:
         raise RunLogReadError(f"{source!r}: not an MCAP stream (starts with {head!r})")
-    return _Prepend(head, source), repr(source), 0
+    return io.BufferedReader(_Prepend(head, source)), "the stream", 0
 
 
 class _Prepend(io.RawIOBase):
@@ -219,13 +363,22 @@ class _Prepend(io.RawIOBase):
 
 
 def _scan(source, want=None, decode=True, flat=None) -> _Scan:
-    """Read records front to back. ``want(channel id)``: keep the data of that channel (default all);
+    """Read records front to back. ``want(scan, channel id)``: keep the data of that channel (default all);
     ``flat(channel id)``: that channel holds flat numeric objects (decoded to arrays directly)."""
     stream, name, size = _open(source)
-    scan = _Scan(size=size, flat=flat)
+    checked = _Checked(stream)
+    scan = _Scan(size=size, flat=flat, expected=_expected_counts(source) if decode else {})
     dctx = zstandard.ZstdDecompressor()
+    loose: list = []                     # message records outside chunks, taken as one chunk when they end
+    footer = None
+
+    def take_loose():
+        if loose:
+            _take_chunk(scan, b"".join(loose), want, decode)
+            loose.clear()
+
     try:
-        reader = _DataReader(stream, emit_chunks=True, record_size_limit=None)
+        reader = _DataReader(checked, emit_chunks=True, record_size_limit=None)
         it = reader.records
         while True:
             try:
@@ -233,10 +386,18 @@ def _scan(source, want=None, decode=True, flat=None) -> _Scan:
             except StopIteration:
                 break
             except Exception as exc:  # noqa: BLE001 - any failure here is a cut or damaged end
+                take_loose()
                 scan.truncated = True
-                scan.problem = f"the file ends or is damaged after {scan.chunks} complete chunks ({type(exc).__name__}" \
-                               f"{': ' + str(exc) if str(exc) else ''})"
+                if footer is not None:
+                    scan.problem = "the file ends inside its closing magic (its last bytes are missing)"
+                else:
+                    scan.problem = f"the file ends or is damaged after {scan.chunks} complete chunks " \
+                                   f"({type(exc).__name__}{': ' + str(exc) if str(exc) else ''})"
                 break
+            if isinstance(rec, Message):
+                loose.append(message_record(rec.channel_id, rec.log_time, rec.data, rec.sequence))
+                continue
+            take_loose()
             if isinstance(rec, Chunk):
                 try:
                     if rec.compression == "zstd":
@@ -253,8 +414,9 @@ def _scan(source, want=None, decode=True, flat=None) -> _Scan:
                         raise ValueError("chunk shorter than its declared size")
                     if rec.uncompressed_crc and zlib.crc32(data) != rec.uncompressed_crc:
                         raise ValueError("chunk CRC mismatch")
+                    _check_chunk_records(data)
                 except Exception as exc:  # noqa: BLE001
-                    scan.truncated = True
+                    scan.truncated = scan.damaged = True
                     scan.problem = f"chunk {scan.chunks + 1} is incomplete or damaged ({exc}); read up to the " \
                                    f"{scan.chunks} complete chunks before it"
                     break
@@ -272,15 +434,50 @@ def _scan(source, want=None, decode=True, flat=None) -> _Scan:
             elif isinstance(rec, Header):
                 scan.header = rec
             elif isinstance(rec, Footer):
+                footer = rec
+        take_loose()
+        if footer is not None and not scan.truncated:
+            if stream.read(1):
+                scan.damaged = True
+                scan.problem = "bytes follow the closing magic (two files joined, or a damaged end)"
+            else:
                 scan.complete = True
+        if reader.crc_problems:
+            scan.damaged, scan.complete = True, False
+            scan.problem = "; ".join(reader.crc_problems + ([scan.problem] if scan.problem else []))
     finally:
         stream.close()
-    if not scan.complete and not scan.truncated:
+    for pieces in scan.pieces.values():
+        for piece in pieces:
+            if isinstance(piece, _Rows):
+                piece.trim()
+    if not scan.complete and not scan.truncated and not scan.damaged:
         scan.truncated = True
         scan.problem = scan.problem or "the file ends before its summary and footer"
     if scan.header is None:
         raise RunLogReadError(f"{name}: not a readable MCAP file ({scan.problem or 'no header'})")
     return scan
+
+
+@njit(cache=True)
+def _records_tile(buf) -> bool:
+    """The records of an uncompressed chunk tile it exactly, and every message record is long
+    enough for its header (a chunk whose CRC was not written could otherwise hold a cut record)."""
+    n = buf.shape[0]
+    p = 0
+    while p + 9 <= n:
+        length = 0
+        for b in range(8):
+            length |= np.int64(buf[p + 1 + b]) << (8 * b)
+        if length < 0 or (buf[p] == 5 and length < 22):
+            return False
+        p += 9 + length
+    return p == n
+
+
+def _check_chunk_records(data: bytes) -> None:
+    if not _records_tile(np.frombuffer(data, np.uint8)):
+        raise ValueError("its records do not fill it exactly (a record is cut or a length is damaged)")
 
 
 def _take_chunk(scan: _Scan, data: bytes, want, decode: bool):
@@ -304,7 +501,7 @@ def _take_chunk(scan: _Scan, data: bytes, want, decode: bool):
         sel = np.flatnonzero(chan == ch)
         ch = int(ch)
         scan.counts[ch] = scan.counts.get(ch, 0) + len(sel)
-        if not decode or (want is not None and not want(ch)):
+        if not decode or (want is not None and not want(scan, ch)):
             continue
         s, e = start[sel], end[sel]
         channel = scan.channels.get(ch)
@@ -322,7 +519,7 @@ def _take_chunk(scan: _Scan, data: bytes, want, decode: bool):
                 if tuple(_decode_array(data[s[-1]:e[-1]]).keys()) == keys:
                     values = np.array(_decode_array(out[:n + 2].tobytes()), dtype=np.float64)
                     if values.ndim == 2 and values.shape[1] == len(keys):
-                        scan.pieces.setdefault(ch, []).append((lt[sel], keys, values))
+                        _add_rows(scan, ch, lt[sel], keys, values)
                         continue
         out = np.empty(int((e - s).sum()) + len(sel) + 2, np.uint8)
         out[0] = 91  # '['
@@ -357,7 +554,7 @@ def _take_protobuf(scan: _Scan, ch: int, data: bytes, buf: np.ndarray, lt, s, e)
             scan.strings[ch] = layout.strings
     values = protobuf_rows.decode_payloads(buf, s, e, layout) if layout else None
     if values is not None:
-        scan.pieces.setdefault(ch, []).append((lt, layout.paths, values))
+        _add_rows(scan, ch, lt, layout.paths, values)
     else:
         msgs, times = [], []
         for a, b, t in zip(s.tolist(), e.tolist(), lt.tolist()):
@@ -375,29 +572,39 @@ def _decode_array(text: bytes):
 
 
 def _messages(scan: _Scan, ch: int) -> tuple[np.ndarray, list]:
-    """All messages of a channel as dicts (chunks decoded to arrays are turned back; protobuf
-    messages are flat {path: value} dicts)."""
+    """All messages of a channel as dicts, in log-time order (chunks decoded to arrays are turned
+    back; protobuf messages are flat {path: value} dicts)."""
     times, msgs = [], []
     strings = scan.strings.get(ch, {})
-    for lt, keys, data in scan.pieces.get(ch, []):
+    for piece in scan.pieces.get(ch, []):
+        if isinstance(piece, _Rows):
+            lt, values = piece.arrays()
+            times.append(lt)
+            msgs += [{**strings, **dict(zip(piece.keys, row))} for row in values.tolist()]
+            continue
+        lt, _, data = piece
         times.append(lt)
-        if keys is None:
-            msgs += data if isinstance(data, list) else _decode_array(data)
-        else:
-            msgs += [{**strings, **dict(zip(keys, row))} for row in data.tolist()]
-    return (np.concatenate(times) if times else np.zeros(0, np.int64)), msgs
+        msgs += data if isinstance(data, list) else _decode_array(data)
+    log_time = np.concatenate(times) if times else np.zeros(0, np.int64)
+    return _in_time_order(log_time, msgs)
 
 
 def _columns(scan: _Scan, ch: int) -> tuple[np.ndarray, dict]:
-    """A channel of flat messages as (log_time, {field: float64 array, or object array for strings})."""
+    """A channel of flat messages as (log_time, {field: float64 array, or object array for strings}),
+    in log-time order. The float columns are views into the channel's one (rows x fields) array."""
     pieces = scan.pieces.get(ch, [])
-    if pieces and all(keys is not None for _, keys, _ in pieces) and len({keys for _, keys, _ in pieces}) == 1:
-        keys = pieces[0][1]
-        values = np.concatenate([v for _, _, v in pieces]) if len(pieces) > 1 else pieces[0][2]
-        cols = {k: values[:, i].copy() for i, k in enumerate(keys)}
+    if pieces and all(isinstance(p, _Rows) for p in pieces) and len({p.keys for p in pieces}) == 1:
+        keys = pieces[0].keys
+        if len(pieces) == 1:
+            log_time, values = pieces[0].arrays()
+        else:
+            log_time = np.concatenate([p.arrays()[0] for p in pieces])
+            values = np.concatenate([p.arrays()[1] for p in pieces])
+        log_time, values = _in_time_order(log_time, values)
+        cols = {k: values[:, i] for i, k in enumerate(keys)}
         for k, text in scan.strings.get(ch, {}).items():
             cols[k] = np.full(len(values), text, dtype=object)
-        return np.concatenate([lt for lt, _, _ in pieces]), cols
+        return log_time, cols
     log_time, msgs = _messages(scan, ch)
     cols = _arrays(msgs, log_time)
     del cols["log_time"]
@@ -473,6 +680,15 @@ class RunLog:
     obstacles_by_run: dict = field(default_factory=dict)    # run -> extra_topics.obstacle_arrays(...)
     environment_by_run: dict = field(default_factory=dict)  # run -> extra_topics.environment_arrays(...)
     files: dict = field(default_factory=dict)               # run -> the file it was read from
+    damaged: bool = False       # a CRC did not hold (a chunk, the data section or the summary)
+    notices: dict = field(default_factory=dict)             # file -> what is wrong with it and what was recovered
+
+    @property
+    def notice(self) -> str:
+        """One line for the user when this log or a companion read with it is cut or damaged, with
+        what was recovered ("" when every file read is complete): what ``plot`` and ``render`` print
+        and write into their report and figure titles."""
+        return "; ".join(f"{Path(f).name}: {text}" for f, text in self.notices.items())
 
     @property
     def obstacles(self) -> dict | None:
@@ -574,15 +790,18 @@ def read_run(path, companions: bool = True) -> RunLog:
     A run whose end record is missing (the file was cut) gets ``status = "truncated"`` and a
     ``stop_reason`` saying where the log ends. With ``companions`` (and a path), the runs of the
     companion files beside it (the main job's ``baseline.mcap``) are added; ``RunLog.files`` says
-    which file each run came from.
+    which file each run came from. ``RunLog.notice`` is one line naming each file read (this one
+    and its companions) that is cut or damaged and the rows recovered from it ("" when all are whole).
     """
     log = _read_one(path)
     if companions and isinstance(path, (str, Path)):
         for other in companion_files(path):
             try:
                 more = _read_one(other)
-            except RunLogReadError:
+            except RunLogReadError as exc:
+                log.notices[str(other)] = f"could not be read, so its runs are missing ({exc})"
                 continue
+            log.notices.update(more.notices)
             for run, rec in more.runs.items():
                 if run in log.runs:
                     continue
@@ -599,8 +818,18 @@ def read_run(path, companions: bool = True) -> RunLog:
     return log
 
 
+_RUN_TOPICS = ("events", "obstacles", "environment")     # beside the row topics, what a RunRecord is made of
+
+
+def _run_channel(scan: _Scan, ch: int) -> bool:
+    """What ``read_run`` decodes: the row topics and the topics above (the Foxglove scene topics,
+    frames, funnel, path and hull, are skipped: they hold nothing a RunRecord has)."""
+    c = scan.channels.get(ch)
+    return c is None or _is_row_channel(scan, ch) or c.topic.rsplit("/", 1)[-1] in _RUN_TOPICS
+
+
 def _read_one(path) -> RunLog:
-    scan = _scan(path, flat=_is_row_channel)
+    scan = _scan(path, want=_run_channel, flat=_is_row_channel)
     file_meta, runs_meta = {}, {}
     for name, m in scan.metadata:
         if name == "usv_mj":
@@ -690,10 +919,16 @@ def _read_one(path) -> RunLog:
         counts.setdefault(c.topic, 0)
     if not runs:
         raise RunLogReadError(f"{path}: no usv_mj run in this MCAP file ({scan.problem or 'no /usv/state topic'})")
+    notices = {}
+    if not scan.complete:
+        what = "cut short" if scan.truncated and not scan.damaged else "damaged"
+        got = ", ".join(f"{run} {len(rec)} rows up to t = {float(rec['t'][-1]):.3f} s" if len(rec) else f"{run} no rows"
+                        for run, rec in runs.items())
+        notices[str(path)] = f"{what} ({scan.problem}); recovered: {got}"
     return RunLog(path=str(path), runs=runs, metadata=file_meta, attachments=dict(scan.attachments),
                   topic_counts=counts, truncated=scan.truncated, complete=scan.complete, problem=scan.problem,
                   summaries=summaries, obstacles_by_run=obstacles_by_run, environment_by_run=environment_by_run,
-                  files={run: str(path) for run in runs})
+                  files={run: str(path) for run in runs}, damaged=scan.damaged, notices=notices)
 
 
 def load_topic(path, topic: str) -> dict:
@@ -705,7 +940,7 @@ def load_topic(path, topic: str) -> dict:
     """
     holder = {}
 
-    def want(ch):
+    def want(scan, ch):
         return ch == holder.get("cid")
 
     stream_meta = _scan(path, decode=False)
@@ -731,5 +966,5 @@ def scan_summary(path) -> dict:
                            "encoding": c.message_encoding}
     return {"topics": topics, "metadata": scan.metadata, "attachments": {k: len(v) for k, v in scan.attachments.items()},
             "start_ns": scan.start_time or 0, "end_ns": scan.end_time, "complete": scan.complete,
-            "truncated": scan.truncated, "problem": scan.problem, "chunks": scan.chunks, "size": scan.size,
+            "truncated": scan.truncated, "damaged": scan.damaged, "problem": scan.problem, "chunks": scan.chunks, "size": scan.size,
             "library": scan.header.library if scan.header else ""}

@@ -638,12 +638,16 @@ class RunLogWriter:
             self._send(("rows", run, lo + a, ("slot", slot, m, width), events if last else [],
                         None if obstacles is None else obstacles[a:a + m]))
 
-    def sink(self, run: str = "main") -> "RunLogSink":
-        """The RunSink (start/rows/finish) that logs one simulated run under the run's topic prefix."""
+    def sink(self, run: str = "main", log_every: int = 1) -> "RunLogSink":
+        """The RunSink (start/rows/finish) that logs one simulated run under the run's topic prefix;
+        ``log_every`` n: only every n-th control step (rows k = 0, n, 2n, ...: the log reads back as
+        a run of control period n dt; the events and the summary are the full run's)."""
         prefix_for(run)  # validates the name
         if any(s.run == run for s in self._sinks):
             raise RunLogError(f"run {run!r} already has a sink in {self.path}")
-        s = RunLogSink(self, run)
+        if not (isinstance(log_every, int) and log_every >= 1):
+            raise ValueError(f"run log sink: log_every must be an integer >= 1, got {log_every!r}")
+        s = RunLogSink(self, run, log_every)
         self._sinks.append(s)
         return s
 
@@ -718,12 +722,33 @@ def _close_at_exit(ref):
             print(f"usv_mj.runlog: closing {writer.path} at exit failed: {exc}", file=sys.stderr)
 
 
+def log_every(rate_hz, control_period: float, where: str = "--log-rate") -> int:
+    """The n of ``RunLogWriter.sink(log_every=n)`` that logs at ``rate_hz`` [Hz] a run of control
+    period ``control_period`` [s]: round(1 / (rate_hz dt)), at least 1 (None: every step). The rate
+    must divide the control rate (1 kHz: 500, 100, 10, 1 Hz, ...); ScenarioError otherwise."""
+    from ..errors import ScenarioError
+
+    if rate_hz is None:
+        return 1
+    rate = float(rate_hz)
+    full = 1.0 / control_period
+    if not (math.isfinite(rate) and 0 < rate <= full * (1 + 1e-9)):
+        raise ScenarioError(f"{where} {rate_hz!r}: the log rate must be in (0, {full:g}] Hz (the control rate)")
+    n = max(1, int(round(full / rate)))
+    if abs(n * rate - full) > 1e-6 * full:
+        raise ScenarioError(f"{where} {rate_hz!r}: the log rate must divide the control rate {full:g} Hz "
+                            f"(every n-th step: {full / max(1, n):g} or {full / (n + 1):g} Hz)")
+    return n
+
+
 class RunLogSink:
     """The :class:`~usv_mj.simulation.RunSink` of one run in a :class:`RunLogWriter`."""
 
-    def __init__(self, writer: RunLogWriter, run: str):
+    def __init__(self, writer: RunLogWriter, run: str, log_every: int = 1):
         self.writer = writer
         self.run = run
+        self.log_every = log_every
+        self._logged = 0          # rows written to the log (every log_every-th record row)
         self.started = False
         self.finished = False
         self._written: set[int] = set()
@@ -756,6 +781,8 @@ class RunLogSink:
         self.started = True
         self._record = record
         dt = record.metadata.get("control_period_s", getattr(self.writer.scenario, "control_period", 0.001))
+        dt = dt * self.log_every
+        metadata = self._metadata(record)
         # what the run's outputs need comes from the build (record.statics): nothing is rebuilt here
         statics = getattr(record, "statics", None)
         if self.obstacle_log is None and statics is not None:
@@ -771,10 +798,19 @@ class RunLogSink:
         duration = record.metadata.get("duration_s", getattr(self.writer.scenario, "duration", None))
         path = reference_path(getattr(statics, "reference", None), duration) if statics is not None else []
         self.writer._send(("start", self.run, {
-            "control_period_s": float(dt), "metadata": record.metadata, "columns": tuple(record.column_names),
+            "control_period_s": float(dt), "metadata": metadata, "columns": tuple(record.column_names),
             "diagnostic_events": dict(getattr(record, "diagnostic_events", {}) or {}),
             "environment": getattr(statics, "environment", None), "path": path, "obstacles": obstacles,
             "inflation": inflation, "obstacle_log": log is not None}))
+
+    def _metadata(self, record) -> dict:
+        """The record's metadata as the log states it: with ``log_every`` n > 1 the log holds rows
+        k = 0, n, 2n, ...: a run of control period n dt (``simulated_control_period_s``: dt)."""
+        if self.log_every == 1 or "control_period_s" not in record.metadata:
+            return record.metadata
+        dt = record.metadata["control_period_s"]
+        return {**record.metadata, "control_period_s": dt * self.log_every, "log_every": self.log_every,
+                "simulated_control_period_s": dt}
 
     def rows(self, record: RunRecord, lo: int, hi: int) -> None:
         if lo < self._rows:  # rows it already has: the loop resends a block that an interrupt cut
@@ -783,9 +819,18 @@ class RunLogSink:
             return
         if lo != self._rows:
             raise RunLogError(f"run {self.run!r}: rows {lo}..{hi} do not follow row {self._rows}")
-        block = record.data[lo:hi]
+        block = record.block(lo, hi)
+        n = self.log_every
+        pick = slice(None)
+        if n > 1:   # the rows k = 0 (mod n) of [lo, hi); events wait for a block with a logged row
+            pick = slice((-lo) % n, None, n)
+            block = block[pick]
+            if block.shape[0] == 0:
+                self._rows = hi
+                return
         events = self._new_events(record)
         self._rows = hi
+        first, self._logged = self._logged, self._logged + block.shape[0]
         if self.broken:
             return
         try:
@@ -800,8 +845,8 @@ class RunLogSink:
                 have = max(0, min(hi, len(log.clearance)) - lo)   # rows past the log's horizon: NaN
                 clear[:have], force[:have], xy[:have] = (log.clearance[lo:lo + have], log.normal_force[lo:lo + have],
                                                          log.obstacle_xy[lo:lo + have])
-                obs = obstacle_block(block[:, COL["t"]], clear, force, xy)
-            self.writer._send_rows(self.run, lo, block, events, obs)
+                obs = obstacle_block(block[:, COL["t"]], clear[pick], force[pick], xy[pick])
+            self.writer._send_rows(self.run, first, block, events, obs)
         except RunLogError as exc:
             # the log is lost from here on, the run is not: keep simulating, fail at close()
             self.broken = True
@@ -842,5 +887,5 @@ class RunLogSink:
                 summary = {"error": f"summarize failed: {type(exc).__name__}: {exc}"}
         events = self._new_events(record) if record is not None else []
         self.writer._send(("finish", self.run, {
-            "status": status, "stop_reason": stop_reason, "rows": self._rows,
-            "metadata": _json(record.metadata if record is not None else {}), "summary": _json(summary)}, events))
+            "status": status, "stop_reason": stop_reason, "rows": self._logged,
+            "metadata": _json(self._metadata(record) if record is not None else {}), "summary": _json(summary)}, events))

@@ -10,8 +10,10 @@ Directions are written as marine users write them, with the meaning in the key: 
 the direction they come **from**, the current by the direction it sets **toward**, both in compass
 degrees (clockwise from north = +y). :func:`going_to_deg` converts them, once, here, to the angle the
 kernels use: the direction the load travels toward, counter-clockwise from east (+x), in degrees.
-That internal angle is the ``direction_deg`` attribute of the settings classes (and of
-:meth:`SeaSettings.to_dict`, so a run's metadata rebuilds the sea bit for bit).
+That internal angle is the ``direction_deg`` attribute of the settings classes (and of the run's
+metadata, ``Scenario.to_dict``, so that it rebuilds the sea bit for bit); what a user reads
+(:meth:`SeaSettings.to_dict` in summary.json and compare.json, :meth:`SeaSettings.describe` in
+report.md) gives the directions as they are written, ``from_deg`` / ``toward_deg``.
 
 ``direction_deg`` is also still accepted as a key, a deprecated alias with its old meaning (going-to,
 counter-clockwise from +x); a table that gives it beside ``from_deg`` / ``toward_deg`` is refused.
@@ -330,9 +332,32 @@ class SeaSettings:
             parts[section] = _build_section(section, value, source)
         return cls(**parts)
 
+    def describe(self) -> str:
+        """One line for reports, each direction as a scenario writes it (compass degrees clockwise
+        from north; waves and wind coming from, the current setting toward): ``waves Hs 0.2 m, Tp 2 s,
+        from 250 deg; current 0.3 m/s toward 60 deg; wind 5 m/s from 200 deg`` (calm: ``calm water``)."""
+        w, c, a = self.waves, self.current, self.wind
+        parts, deg = [], lambda v: f"{round(v, 6):g}"
+        if w.active:
+            parts.append(f"waves Hs {w.hs:g} m, Tp {w.tp:g} s, from {deg(w.from_deg)} deg")
+        if c.active:
+            parts.append(f"current {c.speed:g} m/s toward {deg(c.toward_deg)} deg")
+        if a.active:
+            parts.append(f"wind {a.speed:g} m/s from {deg(a.from_deg)} deg")
+        return "; ".join(parts) or "calm water"
+
     def to_dict(self) -> dict:
-        """The settings as a plain nested dict (the ``[sea]`` table; for summary.json)."""
-        return {name: dataclasses.asdict(getattr(self, name)) for name in _SECTIONS}
+        """The settings as the ``[sea]`` table a user writes (for summary.json, report.md,
+        compare.json): each direction in its marine key, compass degrees clockwise from north
+        (waves and wind ``from_deg``, coming from; the current ``toward_deg``, setting toward),
+        not the internal ``direction_deg``. :meth:`from_table` reads it back to the same settings."""
+        out = {}
+        for name in _SECTIONS:
+            marine = DIRECTION_KEYS[name]
+            out[name] = {(marine if k == DEPRECATED_DIRECTION_KEY else k):
+                         (compass_deg(v, marine[:-4]) if k == DEPRECATED_DIRECTION_KEY else v)
+                         for k, v in dataclasses.asdict(getattr(self, name)).items()}
+        return out
 
 
 def _hint(key: str, known) -> str:

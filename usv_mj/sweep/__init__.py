@@ -73,9 +73,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=None,
                         help="local cluster: worker processes (default: the number of cores)")
     parser.add_argument("--resume", action="store_true", help="run only the runs missing from DIR/results.parquet")
+    from ..outdir import add_overwrite_argument
+
+    add_overwrite_argument(parser, "--out whole when it holds an earlier usv_mj output (the new sweep is "
+                                   "written beside it and moved into place when it ends)")
     parser.add_argument("--retry-failed", action="store_true",
                         help="with --resume: run the failed runs again too (diverged ones are results and stay)")
     parser.add_argument("--keep-logs", action="store_true", help="write an MCAP log of every run to DIR/logs/")
+    parser.add_argument("--log-rate", type=float, metavar="HZ",
+                        help="with --keep-logs: log every n-th control step (e.g. 10: 10 Hz); default every step")
     parser.add_argument("--max-runs", type=int, default=None,
                         help="run at most N runs now, then stop (--resume continues): sweeps in chunks")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -85,14 +91,16 @@ def run_command(args: argparse.Namespace) -> int:
     """``usv-mj sweep``: 0 when every run was recorded, 2 on a bad sweep file or option, 1 when interrupted."""
     import sys
 
-    if args.out is None:
-        from pathlib import Path
+    from pathlib import Path
 
+    if args.out is None:
         args.out = str(Path("renders") / f"sweep-{Path(args.sweep).stem}")
     try:
-        from ..preflight import check_output_path
+        from ..outdir import Staging, check_folder, entries
 
-        check_output_path(args.out)
+        if args.resume and args.overwrite:
+            raise SweepError("--resume continues the sweep in --out, --overwrite replaces it: give one of them")
+        check_folder(args.out, args.overwrite, resume=args.resume)
         plan = load_sweep(args.sweep)
         if args.workers is not None and args.workers < 1:
             raise SweepError(f"--workers must be >= 1, got {args.workers}")
@@ -101,11 +109,33 @@ def run_command(args: argparse.Namespace) -> int:
         max_runs = getattr(args, "max_runs", None)
         if max_runs is not None and max_runs < 1:
             raise SweepError(f"--max-runs must be >= 1, got {max_runs}")
+        log_rate = getattr(args, "log_rate", None)
+        if log_rate is not None:
+            from ..runlog.writer import log_every
+
+            if not args.keep_logs:
+                raise SweepError("--log-rate goes with --keep-logs")
+            for run in plan.runs:   # every run's control period must allow the rate
+                log_every(log_rate, run.scenario.control_period)
         print(f"{args.sweep}: {len(plan.runs)} runs, all validated", flush=True)
-        result = run_sweep(plan, args.out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
-                           keep_logs=args.keep_logs, progress=not getattr(args, "no_progress", False),
-                           max_runs=max_runs, jobqueue=getattr(args, "jobqueue", None),
-                           jobs=getattr(args, "jobs", 1), retry_failed=getattr(args, "retry_failed", False))
+        # a sweep into a new folder writes in place (a killed one stays resumable); one that replaces
+        # an earlier output is staged, so that the old one stays until the new one ends
+        replacing = Path(args.out).is_dir() and not args.resume and any(entries(Path(args.out)))
+        stage = Staging(Path(args.out)) if replacing else None
+        try:
+            result = run_sweep(plan, stage.path if stage else args.out, scheduler=args.scheduler,
+                               workers=args.workers, resume=args.resume,
+                               keep_logs=args.keep_logs, log_rate=log_rate,
+                               progress=not getattr(args, "no_progress", False),
+                               max_runs=max_runs, jobqueue=getattr(args, "jobqueue", None),
+                               jobs=getattr(args, "jobs", 1), retry_failed=getattr(args, "retry_failed", False))
+        except ScenarioError:
+            if stage:
+                stage.discard()
+            raise
+        finally:
+            if stage and stage.path.exists():
+                stage.commit()
     except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj sweep: error: {exc}", file=sys.stderr)
         return 2

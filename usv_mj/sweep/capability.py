@@ -292,6 +292,9 @@ def add_capability_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", default=None,
                         help="output folder for capability.md, capability.png, capability.json "
                              "(default renders/capability-<load>)")
+    from ..outdir import add_overwrite_argument
+
+    add_overwrite_argument(parser, "--out whole when it holds an earlier usv_mj output")
     parser.add_argument("--scheduler", default=None, help="address of a running Dask scheduler")
     parser.add_argument("--workers", type=int, default=None, help="local cluster: worker processes")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -446,19 +449,23 @@ def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows, cri
 def capability_command(args: argparse.Namespace) -> int:
     """``usv-mj capability``: 0 on success, 2 on bad input or a load not available yet, 1 when interrupted."""
     if args.out is None:
-        from pathlib import Path
-
         args.out = str(Path("renders") / f"capability-{args.load}")
     try:
-        from ..preflight import check_output_path
+        from ..outdir import Staging, check_folder
 
-        check_output_path(args.out)
+        check_folder(args.out, args.overwrite)
         if args.workers is not None and args.workers < 1:
             raise SweepError(f"--workers must be >= 1, got {args.workers}")
-        results = run_capability(args.load, base=args.base, duration=args.duration, plant=args.plant,
-                                 step=args.step, load_min=args.load_min, load_max=args.load_max, tol=args.tol,
-                                 out=args.out, scheduler=args.scheduler, workers=args.workers,
-                                 progress=not args.no_progress)
+        stage = Staging(Path(args.out))
+        try:
+            results = run_capability(args.load, base=args.base, duration=args.duration, plant=args.plant,
+                                     step=args.step, load_min=args.load_min, load_max=args.load_max, tol=args.tol,
+                                     out=stage.path, scheduler=args.scheduler, workers=args.workers,
+                                     progress=not args.no_progress)
+        except BaseException:
+            stage.discard()
+            raise
+        stage.commit()
     except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj capability: error: {exc}", file=sys.stderr)
         return 2

@@ -39,6 +39,9 @@ import numpy as np
 from .spec import RunSpec, SweepError, SweepPlan
 
 RESULTS_FILE = "results.parquet"
+#: What a sweep writes into its folder, by name (listed in its manifest before they are written).
+OUTPUT_PATTERNS = ("sweep.json", RESULTS_FILE, f".{RESULTS_FILE}.*.tmp", "report.md", "figures", "figures/*.png",
+                   "logs", "logs/run-*")
 FINGERPRINT_KEY = b"usv_mj.sweep.fingerprint"
 TIMING_COLUMNS = ("task_wall_time_s", "wall_time_s", "realtime_factor")
 """Columns that measure time on the machine: they differ between two runs of the same sweep."""
@@ -71,17 +74,25 @@ def transient_errors(record, transient: float) -> dict:
 
     None where the run did not reach the transient's end.
     """
-    from ..summary import pose_errors
+    from ..summary import column_chunks, pose_errors
 
-    t = record["t"]
-    after = t > transient
-    if not after.any():
+    names = ("t", "x", "x_d", "y", "y_d", "psi", "psi_d")
+    peak: dict = {}
+    for chunk in column_chunks(record, names):   # chunk by chunk: a long stored record stays on disk
+        c = dict(zip(names, chunk))
+        after = c["t"] > transient
+        if not after.any():
+            continue
+        err = pose_errors(c)
+        for key, v in (("x", np.abs(err["x"])), ("y", np.abs(err["y"])), ("psi", np.abs(err["psi"])),
+                       ("pos", np.hypot(err["x"], err["y"]))):
+            m = np.max(v[after])
+            peak[key] = m if key not in peak else np.maximum(peak[key], m)   # NaN, as np.max, wins
+    if not peak:
         return {"max_abs_error_after_transient.x": None, "max_abs_error_after_transient.y": None,
                 "max_abs_error_after_transient.psi": None, "max_position_error_after_transient": None}
-    err = pose_errors(record)
-    out = {f"max_abs_error_after_transient.{a}": _finite_or_none(np.max(np.abs(err[a][after])))
-           for a in ("x", "y", "psi")}
-    out["max_position_error_after_transient"] = _finite_or_none(np.max(np.hypot(err["x"][after], err["y"][after])))
+    out = {f"max_abs_error_after_transient.{a}": _finite_or_none(peak[a]) for a in ("x", "y", "psi")}
+    out["max_position_error_after_transient"] = _finite_or_none(peak["pos"])
     return out
 
 
@@ -100,7 +111,9 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
     ``usv_mj.runlog.RunLogWriter``); ``imports`` (modules that register the run's kinds at
     runtime: imported first, :func:`usv_mj.kinds.worker_imports`); ``hooks`` (tests only,
     honoured only when the environment variable ``USV_MJ_SWEEP_TEST_HOOKS`` is "1" in the worker:
-    ``raise`` / ``exit_worker`` sets of run ids).
+    ``raise`` / ``exit_worker`` sets of run ids; ``hold``: those runs touch
+    ``$USV_MJ_SWEEP_TEST_RELEASE.started-<id>`` and wait until the file ``$USV_MJ_SWEEP_TEST_RELEASE``
+    exists, so that a test can interrupt a sweep that is certainly not finished).
     """
     from ..simulation import simulate
     from ..summary import summarize
@@ -114,6 +127,11 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
                 os._exit(13)  # the worker process dies mid-task
             if run_id in hooks.get("raise", ()):
                 raise RuntimeError(f"test hook: run {run_id} raises")
+            release = os.environ.get("USV_MJ_SWEEP_TEST_RELEASE")
+            if run_id in hooks.get("hold", ()) and release:   # says it started, then waits for the file
+                Path(f"{release}.started-{run_id}").touch()
+                while not os.path.exists(release):
+                    time.sleep(0.01)
         for module in options.get("imports", ()):
             importlib.import_module(module)
         sinks = []
@@ -123,7 +141,9 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
 
             # in this process: a Dask worker is a daemonic process and may not start the writer's child
             writer = RunLogWriter(options["log_path"], scenario, background=False)
-            sinks.append(writer.sink(run="main"))
+            from ..runlog.writer import log_every
+
+            sinks.append(writer.sink(run="main", log_every=log_every(options.get("log_rate"), scenario.control_period)))
         try:
             record = simulate(scenario, sinks=sinks)
         except BaseException:
@@ -280,7 +300,7 @@ def _dashboard(client) -> str:
     try:
         import bokeh  # noqa: F401  (distributed serves its dashboard only with bokeh)
     except ImportError:
-        return "not served (pip install 'bokeh>=3.1' for the Dask dashboard)"
+        return "not served (pip install \"usv_mj[hpc]\" for the Dask dashboard)"
     link = client.dashboard_link
     return link or "not served"
 
@@ -336,15 +356,37 @@ def open_client(scheduler: str | None = None, workers: int | None = None,
     n = int(workers or os.cpu_count() or 1)
     if n < 1:
         raise SweepError(f"--workers must be >= 1, got {n}")
+    # the workers' own loggers at CRITICAL: a run that fails comes back as a row with its reason, and
+    # a cluster closed under them (Ctrl-C) makes them log heartbeat ERRORs with tracebacks
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
+                           silence_logs=logging.CRITICAL)
     client = Client(cluster)
     echo(f"local Dask cluster: {n} worker processes x 1 thread; dashboard: {_dashboard(client)}")
     try:
         yield client
     finally:
-        client.close()
-        cluster.close()
+        with _quiet_teardown():
+            client.close()
+            cluster.close()
+
+
+@contextlib.contextmanager
+def _quiet_teardown():
+    """The local cluster closed after a Ctrl-C: its scheduler (in this process) logs at CRITICAL, with
+    tracebacks, each task it can no longer report to the closed client ("Closed comm ... lost-data").
+    That is the teardown, not a fault; its loggers are silenced while it lasts."""
+    import logging
+
+    loggers = [logging.getLogger(name) for name in ("distributed", "distributed.scheduler", "distributed.core",
+                                                    "distributed.batched", "distributed.nanny")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
 
 
 def jobqueue_cluster(kind: str = "slurm", jobs: int = 1, **kwargs):
@@ -359,7 +401,9 @@ def jobqueue_cluster(kind: str = "slurm", jobs: int = 1, **kwargs):
     try:
         import dask_jobqueue
     except ImportError:
-        raise SweepError("dask-jobqueue is not installed: pip install dask-jobqueue") from None
+        from ..errors import missing_extra
+
+        raise SweepError(str(missing_extra("dask_jobqueue", "--jobqueue"))) from None
     classes = {"slurm": "SLURMCluster", "pbs": "PBSCluster", "sge": "SGECluster", "lsf": "LSFCluster",
                "oar": "OARCluster", "htcondor": "HTCondorCluster", "moab": "MoabCluster"}
     if kind not in classes:
@@ -465,14 +509,15 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
               resume: bool = False, keep_logs: bool = False, progress: bool = True, flush_every: float = 2.0,
               client=None, echo: Callable[[str], None] | None = print, report: bool = True,
               max_runs: int | None = None, jobqueue: str | None = None, jobs: int = 1,
-              retry_failed: bool = False) -> SweepResult:
+              retry_failed: bool = False, log_rate: float | None = None) -> SweepResult:
     """Run the plan's missing runs on Dask, streaming rows into ``out/results.parquet``; then the report.
 
     ``client``: an existing ``distributed.Client`` (else one is opened by :func:`open_client`).
     ``max_runs``: stop after this many new rows, as an interrupt would (the rest waits for ``resume``).
     ``jobqueue``, ``jobs``: run on a batch system through dask-jobqueue (see :func:`open_client`).
     ``retry_failed``: with ``resume``, run the ``failed`` rows again too (a worker that died of a
-    lack of memory, say); diverged runs are results and stay.
+    lack of memory, say); diverged runs are results and stay. ``log_rate`` [Hz]: with ``keep_logs``,
+    each log holds every n-th control step (``RunLogWriter.sink(log_every=n)``).
     Raises :class:`SweepError` when ``out`` already holds results and ``resume`` is False, or holds
     results of another plan. KeyboardInterrupt propagates after the rows so far are written.
     """
@@ -480,6 +525,9 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     out = Path(out)
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
+    from ..outdir import record
+
+    record(out, [], patterns=OUTPUT_PATTERNS)   # claimed before written: a killed sweep stays resumable
     results = out / RESULTS_FILE
     rows: dict[int, dict] = {}
     if results.exists():
@@ -513,15 +561,17 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     base_options = {"transient": plan.transient, "hooks": plan.test_hooks or None}
     n_jobs = jobs
     tasks = []
-    for run in todo:
+    for run in todo[:max_runs]:        # only what will run is submitted (--max-runs 10 of 60,000: 10 tasks)
         opts = dict(base_options)
         if log_dir is not None:
             opts["log_path"] = str(log_dir / f"run-{run.run_id:06d}.mcap")
+            opts["log_rate"] = log_rate
         tasks.append((run, opts))
     ran = 0
     timing: dict = {}
     if todo:
-        echo(f"{len(plan.runs)} runs in the sweep, {len(rows)} already in {results}, {len(todo)} to run")
+        echo(f"{len(plan.runs)} runs in the sweep, {len(rows)} already in {results}, {len(todo)} to run"
+             + (f", {len(tasks)} of them now (max_runs)" if len(tasks) < len(todo) else ""))
         bar = None
         state = {"last_flush": time.monotonic(), "failed": sum(r["status"] != "ok" for r in rows.values()),
                  "dirty": False}

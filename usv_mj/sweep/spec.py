@@ -78,7 +78,8 @@ DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
 TOP_KEYS = ("base", "duration", "plant", "samples", "seed", "transient", "set", "vary", "name")
 TEST_HOOKS_ENV = "USV_MJ_SWEEP_TEST_HOOKS"
 """When this environment variable is "1", a sweep file may carry ``test_hooks = { raise = [ids],
-exit_worker = [ids] }``: the runs with those ids raise / kill their worker process (tests only)."""
+exit_worker = [ids], hold = [ids] }``: the runs with those ids raise / kill their worker process /
+wait for a file (tests only; see :func:`usv_mj.sweep.runner.run_one`)."""
 
 _NAME = r"[A-Za-z_][A-Za-z0-9_]*"
 _PART = re.compile(rf"({_NAME})((?:\[\d+\])*)")
@@ -325,7 +326,9 @@ def _range_ends(axis: Axis) -> list:
 
 def load_sweep(path: str | Path) -> SweepPlan:
     """Read, sample and validate a sweep file; see the module docstring for the format."""
-    path = Path(path)
+    from ..example_files import resolve
+
+    path = resolve(path, "sweeps")            # an example's name (quick) finds its file
     source = str(path)
     data = read_toml(path, SweepError, "sweep file")
     return plan_sweep(data, source=source, directory=path.parent)
@@ -340,6 +343,10 @@ def _load_base(source: str, base: Any, directory: Path | None) -> Scenario:
             if not candidate.is_file():
                 raise SweepError(f"{source}: base scenario file {str(candidate)!r} does not exist")
             return load_scenario(candidate)
+        from ..example_files import find
+
+        if base not in preset_names() and find(base, "scenarios") is not None:
+            return load_scenario(find(base, "scenarios"))
         if base not in preset_names():
             hint = difflib.get_close_matches(base, preset_names(), n=1)
             raise SweepError(f"{source}: base {base!r} is neither a preset ({', '.join(preset_names())}) nor a "
