@@ -12,16 +12,16 @@ from pathlib import Path
 
 import numpy as np
 
-from usv_mj.figures import _save, _stride, plt
+from usv_mj.decimate import decimate
+from usv_mj.figures import _save, plt
 
 TITLES = {"turning": "Turning circle", "zigzag": "Zig-zag", "spiral": "Dieudonné spiral", "stopping": "Stopping test"}
 
 
-def _track(ax, rec, execute: float):
-    s = _stride(len(rec))
-    ax.plot(rec["x"][::s], rec["y"][::s], "C0", lw=1.5, label="track")
-    k = int(np.searchsorted(rec["t"], execute))
-    ax.plot(rec["x"][k], rec["y"][k], "ko", ms=5, label=f"execute (t = {execute:g} s)")
+def _track(ax, rec, execute: float, k: int):
+    p = decimate(rec, ("x", "y"))
+    ax.plot(p["x"], p["y"], "C0", lw=1.5, label="track")
+    ax.plot(rec.value("x", k), rec.value("y", k), "ko", ms=5, label=f"execute (t = {execute:g} s)")
     ax.set_xlabel("x [m] (east)")
     ax.set_ylabel("y [m] (north)")
     ax.set_aspect("equal", adjustable="datalim")
@@ -35,14 +35,13 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
     m = measures["measures"]
     paths = []
     t = record["t"]
-    s = _stride(len(record))
+    k0 = int(np.searchsorted(t, execute))
 
     fig, ax = plt.subplots(figsize=(7, 6))
-    _track(ax, record, execute)
+    _track(ax, record, execute, k0)
     if kind == "turning":
-        k0 = int(np.searchsorted(t, execute))
-        p0 = np.array([record["x"][k0], record["y"][k0]])
-        psi0 = record["psi"][k0]
+        p0 = np.array([record.value("x", k0), record.value("y", k0)])
+        psi0 = record.value("psi", k0)
         e = np.array([math.cos(psi0), math.sin(psi0)])
         n = (1.0 if m["turn"] == "port" else -1.0) * np.array([-e[1], e[0]])
         if m.get("advance_m") is not None:
@@ -65,7 +64,7 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
                     label=f"fitted steady circle, D = {m['steady_diameter_m']:.2f} m")
     elif kind == "stopping" and m.get("track_reach_m") is not None:
         k = int(np.searchsorted(t, execute + m["time_to_stop_s"]))
-        ax.plot(record["x"][k], record["y"][k], "C3s", label=f"stopped: track reach {m['track_reach_m']:.2f} m")
+        ax.plot(record.value("x", k), record.value("y", k), "C3s", label=f"stopped: track reach {m['track_reach_m']:.2f} m")
     ax.legend(fontsize=8, loc="best")
     ax.set_title(f"{TITLES[kind]}: track ({label})")
     fig.tight_layout()
@@ -73,28 +72,31 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
     _save(fig, paths[-1])
 
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    psi = np.degrees(record["psi"] - record["psi"][0])
+    psi0 = record.value("psi", 0)
+    d = decimate(record, ("t", "psi", "r", "u", "v", "f_r"), derive=lambda c: {
+        "t": c["t"], "dpsi": np.degrees(c["psi"] - psi0), "r": c["r"], "speed": np.hypot(c["u"], c["v"]),
+        "f_r": c["f_r"]})
     if kind == "zigzag":
-        axes[0].plot(t[::s], psi[::s], "C0", label="heading change [deg]")
+        axes[0].plot(d["t"], d["dpsi"], "C0", label="heading change [deg]")
         sw = measures["options"]["angle_deg"]
         ax2 = axes[0].twinx()
-        ax2.plot(t[::s], record["tau_r"][::s], "C1", lw=1, label="yaw moment tau_r [N m]")
-        ax2.set_ylabel("tau_r [N m]")
+        ax2.plot(d["t"], d["f_r"], "C1", lw=1, label="yaw moment applied [N m]")
+        ax2.set_ylabel("yaw moment applied [N m]")
         for level in (sw, -sw):
             axes[0].axhline(level, color="k", lw=0.6, ls=":")
         for te in m["executes_s"]:
             axes[0].axvline(te, color="C1", lw=0.5, alpha=0.5)
         axes[0].set_ylabel("heading change [deg]")
     else:
-        axes[0].plot(t[::s], psi[::s], "C0")
+        axes[0].plot(d["t"], d["dpsi"], "C0")
         axes[0].set_ylabel("heading change [deg]")
     axes[0].grid(alpha=0.3)
-    axes[1].plot(t[::s], record["r"][::s], "C0", label="yaw rate r [rad/s]")
-    axes[1].plot(t[::s], np.hypot(record["u"], record["v"])[::s], "C2", label="speed [m/s]")
+    axes[1].plot(d["t"], d["r"], "C0", label="yaw rate r [rad/s]")
+    axes[1].plot(d["t"], d["speed"], "C2", label="speed over ground [m/s]")
     handles = axes[1].get_lines()
     if kind != "zigzag":
         ax3 = axes[1].twinx()
-        handles = handles + ax3.plot(t[::s], record["f_r"][::s], "C1", lw=1, label="yaw moment applied [N m]")
+        handles = handles + ax3.plot(d["t"], d["f_r"], "C1", lw=1, label="yaw moment applied [N m]")
         ax3.set_ylabel("yaw moment applied [N m]")
     axes[1].set_xlabel("t [s]")
     axes[1].legend(handles=handles, fontsize=8, loc="center right", framealpha=0.9)
