@@ -52,9 +52,11 @@ def _scenario(args):
     duration, args.duration = args.duration, None   # the manoeuvre's duration, not the scenario's
     own = None
     if args.scenario:
+        from usv_mj.example_files import resolve
         from usv_mj.toml_values import read_toml
 
-        table = read_toml(args.scenario, ScenarioError, "scenario file").get("manoeuvre")
+        # a name of a shipped example, as load_scenario reads it
+        table = read_toml(resolve(args.scenario, "scenarios"), ScenarioError, "scenario file").get("manoeuvre")
         own = table.get("kind", "turning") if isinstance(table, dict) else None
     if args.kind and own is not None and own != args.kind:
         raise ScenarioError(f"manoeuvre {args.kind}: {args.scenario}'s [manoeuvre] is kind {own!r}; "
