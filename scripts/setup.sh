@@ -28,7 +28,7 @@ if ! "$PYTHON" -c 'import torch' 2>/dev/null; then
   echo "setup: installing torch (CPU build) for the RL client test"
   "$PYTHON" -m pip install --disable-pip-version-check -q "torch==2.13.0" 2>&1 | grep -v "Running pip as the 'root' user" || true
 fi
-"$PYTHON" -m pip install --disable-pip-version-check -q -e ".[test,gym,hpc,rl]" 2>&1 | grep -v "Running pip as the 'root' user" || true
+"$PYTHON" -m pip install --disable-pip-version-check -q -e ".[test,gym,hpc,rl,live]" 2>&1 | grep -v "Running pip as the 'root' user" || true
 "$PYTHON" -c "import usv_mj, mujoco; print(f'setup: usv_mj {usv_mj.__version__} with mujoco {mujoco.__version__} ready')"
 # numba compiles the kernels and the main job's loop combinations once per checkout (about 15 s on
 # a fresh machine): done here, with a stamp per source fingerprint, so that the main job starts warm

@@ -62,6 +62,7 @@ _API = {
     "simulate": "usv_mj.simulation",
     "summarize": "usv_mj.summary",
     "run_job": "usv_mj.main_job",
+    "attach_hydrodynamics": "usv_mj.plants.attach",
 }
 __getattr__, __dir__, _ = lazy_names(__name__, _API)
 __all__ = [*_API, "__version__"]

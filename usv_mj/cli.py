@@ -13,11 +13,15 @@
     usv-mj capability --load ...       the environment capability polar of the controller
     usv-mj env track --policy ppc      the USV as a dm_control task: roll out a policy, print returns, video
     usv-mj kinds                       every controller, trajectory, plant, disturbance kind and its options
+    usv-mj run --live                  the run served to Foxglove as it runs (pip install "usv_mj[live]")
+    usv-mj scene --out scene.xml       the scenario's MuJoCo scene (obstacles included) as one MJCF file
+    usv-mj view [--manual]             MuJoCo's viewer on the scenario: water, sea, controller (or the arrow keys)
     usv-mj manoeuvre turning           a standard manoeuvre: turning, zigzag, spiral, stopping (IMO measures)
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
-message names the Debian packages to install; --no-video skips the video); 141 the output pipe closed.
+message names the Debian packages to install; --no-video skips the video; `usv-mj view`: no display);
+141 the output pipe closed.
 An --out that holds an earlier output is refused unless --overwrite, which replaces only what a usv_mj
 command wrote (listed in the folder's .usv_mj-manifest.json); a folder holding anything else is refused.
 """
@@ -152,8 +156,34 @@ def _add_run(sub):
     from .render import add_video_arguments
 
     add_video_arguments(p)
+    add_live_arguments(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=_run_command)
+
+
+def add_live_arguments(p, speed: bool = True) -> None:
+    """--live, --live-port, --live-wait (and --speed): usv_mj.runlog.live (README, Live ...)."""
+    p.add_argument("--live", action="store_true", help="serve the run to Foxglove over its WebSocket protocol "
+                   "as it runs (needs pip install \"usv_mj[live]\"); the log is still written in full")
+    p.add_argument("--live-port", type=int, default=8765, metavar="PORT",
+                   help="the live server's TCP port on 127.0.0.1 (default 8765; 0: any free port)")
+    p.add_argument("--live-wait", type=float, default=None, metavar="S",
+                   help="wait at most S seconds for a viewer before streaming (default: until one connects)")
+    if speed:
+        p.add_argument("--speed", type=float, default=None, metavar="X",
+                       help="with --live: X times real time (1: real time; default: as fast as it runs)")
+
+
+def live_server(args):
+    """The LiveServer of --live (None without it); ScenarioError naming the pip extra if it is missing."""
+    if not getattr(args, "live", False):
+        return None
+    from .runlog.live import LiveServer, layout_path
+
+    server = LiveServer(port=args.live_port, speed=getattr(args, "speed", None), wait_s=args.live_wait)
+    print(f"usv-mj {args.command}: live on {server.url} (Foxglove: Open connection, Foxglove WebSocket; "
+          f"the layout: Layouts, Import from file, {layout_path()})", file=sys.stderr, flush=True)
+    return server
 
 
 def _run_command(args) -> int:
@@ -170,12 +200,20 @@ def _run_command(args) -> int:
     out = Path(args.out) if args.out is not None else Path("renders") / name
     if args.out is not None and args.out.strip() == "":
         raise ScenarioError("--out '': an empty path; name the output folder")
+    if args.live and args.no_log:
+        raise ScenarioError("--live serves the run log's messages: drop --no-log")
+    live = live_server(args)
     t0 = time.perf_counter()
     try:
         result = run_job(scenario, out, baseline=False if args.no_baseline else None, video=not args.no_video,
                          log=not args.no_log, progress=not args.quiet,
-                         render_options=render_options, overwrite=args.overwrite, log_rate=args.log_rate)
+                         render_options=render_options, overwrite=args.overwrite, log_rate=args.log_rate,
+                         live=live)
+        if live is not None:
+            live.finish()
     except RunFailed as exc:
+        if live is not None:
+            live.close()
         if args.debug and exc.traceback is not None and Path(exc.traceback).is_file():
             sys.stderr.write(Path(exc.traceback).read_text())
         print(f"usv-mj run: {exc}", file=sys.stderr)
@@ -313,6 +351,10 @@ _EXTERNAL = {
             "roll out a policy (ppc, random) in a dm_control task (track, track_waves, harbor): returns and a video"),
     "kinds": ("usv_mj.kinds", "add_arguments", "run_command",
               "every controller, trajectory, plant and disturbance kind: where it comes from, its options"),
+    "scene": ("usv_mj.scene_export", "add_arguments", "run_command",
+              "write the scenario's MuJoCo scene (obstacles included) as one MJCF file"),
+    "view": ("usv_mj.view", "add_arguments", "run_command",
+             "MuJoCo's viewer on the scenario: water, sea and controller acting; --manual drives with the arrows"),
     "manoeuvre": ("usv_mj.manoeuvres.cli", "add_arguments", "run_command",
                   "a standard manoeuvre (turning circle, zig-zag, spiral, stopping): measures, IMO criteria, figures"),
 }
@@ -337,6 +379,12 @@ _DESCRIPTIONS = {
                   "wind or wave load at which the controller's criterion holds (the funnel for the paper's\n"
                   "controller), found by bisection. With unlimited actuators it shows the control law's\n"
                   "limit, not the vessel's (use a preset with [actuators], e.g. --scenario paper-limited).",
+    "scene": "Write the MuJoCo scene the scenario runs in (the hull, the harbour and its obstacles, the\n"
+             "time step and the hull's inertial) as one MJCF file. MuJoCo alone sees no water in it:\n"
+             "usv_mj.attach_hydrodynamics(model, data, scenario=...) attaches the hull forces and the sea.",
+    "view": "Open MuJoCo's interactive viewer on the scenario's scene with the hydrodynamics, the sea and\n"
+            "the controller acting (needs a display; exit 3 without one). --manual: drive it yourself,\n"
+            "arrow keys up/down for surge, left/right for yaw, space to zero the thrust.",
     "env": "Roll out a policy (ppc: the paper's controller; random) in a dm_control task (track,\n"
            "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode.",
     "kinds": "List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
@@ -379,7 +427,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, env, kinds, manoeuvre
+commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, env, kinds, scene, view,
+          manoeuvre
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 

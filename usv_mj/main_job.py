@@ -329,7 +329,7 @@ def _one_line(exc: BaseException) -> str:
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
             video: bool = True, log: bool = True, progress: bool = True, step_check: bool = True,
             render_options: dict | None = None, overwrite: bool = False, log_rate: float | None = None,
-            extra_outputs=None) -> JobResult:
+            live=None, extra_outputs=None) -> JobResult:
     """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
 
     Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
@@ -342,6 +342,7 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     ``log_rate`` [Hz]: the MCAP logs every n-th control step (None: every step). A run whose
     record exceeds ``simulation.STREAM_BYTES`` streams it into ``record/`` (``baseline_record/``):
     ``RunRecord.open`` reads it back.
+    ``live``: a :class:`usv_mj.runlog.live.LiveServer` that serves the logs' messages to Foxglove.
 
     ``extra_outputs(record, out)`` (a manoeuvre's measures, say) writes its own files into the
     staging folder ``out`` after the figures and returns (report sections, {name: path})."""
@@ -359,7 +360,8 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
-                                 render_opts=render_opts, log_rate=log_rate, extra_outputs=extra_outputs)
+                                 render_opts=render_opts, log_rate=log_rate, live=live,
+                                 extra_outputs=extra_outputs)
         except RunFailed as exc:
             exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
             exc.traceback = _relocate(exc.traceback, stage.path, out)
@@ -399,7 +401,8 @@ def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
-                video, log, progress, step_check, render_opts, log_rate=None, extra_outputs=None) -> JobResult:
+                video, log, progress, step_check, render_opts, log_rate=None, live=None,
+                extra_outputs=None) -> JobResult:
     """The job itself, writing into the staging folder ``out``."""
     import traceback
 
@@ -444,7 +447,7 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         if log:
             from .runlog import RunLogWriter
 
-            writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario))
+            writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario, live=live))
             from .runlog.writer import log_every
 
             every = log_every(log_rate, dt)
@@ -503,7 +506,8 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         if run_baseline and record.status != "interrupted":
             phase = f"running the {scenario.baseline.kind.upper()} baseline"
             if log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
-                base_writer = stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario, companion_of=writer))
+                base_writer = stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario, companion_of=writer,
+                                                                      live=live))
                 sink_base = [base_writer.sink(run="baseline", log_every=every)]
                 files["baseline_mcap"] = out / "baseline.mcap"
             cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", progress, dt)

@@ -135,6 +135,8 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     record.statics = parts.statics
     for sink in sinks:
         sink.start(record)
+        if hasattr(sink, "scene") and hasattr(plant, "scene_xml"):  # the run log keeps the scene the plant ran
+            sink.scene(plant.scene_xml())
     plant.reset(scenario.initial.eta, scenario.initial.nu, 0.0)
     controller.reset()
     quant_u.reset()

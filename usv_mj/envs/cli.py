@@ -39,6 +39,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from usv_mj.outdir import add_overwrite_argument
 
     add_overwrite_argument(parser, "the --video file and its .png still when usv_mj wrote them")
+    from usv_mj.cli import add_live_arguments
+
+    add_live_arguments(parser)   # --live: each episode served to Foxglove as it ends (usv_mj.runlog.live)
 
 
 def rollout(env, policy):
@@ -101,6 +104,7 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"usv-mj env: {exc}", file=sys.stderr)
         return 1
     try:
+        live = _live_server(args)
         if args.policy == "random":
             policy = RandomPolicy(env, seed=args.seed)
         else:
@@ -121,11 +125,41 @@ def run_command(args: argparse.Namespace) -> int:
             if first_rows is not None:
                 _video(env, first_rows, args)
                 first_rows = None
+            if live is not None:
+                _serve_episode(live, env, rows, args, ep)
         mean = sum(returns) / len(returns)
         print(f"{args.task} / {args.policy}: mean return {mean:.2f} over {len(returns)} episode(s)")
+        if live is not None:
+            live.finish()
     finally:
         env.close()
     return 0
+
+
+def _live_server(args):
+    from usv_mj.cli import live_server
+
+    if getattr(args, "live", False):
+        import tempfile
+
+        args.live_folder = tempfile.TemporaryDirectory(prefix="usv_mj_env_live_")
+    return live_server(args)
+
+
+def _serve_episode(live, env, rows, args, ep: int) -> None:
+    """Serve one finished episode to Foxglove: its record (episode_record) through the run log's own
+    writer (topics /usv/..., the same as a run's), into a file of a temporary folder."""
+    from usv_mj.runlog import RunLogWriter
+
+    from . import episode_record
+
+    record = episode_record(env, rows, {"task": args.task, "policy": args.policy, "episode": ep + 1})
+    scenario = getattr(env.task, "episode_scenario", None) or env.task.scenario
+    with RunLogWriter(Path(args.live_folder.name) / f"episode{ep + 1}.mcap", scenario, live=live) as writer:
+        sink = writer.sink("main")
+        sink.start(record)
+        sink.rows(record, 0, len(record))
+        sink.finish(record)
 
 
 def _video(env, rows, args) -> None:

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import threading
 import weakref
 
@@ -33,6 +34,7 @@ import numpy as np
 from usv_mj.registry import PLANTS
 from usv_mj.ship import PaperDisturbance, RigidBodySplit, ShipParams
 
+from . import attach
 from . import mujoco_callback as mcb
 from .base import PlantBase
 
@@ -245,8 +247,29 @@ class MuJoCoPlant(PlantBase):
             raise ValueError(f"MuJoCoPlant: the mass matrix {where} must be dense 3x3 (hull body not 'simple'); "
                              f"M_rownnz = {list(model.M_rownnz)}")
         self._hull = ids["body hull"]
+        self._spec = spec  # for scene_xml()
         data = mujoco.MjData(model)
         return model, data
+
+    def scene_xml(self) -> str:
+        """The MJCF text of the scene this plant runs: its model file (the composed harbour with its
+        obstacles, or ``models/usv.xml``) with the hull's inertial, the time step, gravity and the
+        motors' ranges as loaded. MuJoCo alone sees no water in it: attach the hydrodynamics with
+        :func:`usv_mj.attach_hydrodynamics` (the same parameters as this plant's)."""
+        self._check_open()
+        spec, model = self._spec, self.model
+        hull = spec.body("hull")
+        hull.mass = float(model.body_mass[self._hull])
+        hull.ipos = model.body_ipos[self._hull].copy()
+        hull.iquat = model.body_iquat[self._hull].copy()
+        hull.inertia = model.body_inertia[self._hull].copy()
+        hull.explicitinertial = True
+        spec.option.timestep = float(model.opt.timestep)
+        spec.option.gravity = model.opt.gravity.copy()
+        # MuJoCo writes 6 significant digits: the time step in full, so that 1e-3 / 3 s survives
+        step = repr(float(model.opt.timestep))
+        return re.sub(r'(<option\b[^>]*?\btimestep=")[^"]*(")', lambda mt: mt.group(1) + step + mt.group(2),
+                      spec.to_xml(), count=1)
 
     def _set_ctrlrange(self, spec) -> None:
         """The motors' ``ctrlrange`` from the scenario's actuator limits (ctrllimited where a side is
@@ -265,60 +288,26 @@ class MuJoCoPlant(PlantBase):
             act.ctrlrange = [max(lo, -CTRL_OPEN), min(hi, CTRL_OPEN)]
 
     def _set_parameters(self) -> None:
-        """Write the rigid body (model) and the callback's parameters (d.userdata) from ship.py."""
-        m, x_g, iz_origin = self.split.rigid_body(self.ship)
-        i_cm = iz_origin - m * x_g * x_g
-        if not i_cm > 0:
-            raise ValueError(f"MuJoCoPlant: the split leaves no yaw inertia about the COM (I_cm = {i_cm:g} kg m^2)")
+        """Write the rigid body (model) and the callback's parameters (d.userdata) from ship.py, by the
+        one path a user's own model takes too (:mod:`usv_mj.plants.attach`)."""
         model = self.model
-        model.body_mass[self._hull] = m
-        model.body_ipos[self._hull] = (x_g, 0.0, 0.0)
-        model.body_iquat[self._hull] = (1.0, 0.0, 0.0, 0.0)
-        # roll/pitch inertias play no role in planar motion; plausible values meeting the triangle
-        # inequality (0.33 + 0.78 > 1)
-        model.body_inertia[self._hull] = (0.33 * i_cm, 0.78 * i_cm, i_cm)
+        attach.set_rigid_body(model, self._hull, self.ship, self.split)
         model.opt.timestep = self.control_period / self.substeps
         model.opt.gravity[:] = 0.0
         mujoco.mj_setConst(model, self.data)
-        ud = self.data.userdata
-        ud[:] = 0.0
-        ud[mcb.U_MASS] = m
-        ud[mcb.U_XG] = x_g
-        ud[mcb.U_MA:mcb.U_MA + 9] = self.split.added_mass(self.ship).ravel()
-        ud[mcb.U_P:mcb.U_P + len(self.ship.as_array())] = self.ship.as_array()
-        ud[mcb.U_DP:mcb.U_DP + len(self.disturbance.as_array())] = self.disturbance.as_array()
-        self._write_sea(ud)
-        ud[mcb.U_MAGIC] = mcb.MAGIC
+        self._write_sea(self.data.userdata, sea_only=False)
 
-    def _write_sea(self, ud) -> None:
-        """Point the callback at the environment's packed arrays (docs/sea.md §6); calm: U_SEA_ON = 0."""
+    def _write_sea(self, ud, sea_only: bool = True) -> None:
+        """Point the callback at the environment's packed arrays (docs/sea.md §6); calm: U_SEA_ON = 0.
+        ``sea_only=False`` writes every parameter (``attach.write_parameters``)."""
         env = self.environment
-        if env is None:
-            ud[mcb.U_SEA_ON:mcb.N_USERDATA] = 0.0
-            self._sea_arrays, self._sea_horizon = None, math.inf
-            return
-        packed = tuple(env.packed)
-        ep, waves, cgrid, wgrid = packed
-        for name, arr, ndim in (("ep", ep, 1), ("waves", waves, 2), ("current_grid", cgrid, 2),
-                                ("wind_grid", wgrid, 2)):
-            if not (isinstance(arr, np.ndarray) and arr.dtype == np.float64 and arr.ndim == ndim
-                    and arr.flags.c_contiguous):
-                raise ValueError(f"MuJoCoPlant: environment array {name} must be C-contiguous float64 with "
-                                 f"{ndim} dimensions")
-        if ep.shape != (mcb.N_ENV_PARAMS,) or waves.shape[0] != mcb.N_WAVE_COLS or cgrid.shape[1] != 2 \
-                or wgrid.shape[1] != 1:
-            raise ValueError(f"MuJoCoPlant: environment arrays have unexpected shapes ep {ep.shape}, waves "
-                             f"{waves.shape}, current_grid {cgrid.shape}, wind_grid {wgrid.shape}")
+        packed = None if env is None else tuple(env.packed)
+        if sea_only:
+            attach.write_sea(ud, packed)
+        else:
+            attach.write_parameters(ud, self.ship, self.disturbance, self.split, packed)
         self._sea_arrays = packed  # keeps them alive while their addresses are in userdata
-        self._sea_horizon = float(env.horizon)
-        ud[mcb.U_SEA_EP] = float(ep.ctypes.data)
-        ud[mcb.U_SEA_WAVES] = float(waves.ctypes.data)
-        ud[mcb.U_SEA_NWAVES] = float(waves.shape[1])
-        ud[mcb.U_SEA_CG] = float(cgrid.ctypes.data)
-        ud[mcb.U_SEA_NCG] = float(cgrid.shape[0])
-        ud[mcb.U_SEA_WG] = float(wgrid.ctypes.data)
-        ud[mcb.U_SEA_NWG] = float(wgrid.shape[0])
-        ud[mcb.U_SEA_ON] = 1.0
+        self._sea_horizon = math.inf if env is None else float(env.horizon)
 
     def _extend_sea(self, t_end: float) -> None:
         """Grow the environment's grids past ``t_end`` [s] and refresh the addresses in userdata."""

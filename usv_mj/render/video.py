@@ -564,6 +564,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_overwrite_argument(parser, "the .mp4 and its .png still when usv_mj wrote them")
     add_video_arguments(parser)
+    from ..cli import add_live_arguments
+
+    add_live_arguments(parser)   # --live: replay the log to Foxglove instead of drawing a video
 
 
 def load_run_record(path: str | os.PathLike):
@@ -610,6 +613,14 @@ def run_command(args: argparse.Namespace) -> int:
     if log.notice:
         print(f"usv-mj render: warning: the log is incomplete, the video shows what was recovered: {log.notice}",
               file=sys.stderr)
+    if getattr(args, "live", False):
+        from ..cli import live_server
+
+        live = live_server(args)
+        n = live.replay(mcap)
+        live.finish()
+        print(f"usv-mj render: served {n} messages of {mcap} live")
+        return 0
     out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
     try:
         from ..outdir import check_file, record_file

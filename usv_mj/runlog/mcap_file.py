@@ -228,6 +228,7 @@ class McapFileWriter:
         self._crc = 0
         self._compressor = zstandard.ZstdCompressor(level=compression_level)
         self.schemas: dict[int, Schema] = {}
+        self.tee = None   # an object with chunk(writer, parts): sees every chunk's messages (usv_mj.runlog.live)
         self.channels: dict[int, Channel] = {}
         self.chunk_indexes: list[ChunkIndex] = []
         self.attachment_indexes: list[AttachmentIndex] = []
@@ -351,6 +352,8 @@ class McapFileWriter:
         if not len(buf):
             return
         parts, index = buf.finish()
+        if self.tee is not None:       # usv_mj.runlog.live: the same messages to the live viewers
+            self.tee.chunk(self, parts)
         cobj = self._compressor.compressobj(size=buf.size)
         pieces, crc = [], 0
         for part in _merge_small(parts):

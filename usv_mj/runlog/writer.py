@@ -20,7 +20,8 @@ What is in the file (topics: :mod:`usv_mj.runlog.topics`):
   package versions (python, numpy, numba, mujoco, mcap, orjson, protobuf, zstandard, usv_mj), the
   project's git commit ("unknown" outside a checkout) and whether the tree had uncommitted changes;
 - attachments: ``models/<name>.xml`` for every model XML of the project, ``scenario/<file>`` when
-  ``scenario.source`` is a file, and any ``attachments`` passed in;
+  ``scenario.source`` is a file, any ``attachments`` passed in, and ``scene/<run>.xml`` (at
+  ``start``, a MuJoCo plant's run): the MJCF scene that plant ran (``MuJoCoPlant.scene_xml``);
 - metadata ``run_start/<run>`` (at ``start``): topic prefix, the record's metadata, the columns;
 - metadata ``run_end/<run>`` (at ``finish``): status, stop reason, rows, the record's final
   metadata and ``usv_mj.summary.summarize(record)`` (all JSON text).
@@ -266,6 +267,9 @@ class RunLogFile:
             self.mcap.write_chunk(buf)
             st["last_ns"] = max(st["last_ns"], int(buf.end_time if buf.end_time is not None else log_time[-1]))
         st["rows"] = lo + n
+
+    def cmd_attach(self, name: str, media_type: str, data: bytes):
+        self.mcap.add_attachment(name, media_type, data, log_time=0, create_time=time.time_ns())
 
     def cmd_finish(self, run: str, end: dict, events: list):
         st = self.runs[run]
@@ -529,11 +533,13 @@ class RunLogWriter:
     ``companion_of``: the writer of the main run's file when this one holds another run of the
     same job (the main job's ``baseline.mcap`` beside ``run.mcap``): one file per run keeps each
     file in log-time order, and :func:`usv_mj.runlog.read_run` of the main file finds this one.
+    ``live``: a :class:`usv_mj.runlog.live.LiveServer` that serves every chunk's messages to
+    Foxglove as the chunk is written (the file is then written in this process).
     """
 
     def __init__(self, path, scenario, attachments: dict | None = None, *, background: bool = True,
                  rows_per_chunk: int = 2000, compression_level: int = -3, queue_blocks: int = 32,
-                 environment=None, companion_of: "RunLogWriter | None" = None):
+                 environment=None, companion_of: "RunLogWriter | None" = None, live=None):
         self.path = Path(path)
         self.log_id = uuid.uuid4().hex
         if not self.path.parent.is_dir():
@@ -569,6 +575,8 @@ class RunLogWriter:
                 raise TypeError(f"attachment {name!r} must be bytes or str, got {type(data).__name__}")
             att.append((str(name), mimetypes.guess_type(str(name))[0] or "application/octet-stream", bytes(data)))
         args = (str(self.path), file_metadata, att, rows_per_chunk, compression_level, environment)
+        if live is not None:   # a usv_mj.runlog.live.LiveServer: written here, its chunks served as they are
+            background = False
         slots = max(1, int(queue_blocks))
         shape = (slots, SLOT_FLOATS)     # each run views a slot as (SLOT_FLOATS // its width, its width)
         if background:
@@ -599,6 +607,7 @@ class RunLogWriter:
             atexit.register(_close_at_exit, weakref.ref(self))
         else:
             self._file = RunLogFile(*args)
+            self._file.mcap.tee = live
 
     # commands
     def _send(self, cmd: tuple):
@@ -811,6 +820,10 @@ class RunLogSink:
         dt = record.metadata["control_period_s"]
         return {**record.metadata, "control_period_s": dt * self.log_every, "log_every": self.log_every,
                 "simulated_control_period_s": dt}
+
+    def scene(self, xml: str) -> None:
+        """Attach ``scene/<run>.xml``: the MJCF scene the plant ran (MuJoCoPlant.scene_xml)."""
+        self.writer._send(("attach", f"scene/{self.run}.xml", "application/xml", xml.encode()))
 
     def rows(self, record: RunRecord, lo: int, hi: int) -> None:
         if lo < self._rows:  # rows it already has: the loop resends a block that an interrupt cut

@@ -1,0 +1,196 @@
+"""The hydrodynamics as a reusable piece (usv_mj.attach_hydrodynamics, `usv-mj scene`).
+
+MuJoCo alone, on the exported scene with the documented attach call and plain ``mj_step``, must
+give the project's own MuJoCo plant's trajectory (to 1e-9 m over 10 s); on ``models/usv.xml`` the
+attach call must give the analytic plant's surge speed (an independent integration of Eq. 2), and
+without it MuJoCo's vacuum speed tau t / m11.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+import usv_mj
+from usv_mj import build, load_scenario
+from usv_mj.cli import main
+from usv_mj.plants.attach import hull_body
+from usv_mj.plants.mujoco_callback import MODELS_DIR
+
+TAU = (100.0, 5.0)  # constant surge [N] and yaw moment [N m]
+T_END = 10.0
+
+
+def _plant_trajectory(scenario, eta0, nu0):
+    """Positions (x, y) [m] every step of the project's MuJoCo plant (the one build)."""
+    with build(scenario, plant_kind="mujoco", duration=T_END) as parts:
+        plant = parts.plant
+        plant.reset(eta0, nu0)
+        n = int(round(T_END / scenario.control_period))
+        out = np.empty((n, 3))
+        for k in range(n):
+            plant.step(*TAU)
+            out[k] = plant.state[:3]
+    return out
+
+
+def _mujoco_alone(path, scenario, eta0, nu0):
+    """The same with MuJoCo alone: MjModel.from_xml_path + attach + mj_step with ctrl held."""
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    water = usv_mj.attach_hydrodynamics(model, data, body="hull", scenario=scenario)
+    c, s = math.cos(eta0[2]), math.sin(eta0[2])
+    data.qpos[:3] = eta0
+    data.qvel[:3] = (c * nu0[0] - s * nu0[1], s * nu0[0] + c * nu0[1], nu0[2])
+    data.ctrl[:2] = TAU
+    n = int(round(T_END / model.opt.timestep))
+    out = np.empty((n, 3))
+    for k in range(n):
+        mujoco.mj_step(model, data)
+        out[k] = data.qpos[:3]
+    water.detach()
+    return out
+
+
+@pytest.mark.parametrize("source, overrides", [
+    (None, None),                                                       # the paper scenario, calm
+    (None, {"sea": {"preset": "moderate"}}),                             # waves, current, wind
+    ("examples/scenarios/harbour_gap.toml", None),                      # the harbour, obstacles and contact on
+])
+def test_exported_scene_with_attach_is_the_plant(tmp_path, source, overrides):
+    scenario = load_scenario(source, overrides=overrides)
+    out = tmp_path / "scene.xml"
+    args = ["scene", "--out", str(out)] + (["--scenario", source] if source else [])
+    if overrides:
+        args += ["--sea", overrides["sea"]["preset"]]
+    assert main(args) == 0
+    eta0, nu0 = (0.5, -0.3, 0.2), (0.4, 0.05, -0.02)
+    ref = _plant_trajectory(scenario, eta0, nu0)
+    got = _mujoco_alone(out, scenario, eta0, nu0)
+    assert np.max(np.abs(ref[:, :2] - got[:, :2])) < 1e-9
+    assert np.max(np.abs(ref[:, 2] - got[:, 2])) < 1e-9
+    assert np.hypot(*(ref[-1, :2] - eta0[:2])) > 2.0  # it did move
+
+
+def test_harbour_export_holds_the_obstacles(tmp_path):
+    out = tmp_path / "harbour.xml"
+    assert main(["scene", "--scenario", "examples/scenarios/harbour_gap.toml", "--out", str(out)]) == 0
+    model = mujoco.MjModel.from_xml_path(str(out))
+    scenario = load_scenario("examples/scenarios/harbour_gap.toml")
+    for o in scenario.obstacles:
+        name = o.name if o.name.startswith("obstacle_") else f"obstacle_{o.name}"
+        assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) >= 0, name
+
+
+def _surge_speed_after(model, data, seconds):
+    data.ctrl[:] = (100.0, 0.0)
+    while data.time < seconds - 0.5 * model.opt.timestep:
+        mujoco.mj_step(model, data)
+    return math.hypot(data.qvel[0], data.qvel[1])
+
+
+def test_usv_xml_is_a_vacuum_until_attached():
+    """100 N for 10 s: tau t / m11 = 7.05 m/s in MuJoCo alone; the analytic plant's speed with water."""
+    path = f"{MODELS_DIR}/usv.xml"
+    model = mujoco.MjModel.from_xml_path(path)
+    data = mujoco.MjData(model)
+    assert _surge_speed_after(model, data, 10.0) == pytest.approx(100.0 * 10.0 / 141.85, rel=1e-9)
+
+    scenario = load_scenario(overrides={"disturbance": {"scale": 0.0}})
+    model = mujoco.MjModel.from_xml_path(path)
+    data = mujoco.MjData(model)
+    water = usv_mj.attach_hydrodynamics(model, data, scenario=scenario)
+    with_water = _surge_speed_after(model, data, 10.0)
+    water.detach()
+    with build(scenario, plant_kind="analytic", duration=10.0) as parts:
+        for _ in range(10000):
+            parts.plant.step(100.0, 0.0)
+        analytic = math.hypot(*parts.plant.state[3:5])
+    assert with_water == pytest.approx(analytic, abs=1e-6)
+    assert 0.7 < with_water < 0.9  # the 0.83 m/s the README quotes
+
+
+def test_detach_leaves_mujoco_alone():
+    model = mujoco.MjModel.from_xml_path(f"{MODELS_DIR}/usv.xml")
+    data = mujoco.MjData(model)
+    usv_mj.attach_hydrodynamics(model, data).detach()
+    assert _surge_speed_after(model, data, 1.0) == pytest.approx(100.0 / 141.85, rel=1e-9)
+
+
+@pytest.mark.parametrize("xml, words", [
+    ('<mujoco><size nuserdata="96"/><worldbody><body name="boat"><joint type="slide" axis="1 0 0"/>'
+     '<joint type="slide" axis="0 1 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
+     '</worldbody></mujoco>', "no body 'hull'"),
+    ('<mujoco><worldbody><body name="hull"><joint type="slide" axis="1 0 0"/>'
+     '<joint type="slide" axis="0 1 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
+     '</worldbody></mujoco>', 'nuserdata="68"'),
+    ('<mujoco><size nuserdata="96"/><worldbody><body name="hull"><freejoint/><geom size="0.5"/></body>'
+     '</worldbody></mujoco>', "1 joints"),
+    ('<mujoco><size nuserdata="96"/><worldbody><body name="hull"><joint type="slide" axis="0 1 0"/>'
+     '<joint type="slide" axis="1 0 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
+     '</worldbody></mujoco>', "slide along x"),
+    ('<mujoco><size nuserdata="96"/><worldbody><body name="buoy"><joint type="slide" axis="0 0 1"/>'
+     '<geom size="0.5"/></body><body name="hull"><joint type="slide" axis="1 0 0"/>'
+     '<joint type="slide" axis="0 1 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
+     '</worldbody></mujoco>', "first three degrees of freedom"),
+])
+def test_unusable_models_are_named(xml, words):
+    model = mujoco.MjModel.from_xml_string(xml)
+    with pytest.raises(ValueError, match="attach_hydrodynamics: ") as info:
+        hull_body(model)
+    assert words in str(info.value)
+
+
+def test_other_bodies_after_the_hull_keep_their_own_physics():
+    """A user's scene: the hull first, a free-falling ball after it; the hull still moves as the plant."""
+    spec = mujoco.MjSpec.from_file(f"{MODELS_DIR}/usv.xml")
+    ball = spec.worldbody.add_body(name="ball", pos=[5, 5, 3])
+    ball.add_freejoint()
+    ball.add_geom(size=[0.2, 0, 0], mass=1.0)
+    spec.option.gravity = [0, 0, -9.81]
+    spec.option.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    water = usv_mj.attach_hydrodynamics(model, data)
+    data.ctrl[:] = TAU
+    for _ in range(1000):
+        mujoco.mj_step(model, data)
+    water.detach()
+    assert data.qpos[5] == pytest.approx(3.0 - 0.5 * 9.81 * 1.0, abs=1e-6)  # the ball fell freely
+    scenario = load_scenario()
+    with build(scenario, plant_kind="mujoco", duration=1.0) as parts:
+        for _ in range(1000):
+            parts.plant.step(*TAU)
+        ref = parts.plant.state[:3]
+    assert np.max(np.abs(data.qpos[:3] - ref)) < 1e-9
+
+
+def test_run_log_attaches_the_scene_the_plant_ran(tmp_path):
+    """The log's scene/main.xml, loaded by MuJoCo with the attach call, replays the logged run."""
+    from usv_mj import simulate
+    from usv_mj.runlog import RunLogWriter, read_run
+
+    scenario = load_scenario("examples/scenarios/harbour_gap.toml", overrides={"duration": 2.0})
+    with RunLogWriter(tmp_path / "run.mcap", scenario, background=False) as writer:
+        record = simulate(scenario, sinks=[writer.sink("main")])
+    log = read_run(tmp_path / "run.mcap")
+    xml = log.attachments["scene/main.xml"].decode()
+    model = mujoco.MjModel.from_xml_string(xml)
+    assert model.opt.timestep == scenario.control_period
+    for o in scenario.obstacles:
+        name = o.name if o.name.startswith("obstacle_") else f"obstacle_{o.name}"
+        assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) >= 0
+    # replay the logged thrust open loop in MuJoCo alone: the logged positions come back
+    data = mujoco.MjData(model)
+    water = usv_mj.attach_hydrodynamics(model, data, scenario=scenario)
+    data.qpos[:3] = scenario.initial.eta
+    assert np.allclose(scenario.initial.nu, 0.0)
+    f_u, f_r, x = record["f_u"], record["f_r"], record["x"]
+    for k in range(len(x) - 1):
+        data.ctrl[:2] = (f_u[k], f_r[k])
+        mujoco.mj_step(model, data)
+    water.detach()
+    assert abs(data.qpos[0] - x[-1]) < 1e-6

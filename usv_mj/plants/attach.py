@@ -1,0 +1,232 @@
+"""The hydrodynamics as a reusable piece: put the water under a hull in anyone's MuJoCo model.
+
+MuJoCo alone sees the hull of ``models/usv.xml`` as a rigid body in a vacuum: 100 N of surge for
+10 s gives 7.05 m/s instead of the 0.83 m/s of the paper's ship. The water (added mass, its
+Coriolis, damping, the uncertainty Delta, the disturbance d(t) and a sea state; docs/model.md §1,
+docs/sea.md §6) is the passive-force callback of :mod:`usv_mj.plants.mujoco_callback`. This module
+is the one place that writes that callback's parameters into a model; the MuJoCo plant uses it too
+(:class:`usv_mj.plants.mujoco_plant.MuJoCoPlant`), so a user's scene and the plant run the same
+physics::
+
+    import mujoco, usv_mj
+    model = mujoco.MjModel.from_xml_path("scene.xml")      # e.g. from `usv-mj scene --out scene.xml`
+    data = mujoco.MjData(model)
+    water = usv_mj.attach_hydrodynamics(model, data, body="hull", scenario="paper")
+    data.ctrl[:] = (100.0, 0.0)                              # surge [N], yaw [N m]
+    while data.time < 10.0:
+        mujoco.mj_step(model, data)                          # the hull now floats in the paper's water
+
+Requirements on the model (checked, one clear line if not met):
+
+- the named body moves on three joints of its own, in this order: a slide along world x, a slide
+  along world y and a hinge about world z (the body a child of the world, not rotated), and these
+  are the model's first three degrees of freedom (put the vessel first in ``<worldbody>``; other
+  bodies and joints may follow);
+- ``<size nuserdata="N"/>`` with N >= :data:`N_USERDATA` (the parameters live in ``d.userdata``);
+- the thrust is the user's: any actuators (``models/usv.xml`` has body-frame motors "surge" and
+  "yaw" on the site "thruster").
+
+What the call changes: the body's inertial becomes the rigid part of the scenario's ship
+(:class:`usv_mj.ship.RigidBodySplit`: mass m11, COM x_g = m23/m11 ahead of the origin, yaw inertia
+m33 about the origin) and ``d.userdata`` holds the ship, the disturbance and the sea; the process's
+``mjcb_passive`` is set to the native callback while any attachment or plant lives (a model
+without the marker in ``d.userdata`` is left alone by it). qpos, qvel, ctrl and time are kept.
+Any integrator works; RK4 (``models/usv.xml``'s) is what the plant uses and reproduces its
+trajectory to round-off (tests/test_attach.py: 1e-9 m over 10 s). A free body held to the plane is
+not supported yet: give the hull the three planar joints.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+
+import mujoco
+import numpy as np
+
+from . import mujoco_callback as mcb
+
+N_USERDATA = mcb.N_USERDATA
+SEA_HORIZON_S = 3600.0  # default: the sea's OU grids of an attachment are made this far ahead [s]
+
+_SLIDE, _HINGE = mujoco.mjtJoint.mjJNT_SLIDE, mujoco.mjtJoint.mjJNT_HINGE
+_PLANAR = ((_SLIDE, (1.0, 0.0, 0.0), "a slide along x"), (_SLIDE, (0.0, 1.0, 0.0), "a slide along y"),
+           (_HINGE, (0.0, 0.0, 1.0), "a hinge about z"))
+
+
+def hull_body(model: mujoco.MjModel, body: str = "hull", where: str = "the model") -> int:
+    """The id of ``body`` after checking that it is a planar hull the callback can act on (module
+    docstring); ValueError naming what is wrong otherwise."""
+    bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+    if bid < 0:
+        raise ValueError(f"attach_hydrodynamics: no body {body!r} in {where}")
+    if model.nuserdata < N_USERDATA:
+        raise ValueError(f"attach_hydrodynamics: {where} has nuserdata = {model.nuserdata}; the hydrodynamics need "
+                         f"<size nuserdata=\"{N_USERDATA}\"/> or more")
+    j0, nj = int(model.body_jntadr[bid]), int(model.body_jntnum[bid])
+    if nj != 3:
+        raise ValueError(f"attach_hydrodynamics: body {body!r} in {where} has {nj} joints; it needs exactly three "
+                         f"(slide x, slide y, hinge yaw)")
+    for k, (kind, axis, label) in enumerate(_PLANAR):
+        j = j0 + k
+        if model.jnt_type[j] != kind or not np.allclose(model.jnt_axis[j], axis, atol=1e-12):
+            raise ValueError(f"attach_hydrodynamics: joint {k + 1} of body {body!r} in {where} must be {label}")
+        if model.jnt_dofadr[j] != k or model.jnt_qposadr[j] != k:
+            raise ValueError(f"attach_hydrodynamics: the joints of body {body!r} in {where} must be the model's first "
+                             f"three degrees of freedom (put the vessel first in <worldbody>)")
+    if model.body_parentid[bid] != 0 or not np.allclose(model.body_quat[bid], (1.0, 0.0, 0.0, 0.0), atol=1e-12):
+        raise ValueError(f"attach_hydrodynamics: body {body!r} in {where} must be a child of the world, not rotated")
+    if list(model.M_rownnz[:3]) != [1, 2, 3]:
+        raise ValueError(f"attach_hydrodynamics: the mass matrix of body {body!r} in {where} must be dense 3x3 "
+                         f"(M_rownnz = {list(model.M_rownnz[:3])})")
+    return bid
+
+
+def set_rigid_body(model: mujoco.MjModel, body: int, ship, split) -> None:
+    """Write the rigid part of ``ship`` (``split.rigid_body``: mass [kg], COM offset x_g [m], yaw
+    inertia about the origin [kg m^2]) into ``body``'s inertial. Roll and pitch inertias play no
+    role in planar motion: plausible values meeting the triangle inequality (0.33 + 0.78 > 1)."""
+    m, x_g, iz_origin = split.rigid_body(ship)
+    i_cm = iz_origin - m * x_g * x_g
+    if not i_cm > 0:
+        raise ValueError(f"usv_mj hydrodynamics: the split leaves no yaw inertia about the COM (I_cm = {i_cm:g} kg m^2)")
+    model.body_mass[body] = m
+    model.body_ipos[body] = (x_g, 0.0, 0.0)
+    model.body_iquat[body] = (1.0, 0.0, 0.0, 0.0)
+    model.body_inertia[body] = (0.33 * i_cm, 0.78 * i_cm, i_cm)
+
+
+def write_parameters(ud: np.ndarray, ship, disturbance, split, packed_sea=None) -> None:
+    """The callback's parameters into ``d.userdata`` (layout ``mujoco_callback.U_*``): rigid mass
+    and COM, the added mass of ``split``, the ship and disturbance arrays, the sea (``packed_sea``:
+    ``Environment.packed``, or None for calm water) and last the marker."""
+    m, x_g, _ = split.rigid_body(ship)
+    ud[:] = 0.0
+    ud[mcb.U_MASS] = m
+    ud[mcb.U_XG] = x_g
+    ud[mcb.U_MA:mcb.U_MA + 9] = split.added_mass(ship).ravel()
+    ud[mcb.U_P:mcb.U_P + len(ship.as_array())] = ship.as_array()
+    ud[mcb.U_DP:mcb.U_DP + len(disturbance.as_array())] = disturbance.as_array()
+    write_sea(ud, packed_sea)
+    ud[mcb.U_MAGIC] = mcb.MAGIC
+
+
+def write_sea(ud: np.ndarray, packed) -> None:
+    """Point the callback at the sea's packed arrays (docs/sea.md §6), or calm (``U_SEA_ON`` = 0) for
+    None. The caller keeps the arrays alive while their addresses are in ``ud``."""
+    if packed is None:
+        ud[mcb.U_SEA_ON:mcb.N_USERDATA] = 0.0
+        return
+    ep, waves, cgrid, wgrid = packed
+    for name, arr, ndim in (("ep", ep, 1), ("waves", waves, 2), ("current_grid", cgrid, 2),
+                            ("wind_grid", wgrid, 2)):
+        if not (isinstance(arr, np.ndarray) and arr.dtype == np.float64 and arr.ndim == ndim
+                and arr.flags.c_contiguous):
+            raise ValueError(f"usv_mj hydrodynamics: environment array {name} must be C-contiguous float64 with "
+                             f"{ndim} dimensions")
+    if ep.shape != (mcb.N_ENV_PARAMS,) or waves.shape[0] != mcb.N_WAVE_COLS or cgrid.shape[1] != 2 \
+            or wgrid.shape[1] != 1:
+        raise ValueError(f"usv_mj hydrodynamics: environment arrays have unexpected shapes ep {ep.shape}, waves "
+                         f"{waves.shape}, current_grid {cgrid.shape}, wind_grid {wgrid.shape}")
+    ud[mcb.U_SEA_EP] = float(ep.ctypes.data)
+    ud[mcb.U_SEA_WAVES] = float(waves.ctypes.data)
+    ud[mcb.U_SEA_NWAVES] = float(waves.shape[1])
+    ud[mcb.U_SEA_CG] = float(cgrid.ctypes.data)
+    ud[mcb.U_SEA_NCG] = float(cgrid.shape[0])
+    ud[mcb.U_SEA_WG] = float(wgrid.ctypes.data)
+    ud[mcb.U_SEA_NWG] = float(wgrid.shape[0])
+    ud[mcb.U_SEA_ON] = 1.0
+
+
+def _release(handle_id, data_address, userdata):
+    from .mujoco_plant import REGISTRY
+
+    userdata[mcb.U_MAGIC] = 0.0
+    REGISTRY.remove(handle_id, data_address)
+
+
+class Hydrodynamics:
+    """An attachment made by :func:`attach_hydrodynamics`: keeps the sea's arrays alive and the
+    callback installed until :meth:`detach` (or until it is garbage-collected).
+
+    Attributes: ``model``, ``data``, ``body`` (the hull's body id), ``environment`` (the
+    :class:`usv_mj.sea.Environment`, None in calm water), ``horizon`` (plant time [s] up to which
+    the sea is made; :meth:`extend` makes more).
+    """
+
+    callback = "native"  # what the callback registry of the MuJoCo plant reads
+
+    def __init__(self, model, data, body: int, ship, disturbance, split, environment, horizon: float):
+        self.model, self.data, self.body = model, data, body
+        self.ship, self.disturbance, self.split = ship, disturbance, split
+        self.environment = environment if environment is not None and not environment.calm else None
+        self._sea = None
+        self.horizon = math.inf
+        saved = (data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.ctrl.copy(), data.time)
+        set_rigid_body(model, body, ship, split)
+        mujoco.mj_setConst(model, data)
+        data.qpos[:], data.qvel[:], data.act[:], data.ctrl[:], data.time = saved
+        mcb.check_offsets(model, data)
+        write_parameters(data.userdata, ship, disturbance, split, None)
+        if self.environment is not None:
+            self.extend(horizon)
+        from .mujoco_plant import REGISTRY
+
+        REGISTRY.add(self)
+        self._finalizer = weakref.finalize(self, _release, id(self), data._address, data.userdata)
+        mujoco.mj_forward(model, data)
+
+    def extend(self, t_end: float) -> None:
+        """Make the sea's OU grids reach plant time ``t_end`` [s] and re-point the callback at them."""
+        if self.environment is None:
+            return
+        self.environment.ensure_horizon(float(t_end))
+        self._sea = tuple(self.environment.packed)
+        write_sea(self.data.userdata, self._sea)
+        self.horizon = float(self.environment.horizon)
+
+    def detach(self) -> None:
+        """Remove the water: the callback leaves this mjData alone (and is uninstalled with the last one)."""
+        self._finalizer()
+
+
+def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = None, body: str = "hull",
+                         scenario=None, *, horizon: float = SEA_HORIZON_S) -> Hydrodynamics:
+    """Attach the paper's hydrodynamics (and the scenario's sea) to ``body`` of a user's model.
+
+    Parameters
+    ----------
+    model, data:
+        The user's ``mujoco.MjModel`` and its ``mujoco.MjData`` (None: a new one, ``handle.data``).
+        Requirements and what is changed: the module docstring.
+    body:
+        Name of the hull's body (default "hull", as in ``models/usv.xml``).
+    scenario:
+        A :class:`usv_mj.scenario.Scenario`, a preset name or a scenario TOML path (None: the paper
+        preset): its ``[ship]``, ``[disturbance]`` and ``[sea]`` are used (through
+        :func:`usv_mj.builder.make_environment`, the build's own sea).
+    horizon:
+        Plant time [s] up to which a sea's slowly varying parts (the OU grids of current and wind
+        gusts) are made at once (calm: unused); past it they hold their last value (the waves go
+        on); ``handle.extend(t)`` makes more.
+
+    Returns the :class:`Hydrodynamics` handle; keep it while stepping (``handle.detach()`` ends it).
+    """
+    from usv_mj.builder import make_environment
+    from usv_mj.scenario import Scenario, load_scenario, preset_names
+    from usv_mj.ship import RigidBodySplit
+
+    if scenario is None or isinstance(scenario, str):
+        if scenario is None or scenario in preset_names():
+            scenario = load_scenario(preset=scenario)
+        else:
+            scenario = load_scenario(scenario)
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"attach_hydrodynamics: scenario must be a Scenario, a preset name or a TOML path, "
+                        f"got {type(scenario).__name__}")
+    if not (isinstance(horizon, (int, float)) and math.isfinite(horizon) and horizon > 0):
+        raise ValueError(f"attach_hydrodynamics: horizon must be a finite number of seconds > 0, got {horizon!r}")
+    bid = hull_body(model, body)
+    data = mujoco.MjData(model) if data is None else data
+    env = make_environment(scenario, float(horizon))
+    return Hydrodynamics(model, data, bid, scenario.ship, scenario.disturbance, RigidBodySplit(), env, horizon)
