@@ -15,7 +15,7 @@ through its ``[actuators]``); positive tau_r turns to port (README, Conventions)
     side = "starboard"
 
 The approach is held by the constant surge force that balances the hull's drag at the approach
-speed (:func:`approach_force`: the surge component of C(nu) nu + D(nu) nu - Delta at nu = (U, 0, 0)).
+speed (:func:`approach_force`, found on the scenario's analytic plant: any vessel it integrates).
 
 ``conditions = "calm"`` (the default) runs the test as trials are run: calm water, no d(t), no
 Delta (its side force 0.2 u^2 would turn the hull by itself), no quantizer (so that the commanded
@@ -183,14 +183,41 @@ def manoeuvre_from_table(table, source: str = "<dict>") -> ManoeuvreSpec:
 
 
 def approach_force(scenario, speed: float) -> float:
-    """The constant surge force [N] that holds ``speed`` [m/s] on a straight course: the hull's force
-    on nu = (U, 0, 0) with no disturbance (:func:`usv_mj.ship.hydrodynamic_force`), negated (the
-    paper's hull: d11(U) U - s 0.6, docs/model.md §1)."""
-    from usv_mj.ship import N_DIST_PARAMS, hydrodynamic_force
+    """The constant surge force [N] that holds ``speed`` [m/s] on a straight course, from the
+    scenario's own analytic plant (the one build's :func:`usv_mj.builder.make_plant`, calm water):
+    the F for which one integrator step from nu = (U, 0, 0) leaves the surge speed unchanged, by
+    secant iteration (the step is affine in F but for terms of order dt^2). A step of RK4 leaves a
+    state unchanged exactly where the vessel's acceleration is zero, so this is the equilibrium of
+    whatever hull the plant integrates (the paper's: d11(U) U - s 0.6, docs/model.md §1), with the
+    scenario's Delta included when it is on (d(t), a time-varying load, is not part of the drag:
+    left out)."""
+    import dataclasses
 
-    f = hydrodynamic_force(scenario.ship.as_array(), np.zeros(N_DIST_PARAMS), 0.0, np.zeros(3),
-                           np.array([speed, 0.0, 0.0]))
-    return float(-f[0])
+    from usv_mj.builder import make_plant
+
+    if hasattr(scenario.disturbance, "scale"):
+        scenario = dataclasses.replace(scenario, disturbance=dataclasses.replace(scenario.disturbance, scale=0.0))
+    plant = make_plant(scenario, "analytic", environment=None)
+    try:
+        def gain(force):
+            plant.reset((0.0, 0.0, 0.0), (speed, 0.0, 0.0), 0.0)
+            plant.step(force, 0.0)
+            return float(plant.state[3]) - speed
+
+        f0, f1 = 0.0, 1.0
+        g0, g1 = gain(f0), gain(f1)
+        for _ in range(30):
+            if g1 == g0:
+                break
+            f0, f1, g0 = f1, f1 - g1 * (f1 - f0) / (g1 - g0), g1
+            g1 = gain(f1)
+            if abs(f1 - f0) <= 1e-12 * max(1.0, abs(f1)):
+                break
+    finally:
+        plant.close()
+    if not math.isfinite(f1):
+        raise ScenarioError(f"{scenario.source}: no constant surge force holds manoeuvre.approach_speed = {speed!r}")
+    return float(f1)
 
 
 def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
