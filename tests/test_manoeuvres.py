@@ -295,3 +295,16 @@ def test_paper_hull_spiral_has_its_loop_above_0_2_m_s_only():
     slow = spiral(scenario, plant_kind="analytic", approach_speed=0.15, max_yaw_moment=2.0, steps=1,
                   hold_s=40.0)["measures"]
     assert not slow["hysteresis"] and abs(slow["yaw_rate_at_zero"]["down"]) < 0.01
+
+
+def test_a_rudder_beyond_the_twin_thrusters_is_said():
+    """paper-limited's twin thrusters give at most 0.395 m x (119.7 + 66.7) N = 73.6 N m of yaw: a
+    "rudder" of 100 N m is cut from the execute on (15 of the 20 s), one of 50 N m is not."""
+    from usv_mj import load_scenario
+    from usv_mj.manoeuvres import turning_circle
+
+    limited = load_scenario(preset="paper-limited")
+    cut = turning_circle(limited, plant_kind="analytic", duration=20.0, yaw_moment=100.0)["saturated_fraction"]
+    assert cut["r"] == pytest.approx(0.75, abs=1e-3)
+    held = turning_circle(limited, plant_kind="analytic", duration=20.0, yaw_moment=50.0)["saturated_fraction"]
+    assert held == {"u": 0.0, "r": 0.0}

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import json
 import math
+
+import numpy as np
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -103,7 +105,11 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
         m = stopping_measures(t, record["x"], record["y"], record["psi"], record["u"], record["v"],
                               stop_speed=o.stop_speed, t_execute=o.approach_s, length=length)
         crit = imo.criteria("stopping", m, length, o.approach_speed)
+    # where an actuator limit cut the command (usv_mj.actuators): the "rudder" or the approach force
+    # was then not what the options asked for
+    saturated = {axis: float(np.mean(record[f"sat_{axis}"] > 0)) if len(t) else 0.0 for axis in ("u", "r")}
     return {"kind": spec.kind, "options": asdict(o), "length_m": length, "plant": record.metadata.get("plant"),
+            "saturated_fraction": saturated,
             "status": record.status, "simulated_s": float(t[-1]) if len(t) else 0.0,
             "rudder": "commanded yaw moment tau_r [N m], realized by the vessel's actuators (docs/manoeuvres.md)",
             "measures": m, "imo": crit}
@@ -130,6 +136,10 @@ def report_section(result: dict) -> str:
     if kind == "spiral":
         lines += ["", "| command [N m] | branch | steady r [rad/s] | spread [rad/s] |", "|---|---|---|---|"]
         lines += [f"| {p['command']:g} | {p['branch']} | {p['yaw_rate']:+.4f} | {p['spread']:.1e} |" for p in m["points"]]
+    sat = result.get("saturated_fraction") or {}
+    if any(sat.values()):
+        lines += ["", f"**The actuators cut the command** in {100 * sat['u']:.1f} % (surge) and "
+                  f"{100 * sat['r']:.1f} % (yaw) of the steps: the manoeuvre is not the one its options ask for."]
     c = result["imo"]
     lines += ["", f"**{c['standard']}**: {c['note']}.", ""]
     if c["rows"]:

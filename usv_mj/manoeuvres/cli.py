@@ -126,6 +126,10 @@ def summary_lines(result: dict, out: Path, wall_s: float) -> str:
             lines.append(f"  tau_r {p['command']:+7.2f} N m ({p['branch']:>4}): r = {p['yaw_rate']:+.4f} rad/s")
         lines.append(f"  hysteresis loop: {'yes' if m.get('hysteresis') else 'no'}, commands "
                      f"{m.get('loop_commands')} N m")
+    sat = result.get("saturated_fraction") or {}
+    if any(sat.values()):
+        lines.append(f"  warning: the actuators cut the command in {100 * sat['u']:.1f} % (surge) / "
+                     f"{100 * sat['r']:.1f} % (yaw) of the steps")
     c = result.get("imo")
     if c:
         lines.append(f"  {c['standard']}: {c['note']}")
