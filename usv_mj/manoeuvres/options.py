@@ -28,8 +28,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-import numpy as np
-
 from usv_mj.errors import ScenarioError
 
 SIDES = {"starboard": -1.0, "port": 1.0}
