@@ -29,6 +29,11 @@ def add_arguments(p) -> None:
 
     p.add_argument("kind", nargs="?", choices=tuple(KINDS), help="the manoeuvre (default: the scenario's [manoeuvre])")
     add_scenario_arguments(p)
+    for action in p._actions:   # what the shared flags mean here
+        if "--duration" in action.option_strings:
+            action.help = "simulated time [s]: manoeuvre.duration (default: the manoeuvre's, 60 s; not the spiral)"
+        if "--sea" in action.option_strings:
+            action.help += " (with --set manoeuvre.conditions=scenario: a manoeuvre runs in calm water by default)"
     p.add_argument("--plant", choices=("mujoco", "analytic"), help="which plant integrates the ship")
     p.add_argument("--vessel", metavar="KIND", help="the vessel (shorthand for --set vessel.kind=KIND)")
     p.add_argument("--out", metavar="DIR", help="output folder (default renders/manoeuvre-KIND)")
