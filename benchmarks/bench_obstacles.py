@@ -18,6 +18,12 @@ prints microseconds per control step of
 - the whole closed loop (PPC on the MuJoCo plant, a straight line, 10 s) in open water against
   :func:`usv_mj.obstacles.run_obstacle_scenario` with the obstacle field (guidance off).
 
+Then, for harbours of 10 / 100 / 300 / 1000 standing circles (:func:`harbour_toml`: one buoy per
+170 m^2 about a 45 m line, guidance on, the MuJoCo plant; ``--harbours``), it prints the planning
+time (cold, and again from :func:`usv_mj.obstacles.make_plan`'s cache) and the closed loop's us per
+step beside open water. ``--write-harbour N PATH`` writes the N-circle harbour as a scenario file
+(``python -m usv_mj.cli run --scenario PATH --no-video`` then runs it whole).
+
 The machine is shared: run it twice and take the lower figures.
 """
 
@@ -56,12 +62,85 @@ def obstacle_field(count, seed=0, tables_only=False):
     return tables if tables_only else from_tables(tables)
 
 
+def harbour_toml(count: int, seed: int = 0) -> str:
+    """A harbour scenario of ``count`` standing buoys (radius 0.3-1 m, one per 170 m^2 in a square
+    about the 45 m line from (0, 0) to (45, 0), none within 8 m of its ends) on
+    examples/scenarios/harbour_gap.toml's settings (75 s, tight funnel, MuJoCo, guidance on)."""
+    from pathlib import Path
+
+    rng = np.random.default_rng(seed)
+    half = 0.5 * math.sqrt(count * 170.0)
+    buoys = []
+    while len(buoys) < count:
+        x, y = rng.uniform(22.5 - half, 22.5 + half), rng.uniform(-half, half)
+        if min(math.hypot(x, y), math.hypot(x - 45.0, y)) >= 8.0:
+            buoys.append((x, y, rng.uniform(0.3, 1.0)))
+    head = (Path(__file__).resolve().parents[1] / "examples/scenarios/harbour_gap.toml").read_text()
+    head = head.split("[[obstacles]]")[0]
+    body = "".join(f'[[obstacles]]\nname = "buoy_{i}"\nkind = "circle"\ncenter = [{x:.3f}, {y:.3f}]\n'
+                   f"radius = {r:.3f}\n\n" for i, (x, y, r) in enumerate(buoys))
+    return head + body + "[guidance]\navoid = true\nmargin_m = 0.3\n"
+
+
+def harbours(counts, loop_seconds: float) -> None:
+    """Planning time and the closed loop's us per step of :func:`harbour_toml` harbours."""
+    import tempfile
+    from collections import OrderedDict
+    from pathlib import Path
+
+    from usv_mj import build
+    from usv_mj.obstacles import hooks
+    from usv_mj.scenario import load_scenario
+    from usv_mj.simulation import simulate
+
+    def loop_us(scenario):
+        parts = build(scenario)
+        t0 = time.perf_counter()
+        simulate(parts)
+        return (time.perf_counter() - t0) / scenario.steps * 1e6
+
+    base = load_scenario(preset="paper").with_overrides({
+        "duration": loop_seconds, "plant": {"kind": "mujoco"}, "initial": {"eta": [0.0, 0.0, 0.0]},
+        "trajectory": {"kind": "line", "start": [0.0, 0.0], "heading_deg": 0.0}})
+    simulate(base.with_overrides({"duration": 0.5}))
+    open_us = loop_us(base)
+    print(f"harbours of standing circles (one per 170 m^2), guidance on, MuJoCo, {loop_seconds:g} s loop; "
+          f"open water {open_us:.1f} us/step")
+    print(f"{'circles':>8} {'plan (s)':>9} {'cached (ms)':>12} {'loop us/step':>13} {'x open':>7} {'path nodes':>11}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for count in counts:
+            path = Path(tmp) / f"harbour_{count}.toml"
+            path.write_text(harbour_toml(count))
+            sc = load_scenario(path).with_overrides({"duration": loop_seconds})
+            hooks._plans = OrderedDict()  # cold
+            t0 = time.perf_counter()
+            plan = hooks.make_plan(sc)
+            cold = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            hooks.make_plan(sc)
+            warm = (time.perf_counter() - t0) * 1e3
+            per = loop_us(sc)
+            print(f"{count:>8d} {cold:9.2f} {warm:12.2f} {per:13.1f} {per / open_us:7.2f} {len(plan.polyline):>11d}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--counts", type=int, nargs="*", default=[1, 10, 50])
     ap.add_argument("--steps", type=int, default=5000)
     ap.add_argument("--loop-seconds", type=float, default=10.0, help="simulated seconds of the closed-loop comparison")
+    ap.add_argument("--harbours", type=int, nargs="*", default=[10, 100, 300, 1000],
+                    help="circle counts of the planning table (none: skip it)")
+    ap.add_argument("--harbours-only", action="store_true", help="print only the planning table")
+    ap.add_argument("--write-harbour", nargs=2, metavar=("N", "PATH"), help="write the N-circle harbour and stop")
     args = ap.parse_args()
+    if args.write_harbour:
+        from pathlib import Path
+
+        Path(args.write_harbour[1]).write_text(harbour_toml(int(args.write_harbour[0])))
+        return
+    if args.harbours_only:
+        harbours(args.harbours, args.loop_seconds)
+        return
     n = args.steps
 
     from usv_mj.obstacle_tables import from_tables
@@ -144,6 +223,8 @@ def main():
         open_water.reset((0, 0, 0), (0.5, 0, 0))
         again = per_call(lambda: mujoco.mj_step(open_water.model, open_water.data), n)
     print(f"  bare mj_step measured again at the end: {again:.1f} (the load on the machine varies)")
+    if args.harbours:
+        harbours(args.harbours, args.loop_seconds)
 
 
 if __name__ == "__main__":

@@ -184,7 +184,7 @@ def test_render_live_replays_a_log(tmp_path, speed):
 def test_env_live_serves_each_episode(tmp_path):
     """`usv-mj env track --live`: the episode's rows as the run log's topics, the frames consistent with them."""
     proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "env", "track", "--policy", "ppc", "--duration", "3",
-                             "--video", "", "--live", "--live-port", "0"], cwd=ROOT, stdout=subprocess.PIPE,
+                             "--video", "none", "--live", "--live-port", "0"], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     lines: list = []
     try:

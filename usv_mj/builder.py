@@ -181,9 +181,39 @@ def check_start_clear(scenario: Scenario) -> None:
                             f"obstacles[{i}] ({scenario.obstacles[i].name}, clearance {clearance[i]:.3f} m)")
 
 
+def as_scenario(scenario, where: str) -> Scenario:
+    """``scenario`` as a :class:`Scenario`: a preset name ("paper") is loaded; anything else but a
+    Scenario is an :class:`usv_mj.errors.ArgumentTypeError` naming ``where``."""
+    from .errors import expected
+
+    if isinstance(scenario, str):
+        from .scenario import load_scenario
+
+        return load_scenario(preset=scenario)
+    if not isinstance(scenario, Scenario):
+        hint = " (a dict: load_scenario(preset=..., overrides={...}))" if isinstance(scenario, dict) else ""
+        raise expected(where, "scenario", "a Scenario (usv_mj.load_scenario) or a preset name such as 'paper'"
+                       + hint, scenario)
+    return scenario
+
+
+#: what a plant or a controller handed to :func:`build` must have (usv_mj.plants.base.Plant; the laws)
+PLANT_ATTRIBUTES = ("name", "control_period", "reset", "step", "state", "close")
+CONTROLLER_ATTRIBUTES = ("name", "reset", "__call__")
+
+
+def check_part(part, where: str, name: str, attributes) -> None:
+    """An :class:`usv_mj.errors.ArgumentTypeError` unless ``part`` has every one of ``attributes``."""
+    from .errors import expected
+
+    missing = [a for a in attributes if not hasattr(part, a)]
+    if missing:
+        raise expected(where, name, f"a {name} with {', '.join(attributes)} (it has no {', '.join(missing)})", part)
+
+
 def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind: str | None = None,
           duration: float | None = None, plant=None, controller=None, reference=None, environment="scenario",
-          contact=None, show_safety: bool = True) -> Parts:
+          contact=None, show_safety: bool = True, plan=None) -> Parts:
     """The running parts of ``scenario`` (module docstring).
 
     ``plant_kind`` / ``controller_kind`` choose other registered kinds than the scenario's (the
@@ -191,7 +221,13 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     ``controller`` and ``reference`` hand in ready-made parts instead (a plant handed in is not
     closed by :meth:`Parts.close`). ``environment`` overrides the scenario's sea (None: calm).
     ``contact`` is the MuJoCo contact model (:class:`usv_mj.obstacles.compose.ContactParams`).
+    ``plan``: the :class:`usv_mj.obstacles.planner.Plan` of an earlier build of this scenario (the
+    half-step check runs the main run's plan); by default :func:`usv_mj.obstacles.make_plan`'s.
     """
+    scenario = as_scenario(scenario, "build")
+    for part, name, attributes in ((plant, "plant", PLANT_ATTRIBUTES), (controller, "controller", CONTROLLER_ATTRIBUTES)):
+        if part is not None:
+            check_part(part, "build", name, attributes)
     duration = scenario.duration if duration is None else float(duration)
     if not (math.isfinite(duration) and duration > 0):
         raise ScenarioError(f"{scenario.source}: duration must be > 0 s, got {duration!r}")
@@ -199,11 +235,11 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     env = make_environment(scenario, duration) if environment == "scenario" else environment
     statics = Statics(environment=env, obstacles=tuple(scenario.obstacles))
     metadata: dict = {}
-    plan = None
+    given, plan = plan, None
     if scenario.obstacles and scenario.guidance.avoid and reference is None:
         from .obstacles.hooks import make_plan
 
-        plan = make_plan(scenario, duration)
+        plan = given.fresh() if given is not None else make_plan(scenario, duration)
         statics.plan = plan
     own_plant = plant is None
     if plant is None:

@@ -35,6 +35,18 @@ class PluginImportError(UnknownKindError):
     the kind, where it was named, and the import's own error)."""
 
 
+class ArgumentTypeError(UsvMjError, TypeError):
+    """A public function was handed the wrong kind of object; the message names the function, the
+    argument, what it takes and what it got: ``simulate: scenario must be ..., got NoneType``."""
+
+
+def expected(where: str, name: str, what: str, value) -> ArgumentTypeError:
+    """The :class:`ArgumentTypeError` of ``where``'s argument ``name`` that should be ``what``."""
+    shown = repr(value) if isinstance(value, (str, bytes, int, float)) and len(repr(value)) <= 40 else None
+    got = type(value).__name__ + (f" {shown}" if shown else "")
+    return ArgumentTypeError(f"{where}: {name} must be {what}, got {got}")
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised like Ctrl-C's KeyboardInterrupt (its text: the signal's name), so
     that every ending by a signal is recorded as an interruption."""

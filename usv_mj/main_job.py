@@ -66,7 +66,8 @@ def step_size_check(scenario: Scenario, record: RunRecord, plant_kind: str | Non
         return {}
     half = scenario.with_overrides({"control_period": dt / 2, "duration": horizon,
                                     "baseline": {"enabled": False}})
-    fine = _simulate(half, plant_kind, None, [], None)
+    # the main run's plan (made for its horizon), not one for 20 s: both runs track one reference
+    fine = simulate(half, plant_kind=plant_kind, plan=getattr(record.statics, "plan", None))
     if fine.status != "completed":
         return {"duration_s": horizon, "dt_half": dt / 2, "max_position_m": None,  # JSON has no inf
                 "max_heading_rad": None, "ok": False, "status": fine.status, "stop_reason": fine.stop_reason}

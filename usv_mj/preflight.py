@@ -58,10 +58,19 @@ def check_plan(scenario: Scenario) -> None:
 
 
 def check_video(render_options: dict | None) -> None:
-    """The camera (and size) of the video, before any render worker starts."""
-    from .render.video import _check_size, check_camera
+    """The camera (and size) of the video, before any render worker starts; an option that
+    :func:`usv_mj.render.render_run` does not take is refused here, not after the simulation."""
+    import inspect
+
+    from .render.video import _check_size, check_camera, render_run
 
     opts = dict(render_options or {})
+    known = [name for name in inspect.signature(render_run).parameters if name not in ("record", "out_path", "progress",
+                                                                                       "pool")]
+    unknown = sorted(set(opts) - set(known))
+    if unknown:
+        raise ScenarioError(f"render_options: unknown option(s) {', '.join(map(repr, unknown))}; known: "
+                            f"{', '.join(known)}")
     try:
         if "width" in opts or "height" in opts:
             _check_size(opts.get("width", 1280), opts.get("height", 720))

@@ -22,6 +22,7 @@ import difflib
 import functools
 import math
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -310,8 +311,18 @@ def _merge(base: dict, over: dict) -> dict:
 def load_scenario(path: str | Path | None = None, preset: str | None = None, overrides: dict | None = None) -> Scenario:
     """Load a scenario file (or only a preset) and apply ``overrides`` (a nested dict).
 
-    Raises :class:`ScenarioError` with the file, the key and the bad value on any problem.
+    Raises :class:`ScenarioError` with the file, the key and the bad value on any problem, and
+    :class:`usv_mj.errors.ArgumentTypeError` for an argument of the wrong type.
     """
+    from .errors import expected
+
+    if path is not None and not isinstance(path, (str, Path)):
+        raise expected("load_scenario", "path", "a scenario file's path (str or pathlib.Path)", path)
+    if preset is not None and not isinstance(preset, str):
+        raise expected("load_scenario", "preset", f"a preset name ({', '.join(preset_names())})", preset)
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise expected("load_scenario", "overrides", "a nested dict of scenario keys, e.g. {'duration': 5.0}",
+                       overrides)
     data: dict = {}
     source = f"preset {preset or 'paper'}"
     if path is not None:

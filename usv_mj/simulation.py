@@ -57,12 +57,13 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
              controller_kind: str | None = None, sinks: Iterable[RunSink] = (), block: int = 2000,
              progress: Callable[[int], None] | None = None, duration: float | None = None,
              reference=None, hooks: Iterable[Callable] = (), loop: str = "auto", store=None,
-             stream_above: float | None = None) -> RunRecord:
+             stream_above: float | None = None, plan=None) -> RunRecord:
     """Run in closed loop and return the :class:`RunRecord`.
 
     ``scenario`` is a :class:`Scenario` (built here with :func:`usv_mj.build`, with ``plant_kind``,
     ``controller_kind``, ``duration`` and any ready-made ``plant`` / ``controller`` / ``reference``)
-    or the :class:`Parts` of an earlier build. ``hooks`` are called as ``hook(t, k, plant)`` at
+    or the :class:`Parts` of an earlier build (``plan``: an earlier build's obstacle plan to run
+    again). ``hooks`` are called as ``hook(t, k, plant)`` at
     every control step before the reference is evaluated, after the build's own. ``progress(n)``
     is called with the number of new steps every block. A plant the build made is closed here.
     The record's ``statics`` are the build's (the sea the plant saw, the obstacles, the plan).
@@ -81,11 +82,15 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
     """
     if loop not in ("auto", "python"):
         raise ValueError(f"simulate: loop must be 'auto' or 'python', got {loop!r}")
+    if not isinstance(scenario, Parts):
+        from .builder import as_scenario
+
+        scenario = as_scenario(scenario, "simulate")  # a preset name is loaded
     if isinstance(scenario, Parts):
         parts = scenario
     else:
         parts = build(scenario, plant_kind=plant_kind, controller_kind=controller_kind, duration=duration,
-                      plant=plant, controller=controller, reference=reference)
+                      plant=plant, controller=controller, reference=reference, plan=plan)
     try:
         return _run(parts, list(parts.sinks) + list(sinks), block, progress, tuple(parts.hooks) + tuple(hooks),
                     use_compiled=loop == "auto", store=store, stream_above=stream_above)

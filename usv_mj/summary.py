@@ -130,6 +130,10 @@ def summarize(record: RunRecord, criterion=None) -> dict:
     (the record's ``metadata["criterion"]``): the baseline judged as the main run is. The block
     ``criterion`` holds :meth:`evaluate`'s result; ``funnel_violations`` / ``first_violation_s``
     are there only when the criterion is the funnel."""
+    if not isinstance(record, RunRecord):
+        from .errors import expected
+
+        raise expected("summarize", "record", "a RunRecord (usv_mj.simulate, usv_mj.runlog.read_run)", record)
     from .criteria import criterion_of_record
 
     criterion = criterion_of_record(record) if criterion is None else criterion

@@ -31,7 +31,7 @@ used as is), else ``preset`` ("paper") and ``overrides`` (a nested dict as in sc
 ``max_surge_force`` [N] and ``max_yaw_moment`` [N m] (1000: the action bounds of channels whose
 actuators are unlimited; ``scenario.actuators`` limits win where finite), ``preview_times`` [s],
 ``start_offset`` (track), ``max_distance`` [m] (50), harbor: ``n_rays`` (16), ``max_range`` [m] (20),
-``goal_radius`` [m] (1.5), ``goal_distance`` [m] (40). As ``dm_control.suite.load``:
+``goal_radius`` [m] (1.5), ``goal_distance`` [m] (40, in [30, 500]: a ValueError outside). As ``dm_control.suite.load``:
 ``task_kwargs``, ``environment_kwargs`` (``time_limit``, ``flat_observation``, ``legacy_step``) and
 ``flat_observation=True`` (one ``observations`` vector; ``env.unflatten(obs)`` splits it).
 

@@ -170,6 +170,15 @@ class USVEnvironment(control.Environment):
         record = episode_record(self, rows, metadata)
         return self._frames.frame(record, width=width, height=height, camera=camera)
 
+    def scene_xml(self) -> str:
+        """The MJCF text of the scene this environment's physics runs (the composed harbour with its
+        obstacles and rangefinders, or the hull alone): the file the plant loaded is a temporary
+        copy that :meth:`close` removes, so keep this text to keep the scene. MuJoCo alone sees no
+        water in it: :func:`usv_mj.attach_hydrodynamics` attaches the hull forces."""
+        if self._closed:
+            raise RuntimeError("USVEnvironment: the environment is closed")
+        return self._physics.plant.scene_xml()
+
     def close(self):
         if not self._closed:
             self._closed = True
@@ -208,6 +217,11 @@ def _nested_merge(a: dict, b: dict) -> dict:
         out[key] = _nested_merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) \
             else value
     return out
+
+
+#: [m] the harbour tasks' goal_distance: past the piers (x = 10-21 m) and the buoys drawn at 0.55-0.9
+#: of it; at most 500 m (each layout's plan is smoothed along the whole distance, 0.4 s per 100 m)
+GOAL_DISTANCE_RANGE = (30.0, 500.0)
 
 
 def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, flat_observation: bool = False,
@@ -255,6 +269,10 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
         return USVEnvironment(USVPhysics.from_plant(make_plant(scenario, "mujoco")), tsk, **env_kw)
     harbour_kw = {k: options.pop(k) for k in ("n_rays", "max_range", "goal_radius") if k in options}
     goal_distance = float(options.pop("goal_distance", 40.0))
+    lo, hi = GOAL_DISTANCE_RANGE
+    if not (math.isfinite(goal_distance) and lo <= goal_distance <= hi):
+        raise ValueError(f"usv_mj.envs.load({task!r}): goal_distance must be in [{lo:g}, {hi:g}] m (the goal "
+                         f"beyond the piers at x = 10-21 m, within reach of the planner), got {goal_distance!r}")
     if options:
         raise ValueError(f"usv_mj.envs.load({task!r}): unknown options {sorted(options)}")
     tsk = HarbourTask(scenario, margin_m=scenario.guidance.margin_m, random=seed, time_limit=time_limit,

@@ -83,13 +83,25 @@ class USVGymEnv(gymnasium.Env):
     ``dm_env`` is the underlying :class:`usv_mj.envs.USVEnvironment` (its ``task`` and ``physics``).
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+    RENDER_MODES = ("rgb_array",)
+
+    # The metadata is an instance property: gymnasium.make then hands render_mode to __init__ as
+    # asked, so an unsupported mode ("human") is refused in one line instead of being wrapped in
+    # gymnasium's HumanRendering (a pygame window this headless renderer never fills).
+    @property
+    def metadata(self) -> dict:
+        return self._metadata
+
+    @metadata.setter
+    def metadata(self, value: dict) -> None:
+        self._metadata = value
 
     def __init__(self, task: str = "track", seed=None, render_mode=None, flat: bool = True,
                  render_size=(640, 360), **options):
         from .environment import load
 
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+        self._metadata = {"render_modes": list(self.RENDER_MODES), "render_fps": 30}
+        if render_mode is not None and render_mode not in self.RENDER_MODES:
             raise ValueError(f"USVGymEnv: render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.task_name = task
         self.render_mode = render_mode

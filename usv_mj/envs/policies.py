@@ -48,6 +48,11 @@ class PPCPolicy:
 
     def __init__(self, env, controller=None):
         self.env, self.gym = _views(env)
+        if not hasattr(self.env, "task") or not hasattr(self.env.task, "reference_at"):
+            from usv_mj.errors import expected
+
+            raise expected("PPCPolicy", "env", "a usv_mj environment (usv_mj.envs.load) or its Gymnasium view "
+                           "(usv_mj.envs.gym_env, gymnasium.make('usv_mj/Track-v0'))", env)
         task = self.env.task
         self.controller = controller if controller is not None else make_controller(task.scenario, "ppc")
         self._x = np.zeros(6)

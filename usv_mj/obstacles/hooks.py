@@ -9,6 +9,7 @@ guidance re-time the reference.
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 
 import numpy as np
 
@@ -61,10 +62,16 @@ class ObstacleHook:
             self.guidance.update(t)
 
 
-def make_plan(sc, duration: float | None = None) -> Plan:
-    """The static plan of an obstacle scenario: start = trajectory.points[0] (waypoints) or
-    trajectory.start (line), goal = the last waypoint (or 1 km along the line), speed =
-    trajectory.speed, psi0 = initial heading."""
+#: how many plans :func:`make_plan` keeps (a job asks for one plan three times: the input check,
+#: the build and the half-step check's build; a sweep's worker, for one plan per scenario)
+PLAN_CACHE_SIZE = 4
+_plans: OrderedDict[str, Plan] = OrderedDict()
+
+
+def plan_inputs(sc, duration: float | None = None) -> tuple:
+    """Everything :func:`plan_reference` reads from ``sc``: (start, goal, envelope, duration), and
+    the cache key of :func:`make_plan` is the repr of these and of the obstacles and guidance (the
+    floats' repr is exact, so two scenarios share a plan only when every input is equal)."""
     tr = sc.trajectory
     if tr.kind == "waypoints":
         start, goal = tr.points[0], tr.points[-1]
@@ -75,5 +82,29 @@ def make_plan(sc, duration: float | None = None) -> Plan:
         raise ValueError(f"guidance.avoid needs trajectory.kind = 'waypoints' or 'line' (start and goal), "
                          f"got {tr.kind!r}")
     envelope = SafetyEnvelope.from_scenario(sc, sc.guidance.margin_m)
-    return plan_reference(start, goal, sc.obstacles, envelope, sc.guidance, tr.speed,
-                          duration or sc.duration, sc.initial.eta[2])
+    return start, goal, envelope, float(duration or sc.duration)
+
+
+def make_plan(sc, duration: float | None = None) -> Plan:
+    """The static plan of an obstacle scenario: start = trajectory.points[0] (waypoints) or
+    trajectory.start (line), goal = the last waypoint (or 1 km along the line), speed =
+    trajectory.speed, psi0 = initial heading, verified over ``duration`` [s] (default the scenario's).
+
+    Planned once per content: the last :data:`PLAN_CACHE_SIZE` plans are kept, keyed by every
+    input (:func:`plan_inputs`), and each call gets the plan with a reference of its own
+    (:meth:`Plan.fresh`), so a changed scenario is planned again and no run sees another's
+    re-timing."""
+    start, goal, envelope, horizon = plan_inputs(sc, duration)
+    f = sc.funnel
+    key = repr((tuple(start), tuple(goal), tuple(sc.obstacles), sc.guidance, (f.rho_xy[0], f.rho_xy[1], f.rate),
+                envelope.eps, envelope.hull_radius, envelope.margin, sc.trajectory.speed, horizon,
+                float(sc.initial.eta[2])))
+    plan = _plans.get(key)
+    if plan is None:
+        plan = plan_reference(start, goal, sc.obstacles, envelope, sc.guidance, sc.trajectory.speed, horizon,
+                              sc.initial.eta[2])
+        _plans[key] = plan
+        while len(_plans) > PLAN_CACHE_SIZE:
+            _plans.popitem(last=False)
+    _plans.move_to_end(key)
+    return plan.fresh()

@@ -27,7 +27,7 @@ reference must stay far from everything early on; a harbour scenario sets a tigh
 Planning (static obstacles): each obstacle is grown by its inflation (G at the time the reference
 passes it + margin + an allowance for the smoothing), the grown shapes are merged (shapely), a
 visibility graph over their vertices plus start and goal is searched with networkx (A*, Euclidean
-heuristic), and the polyline is smoothed by a virtual boat (pure pursuit with look-ahead L, the
+heuristic; only the vertices and tangent segments a shortest path can use, :func:`visibility_path`), and the polyline is smoothed by a virtual boat (pure pursuit with look-ahead L, the
 curvature rate-limited) into a path tabulated in arc length: x(s), y(s), psi(s), kappa(s), with
 |kappa| <= max_yaw_rate / u and |dkappa/ds| <= max_yaw_accel / u^2. The reference runs it at speed
 u: r_d = kappa u, psi_d = psi(s), x_d_dot = u cos psi_d (docs/model.md §4's unicycle-like model, v_d = 0).
@@ -51,6 +51,7 @@ predicted clearance over the horizon holds (``mode = "path"``). When nothing hel
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -457,6 +458,13 @@ class Plan:
     def verified(self) -> bool:
         return bool(np.all(self.slack >= -1e-9))
 
+    def fresh(self) -> "Plan":
+        """The same plan with a reference of its own, as planned (a run's :class:`Guidance` re-times
+        and detours the reference it is given; the path tables are shared, never changed)."""
+        t0, s0, path = self.reference.segments[0]
+        speed = self.reference.profile.pieces[0][2]
+        return dataclasses.replace(self, reference=GuidedReference(path, SpeedProfile(speed)), events=list(self.events))
+
 
 QUAD_SEGS = 3  # vertices per quarter circle of the grown shapes (visibility-graph size vs. corner cutting)
 
@@ -478,40 +486,101 @@ def _merged_obstacles(obstacles, inflation):
     return [shapely.Polygon(p.exterior) for p in polys if not p.is_empty]
 
 
+#: candidate edges per bulk STRtree query: one query is a call into GEOS that Python cannot
+#: interrupt, so it is kept short (a Ctrl-C while a harbour is planned is honoured at once)
+QUERY_CHUNK = 512
+
+
+def _tangent_at(nodes, before, after, i, j):
+    """Whether the segment nodes[i] -> nodes[j] is locally tangent at nodes[i] to its polygon: the
+    polygon's neighbours of vertex i, ``before[i]`` and ``after[i]``, lie on one side of the line
+    (or on it). A shortest path around polygons only runs along such segments (the reduced
+    visibility graph: a segment that cuts the corner at a vertex enters the polygon there, and one
+    at a reflex vertex is never taut). Start and goal (before = -1) are tangent to anything."""
+    d = nodes[j] - nodes[i]
+    free = before[i] < 0
+    b, a = nodes[np.maximum(before[i], 0)] - nodes[i], nodes[np.maximum(after[i], 0)] - nodes[i]
+    cb = d[:, 0] * b[:, 1] - d[:, 1] * b[:, 0]
+    ca = d[:, 0] * a[:, 1] - d[:, 1] * a[:, 0]
+    scale = 1e-12 * (np.abs(d).sum(axis=1) + 1.0) ** 2
+    return free | (cb * ca >= -scale)
+
+
+def _visible_edges(nodes, before, after, keep, tree):
+    """The edges (i, j, length) of the reduced visibility graph on the nodes ``keep`` (indices):
+    pairs tangent at both ends (:func:`_tangent_at`) whose segment meets no part in ``tree``,
+    asked in bulk, :data:`QUERY_CHUNK` segments per STRtree query."""
+    edges = []
+    for row, i in enumerate(keep[:-1]):
+        j = keep[row + 1:]
+        ii = np.full(len(j), i)
+        ok = _tangent_at(nodes, before, after, ii, j) & _tangent_at(nodes, before, after, j, ii)
+        if ok.any():
+            edges.append(np.c_[ii[ok], j[ok]])
+    if not edges:
+        return np.zeros((0, 2), np.int64), np.zeros(0)
+    edges = np.vstack(edges)
+    blocked = np.zeros(len(edges), dtype=bool)
+    if tree is not None:
+        for lo in range(0, len(edges), QUERY_CHUNK):
+            e = edges[lo:lo + QUERY_CHUNK]
+            hit, _ = tree.query(shapely.linestrings(np.stack([nodes[e[:, 0]], nodes[e[:, 1]]], axis=1)),
+                                predicate="intersects")
+            blocked[lo + np.unique(hit)] = True
+    edges = edges[~blocked]
+    return edges, np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)
+
+
 def visibility_path(start, goal, polygons) -> np.ndarray:
-    """Shortest polyline start -> goal around ``polygons`` (visibility graph, networkx A*)."""
+    """Shortest polyline start -> goal around ``polygons`` (visibility graph, networkx A*).
+
+    The graph holds only the nodes that can lie on a path no longer than a bound L, those with
+    |start - v| + |v - goal| <= L (an ellipse about the start and the goal), and only the edges
+    tangent to their polygons at both ends (:func:`_tangent_at`), each tested against the
+    obstacles near it (one STRtree query per chunk of edges). L starts at 1.25 |goal - start|; a
+    path found no longer than L is the shortest of all (every vertex of the shortest path lies in
+    the ellipse of its own length); otherwise L grows to the length found (or doubles when none
+    is found) and the search runs again. The work follows the obstacles near the straight line,
+    not all of them."""
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     blocked_area = shapely.union_all([p.buffer(-1e-6) for p in polygons]) if polygons else shapely.Polygon()
     for label, pt in (("start", start), ("goal", goal)):
         if blocked_area.contains(shapely.Point(*pt)):
             raise PlanningError(f"the {label} point ({pt[0]:.2f}, {pt[1]:.2f}) m lies inside an inflated obstacle")
-    nodes = [start, goal]
-    for p in polygons:
-        nodes.extend(np.asarray(p.exterior.coords)[:-1])
-    nodes = np.array(nodes)
-    n = len(nodes)
-    ii, jj = np.triu_indices(n, 1)
-    lines = shapely.linestrings(np.stack([nodes[ii], nodes[jj]], axis=1))
+    nodes, before, after = [start, goal], [-1, -1], [-1, -1]
+    for p in shapely.orient_polygons(polygons) if polygons else ():
+        ring = np.asarray(p.exterior.coords)[:-1]
+        first, m = len(nodes), len(ring)
+        nodes.extend(ring)
+        local = np.arange(m)
+        before.extend(first + (local - 1) % m)
+        after.extend(first + (local + 1) % m)
+    nodes, before, after = np.array(nodes), np.array(before), np.array(after)
     parts = list(blocked_area.geoms) if hasattr(blocked_area, "geoms") else [blocked_area]
     parts = [p for p in parts if not p.is_empty]
-    blocked = np.zeros(len(lines), dtype=bool)
-    if parts:
-        tree = shapely.STRtree(parts)
-        hit_lines, _ = tree.query(lines, predicate="intersects")
-        blocked[np.unique(hit_lines)] = True
-    graph = nx.Graph()
-    graph.add_nodes_from(range(n))
-    ok = ~blocked
-    lengths = np.linalg.norm(nodes[ii] - nodes[jj], axis=1)
-    graph.add_weighted_edges_from(zip(ii[ok].tolist(), jj[ok].tolist(), lengths[ok].tolist()))
-    try:
-        route = nx.astar_path(graph, 0, 1, heuristic=lambda a, b: float(np.linalg.norm(nodes[a] - nodes[b])),
-                              weight="weight")
-    except nx.NetworkXNoPath:
-        raise PlanningError("no path from the start to the goal keeps the required clearance: the gaps between "
-                            "the inflated obstacles are closed (tighten the funnel, lower the margin or move "
-                            "the obstacles)") from None
-    return nodes[route]
+    tree = shapely.STRtree(parts) if parts else None
+    detour = np.linalg.norm(nodes - start, axis=1) + np.linalg.norm(nodes - goal, axis=1)
+    bound = 1.25 * detour[0]
+    while True:
+        keep = np.flatnonzero(detour <= bound + 1e-9)
+        edges, lengths = _visible_edges(nodes, before, after, keep, tree)
+        graph = nx.Graph()
+        graph.add_nodes_from(keep.tolist())
+        graph.add_weighted_edges_from(zip(edges[:, 0].tolist(), edges[:, 1].tolist(), lengths.tolist()))
+        try:
+            route = nx.astar_path(graph, 0, 1, heuristic=lambda a, b: float(np.linalg.norm(nodes[a] - nodes[b])),
+                                  weight="weight")
+        except nx.NetworkXNoPath:
+            if len(keep) == len(nodes):
+                raise PlanningError("no path from the start to the goal keeps the required clearance: the gaps "
+                                    "between the inflated obstacles are closed (tighten the funnel, lower the "
+                                    "margin or move the obstacles)") from None
+            bound *= 2.0
+            continue
+        length = float(np.sum(np.linalg.norm(np.diff(nodes[route], axis=0), axis=1)))
+        if length <= bound + 1e-9:
+            return nodes[route]
+        bound = length
 
 
 def obstacle_distances(obstacles, positions: np.ndarray, times: np.ndarray | None = None) -> np.ndarray:

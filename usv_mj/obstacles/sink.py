@@ -45,8 +45,7 @@ class ObstacleLog:
         self.note = note
         self.inflation = None if inflation is None else np.asarray(inflation, dtype=float)
         self.clearance = np.full((n_rows, n), np.nan)
-        self.normal_force = np.zeros((n_rows, n))
-        self.obstacle_xy = np.zeros((n_rows, n, 2))
+        self.normal_force = np.zeros((n_rows, n))  # pages untouched until a contact: no memory
         self.events: list[Event] = []
         self.n_rows = 0
         self.record = None
@@ -60,7 +59,10 @@ class ObstacleLog:
         self._center0 = np.array([o.center for o in self.obstacles], dtype=float).reshape(n, 2)
         self._velocity = np.array([o.velocity for o in self.obstacles], dtype=float).reshape(n, 2)
         self._any_moving = any(o.moving for o in self.obstacles)
-        self.obstacle_xy[:] = self._center0  # static obstacles stay; moving ones are written per step
+        # static obstacles stay (a read-only view of the centres: no rows x obstacles array to fill);
+        # moving ones are written per step
+        self.obstacle_xy = (np.repeat(self._center0[None], n_rows, axis=0) if self._any_moving
+                            else np.broadcast_to(self._center0, (n_rows, n, 2)))
 
     # --- fed by the stepper ----------------------------------------------------------------------
 
@@ -135,17 +137,20 @@ class ObstacleLog:
     def summary(self) -> dict:
         """``min_clearance_m``, ``contacts`` and per-obstacle ``min_clearance_m`` / time / peak force."""
         c = self.clearance[: self.n_rows]
+        ok = np.isfinite(c)
+        first = (np.zeros(len(self.obstacles), int) if not self.n_rows else
+                 c.argmin(axis=0) if ok.all() else np.argmin(np.where(ok, c, np.inf), axis=0))
+        any_ok = ok.any(axis=0)
+        peak = self.normal_force[: self.n_rows].max(axis=0) if self.n_rows else np.zeros(len(self.obstacles))
         per = []
         for i, o in enumerate(self.obstacles):
-            col = c[:, i]
-            ok = np.isfinite(col)
-            k = int(np.argmin(np.where(ok, col, np.inf))) if ok.any() else -1
+            k = int(first[i]) if any_ok[i] else -1
             per.append({"name": o.name, "kind": o.kind, "moving": o.moving,
-                        "min_clearance_m": float(col[k]) if k >= 0 else None,
+                        "min_clearance_m": float(c[k, i]) if k >= 0 else None,
                         "t_min_s": float(k * self.dt) if k >= 0 else None,
-                        "peak_normal_force_N": float(np.max(self.normal_force[: self.n_rows, i])) if self.n_rows else 0.0,
+                        "peak_normal_force_N": float(peak[i]),
                         "inflation_m": self._inflation(i)})
-        finite = c[np.isfinite(c)]
+        finite = c[ok]
         kinds = [e.kind for e in self.events]
         return {
             "min_clearance_m": float(finite.min()) if finite.size else None,

@@ -278,6 +278,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
     """
     wall0 = time.perf_counter()
     _check_size(width, height)
+    check_camera(camera, model)  # before the progress bar and any worker (RenderWorkers checks again)
     if not (isinstance(crf, int) and 0 <= crf <= 51):
         raise ValueError(f"crf = {crf!r}: libx264's quality must be an integer in [0, 51]")
     if preset not in X264_PRESETS:

@@ -793,6 +793,11 @@ def read_run(path, companions: bool = True) -> RunLog:
     which file each run came from. ``RunLog.notice`` is one line naming each file read (this one
     and its companions) that is cut or damaged and the rows recovered from it ("" when all are whole).
     """
+    if not (isinstance(path, (str, Path)) or hasattr(path, "read")):
+        from usv_mj.errors import expected
+
+        raise expected("read_run", "path", "a run log's path (str or pathlib.Path) or a binary stream "
+                       "(bytes: io.BytesIO(data))", path)
     log = _read_one(path)
     if companions and isinstance(path, (str, Path)):
         for other in companion_files(path):
