@@ -308,3 +308,19 @@ def test_a_rudder_beyond_the_twin_thrusters_is_said():
     assert cut["r"] == pytest.approx(0.75, abs=1e-3)
     held = turning_circle(limited, plant_kind="analytic", duration=20.0, yaw_moment=50.0)["saturated_fraction"]
     assert held == {"u": 0.0, "r": 0.0}
+
+
+def test_the_api_names_a_wrong_argument():
+    from usv_mj.errors import ArgumentTypeError
+    from usv_mj.manoeuvres import run_manoeuvre, turning_circle, zigzag
+
+    with pytest.raises(ArgumentTypeError, match=r"^turning_circle: scenario must be a Scenario .* got NoneType$"):
+        turning_circle(None)
+    with pytest.raises(ArgumentTypeError, match=r"^zigzag: unknown option 'yaw'; the options are approach_speed, "):
+        zigzag("paper", yaw=3.0)
+    with pytest.raises(ScenarioError, match=r"manoeuvre.angle_deg must be > 0"):
+        zigzag("paper", angle_deg=-10.0)
+    with pytest.raises(ArgumentTypeError, match=r"^run_manoeuvre: spec must be a ManoeuvreSpec"):
+        run_manoeuvre("paper", "turning")
+    with pytest.raises(ScenarioError, match=r"no \[manoeuvre\] to run"):
+        run_manoeuvre("paper")

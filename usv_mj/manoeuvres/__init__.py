@@ -164,8 +164,13 @@ def run_manoeuvre(scenario, spec: ManoeuvreSpec | None = None, *, plant_kind: st
                   render_options: dict | None = None) -> dict:
     """Run manoeuvre ``spec`` (default: the scenario's ``[manoeuvre]``) and return its measures (module
     docstring); with ``out_dir`` write every output there (``result["job"]``: the JobResult)."""
+    from usv_mj.builder import as_scenario
+    from usv_mj.errors import expected
     from usv_mj.simulation import simulate
 
+    scenario = as_scenario(scenario, "run_manoeuvre")
+    if spec is not None and not isinstance(spec, ManoeuvreSpec):
+        raise expected("run_manoeuvre", "spec", "a ManoeuvreSpec (usv_mj.manoeuvres.ManoeuvreSpec) or None", spec)
     ms = manoeuvre_scenario(scenario, spec)
     spec = ms.manoeuvre
     length = vessel_length(ms)
@@ -189,15 +194,25 @@ def run_manoeuvre(scenario, spec: ManoeuvreSpec | None = None, *, plant_kind: st
     return result
 
 
+_API_NAMES = {"turning": "turning_circle", "zigzag": "zigzag", "spiral": "spiral", "stopping": "stopping"}
+
+
 def _run_kind(kind, scenario, plant_kind, out_dir, video, options):
+    from dataclasses import fields
+
+    from usv_mj.builder import as_scenario
+    from usv_mj.errors import ArgumentTypeError
+
+    where = _API_NAMES[kind]
+    scenario = as_scenario(scenario, where)
+    known = [f.name for f in fields(KINDS[kind])]
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise ArgumentTypeError(f"{where}: unknown option {unknown[0]!r}; the options are {', '.join(known)} "
+                                "(and plant_kind, out_dir, video)")
     base = scenario.manoeuvre.options if (scenario.manoeuvre is not None and scenario.manoeuvre.kind == kind) \
         else KINDS[kind]()
-    try:
-        opts = replace(base, **options)
-    except TypeError as exc:
-        from usv_mj.errors import ScenarioError
-
-        raise ScenarioError(f"manoeuvre {kind}: {exc}") from None
+    opts = replace(base, **options)   # validated again: a bad value is one ScenarioError naming its key
     return run_manoeuvre(scenario, ManoeuvreSpec(kind, opts), plant_kind=plant_kind, out_dir=out_dir, video=video)
 
 
