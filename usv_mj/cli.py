@@ -17,6 +17,7 @@
     usv-mj run --live                  the run served to Foxglove as it runs (pip install "usv_mj[live]")
     usv-mj scene --out scene.xml       the scenario's MuJoCo scene (obstacles included) as one MJCF file
     usv-mj view [--manual]             MuJoCo's viewer on the scenario: water, sea, controller (or the arrow keys)
+    usv-mj manoeuvre turning           a standard manoeuvre: turning, zigzag, spiral, stopping (IMO measures)
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
@@ -321,20 +322,26 @@ def _plot_command(args) -> int:
         why = f": {log.problem}" if log.problem else ""
         raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot){why}")
     out = Path(args.out) if args.out else path.parent
+    from .manoeuvres import record_outputs, spec_of_record
     from .outdir import check_folder, record
 
-    check_folder(out, args.overwrite, writes=("report.md", "figures"))
+    manoeuvre = ("manoeuvre.json",) if spec_of_record(log.record) is not None else ()
+    check_folder(out, args.overwrite, writes=("report.md", "figures", *manoeuvre))
     out.mkdir(parents=True, exist_ok=True)
     if log.notice:
         print(f"usv-mj plot: warning: the log is incomplete: {log.notice}", file=sys.stderr)
     figures = draw_figures(log.record, out / "figures", log.baseline, note=log.notice)
+    # a manoeuvre's figures, manoeuvre.json and its report section (nothing for another run)
+    sections, manoeuvre_files, _ = record_outputs(log.record, out)
+    figures = list(figures) + list(manoeuvre_files.get("manoeuvre_figures", []))
     summary = summarize(log.record)
     base = summarize(log.baseline, criterion_of_record(log.record)) if log.baseline is not None else None
     write_report(out / "report.md", summary, base,
                  log.metadata.get("step_check"),
-                 extra_sections=[f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers above "
-                                 "are of what was recovered."] if log.notice else None)
-    record(out, ["report.md", *(Path(f).relative_to(out).as_posix() for f in figures)])
+                 extra_sections=sections + ([f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers "
+                                             "above are of what was recovered."] if log.notice else []) or None)
+    record(out, ["report.md", *(["manoeuvre.json"] if sections else []),
+                 *(Path(f).relative_to(out).as_posix() for f in figures)])
     print(f"figures and report from {path} written to {out}/" + (" (from an incomplete log, see above)"
                                                                  if log.notice else ""))
     return EXIT_OK
@@ -364,6 +371,8 @@ _EXTERNAL = {
               "write the scenario's MuJoCo scene (obstacles included) as one MJCF file"),
     "view": ("usv_mj.view", "add_arguments", "run_command",
              "MuJoCo's viewer on the scenario: water, sea and controller acting; --manual drives with the arrows"),
+    "manoeuvre": ("usv_mj.manoeuvres.cli", "add_arguments", "run_command",
+                  "a standard manoeuvre (turning circle, zig-zag, spiral, stopping): measures, IMO criteria, figures"),
 }
 
 
@@ -402,6 +411,10 @@ _DESCRIPTIONS = {
     "kinds": "List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
              "disturbance): where it comes from (built-in, an entry point's distribution, module:Name,\n"
              "registered at runtime) and its options (name, type, default, unit). --json for one object.",
+    "manoeuvre": "Run a standard manoeuvre of the vessel (turning circle, 10/10 or 20/20 zig-zag, Dieudonne's\n"
+                 "spiral, stopping test) on either plant, and write its measures (manoeuvre.json), the IMO\n"
+                 "MSC.137(76) criteria beside them, figures, report.md and run.mcap into --out (a video with\n"
+                 "--video). Options: --set manoeuvre.KEY=VALUE (README, Vessels and manoeuvres).",
 }
 
 
@@ -435,7 +448,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, bench, env, kinds, scene, view
+commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, bench, env, kinds,
+          scene, view, manoeuvre
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 

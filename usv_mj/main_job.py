@@ -330,7 +330,7 @@ def _one_line(exc: BaseException) -> str:
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
             video: bool = True, log: bool = True, progress: bool = True, step_check: bool = True,
             render_options: dict | None = None, overwrite: bool = False, log_rate: float | None = None,
-            live=None) -> JobResult:
+            live=None, extra_outputs=None) -> JobResult:
     """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
 
     Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
@@ -343,7 +343,10 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     ``log_rate`` [Hz]: the MCAP logs every n-th control step (None: every step). A run whose
     record exceeds ``simulation.STREAM_BYTES`` streams it into ``record/`` (``baseline_record/``):
     ``RunRecord.open`` reads it back.
-    ``live``: a :class:`usv_mj.runlog.live.LiveServer` that serves the logs' messages to Foxglove."""
+    ``live``: a :class:`usv_mj.runlog.live.LiveServer` that serves the logs' messages to Foxglove.
+
+    ``extra_outputs(record, out)`` (a manoeuvre's measures, say) writes its own files into the
+    staging folder ``out`` after the figures and returns (report sections, {name: path})."""
     from .preflight import check_run
     from .runlog.writer import log_every
 
@@ -358,7 +361,8 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
-                                 render_opts=render_opts, log_rate=log_rate, live=live)
+                                 render_opts=render_opts, log_rate=log_rate, live=live,
+                                 extra_outputs=extra_outputs)
         except RunFailed as exc:
             exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
             exc.traceback = _relocate(exc.traceback, stage.path, out)
@@ -398,7 +402,8 @@ def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
-                video, log, progress, step_check, render_opts, log_rate=None, live=None) -> JobResult:
+                video, log, progress, step_check, render_opts, log_rate=None, live=None,
+                extra_outputs=None) -> JobResult:
     """The job itself, writing into the staging folder ``out``."""
     import traceback
 
@@ -521,6 +526,11 @@ def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signal
         phase = "drawing the figures"
         files["figures"] = draw_figures(record, out / "figures", base_rec, obstacles=scenario.obstacles)
         extra_sections = []
+        if extra_outputs is not None:
+            phase = "writing the manoeuvre's outputs"
+            sections, extra_files = extra_outputs(record, out)
+            extra_sections += list(sections)
+            files.update(extra_files)
         if not scenario.sea.calm:
             phase = "drawing the sea figures"
             extra_sections.append(_sea_outputs(scenario, record, summary, summary_out, out, plant_kind, files))

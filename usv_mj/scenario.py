@@ -270,6 +270,7 @@ class Scenario:
     sea: SeaSettings = field(default_factory=SeaSettings)
     obstacles: tuple = ()  # ObstacleSpec per [[obstacles]] table (usv_mj.obstacle_tables)
     guidance: GuidanceSpec = field(default_factory=GuidanceSpec)  # [guidance]
+    manoeuvre: Any = None  # [manoeuvre]: a ManoeuvreSpec (usv_mj.manoeuvres.options), None: no manoeuvre
     source: str = field(default="", compare=False)
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -456,6 +457,10 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True) -> Scen
     if "obstacles" in data or "guidance" in data:
         top["obstacles"] = from_tables(data.get("obstacles"), source)
         top["guidance"] = guidance_from_table(data.get("guidance"), source)
+    if "manoeuvre" in data:
+        from .manoeuvres.options import manoeuvre_from_table
+
+        top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source)
     scenario = _construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
 
