@@ -35,22 +35,22 @@ __all__ = ["run_manoeuvre", "turning_circle", "zigzag", "spiral", "stopping", "m
            "ManoeuvreSpec", "KINDS"]
 
 #: the paper's hull: models/usv.xml spans x = -0.98 m (transom) to +1.00 m (bow)
-PAPER_HULL_LENGTH_M = 2.0
+PAPER_HULL_LENGTH_M = 1.98   # m: the paper vessel's L (usv_mj.vessels paper; models/usv.xml, x from -0.98 to 1.0)
 
 
 def vessel_length(scenario) -> float:
-    """The vessel's length L [m]: the ``[vessel]``'s when the scenario (or its ``to_dict()``, from a
-    run's metadata) has one that states it, the paper hull's 2 m otherwise."""
-    def get(obj, name):
-        return obj.get(name) if isinstance(obj, dict) else getattr(obj, name, None)
+    """The vessel's length L [m]: its ``[vessel]``'s main dimensions (:mod:`usv_mj.vessels`), from a
+    Scenario or from its ``to_dict()`` (a run's metadata); the paper hull's 2 m for a table that
+    names no vessel (an older log)."""
+    if isinstance(scenario, dict):
+        if not isinstance(scenario.get("vessel"), dict):
+            return PAPER_HULL_LENGTH_M
+        from usv_mj.scenario import from_dict
 
-    vessel = get(scenario, "vessel")
-    for holder in (vessel, get(vessel, "options") if vessel is not None else None):
-        for name in ("L", "length", "lpp", "length_m"):
-            value = get(holder, name) if holder is not None else None
-            if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
-                return float(value)
-    return PAPER_HULL_LENGTH_M
+        scenario = from_dict({k: scenario[k] for k in ("vessel", "ship") if k in scenario}, source="<metadata>")
+    vessel = getattr(scenario, "vessel", None)
+    dims = getattr(getattr(vessel, "model", None), "dimensions", None)
+    return float(dims.L) if dims is not None else PAPER_HULL_LENGTH_M
 
 
 def spec_of_record(record) -> ManoeuvreSpec | None:

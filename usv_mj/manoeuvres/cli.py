@@ -24,7 +24,7 @@ from .options import KINDS
 
 
 def add_arguments(p) -> None:
-    from usv_mj.cli import add_scenario_arguments
+    from usv_mj.cli import add_scenario_arguments, add_vessel_argument
     from usv_mj.render import add_video_arguments
 
     p.add_argument("kind", nargs="?", choices=tuple(KINDS), help="the manoeuvre (default: the scenario's [manoeuvre])")
@@ -35,7 +35,7 @@ def add_arguments(p) -> None:
         if "--sea" in action.option_strings:
             action.help += " (with --set manoeuvre.conditions=scenario: a manoeuvre runs in calm water by default)"
     p.add_argument("--plant", choices=("mujoco", "analytic"), help="which plant integrates the ship")
-    p.add_argument("--vessel", metavar="KIND", help="the vessel (shorthand for --set vessel.kind=KIND)")
+    add_vessel_argument(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default renders/manoeuvre-KIND)")
     p.add_argument("--overwrite", action="store_true", help="replace an earlier run in --out (replaced whole)")
     g = p.add_mutually_exclusive_group()
@@ -48,12 +48,7 @@ def add_arguments(p) -> None:
 
 def _scenario(args):
     from usv_mj.cli import scenario_from_args
-    from usv_mj.scenario import Scenario
 
-    if args.vessel is not None:
-        if "vessel" not in Scenario.__dataclass_fields__:
-            raise ScenarioError(f"--vessel {args.vessel}: no vessel registry yet")
-        args.set = list(args.set) + [f"vessel.kind={args.vessel}"]
     duration, args.duration = args.duration, None   # the manoeuvre's duration, not the scenario's
     own = None
     if args.scenario:
