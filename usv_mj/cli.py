@@ -511,7 +511,17 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(exc, GLUnavailableError):
             print(f"usv-mj {args.command}: {exc}", file=sys.stderr)
             return EXIT_NO_GL
-        raise
+        if getattr(args, "debug", False) or os.environ.get("USV_MJ_DEBUG") == "1":
+            raise
+        # a defect of usv_mj, not of the input: one line, the documented exit 1 (--debug or
+        # USV_MJ_DEBUG=1 prints the traceback)
+        where = exc.__traceback__
+        while where is not None and where.tb_next is not None:
+            where = where.tb_next
+        at = f" at {Path(where.tb_frame.f_code.co_filename).name}:{where.tb_lineno}" if where is not None else ""
+        print(f"usv-mj {args.command}: internal error: {type(exc).__name__}: {' '.join(str(exc).split())}{at} "
+              "(a defect of usv_mj; USV_MJ_DEBUG=1 shows the traceback)", file=sys.stderr)
+        return EXIT_STOPPED
 
 
 def entry() -> int:

@@ -25,6 +25,7 @@ quantizer.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, fields
 
@@ -218,6 +219,18 @@ def approach_force(scenario, speed: float) -> float:
     return float(f1)
 
 
+def _no_delta(scenario) -> dict:
+    """The override that takes the paper's Delta off the scenario's vessel: ``[ship]`` for the paper
+    vessel, its ``[vessel]`` key for a vessel that has one (none: it has no Delta)."""
+    vessel = getattr(scenario, "vessel", None)
+    if vessel is None or vessel.kind == "paper":
+        return {"ship": {"uncertainty_scale": 0.0}}
+    options = vessel.options
+    if dataclasses.is_dataclass(options) and any(f.name == "uncertainty_scale" for f in dataclasses.fields(options)):
+        return {"vessel": {"uncertainty_scale": 0.0}}
+    return {}
+
+
 def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
     """The scenario overrides that make ``scenario`` run manoeuvre ``spec`` (module docstring)."""
     o = spec.options
@@ -225,7 +238,7 @@ def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
     over = {"baseline": {"enabled": False}, "control_period": o.control_period,
             "initial": {"eta": [0.0, 0.0, 0.0], "nu": [o.approach_speed, 0.0, 0.0]}}
     if calm:
-        over.update(disturbance={"scale": 0.0}, ship={"uncertainty_scale": 0.0}, quantizer={"enabled": False})
+        over.update(disturbance={"scale": 0.0}, quantizer={"enabled": False}, **_no_delta(scenario))
         scenario = scenario.with_overrides(over)  # the drag with the test's Delta (none)
     force = approach_force(scenario, o.approach_speed)
     if spec.kind == "turning":
