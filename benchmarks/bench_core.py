@@ -1,6 +1,6 @@
 """Benchmark: the closed loop per control step, Python loop against compiled loop, beside the bare mj_step.
 
-    python benchmarks/bench_core.py [--duration 60] [--repeat 5] [--no-sea]
+    python benchmarks/bench_core.py [--duration 60] [--repeat 5] [--no-sea] [--vessel KIND ...]
 
 Prints, per 1 ms control step, in CPU time of this thread (``time.thread_time``: on a shared machine
 the wall clock also counts the time waiting for a core), the best and the range over ``--repeat``
@@ -11,7 +11,9 @@ interleaved rounds:
 - the PPC call, the reference, the quantizer (what the Python loop pays per part);
 - ``simulate`` of the paper preset (``--duration`` s, no baseline) on both plants with the Python
   loop (``loop="python"``) and the compiled loop (usv_mj.compiled_loop), and the same in the
-  ``moderate`` sea, with the realtime factor.
+  ``moderate`` sea, with the realtime factor;
+- with ``--vessel KIND`` (repeatable; docs/vessels.md) the same ``simulate`` on that vessel, and its
+  compiled loop's step against the paper hull's.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ def main(argv=None):
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--no-sea", action="store_true", help="skip the moderate-sea runs")
+    ap.add_argument("--vessel", action="append", default=[], help="also run the paper's scenario on this vessel kind")
     args = ap.parse_args(argv)
 
     import mujoco
@@ -51,6 +54,8 @@ def main(argv=None):
     runs = {"paper": scenario}
     if not args.no_sea:
         runs["paper, moderate sea"] = load_scenario(preset="paper", overrides={**over, "sea": {"preset": "moderate"}})
+    for kind in args.vessel:
+        runs[f"vessel {kind}"] = load_scenario(preset="paper", overrides={**over, "vessel": {"kind": kind}})
     for sc in runs.values():  # compile / cache load of both loops on both plants
         for kind in ("analytic", "mujoco"):
             for loop in ("auto", "python"):
@@ -112,6 +117,10 @@ def main(argv=None):
         for kind in ("mujoco", "analytic"):
             py, co = best[f"simulate({label}), {kind}, Python loop"], best[f"simulate({label}), {kind}, compiled loop"]
             print(f"{label}, {kind}: compiled loop {py / co:.2f}x faster than the Python loop")
+    for label in (k for k in runs if k.startswith("vessel ")):
+        for kind in ("mujoco", "analytic"):
+            co, paper = best[f"simulate({label}), {kind}, compiled loop"], best[f"simulate(paper), {kind}, compiled loop"]
+            print(f"{label}, {kind}: compiled loop step {co / paper:.2f}x the paper hull's")
 
 
 if __name__ == "__main__":

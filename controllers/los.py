@@ -219,8 +219,9 @@ class LOSController:
 
     @classmethod
     def from_scenario(cls, gains: LOSGains, scenario) -> "LOSController":
-        """The controller for ``scenario``: its nominal ship (feedforward) and control period."""
-        return cls(gains, scenario.ship, scenario.control_period)
+        """The controller for ``scenario``: its nominal ship (the vessel's times
+        ``[vessel] model_mismatch``: ``scenario.nominal_ship``) (feedforward) and control period."""
+        return cls(gains, scenario.nominal_ship, scenario.control_period)
 
     def __init__(self, gains: LOSGains, nominal: ShipParams, control_period: float):
         self.gains = gains

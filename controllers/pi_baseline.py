@@ -119,9 +119,10 @@ class PIController:
 
     @classmethod
     def from_scenario(cls, gains: PIGains, scenario) -> "PIController":
-        """The baseline for ``scenario``: its nominal ship, funnels (for the errors) and control period."""
+        """The baseline for ``scenario``: its nominal ship (the vessel's times
+        ``[vessel] model_mismatch``: ``scenario.nominal_ship``), funnels (for the errors) and control period."""
         fxy, fpsi = funnels_of(scenario)
-        return cls(gains, scenario.ship, fxy, fpsi, scenario.control_period)
+        return cls(gains, scenario.nominal_ship, fxy, fpsi, scenario.control_period)
 
     def __init__(self, gains: PIGains, nominal: ShipParams, funnel_xy: PerformanceFunnel,
                  funnel_psi: PerformanceFunnel, control_period: float):

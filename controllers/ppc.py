@@ -246,9 +246,10 @@ class PPCController:
 
     @classmethod
     def from_scenario(cls, gains: PPCGains, scenario) -> "PPCController":
-        """The law for ``scenario``: its nominal ship, funnels, quantizer deltas and control period."""
+        """The law for ``scenario``: its nominal ship (the vessel's times
+        ``[vessel] model_mismatch``: ``scenario.nominal_ship``), funnels, quantizer deltas and control period."""
         fxy, fpsi = funnels_of(scenario)
-        return cls(gains, scenario.ship, fxy, fpsi, scenario.quantizer.delta_u, scenario.quantizer.delta_r,
+        return cls(gains, scenario.nominal_ship, fxy, fpsi, scenario.quantizer.delta_u, scenario.quantizer.delta_r,
                    scenario.control_period)
 
     def __init__(self, gains: PPCGains, nominal: ShipParams, funnel_xy: PerformanceFunnel,

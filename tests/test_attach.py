@@ -194,3 +194,22 @@ def test_run_log_attaches_the_scene_the_plant_ran(tmp_path):
         mujoco.mj_step(model, data)
     water.detach()
     assert abs(data.qpos[0] - x[-1]) < 1e-6
+
+
+def test_an_environments_scene_outlives_its_close():
+    """The harbor task's composed scene (obstacles, rangefinders) as MJCF text, kept after close()
+    removes the plant's temporary copy: MuJoCo loads it with the same bodies, geoms and sensors."""
+    import mujoco
+
+    from usv_mj import envs
+
+    env = envs.load("harbor")
+    try:
+        xml = env.scene_xml()
+        model = env.physics.model
+        counts = (model.nbody, model.ngeom, model.nsensor, model.nu)
+    finally:
+        env.close()
+    again = mujoco.MjModel.from_xml_string(xml)
+    assert (again.nbody, again.ngeom, again.nsensor, again.nu) == counts
+    assert counts[1] > 3 and counts[2] > 0   # the harbour's obstacles and the rangefinder fan are in it

@@ -95,3 +95,15 @@ def test_the_wheel_finds_the_examples_by_name_and_registers_the_gymnasium_ids(in
     assert lines[0].split()[1].endswith("usv_mj/examples/sweeps/quick.toml") and str(ROOT) not in lines[0]
     assert lines[1] == "True"
     assert lines[2].endswith("usv_mj/examples/scenarios/harbour_gap.toml") and str(ROOT) not in lines[2]
+
+
+def test_the_wheel_carries_the_default_benchmark_suite(installed):
+    wheel, py, outside, env = installed
+    names = zipfile.ZipFile(wheel).namelist()
+    assert "usv_mj/bench/suites/default.toml" in names   # its harbour task names the shipped example harbour_gap
+    proc = subprocess.run([str(py), "-c", "from usv_mj.bench import load_suite; s = load_suite(); "
+                           "print(len(s.plan.runs), s.source)"], cwd=outside, env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    n, source = proc.stdout.split()
+    assert n == "189" and str(ROOT) not in source

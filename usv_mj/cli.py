@@ -11,11 +11,13 @@
     usv-mj render RUN.mcap             the video again, at another size, speed or camera
     usv-mj sweep SWEEP.toml            many runs on a Dask cluster (local by default)
     usv-mj capability --load ...       the environment capability polar of the controller
+    usv-mj bench [SUITE.toml]          the controller benchmark: a leaderboard with intervals (default suite)
     usv-mj env track --policy ppc      the USV as a dm_control task: roll out a policy, print returns, video
     usv-mj kinds                       every controller, trajectory, plant, disturbance kind and its options
     usv-mj run --live                  the run served to Foxglove as it runs (pip install "usv_mj[live]")
     usv-mj scene --out scene.xml       the scenario's MuJoCo scene (obstacles included) as one MJCF file
     usv-mj view [--manual]             MuJoCo's viewer on the scenario: water, sea, controller (or the arrow keys)
+    usv-mj manoeuvre turning           a standard manoeuvre: turning, zigzag, spiral, stopping (IMO measures)
 
 Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
 recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
@@ -58,10 +60,10 @@ import time
 from pathlib import Path
 
 from .errors import Terminated
-from .command_args import add_live_arguments, add_scenario_arguments, live_server, parse_set, scenario_from_args  # noqa: F401 (re-exported)
+from .command_args import (EXIT_BAD_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_STOPPED,  # noqa: F401 (re-exported)
+                           add_live_arguments, add_scenario_arguments, add_vessel_argument, live_server, parse_set,
+                           scenario_from_args)
 from .scenario import ScenarioError, load_scenario, preset_names
-
-EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT, EXIT_NO_GL = 0, 1, 2, 3
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
@@ -86,6 +88,7 @@ def _add_run(sub):
                        "figures/, run.mcap (baseline.mcap), video.mp4 and video.png into --out.")
     add_scenario_arguments(p)
     p.add_argument("--plant", choices=("mujoco", "analytic"), help="which plant integrates the ship")
+    add_vessel_argument(p)
     p.add_argument("--out", metavar="DIR", help="output folder (default renders/<preset or scenario name>)")
     p.add_argument("--no-video", action="store_true", help="skip the video")
     p.add_argument("--no-baseline", action="store_true", help="skip the PI baseline run")
@@ -226,20 +229,26 @@ def _plot_command(args) -> int:
         why = f": {log.problem}" if log.problem else ""
         raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot){why}")
     out = Path(args.out) if args.out else path.parent
+    from .manoeuvres import record_outputs, spec_of_record
     from .outdir import check_folder, record
 
-    check_folder(out, args.overwrite, writes=("report.md", "figures"))
+    manoeuvre = ("manoeuvre.json",) if spec_of_record(log.record) is not None else ()
+    check_folder(out, args.overwrite, writes=("report.md", "figures", *manoeuvre))
     out.mkdir(parents=True, exist_ok=True)
     if log.notice:
         print(f"usv-mj plot: warning: the log is incomplete: {log.notice}", file=sys.stderr)
     figures = draw_figures(log.record, out / "figures", log.baseline, note=log.notice)
+    # a manoeuvre's figures, manoeuvre.json and its report section (nothing for another run)
+    sections, manoeuvre_files, _ = record_outputs(log.record, out)
+    figures = list(figures) + list(manoeuvre_files.get("manoeuvre_figures", []))
     summary = summarize(log.record)
     base = summarize(log.baseline, criterion_of_record(log.record)) if log.baseline is not None else None
     write_report(out / "report.md", summary, base,
                  log.metadata.get("step_check"),
-                 extra_sections=[f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers above "
-                                 "are of what was recovered."] if log.notice else None)
-    record(out, ["report.md", *(Path(f).relative_to(out).as_posix() for f in figures)])
+                 extra_sections=sections + ([f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers "
+                                             "above are of what was recovered."] if log.notice else []) or None)
+    record(out, ["report.md", *(["manoeuvre.json"] if sections else []),
+                 *(Path(f).relative_to(out).as_posix() for f in figures)])
     print(f"figures and report from {path} written to {out}/" + (" (from an incomplete log, see above)"
                                                                  if log.notice else ""))
     return EXIT_OK
@@ -259,6 +268,8 @@ _EXTERNAL = {
               "Monte-Carlo sweep of many runs on a Dask cluster (local by default)"),
     "capability": ("usv_mj.sweep", "add_capability_arguments", "capability_command",
                    "environment capability polar: the largest load at which the controller's criterion holds"),
+    "bench": ("usv_mj.bench", "add_arguments", "run_command",
+              "the controller benchmark: every controller on the same tasks, seas and actuators, one leaderboard"),
     "env": ("usv_mj.envs.cli", "add_arguments", "run_command",
             "roll out a policy (ppc, random) in a dm_control task (track, track_waves, harbor): returns and a video"),
     "kinds": ("usv_mj.kinds", "add_arguments", "run_command",
@@ -267,6 +278,8 @@ _EXTERNAL = {
               "write the scenario's MuJoCo scene (obstacles included) as one MJCF file"),
     "view": ("usv_mj.view", "add_arguments", "run_command",
              "MuJoCo's viewer on the scenario: water, sea and controller acting; --manual drives with the arrows"),
+    "manoeuvre": ("usv_mj.manoeuvres.cli", "add_arguments", "run_command",
+                  "a standard manoeuvre (turning circle, zig-zag, spiral, stopping): measures, IMO criteria, figures"),
 }
 
 
@@ -295,11 +308,20 @@ _DESCRIPTIONS = {
     "view": "Open MuJoCo's interactive viewer on the scenario's scene with the hydrodynamics, the sea and\n"
             "the controller acting (needs a display; exit 3 without one). --manual: drive it yourself,\n"
             "arrow keys up/down for surge, left/right for yaw, space to zero the thrust.",
+    "bench": "Score controllers on a suite of tasks (trajectories, a harbour transit) in calm water, a\n"
+             "moderate sea with current and with thrust limits, the same episodes for each; default: the\n"
+             "suite shipped in the package. Episodes run on the sweep's Dask cluster and stream into\n"
+             "results.parquet (--resume finishes); report.md is the leaderboard with 95 % intervals and\n"
+             "figures. --compare A B tests A against B per metric (paired Wilcoxon). docs/metrics.md.",
     "env": "Roll out a policy (ppc: the paper's controller; random) in a dm_control task (track,\n"
            "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode.",
     "kinds": "List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
              "disturbance): where it comes from (built-in, an entry point's distribution, module:Name,\n"
              "registered at runtime) and its options (name, type, default, unit). --json for one object.",
+    "manoeuvre": "Run a standard manoeuvre of the vessel (turning circle, 10/10 or 20/20 zig-zag, Dieudonne's\n"
+                 "spiral, stopping test) on either plant, and write its measures (manoeuvre.json), the IMO\n"
+                 "MSC.137(76) criteria beside them, figures, report.md and run.mcap into --out (a video with\n"
+                 "--video). Options: --set manoeuvre.KEY=VALUE (README, Vessels and manoeuvres).",
 }
 
 
@@ -333,7 +355,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 SHORT_USAGE = """usage: usv-mj COMMAND [options]
 
-commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, env, kinds, scene, view
+commands: run, presets, examples, compare, inspect, plot, render, sweep, capability, bench, env, kinds,
+          scene, view, manoeuvre
   usv-mj run              the paper scenario on the MuJoCo plant: video, figures, MCAP log, report
   usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples"""
 
@@ -395,7 +418,17 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(exc, GLUnavailableError):
             print(f"usv-mj {args.command}: {exc}", file=sys.stderr)
             return EXIT_NO_GL
-        raise
+        if getattr(args, "debug", False) or os.environ.get("USV_MJ_DEBUG") == "1":
+            raise
+        # a defect of usv_mj, not of the input: one line, the documented exit 1 (--debug or
+        # USV_MJ_DEBUG=1 prints the traceback)
+        where = exc.__traceback__
+        while where is not None and where.tb_next is not None:
+            where = where.tb_next
+        at = f" at {Path(where.tb_frame.f_code.co_filename).name}:{where.tb_lineno}" if where is not None else ""
+        print(f"usv-mj {args.command}: internal error: {type(exc).__name__}: {' '.join(str(exc).split())}{at} "
+              "(a defect of usv_mj; USV_MJ_DEBUG=1 shows the traceback)", file=sys.stderr)
+        return EXIT_STOPPED
 
 
 def entry() -> int:

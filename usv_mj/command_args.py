@@ -1,7 +1,9 @@
 """The options and helpers every command shares: the scenario options (--preset, --scenario, --set,
---duration, --sea) and the live options (--live, --live-port, --live-wait, --speed).
+--duration, --sea, --vessel), the live options (--live, --live-port, --live-wait, --speed) and the
+exit codes.
 
-A command module (``compare``, ``view``, ``scene_export``, ``envs.cli``, ``render.video``) imports them
+A command module (``compare``, ``view``, ``scene_export``, ``envs.cli``, ``render.video``,
+``manoeuvres.cli``) imports them
 from here, never from ``usv_mj.cli``: the command line imports the library, not the other way round.
 ``usv_mj.cli`` re-exports these names for code written against it.
 """
@@ -13,6 +15,9 @@ import sys
 import tomllib
 
 from .scenario import ScenarioError, load_scenario, merge_tables, preset_names
+
+#: the exit codes of every command: done, stopped early, bad input, no OpenGL (usv_mj.cli's docstring)
+EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT, EXIT_NO_GL = 0, 1, 2, 3
 
 
 def parse_set(items: list[str]) -> dict:
@@ -46,6 +51,11 @@ def add_scenario_arguments(p: argparse.ArgumentParser) -> None:
                    "breeze, varying-current): waves, current and wind of docs/sea.md; `usv-mj presets` lists them")
 
 
+def add_vessel_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--vessel", metavar="KIND", help="the hull: a vessel kind (paper, cybership2, otter, clarke83; "
+                   "`usv-mj kinds vessel`) or a vessel data file; shorthand for --set vessel.kind=KIND")
+
+
 def scenario_from_args(args):
     overrides = {}
     if getattr(args, "sea", None) is not None:
@@ -68,6 +78,13 @@ def scenario_from_args(args):
             raise ScenarioError(f"--set plant={overrides['plant']!r}: [plant] must be a table (with --plant "
                                 "give --set plant.kind=... or drop one of them)")
         overrides.setdefault("plant", {})["kind"] = args.plant
+    if getattr(args, "vessel", None):  # --vessel X: shorthand for --set vessel.kind=X (docs/vessels.md)
+        if not isinstance(overrides.get("vessel", {}), dict):
+            raise ScenarioError(f"--set vessel={overrides['vessel']!r}: [vessel] must be a table")
+        if isinstance(overrides.get("ship"), dict) and args.vessel != "paper":
+            raise ScenarioError(f"--vessel {args.vessel}: --set ship.* sets the paper vessel's parameters; "
+                                f"give the vessel's own as --set vessel.KEY=VALUE")
+        overrides.setdefault("vessel", {})["kind"] = args.vessel
     return load_scenario(args.scenario, preset=args.preset, overrides=overrides)
 
 

@@ -104,7 +104,21 @@ def _grid_steps(dt: float) -> int:
     return int(round(g))
 
 
-def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: bool = False) -> np.ndarray:
+def input_scale(scenario: Scenario) -> tuple[float, float]:
+    """(surge, yaw) factors of the open-loop inputs for the scenario's vessel: 1 on the paper's
+    ship; on another vessel m11 / m11_paper and m33 / m33_paper (docs/vessels.md), so that the
+    inputs give every hull the paper's accelerations (the paper-sized forces would drive the 23.8 kg
+    CyberShip II model to 3 m/s and 5 rad/s)."""
+    if scenario.vessel.kind == "paper":
+        return 1.0, 1.0
+    from .ship import ShipParams
+
+    paper = ShipParams()
+    return scenario.ship.m11 / paper.m11, scenario.ship.m33 / paper.m33
+
+
+def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: bool = False,
+                     scale: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
     """The open-loop input sequence [(tau_u [N], tau_r [N m]) per control step], shape (n, 2).
 
     Piecewise constant on a 0.2 s grid: surge levels uniform in [-60, 220] N (one span in six is
@@ -116,6 +130,8 @@ def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: b
     square wave), so that u, v and r keep their signs after the start (checked: the result
     reports the zero crossings of the reference solution) and the |u|, |v|, |r| terms
     of the damping (docs/model.md §1) stay smooth along the solution.
+
+    ``scale``: (surge, yaw) factors of the forces (:func:`input_scale`).
     """
     g = _grid_steps(dt)
     n = int(round(duration / dt))
@@ -133,6 +149,8 @@ def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: b
         c += span
     if not one_signed:
         levels[:, 1] += 3.0 * np.where((np.arange(cells) // 6) % 2 == 0, 1.0, -1.0)
+    if tuple(scale) != (1.0, 1.0):
+        levels *= np.asarray(scale, dtype=float)
     return np.repeat(levels, g, axis=0)[:n]
 
 
@@ -221,7 +239,8 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
         scenario = scenario.without("obstacles", "guidance")
     dt = scenario.control_period
     eta0, nu0 = scenario.initial.eta, scenario.initial.nu
-    inputs, saturated = realized_inputs(scenario, open_loop_inputs(scenario.duration, dt), dt)
+    scale = input_scale(scenario)
+    inputs, saturated = realized_inputs(scenario, open_loop_inputs(scenario.duration, dt, scale=scale), dt)
     env = sea_environment(scenario)
     _say(progress, f"open loop, {scenario.duration:g} s at dt = {dt * 1e3:g} ms on both plants"
          + ("" if env is None else " in the scenario's sea"))
@@ -235,7 +254,9 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
     wall["mujoco"] = time.perf_counter() - t0
     result = {"duration_s": scenario.duration, "control_period_s": dt, **state_differences(xm, xa),
               "inputs": "open_loop_inputs(seed=2024): surge -60..220 N, yaw -8..8 N m (+-3 N m square wave), "
-                        "held 0.2-3 s on a 0.2 s grid", "wall_time_s": wall,
+                        "held 0.2-3 s on a 0.2 s grid" + ("" if scale == (1.0, 1.0) else
+                        f", surge and yaw scaled by {scale[0]:.4g} and {scale[1]:.4g} to the vessel "
+                        f"(m11, m33 against the paper's)"), "wall_time_s": wall,
               "actuators": scenario.actuators.describe(), "saturated_fraction": saturated}
     if env is not None:
         _say(progress, f"open loop: the analytic plant from a start moved by {SENSITIVITY_OFFSET_M:g} m "
@@ -345,12 +366,13 @@ def _open_convergence(scenario: Scenario, horizon: float, one_signed: bool, envi
     eta0, nu0 = scenario.initial.eta, scenario.initial.nu
     dt_ref = min(OPEN_CONVERGENCE_DTS) / OPEN_REFERENCE_DIVISOR
     ref = run_open_loop(_analytic_plant(scenario, dt_ref, environment),
-                        open_loop_inputs(horizon, dt_ref, one_signed=one_signed), eta0, nu0)
+                        open_loop_inputs(horizon, dt_ref, one_signed=one_signed, scale=input_scale(scenario)),
+                        eta0, nu0)
     coarse = max(OPEN_CONVERGENCE_DTS)
     r = ref[::int(round(coarse / dt_ref))]
     rows = []
     for h in OPEN_CONVERGENCE_DTS:
-        u = open_loop_inputs(horizon, h, one_signed=one_signed)
+        u = open_loop_inputs(horizon, h, one_signed=one_signed, scale=input_scale(scenario))
         a = run_open_loop(_analytic_plant(scenario, h, environment), u, eta0, nu0)
         with _mujoco_plant(scenario, h, environment, substeps=1) as plant:
             m = run_open_loop(plant, u, eta0, nu0)
@@ -664,9 +686,10 @@ def _json_default(obj):
 def add_arguments(parser) -> None:
     """Arguments of ``usv-mj compare``: the scenario options of ``usv-mj run`` (--preset, --scenario,
     --set, --duration), --out and -q."""
-    from .command_args import add_scenario_arguments
+    from .command_args import add_scenario_arguments, add_vessel_argument
 
     add_scenario_arguments(parser)
+    add_vessel_argument(parser)
     parser.add_argument("--out", metavar="DIR", default=None, help="output folder (default renders/compare-<name>)")
     from .outdir import add_overwrite_argument
 
@@ -686,6 +709,8 @@ def run_command(args) -> int:
         raise ScenarioError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
     scenario = scenario_from_args(args)
     name = os.path.splitext(os.path.basename(args.scenario))[0] if args.scenario else (args.preset or "paper")
+    if getattr(args, "vessel", None):
+        name += "-" + os.path.splitext(os.path.basename(args.vessel))[0]
     out = args.out or os.path.join("renders", f"compare-{name}")
     from .outdir import Staging, check_folder
 

@@ -156,7 +156,9 @@ def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_o
     return "\n".join(lines)
 
 
-def _write_json(path: Path, data: dict) -> None:
+def write_json(path: Path, data: dict) -> None:
+    """``data`` as indented JSON at ``path``, whole or not at all (a temporary file, then renamed);
+    NaN or inf is refused (ValueError)."""
     tmp = path.with_suffix(".json.tmp")
     try:
         tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
@@ -330,7 +332,7 @@ def _one_line(exc: BaseException) -> str:
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
             video: bool = True, log: bool = True, progress: bool = True, step_check: bool = True,
             render_options: dict | None = None, overwrite: bool = False, log_rate: float | None = None,
-            live=None) -> JobResult:
+            live=None, extra_outputs=None) -> JobResult:
     """Run ``scenario`` and write every output into ``out_dir`` (see the module docstring).
 
     Every input is checked first (:func:`usv_mj.preflight.check_run`: a ScenarioError leaves
@@ -343,7 +345,10 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     ``log_rate`` [Hz]: the MCAP logs every n-th control step (None: every step). A run whose
     record exceeds ``simulation.STREAM_BYTES`` streams it into ``record/`` (``baseline_record/``):
     ``RunRecord.open`` reads it back.
-    ``live``: a :class:`usv_mj.runlog.live.LiveServer` that serves the logs' messages to Foxglove."""
+    ``live``: a :class:`usv_mj.runlog.live.LiveServer` that serves the logs' messages to Foxglove.
+
+    ``extra_outputs(record, out)`` (a manoeuvre's measures, say) writes its own files into the
+    staging folder ``out`` after the figures and returns (report sections, {name: path})."""
     from .preflight import check_run
     from .runlog.writer import log_every
 
@@ -358,7 +363,8 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
-                                 render_opts=render_opts, log_rate=log_rate, live=live)
+                                 render_opts=render_opts, log_rate=log_rate, live=live,
+                                 extra_outputs=extra_outputs)
         except RunFailed as exc:
             exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
             exc.traceback = _relocate(exc.traceback, stage.path, out)
@@ -388,7 +394,7 @@ def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
     try:
         if tb:
             (stage / "traceback.txt").write_text(tb)
-        _write_json(stage / "summary.json", summary)
+        write_json(stage / "summary.json", summary)
         (stage / "report.md").write_text(
             f"# Run report\n\n**The run {summary['status']}:** {summary['stop_reason']}\n\n"
             + (f"Missing outputs: {', '.join(summary['missing_outputs'])}.\n" if summary["missing_outputs"] else "")
@@ -405,13 +411,14 @@ class _StagedJob:
     job's state: the files written, why the outputs stopped, an output that could not be written."""
 
     def __init__(self, scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
-                 video, log, progress, step_check, render_opts, log_rate=None, live=None):
+                 video, log, progress, step_check, render_opts, log_rate=None, live=None, extra_outputs=None):
         self.scenario, self.out, self.final_out, self.signals = scenario, out, final_out, signals
         self.plant_kind = plant_kind or scenario.plant.kind
         run_baseline = scenario.baseline.enabled if baseline is None else baseline
         self.run_baseline = run_baseline and scenario.controller.kind != scenario.baseline.kind
         self.video, self.log, self.progress, self.step_check = video, log, progress, step_check
         self.render_opts, self.log_rate, self.live = render_opts, log_rate, live
+        self.extra_outputs = extra_outputs   # (record, out) -> (report sections, {name: path}), or None
         self.dt = scenario.control_period
         self.files: dict = {}
         self.expected = ["summary.json", "report.md", "figures"] + (["run.mcap"] if log else []) + \
@@ -541,6 +548,11 @@ class _StagedJob:
             self.phase = "drawing the figures"
             self.files["figures"] = draw_figures(record, out / "figures", self.base_rec, obstacles=scenario.obstacles)
             extra_sections = []
+            if self.extra_outputs is not None:
+                self.phase = "writing the manoeuvre's outputs"
+                sections, extra_files = self.extra_outputs(record, out)
+                extra_sections += list(sections)
+                self.files.update(extra_files)
             if not scenario.sea.calm:
                 self.phase = "drawing the sea figures"
                 extra_sections.append(_sea_outputs(scenario, record, self.summary, self.summary_out, out,
@@ -602,7 +614,7 @@ class _StagedJob:
             if self.stopped:
                 self._stopped_report()
             files["summary"] = out / "summary.json"
-            _write_json(files["summary"], _relocate(self.summary_out, out, final_out))
+            write_json(files["summary"], _relocate(self.summary_out, out, final_out))
         except KeyboardInterrupt:
             self.stopped = self.stopped or f"interrupted ({signals.last}) while writing the summary"
         except OSError as exc:
@@ -627,7 +639,7 @@ class _StagedJob:
         summary_out["missing_outputs"] = _missing(out, self.expected, self.log)
         # the summary first: a second Ctrl-C while the report is written ends the job at once
         self.files["summary"] = out / "summary.json"
-        _write_json(self.files["summary"], _relocate(summary_out, out, final_out))
+        write_json(self.files["summary"], _relocate(summary_out, out, final_out))
         try:
             write_report(out / "report.md", self.summary, self.base_summary, self.check,
                          [f"## The job stopped early\n\n{stopped}. Missing outputs: "
@@ -639,12 +651,13 @@ class _StagedJob:
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
-                video, log, progress, step_check, render_opts, log_rate=None, live=None) -> JobResult:
+                video, log, progress, step_check, render_opts, log_rate=None, live=None,
+                extra_outputs=None) -> JobResult:
     """The job itself, writing into the staging folder ``out``: the main run, the outputs, the finish
     (:class:`_StagedJob`)."""
     job = _StagedJob(scenario, out, final_out, signals, plant_kind=plant_kind, baseline=baseline, video=video,
                      log=log, progress=progress, step_check=step_check, render_opts=render_opts,
-                     log_rate=log_rate, live=live)
+                     log_rate=log_rate, live=live, extra_outputs=extra_outputs)
     job.main_run()
     job.outputs()
     return job.finish()

@@ -10,6 +10,15 @@ that was zeroed or cut (a full disk, a crash while it was written) makes every l
 cannot be read is removed, one warning line names it, and the kernel is compiled again and saved
 (a damaged index reads as empty, a damaged data file as not cached). It is installed when numba's
 caching module is imported (or at once if it already is), from ``usv_mj/__init__.py``.
+
+**A stale kernel is a cache miss too.** numba keys a cached kernel on its own source file only (its
+stamp: that file's hash, size and time), but a kernel compiles in the constants and the inlined
+njit functions of other modules (``usv_mj.ship``'s packed layout ``P_*``, the callback's ``U_*``):
+after a ``git pull`` that changes ``ship.py`` alone, the callback's kernel in ``__pycache__`` would
+still load, with the old offsets, and the MuJoCo plant would silently integrate wrong forces (seen
+once: the two plants metres apart). :func:`install` also adds :func:`package_stamp` (a digest of
+the contents of every source file of the package and of ``controllers/``) to the stamp of every
+kernel defined in them, so that any change of the package's source recompiles its kernels.
 """
 
 from __future__ import annotations
@@ -32,8 +41,48 @@ def _damaged(path: str, exc: BaseException) -> None:
                      f"{': ' + str(exc) if str(exc) else ''}); removed, its kernel is compiled again\n")
 
 
+_ROOTS: tuple[str, ...] | None = None
+_STAMP: str | None = None
+
+
+def _roots() -> tuple[str, ...]:
+    """The package's folder and the checkout's ``controllers/`` (a wheel has it inside the package)."""
+    global _ROOTS
+    if _ROOTS is None:
+        from pathlib import Path
+
+        here = Path(__file__).resolve().parent
+        roots = [here] + [p for p in (here.parent / "controllers",) if (p / "__init__.py").is_file()]
+        _ROOTS = tuple(str(r) + os.sep for r in roots)
+    return _ROOTS
+
+
+def package_stamp(roots: tuple[str, ...] | None = None) -> str:
+    """A digest of the contents of every ``.py`` file under ``roots`` (default: the package's),
+    computed once per process for the default roots (about 5 ms)."""
+    global _STAMP
+    if roots is None and _STAMP is not None:
+        return _STAMP
+    import hashlib
+    from pathlib import Path
+
+    h = hashlib.sha256()
+    for root in sorted(roots or _roots()):
+        for path in sorted(Path(root).rglob("*.py")):
+            h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+    digest = h.hexdigest()[:16]
+    if roots is None:
+        _STAMP = digest
+    return digest
+
+
+def _ours(py_file) -> bool:
+    path = os.path.realpath(str(py_file))
+    return any(path.startswith(root) for root in _roots())
+
+
 def install() -> None:
-    """Wrap numba's cache readers (once)."""
+    """Wrap numba's cache readers, and the source stamp of the package's kernels (once)."""
     import pickle
 
     from numba.core import caching
@@ -41,6 +90,14 @@ def install() -> None:
     cls = caching.IndexDataCacheFile
     if getattr(cls, "_usv_mj_guarded", False):
         return
+    mixin = caching._SourceFileBackedLocatorMixin
+    source_stamp = mixin.get_source_stamp
+
+    def get_source_stamp(self):
+        own = source_stamp(self)
+        return (own, package_stamp()) if _ours(self._py_file) else own
+
+    mixin.get_source_stamp = get_source_stamp
     load_index, load_data = cls._load_index, cls._load_data
 
     def _load_index(self):

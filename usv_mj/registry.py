@@ -1,4 +1,4 @@
-"""Registries of the parts a scenario names by ``kind``: plants, controllers, trajectories, disturbances.
+"""Registries of the parts a scenario names by ``kind``: plants, controllers, trajectories, disturbances, vessels.
 
 As in dm_control's suite, a part registers itself where it is defined::
 
@@ -24,7 +24,8 @@ against ``MyGains``. Every registry works the same way:
   or the object itself when it is a plain callable of that signature. ``context`` is the
   registry's own: trajectories get ``duration=`` [s] (the horizon the reference must cover);
   plants get ``environment=``, ``obstacles=``, ``contact=``, ``safety_radii=`` (and
-  ``rangefinders=`` when asked); controllers get nothing. A disturbance's options dataclass is the
+  ``rangefinders=`` when asked); controllers and vessels get nothing (a vessel's factory is called
+  while the scenario is built, with ``scenario=None``, and returns a :class:`usv_mj.vessels.Vessel`). A disturbance's options dataclass is the
   disturbance itself (its ``as_array()`` feeds the plants' kernels), so it registers only that.
 
 Where a kind is found, in this order (:meth:`Registry.get`):
@@ -37,8 +38,7 @@ Where a kind is found, in this order (:meth:`Registry.get`):
 3. ``"package.module:Name"`` (as Gymnasium's ``entry_point``): the module is imported and ``Name``
    taken; it is registered under that very string;
 4. a Python **entry point** named ``kind`` in the registry's group (``usv_mj.controllers``,
-   ``usv_mj.trajectories``, ``usv_mj.plants``, ``usv_mj.disturbances``; ``usv_mj.vessels`` is kept
-   for a vessel registry), loaded with :mod:`importlib.metadata`.
+   ``usv_mj.trajectories``, ``usv_mj.plants``, ``usv_mj.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
 
 For 3 and 4 the object named is either registered by its own module's decorator, or registered
 here with the options dataclass it declares as its class attribute ``options`` (none if it has no
@@ -345,6 +345,11 @@ CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "us
 TRAJECTORIES = Registry("trajectory", {k: "usv_mj.trajectories" for k in ("paper", "line", "circle", "waypoints")},
                         "usv_mj.trajectories")
 DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.disturbances"}, "usv_mj.disturbances")
-#: every registry by its scenario section (``usv-mj kinds`` lists them); a vessel registry will be
-#: one more line: ``VESSELS = Registry("vessel", {...}, "usv_mj.vessels")``
-REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES}
+#: the hulls (docs/vessels.md): a module, or a data file of usv_mj/vessels/data/ read by
+#: usv_mj.vessels.datafile (its kinds are named here, so that looking one up imports no physics)
+VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_mj.vessels.clarke83",
+                              "cybership2": "usv_mj.vessels.datafile", "otter": "usv_mj.vessels.datafile"},
+                   "usv_mj.vessels")
+#: every registry by its scenario section (``usv-mj kinds`` lists them)
+REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES,
+              "vessel": VESSELS}

@@ -31,7 +31,7 @@ from typing import Any
 from .actuators import ActuatorSpec
 from .errors import ScenarioError, SeaSettingsError
 from .obstacle_tables import GuidanceSpec, from_tables, guidance_from_table
-from .registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES
+from .registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES, VESSELS
 from .sea.settings import SeaSettings, merge_sea_tables, sea_preset_table
 from .ship import PaperDisturbance, ShipParams
 from .toml_values import coerce, read_toml
@@ -158,6 +158,37 @@ class PlantSpec(_KindOptions):
             raise ValueError(f"substeps must be >= 1, got {self.substeps!r}")
 
 
+@dataclass(frozen=True)
+class VesselSpec(_KindOptions):
+    """The hull (docs/vessels.md): ``[vessel] kind`` names a registered vessel
+    (:data:`usv_mj.registry.VESSELS`: "paper", "cybership2", "otter", "clarke83", a data file's path
+    or a plug-in's) whose options dataclass validates the other keys; ``[ship]`` is the paper
+    vessel's options under their old name.
+
+    Attributes
+    ----------
+    kind: the vessel kind.
+    model_mismatch: the controllers' nominal model is the vessel's with every mass and damping
+        coefficient times this factor (> 0; 1: the true model).
+    options: the kind's options dataclass (paper: :class:`usv_mj.ship.ShipParams`).
+    model: the resolved :class:`usv_mj.vessels.Vessel` (made from kind and options when not given).
+    """
+
+    kind: str = "paper"
+    model_mismatch: float = 1.0
+    options: Any = None
+    model: Any = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.model_mismatch) and self.model_mismatch > 0):
+            raise ValueError(f"model_mismatch must be a number > 0, got {self.model_mismatch!r}")
+        if self.model is None:
+            entry = VESSELS.get(self.kind, "vessel.kind")
+            if self.options is None and entry.options_class is not None:
+                object.__setattr__(self, "options", entry.options_class())
+            object.__setattr__(self, "model", entry.make(self.options, None))
+
+
 def _default_gains(kind: str):
     return CONTROLLERS.get(kind).gains()
 
@@ -227,7 +258,8 @@ class Scenario:
     initial: InitialState = field(default_factory=InitialState)
     trajectory: TrajectorySpec = field(default_factory=TrajectorySpec)
     disturbance: PaperDisturbance = field(default_factory=PaperDisturbance)
-    ship: ShipParams = field(default_factory=ShipParams)
+    ship: ShipParams = field(default_factory=ShipParams)  # the vessel's packed hull (vessel.model.ship)
+    vessel: VesselSpec = field(default_factory=VesselSpec)
     quantizer: QuantizerSpec = field(default_factory=QuantizerSpec)
     funnel: FunnelSpec = field(default_factory=FunnelSpec)
     plant: PlantSpec = field(default_factory=PlantSpec)
@@ -238,6 +270,7 @@ class Scenario:
     sea: SeaSettings = field(default_factory=SeaSettings)
     obstacles: tuple = ()  # ObstacleSpec per [[obstacles]] table (usv_mj.obstacle_tables)
     guidance: GuidanceSpec = field(default_factory=GuidanceSpec)  # [guidance]
+    manoeuvre: Any = None  # [manoeuvre]: a ManoeuvreSpec (usv_mj.manoeuvres.options), None: no manoeuvre
     source: str = field(default="", compare=False)
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -248,6 +281,11 @@ class Scenario:
             raise ValueError(f"control_period must be in (0, 1] s, got {self.control_period!r}")
         if self.duration / self.control_period > 5e7:
             raise ValueError("duration / control_period is over 5e7 steps: too long a run")
+
+    @property
+    def nominal_ship(self) -> ShipParams:
+        """The controllers' nominal model: the vessel's hull times ``[vessel] model_mismatch``."""
+        return self.ship.scaled(self.vessel.model_mismatch)
 
     @property
     def steps(self) -> int:
@@ -306,9 +344,6 @@ def merge_tables(base: dict, over: dict) -> dict:
         else:
             out[key] = value
     return out
-
-
-_merge = merge_tables   # the old name, for code on branches written before it was public
 
 
 def load_scenario(path: str | Path | None = None, preset: str | None = None, overrides: dict | None = None) -> Scenario:
@@ -370,29 +405,34 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
             base[section] = {k: v for k, v in base[section].items() if k in known}
     merged = merge_tables(base, {k: v for k, v in data.items() if k != "preset"})
     merged["preset"] = name
-    return _build_scenario(merged, source)
+    return _build_scenario(merged, source, own_actuators="actuators" in data)
 
 
 _SECTIONS = {
     "initial": InitialState,
-    "ship": ShipParams, "quantizer": QuantizerSpec, "funnel": FunnelSpec,
+    "quantizer": QuantizerSpec, "funnel": FunnelSpec,
     "limits": LimitsSpec, "actuators": ActuatorSpec,
 }
 
 
-def _build_scenario(data: dict, source: str) -> Scenario:
+def _build_scenario(data: dict, source: str, own_actuators: bool = True) -> Scenario:
     top = {}
     known = {f.name for f in dataclasses.fields(Scenario)} - {"source", "raw"}
     for key in data:
         if key not in known:
             _unknown(source, "", key, known)
+    if "vessel" in data or "ship" in data:
+        top["vessel"] = _build_vessel(data.get("vessel", {}), data.get("ship"), source)
+        top["ship"] = top["vessel"].model.ship
+        if top["vessel"].model.actuators is not None and not own_actuators:
+            data["actuators"] = dict(top["vessel"].model.actuators)  # the vessel's, unless the scenario's own
     for key in ("duration", "control_period"):
         if key in data:
             top[key] = _convert(source, key, data[key], 0.0)
     top["preset"] = data["preset"]
     for key, cls in _SECTIONS.items():
         if key in data:
-            top[key] = _build(cls, data[key], source, key)
+            top[key] = build_table(cls, data[key], source, key)
     if "trajectory" in data:
         top["trajectory"] = _kind_spec(TrajectorySpec, TRAJECTORIES, data["trajectory"], source, "trajectory",
                                        "paper", ())
@@ -418,8 +458,59 @@ def _build_scenario(data: dict, source: str) -> Scenario:
     if "obstacles" in data or "guidance" in data:
         top["obstacles"] = from_tables(data.get("obstacles"), source)
         top["guidance"] = guidance_from_table(data.get("guidance"), source)
+    if "manoeuvre" in data:
+        from .manoeuvres.options import manoeuvre_from_table
+
+        top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source)
     scenario = _construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
+
+
+def _build_vessel(table: Any, ship: Any, source: str) -> VesselSpec:
+    """``[vessel]`` (and ``[ship]``, the paper vessel's options): the kind, ``model_mismatch`` and the
+    kind's options; a kind ending in ".toml" is a vessel data file (relative to the scenario's
+    folder, else to the working directory), registered on first use (usv_mj.vessels.datafile)."""
+    import os
+
+    if not isinstance(table, dict):
+        raise ScenarioError(f"{source}: [vessel] must be a table, got {table!r}")
+    if ship is not None and not isinstance(ship, dict):
+        raise ScenarioError(f"{source}: [ship] must be a table, got {ship!r}")
+    table = dict(table)
+    kind = table.pop("kind", "paper")
+    if not isinstance(kind, str):
+        raise ScenarioError(f"{source}: vessel.kind must be a string, got {kind!r}")
+    kwargs = {}
+    if "model_mismatch" in table:
+        kwargs["model_mismatch"] = _convert(source, "vessel.model_mismatch", table.pop("model_mismatch"), 1.0)
+    if kind.endswith(".toml"):
+        from .vessels.datafile import register_file
+
+        here = os.path.join(os.path.dirname(source), kind) if os.path.isfile(source) else kind
+        path = os.path.abspath(here if os.path.isfile(here) else kind)
+        try:
+            kind = register_file(path, os.path.abspath(path))
+        except ScenarioError as exc:
+            raise ScenarioError(f"{source}: vessel.kind: {exc}") from None
+    if ship:
+        if kind != "paper":
+            raise ScenarioError(f"{source}: [ship] holds the paper vessel's parameters; with vessel.kind = "
+                                f"{kind!r} give the vessel's own keys in [vessel] and remove [ship]")
+        table = {**ship, **table}
+    entry = VESSELS.get(kind, f"{source}: vessel.kind")
+    cls = entry.options_class
+    if cls is None:
+        if table:
+            raise ScenarioError(f"{source}: vessel kind {kind!r} takes no options, got {', '.join(sorted(table))}")
+        options = None
+    else:
+        section = "ship" if kind == "paper" and ship else "vessel"
+        options = build_table(cls, table, source, section)
+    try:
+        model = entry.make(options, None)
+    except ValueError as exc:
+        raise ScenarioError(f"{source}: vessel {kind!r}: {exc}") from None
+    return _construct(VesselSpec, {"kind": kind, "options": options, "model": model, **kwargs}, source, "vessel")
 
 
 def _controller_spec(table: Any, source: str, section: str, default_kind: str) -> ControllerSpec:
@@ -438,7 +529,7 @@ def _controller_spec(table: Any, source: str, section: str, default_kind: str) -
             raise ScenarioError(f"{source}: controller {kind!r} takes no gains, got {', '.join(sorted(table))}")
         return ControllerSpec(kind=kind, gains=None)
     extra = {"kind", "enabled"} if section == "baseline" else {"kind"}
-    gains = _build(gains_cls, table, source, section, extra_known=extra)
+    gains = build_table(gains_cls, table, source, section, extra_known=extra)
     return ControllerSpec(kind=kind, gains=gains)
 
 
@@ -464,7 +555,7 @@ def _kind_spec(spec_cls, registry, table: Any, source: str, section: str, defaul
                                     + (f" besides {', '.join(common)}" if common else "")
                                     + f", got {', '.join(sorted(own))}")
         else:
-            kwargs["options"] = _build(options_cls, own, source, section, extra_known={"kind", *common})
+            kwargs["options"] = build_table(options_cls, own, source, section, extra_known={"kind", *common})
     return _construct(spec_cls, {"kind": kind, **kwargs}, source, section)
 
 
@@ -476,7 +567,7 @@ def _build_disturbance(table: Any, source: str):
     table = dict(table)
     kind = table.pop("kind", "paper")
     entry = DISTURBANCES.get(kind, f"{source}: disturbance.kind")
-    return _build(entry.options_class or entry.obj, table, source, "disturbance", extra_known={"kind"})
+    return build_table(entry.options_class or entry.obj, table, source, "disturbance", extra_known={"kind"})
 
 
 def _build_sea(table, source: str) -> SeaSettings:
@@ -507,7 +598,10 @@ def _convert(source: str, where: str, value: Any, default: Any) -> Any:
     return coerce(source, where, value, default, ScenarioError)
 
 
-def _build(cls, table: Any, source: str, section: str, extra_known: set | None = None):
+def build_table(cls, table: Any, source: str, section: str, extra_known: set | None = None):
+    """The dataclass ``cls`` from the scenario table ``[section]``: each key converted to its field's
+    type and validated (ScenarioError naming ``source`` and the key; an unknown key with "did you
+    mean"); keys in ``extra_known`` are skipped, the fields not given keep their defaults."""
     if not isinstance(table, dict):
         raise ScenarioError(f"{source}: [{section}] must be a table, got {table!r}")
     fields = {f.name: f for f in dataclasses.fields(cls)}
@@ -535,7 +629,8 @@ def _construct(cls, kwargs, source, section):
 
 def _to_plain(obj):
     if isinstance(obj, _KindOptions):  # as its TOML table: kind, the common keys, the kind's own keys
-        out = {f.name: _to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj) if f.name != "options"}
+        out = {f.name: _to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)
+               if f.name not in ("options", "model")}
         out.update(_to_plain(obj.options) if obj.options is not None else {})
         return out
     if dataclasses.is_dataclass(obj):

@@ -2,7 +2,9 @@
 
 Every formula of the hull lives here (docs/model.md §1, paper Eqs. 1-2, 6-7 and 28). The analytic plant, the
 MuJoCo passive-force callback and the PPC controller's nominal model all call these functions, so a
-change of the physics is a change in this one file.
+change of the physics is a change in this one file. The other vessels (usv_mj.vessels,
+docs/vessels.md) are written onto the same packed layout; the two terms they add, C(nu)'s own masses
+and the cross-flow drag, are the paper ship's m11, m22, m23 and zero.
 
 Conventions
 -----------
@@ -27,6 +29,7 @@ Python in the loop. They are plain functions and work from Python too.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -41,7 +44,12 @@ P_D23 = 10
 P_D32 = 13
 P_D33 = 16
 P_UNCERTAINTY = 19  # scale of Delta (1 = the paper's Delta, 0 = none)
-N_SHIP_PARAMS = 20
+# the masses of C(nu) (c13 = -mc22 v - mc23 r, c23 = mc11 u): m11, m22, m23 unless a vessel says
+# otherwise (a linear manoeuvring model whose derivatives hold the added mass's Coriolis: C_RB only)
+P_C11, P_C22, P_C23 = 20, 21, 22
+# cross-flow drag (Fossen 2021, §6.7; the Otter's): 0.5 rho T C_d [kg/m^2], hull length [m], strips
+P_CF, P_CF_L, P_CF_N = 23, 24, 25
+N_SHIP_PARAMS = 26
 
 # disturbance: scale, amplitudes (3), cos frequencies (3), sin frequencies (3)
 D_SCALE, D_AMP, D_WCOS, D_WSIN = 0, 1, 4, 7
@@ -62,6 +70,15 @@ class ShipParams:
         d_ij = c0 + c1|v| + c2|r| for the others [N s/m, N s^2/m^2, ...].
     uncertainty_scale:
         Multiplies the model uncertainty Delta(eta, nu) = [0.6, 0.2 u^2, sin v + 0.15 r^2] (1 = paper).
+    coriolis_masses:
+        (mc11, mc22, mc23) [kg, kg, kg m], the masses of C(nu): c13 = -mc22 v - mc23 r, c23 = mc11 u.
+        None (default): (m11, m22, m23), i.e. C = C_RB + C_A with the Munk moment. A linear
+        manoeuvring model whose damping derivatives already hold the added mass's Coriolis terms
+        (Clarke 1983) gives the rigid body's (m, m, m x_g): C = C_RB.
+    crossflow:
+        (k [kg/m^2], L [m], n) of the cross-flow drag (Fossen 2021, §6.7, as the Otter's
+        ``crossFlowDrag``): Y = -k sum_i |v + x_i r| (v + x_i r) dx, N = -k sum_i x_i |.| (.) dx over
+        the n + 1 points x_i = -L/2 + i dx, dx = L/n, with k = 0.5 rho T C_d(B/2T). k = 0: none (paper).
     """
 
     m11: float = 141.85
@@ -74,6 +91,8 @@ class ShipParams:
     d32: tuple[float, float, float] = (-2.4, -13.0, -0.2)
     d33: tuple[float, float, float] = (5.59, -0.07, 10.71)
     uncertainty_scale: float = 1.0
+    coriolis_masses: tuple[float, float, float] | None = None
+    crossflow: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         for name in ("m11", "m22", "m33"):
@@ -89,6 +108,19 @@ class ShipParams:
             value = tuple(getattr(self, name))
             if len(value) != 3 or not all(math.isfinite(c) for c in value):
                 raise ValueError(f"ship.{name} must be three finite coefficients, got {value!r}")
+        if self.coriolis_masses is not None:
+            value = self.coriolis_masses
+            if not (isinstance(value, (list, tuple)) and len(value) == 3
+                    and all(isinstance(c, (int, float)) and math.isfinite(c) for c in value)):
+                raise ValueError(f"ship.coriolis_masses must be three finite masses or none, got {value!r}")
+            object.__setattr__(self, "coriolis_masses", tuple(float(c) for c in value))
+        cf = self.crossflow
+        if not (isinstance(cf, (list, tuple)) and len(cf) == 3
+                and all(isinstance(c, (int, float)) and math.isfinite(c) for c in cf)
+                and cf[0] >= 0 and (cf[0] == 0 or (cf[1] > 0 and cf[2] >= 1 and cf[2] == int(cf[2])))):
+            raise ValueError(f"ship.crossflow must be (k >= 0 kg/m^2, L > 0 m, strips >= 1) or (0, 0, 0), "
+                             f"got {cf!r}")
+        object.__setattr__(self, "crossflow", tuple(float(c) for c in self.crossflow))
 
     @property
     def eps(self) -> float:
@@ -102,7 +134,25 @@ class ShipParams:
         for start, name in ((P_D11, "d11"), (P_D22, "d22"), (P_D23, "d23"), (P_D32, "d32"), (P_D33, "d33")):
             p[start : start + 3] = getattr(self, name)
         p[P_UNCERTAINTY] = self.uncertainty_scale
+        p[P_C11], p[P_C22], p[P_C23] = self.coriolis_masses or (self.m11, self.m22, self.m23)
+        p[P_CF], p[P_CF_L], p[P_CF_N] = self.crossflow
         return p
+
+    def scaled(self, factor: float) -> "ShipParams":
+        """The same hull with every mass, Coriolis mass, damping and cross-flow coefficient times
+        ``factor`` (> 0): a controller's nominal model that is wrong by that factor
+        (``[vessel] model_mismatch``); 1 gives this very object."""
+        if factor == 1.0:
+            return self
+        if not (math.isfinite(factor) and factor > 0):
+            raise ValueError(f"vessel.model_mismatch must be a number > 0, got {factor!r}")
+        f = float(factor)
+        k, length, n = self.crossflow
+        return dataclasses.replace(
+            self, m11=f * self.m11, m22=f * self.m22, m23=f * self.m23, m33=f * self.m33,
+            **{name: tuple(f * c for c in getattr(self, name)) for name in ("d11", "d22", "d23", "d32", "d33")},
+            coriolis_masses=None if self.coriolis_masses is None else tuple(f * c for c in self.coriolis_masses),
+            crossflow=(f * k, length, n))
 
     def mass_matrix(self) -> np.ndarray:
         return mass_matrix(self.as_array())
@@ -119,22 +169,37 @@ class RigidBodySplit:
     A different split must give the same motion; ``added_mass_fraction_surge`` moves part of m11
     into added mass to check that.
 
+    A vessel that knows its own rigid body (usv_mj.vessels: m, x_g, I_z of its source) gives it as
+    ``rigid``; the added mass is then M - M_RB of that body, as its source's M_A.
+
     Attributes
     ----------
     added_mass_fraction_surge:
         Fraction of m11 that is added mass (X_udot = -fraction m11); 0 by default.
+    rigid:
+        None (the default split above), or the rigid body (m [kg], x_g [m] ahead of the origin,
+        I_z about the origin [kg m^2]).
     """
 
     added_mass_fraction_surge: float = 0.0
+    rigid: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.added_mass_fraction_surge < 1.0:
             raise ValueError(
                 f"split.added_mass_fraction_surge must be in [0, 1), got {self.added_mass_fraction_surge!r}"
             )
+        if self.rigid is not None:
+            m, x_g, iz = self.rigid
+            if not (all(math.isfinite(c) for c in self.rigid) and m > 0 and iz - m * x_g * x_g > 0):
+                raise ValueError(f"split.rigid must be (m > 0 kg, x_g m, I_z > m x_g^2 kg m^2), got {self.rigid!r}")
+            if self.added_mass_fraction_surge != 0.0:
+                raise ValueError("split: give either rigid or added_mass_fraction_surge, not both")
 
     def rigid_body(self, ship: ShipParams) -> tuple[float, float, float]:
         """Rigid mass m [kg], COM offset x_g [m] ahead of the origin and I_z about the origin [kg m^2]."""
+        if self.rigid is not None:
+            return tuple(float(c) for c in self.rigid)
         m = ship.m11 * (1.0 - self.added_mass_fraction_surge)
         x_g = ship.m23 / m
         iz_origin = ship.m33
@@ -201,8 +266,9 @@ def do_pan_offset(m22, m23):
 def coriolis_terms(p, nu):
     """c13 = -m22 v - m23 r and c23 = m11 u of C(nu) = C_RB + C_A (docs/model.md §1; c13 uses m22, not m11).
 
-    C is skew-symmetric with only these two free entries: c31 = -c13, c32 = -c23."""
-    return -p[P_M22] * nu[1] - p[P_M23] * nu[2], p[P_M11] * nu[0]
+    C is skew-symmetric with only these two free entries: c31 = -c13, c32 = -c23. The masses are
+    the packed Coriolis masses (P_C11, P_C22, P_C23: m11, m22, m23 unless the vessel says otherwise)."""
+    return -p[P_C22] * nu[1] - p[P_C23] * nu[2], p[P_C11] * nu[0]
 
 
 @njit(cache=True)
@@ -300,7 +366,30 @@ def coriolis_damping_terms(p, nu):
     u, v, r = nu[0], nu[1], nu[2]
     d11, d22, d23, d32, d33 = damping_coefficients(p, nu)
     c13, c23 = coriolis_terms(p, nu)
-    return c13 * r + d11 * u, c23 * r + d22 * v + d23 * r, -c13 * u - c23 * v + d32 * v + d33 * r
+    f0, f1, f2 = c13 * r + d11 * u, c23 * r + d22 * v + d23 * r, -c13 * u - c23 * v + d32 * v + d33 * r
+    if p[P_CF] != 0.0:  # cross-flow drag (the paper's ship has none: its numbers are untouched)
+        y, n = crossflow_terms(p, v, r)
+        f1 -= y
+        f2 -= n
+    return f0, f1, f2
+
+
+@njit(cache=True)
+def crossflow_terms(p, v, r):
+    """The cross-flow drag (Y [N], N [N m]) of :attr:`ShipParams.crossflow`: the strip sum of Fossen
+    (2021, §6.7) over n + 1 points x_i = -L/2 + i L/n, each of width dx = L/n,
+    Y = -k sum |v + x_i r| (v + x_i r) dx, N = -k sum x_i |v + x_i r| (v + x_i r) dx."""
+    k, length, n = p[P_CF], p[P_CF_L], int(p[P_CF_N])
+    dx = length / n
+    y = 0.0
+    m = 0.0
+    for i in range(n + 1):
+        x = -0.5 * length + i * dx
+        w = v + x * r
+        q = abs(w) * w
+        y -= k * q * dx
+        m -= k * x * q * dx
+    return y, m
 
 
 @njit(cache=True)

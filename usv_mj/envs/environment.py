@@ -183,6 +183,15 @@ class USVEnvironment(control.Environment):
         record = episode_record(self, rows, metadata)
         return self._frames.frame(record, width=width, height=height, camera=camera)
 
+    def scene_xml(self) -> str:
+        """The MJCF text of the scene this environment's physics runs (the composed harbour with its
+        obstacles and rangefinders, or the hull alone): the file the plant loaded is a temporary
+        copy that :meth:`close` removes, so keep this text to keep the scene. MuJoCo alone sees no
+        water in it: :func:`usv_mj.attach_hydrodynamics` attaches the hull forces."""
+        if self._closed:
+            raise RuntimeError("USVEnvironment: the environment is closed")
+        return self._physics.plant.scene_xml()
+
     def close(self):
         if not self._closed:
             self._closed = True

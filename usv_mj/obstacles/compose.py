@@ -267,7 +267,7 @@ class HarbourPlant(MuJoCoPlant):
     def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, obstacles=(), control_period: float = 1e-3,
                  substeps: int = 1, contact: ContactParams = ContactParams(), safety_radii=None,
                  split: RigidBodySplit = RigidBodySplit(), callback: str = "native", environment=None,
-                 actuator_limits=None, rangefinders=()):
+                 actuator_limits=None, rangefinders=(), dimensions=None):
         self.obstacles = tuple(obstacles)
         self.contact = contact
         if contact.solref[0] < 2.0 * control_period / substeps:
@@ -282,7 +282,7 @@ class HarbourPlant(MuJoCoPlant):
             self.render_model_path = export_scene(compose_scene(self.obstacles, contact, safety_radii),
                                                   tempfile.mkdtemp(dir=self._tmp.name))
         super().__init__(ship, disturbance, control_period, substeps, split, self.model_xml_path, callback,
-                         environment=environment, actuator_limits=actuator_limits)
+                         environment=environment, actuator_limits=actuator_limits, dimensions=dimensions)
         m = self.model
         gid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)  # noqa: E731
         self.hull_geoms = np.array([gid(n) for n, *_ in HULL_COLLISION_GEOMS], dtype=np.int64)

@@ -158,6 +158,12 @@ class MuJoCoPlant(PlantBase):
         (tau_u_min, tau_u_max, tau_r_min, tau_r_max) [N, N, N m, N m] written into the motors'
         ``ctrlrange`` (``ctrllimited``) at load, or None (the file's, unlimited); ``from_scenario``
         passes ``[actuators]``'s :meth:`~usv_mj.actuators.ActuatorSpec.generalized_limits`.
+    dimensions:
+        The vessel's main dimensions (:class:`usv_mj.vessels.Dimensions`): the geoms, sites and
+        cameras of body "hull" are scaled from the model file's hull
+        (:data:`usv_mj.vessels.PAPER_DIMENSIONS`) to them at load (:func:`scale_hull`); None or
+        the paper's: the file as it is. ``from_scenario`` passes the scenario's vessel's, and its
+        rigid body as ``split``.
 
     Attributes
     ----------
@@ -173,7 +179,9 @@ class MuJoCoPlant(PlantBase):
 
     def __init__(self, ship: ShipParams, disturbance: PaperDisturbance, control_period: float = 1e-3,
                  substeps: int = 1, split: RigidBodySplit = RigidBodySplit(), model_path: str | None = None,
-                 callback: str = "native", native_step: bool = True, environment=None, actuator_limits=None):
+                 callback: str = "native", native_step: bool = True, environment=None, actuator_limits=None,
+                 dimensions=None):
+        self.dimensions = dimensions
         self.actuator_limits = _check_actuator_limits(actuator_limits)
         if not (isinstance(control_period, (int, float)) and math.isfinite(control_period) and control_period > 0):
             raise ValueError(f"MuJoCoPlant: control_period must be a finite number > 0 s, got {control_period!r}")
@@ -216,6 +224,7 @@ class MuJoCoPlant(PlantBase):
         if not os.path.isfile(path):
             raise FileNotFoundError(f"MuJoCoPlant: model file not found: {path}")
         spec = mujoco.MjSpec.from_file(path)
+        scale_hull(spec, self.dimensions)
         if spec.nuserdata < mcb.N_USERDATA:
             spec.nuserdata = mcb.N_USERDATA
         self._set_ctrlrange(spec)
@@ -450,14 +459,17 @@ class MuJoCoPlant(PlantBase):
         when ``rangefinders`` (body-frame ray angles [rad]) asks for range sensors on the hull; the
         sea ``environment`` acts on the hull in both."""
         limits = scenario.actuators.generalized_limits()
+        vessel = scenario.vessel.model  # its rigid body and dimensions (scenario.ship: its packed hull)
         if len(obstacles) or len(rangefinders):
             from usv_mj.obstacles.compose import ContactParams, HarbourPlant
 
             return HarbourPlant(scenario.ship, scenario.disturbance, obstacles, scenario.control_period,
                                 scenario.plant.substeps, contact or ContactParams(), safety_radii,
-                                environment=environment, actuator_limits=limits, rangefinders=rangefinders)
+                                split=vessel.split, environment=environment, actuator_limits=limits,
+                                rangefinders=rangefinders, dimensions=vessel.dimensions)
         return cls(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
-                   environment=environment, actuator_limits=limits)
+                   split=vessel.split, environment=environment, actuator_limits=limits,
+                   dimensions=vessel.dimensions)
 
     def close(self) -> None:
         """Unmark the mjData and remove the global callback if this was the last plant."""
@@ -518,6 +530,43 @@ class MuJoCoPlant(PlantBase):
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError("MuJoCoPlant: the plant is closed")
+
+
+def scale_hull(spec, dimensions) -> None:
+    """Scale body "hull" of ``spec`` (its geoms, sites and cameras, children included) from the
+    model file's hull (:data:`usv_mj.vessels.PAPER_DIMENSIONS`: L, B, T) to ``dimensions``: positions
+    and box/ellipsoid half-sizes by (L, B, T) ratios, radii by the smaller ratio of their section,
+    cameras uniformly by the length ratio. The geoms have no mass (the inertial is set from the
+    vessel), so only what is drawn and what collides changes. None or the file's own: unchanged."""
+    from usv_mj.vessels import PAPER_DIMENSIONS as ref
+
+    if dimensions is None or (dimensions.L, dimensions.B, dimensions.T) == (ref.L, ref.B, ref.T):
+        return
+    k = np.array([dimensions.L / ref.L, dimensions.B / ref.B, dimensions.T / ref.T])
+    hull = spec.body("hull")
+    if hull is None:
+        return
+    stack = [hull]
+    while stack:
+        body = stack.pop()
+        stack.extend(body.bodies)
+        for g in body.geoms:
+            g.pos = np.asarray(g.pos) * k
+            if not math.isnan(g.fromto[0]):
+                g.fromto = np.asarray(g.fromto) * np.r_[k, k]
+            size = np.array(g.size, dtype=float)
+            if g.type in (mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_ELLIPSOID):
+                size = size * k
+            elif g.type in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
+                size[0] *= min(k[0], k[1], k[2])
+                size[1] *= k[2]
+            elif g.type == mujoco.mjtGeom.mjGEOM_SPHERE:
+                size[0] *= min(k)
+            g.size = size
+        for site in body.sites:
+            site.pos = np.asarray(site.pos) * k
+        for cam in body.cameras:
+            cam.pos = np.asarray(cam.pos) * k[0]
 
 
 def _vector3(value, name: str) -> np.ndarray:

@@ -109,7 +109,11 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
 
     ``options``: ``transient`` [s]; ``log_path`` (write an MCAP log there through
     ``usv_mj.runlog.RunLogWriter``); ``imports`` (modules that register the run's kinds at
-    runtime: imported first, :func:`usv_mj.kinds.worker_imports`); ``hooks`` (tests only,
+    runtime: imported first, :func:`usv_mj.kinds.worker_imports`); ``episode_fn``
+    (``"module:function"``, ``fn(scenario, options) -> RunRecord`` runs the episode instead of
+    :func:`usv_mj.simulation.simulate`: a learned policy, :mod:`usv_mj.bench.policy`); ``row_hook``
+    (``"module:function"``, ``fn(record, options) -> dict`` of columns added to the row: the
+    benchmark's metrics, :mod:`usv_mj.bench.episode`); ``hooks`` (tests only,
     honoured only when the environment variable ``USV_MJ_SWEEP_TEST_HOOKS`` is "1" in the worker:
     ``raise`` / ``exit_worker`` sets of run ids; ``hold``: those runs touch
     ``$USV_MJ_SWEEP_TEST_RELEASE.started-<id>`` and wait until the file ``$USV_MJ_SWEEP_TEST_RELEASE``
@@ -145,7 +149,10 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
 
             sinks.append(writer.sink(run="main", log_every=log_every(options.get("log_rate"), scenario.control_period)))
         try:
-            record = simulate(scenario, sinks=sinks)
+            if options.get("episode_fn"):
+                record = resolve(options["episode_fn"])(scenario, options)
+            else:
+                record = simulate(scenario, sinks=sinks)
         except BaseException:
             if writer is not None:
                 with contextlib.suppress(Exception):
@@ -166,8 +173,19 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
     flat = flatten(summary)
     flat["record_status"] = flat.pop("status")
     row.update(flat)
+    if options.get("row_hook"):
+        try:
+            row.update(resolve(options["row_hook"])(record, options))
+        except Exception as exc:  # the run is a result; the hook that could not read it says why
+            row["status"], row["reason"] = "failed", f"row hook {options['row_hook']}: {type(exc).__name__}: {exc}"
     row["task_wall_time_s"] = time.perf_counter() - wall0
     return row
+
+
+def resolve(spec: str):
+    """The object named by ``"package.module:name"`` (imported here: on a worker, in its process)."""
+    module, _, name = spec.partition(":")
+    return getattr(importlib.import_module(module), name)
 
 
 def warm_up(scenario, steps: int = 5) -> dict:
@@ -562,7 +580,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     n_jobs = jobs
     tasks = []
     for run in todo[:max_runs]:        # only what will run is submitted (--max-runs 10 of 60,000: 10 tasks)
-        opts = dict(base_options)
+        opts = {**base_options, **run.options}
         if log_dir is not None:
             opts["log_path"] = str(log_dir / f"run-{run.run_id:06d}.mcap")
             opts["log_rate"] = log_rate

@@ -1,0 +1,142 @@
+"""``usv-mj manoeuvre turning|zigzag|spiral|stopping``: one standard manoeuvre, with ``run``'s flags.
+
+    usv-mj manoeuvre turning --plant analytic                 the paper hull's turning circle
+    usv-mj manoeuvre zigzag --set manoeuvre.angle_deg=20      the 20/20 zig-zag
+    usv-mj manoeuvre spiral --out renders/spiral --video      the spiral, with a video
+    usv-mj manoeuvre --scenario my.toml                       the scenario's own [manoeuvre]
+
+The manoeuvre's options are ``--set manoeuvre.KEY=VALUE`` (``usv-mj kinds`` does not list them:
+:mod:`usv_mj.manoeuvres.options`); ``--duration`` sets ``manoeuvre.duration``. Writes into --out
+(default renders/manoeuvre-KIND): manoeuvre.json (the measures and the IMO rows), report.md,
+figures/ (manoeuvre_track.png, manoeuvre_time.png, manoeuvre_spiral.png and the run's own seven),
+run.mcap, summary.json; video.mp4 with --video.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from usv_mj.errors import ScenarioError
+
+from .options import KINDS
+
+
+def add_arguments(p) -> None:
+    from usv_mj.command_args import add_scenario_arguments, add_vessel_argument
+    from usv_mj.render import add_video_arguments
+
+    p.add_argument("kind", nargs="?", choices=tuple(KINDS), help="the manoeuvre (default: the scenario's [manoeuvre])")
+    add_scenario_arguments(p)
+    for action in p._actions:   # what the shared flags mean here
+        if "--duration" in action.option_strings:
+            action.help = "simulated time [s]: manoeuvre.duration (default: the manoeuvre's, 60 s; not the spiral)"
+        if "--sea" in action.option_strings:
+            action.help += " (with --set manoeuvre.conditions=scenario: a manoeuvre runs in calm water by default)"
+    p.add_argument("--plant", choices=("mujoco", "analytic"), help="which plant integrates the ship")
+    add_vessel_argument(p)
+    p.add_argument("--out", metavar="DIR", help="output folder (default renders/manoeuvre-KIND)")
+    p.add_argument("--overwrite", action="store_true", help="replace an earlier run in --out (replaced whole)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--video", dest="video", action="store_true", help="also render video.mp4")
+    g.add_argument("--no-video", dest="video", action="store_false", help="no video (the default)")
+    p.set_defaults(video=False)
+    add_video_arguments(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+
+
+def _scenario(args):
+    from usv_mj.command_args import scenario_from_args
+
+    duration, args.duration = args.duration, None   # the manoeuvre's duration, not the scenario's
+    own = None
+    if args.scenario:
+        from usv_mj.example_files import resolve
+        from usv_mj.toml_values import read_toml
+
+        # a name of a shipped example, as load_scenario reads it
+        table = read_toml(resolve(args.scenario, "scenarios"), ScenarioError, "scenario file").get("manoeuvre")
+        own = table.get("kind", "turning") if isinstance(table, dict) else None
+    if args.kind and own is not None and own != args.kind:
+        raise ScenarioError(f"manoeuvre {args.kind}: {args.scenario}'s [manoeuvre] is kind {own!r}; "
+                            "name that one or drop the table")
+    if args.kind and not any(item.split("=", 1)[0].strip() == "manoeuvre.kind" for item in args.set):
+        args.set = [f"manoeuvre.kind={args.kind}"] + list(args.set)  # before the kind's own --set keys
+    scenario = scenario_from_args(args)
+    spec = scenario.manoeuvre
+    kind = spec.kind if spec is not None else None
+    if kind is None:
+        raise ScenarioError("name the manoeuvre (turning, zigzag, spiral, stopping) or give a scenario with "
+                            "a [manoeuvre] table")
+    if args.kind and kind != args.kind:
+        raise ScenarioError(f"manoeuvre {args.kind}: --set manoeuvre.kind={kind} names another one")
+    over = {"manoeuvre": {"kind": kind}}
+    if duration is not None:
+        if kind == "spiral":
+            raise ScenarioError(f"--duration {duration:g}: the spiral's duration is its steps and hold_s "
+                                "(--set manoeuvre.hold_s=...)")
+        over["manoeuvre"]["duration"] = duration
+    return scenario.with_overrides(over), kind
+
+
+def run_command(args) -> int:
+    from usv_mj.command_args import EXIT_OK, EXIT_STOPPED
+    from usv_mj.main_job import RunFailed
+    from usv_mj.render import video_options
+
+    from . import run_manoeuvre
+
+    scenario, kind = _scenario(args)
+    try:
+        render_options = video_options(args)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+    if args.out is not None and args.out.strip() == "":
+        raise ScenarioError("--out '': an empty path; name the output folder")
+    out = Path(args.out) if args.out is not None else Path("renders") / f"manoeuvre-{kind}"
+    t0 = time.perf_counter()
+    try:
+        result = run_manoeuvre(scenario, plant_kind=args.plant, out_dir=out, video=args.video,
+                               progress=not args.quiet, overwrite=args.overwrite, render_options=render_options)
+    except RunFailed as exc:
+        print(f"usv-mj manoeuvre: {exc}", file=sys.stderr)
+        return EXIT_STOPPED
+    print(summary_lines(result, out, time.perf_counter() - t0))
+    job = result["job"]
+    if job.summary.get("job_stopped"):
+        print(f"usv-mj manoeuvre: the job stopped early: {job.summary['job_stopped']}", file=sys.stderr)
+        return EXIT_STOPPED
+    if job.summary["status"] != "completed":
+        print(f"usv-mj manoeuvre: the run {job.summary['status']}: {job.summary.get('stop_reason')}", file=sys.stderr)
+        return EXIT_STOPPED
+    return EXIT_OK
+
+
+def summary_lines(result: dict, out: Path, wall_s: float) -> str:
+    """What the command prints: the measures, the IMO rows, the outputs."""
+    m = result.get("measures", {})
+    lines = [f"usv-mj manoeuvre {result['kind']}: {result.get('plant')} plant, L = {result.get('length_m', 0):g} m: "
+             f"{result.get('status')} ({wall_s:.1f} s)"]
+    for key, value in m.items():
+        if isinstance(value, float):
+            lines.append(f"  {key:32s} {value:10.3f}")
+    if result["kind"] == "spiral":
+        for p in m.get("points", []):
+            lines.append(f"  tau_r {p['command']:+7.2f} N m ({p['branch']:>4}): r = {p['yaw_rate']:+.4f} rad/s")
+        lines.append(f"  hysteresis loop: {'yes' if m.get('hysteresis') else 'no'}, commands "
+                     f"{m.get('loop_commands')} N m")
+    sat = result.get("saturated_fraction") or {}
+    if any(sat.values()):
+        lines.append(f"  warning: the actuators cut the command in {100 * sat['u']:.1f} % (surge) / "
+                     f"{100 * sat['r']:.1f} % (yaw) of the steps")
+    c = result.get("imo")
+    if c:
+        lines.append(f"  {c['standard']}: {c['note']}")
+        for r in c["rows"]:
+            value = "—" if r["value"] is None else f"{r['value']:.3f}"
+            met = "—" if r["met"] is None else ("met" if r["met"] else "NOT met")
+            lines.append(f"    {r['criterion']:40s} {value:>8} {r['unit']} (limit {r['limit']:g} {r['unit']}): {met}")
+    lines.append(f"  outputs in {out}/: manoeuvre.json, report.md, figures/, run.mcap, summary.json"
+                 + (", video.mp4" if "video" in result["job"].files else ""))
+    return "\n".join(lines)
