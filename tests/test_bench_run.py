@@ -185,8 +185,10 @@ def test_bad_suites_say_where(tmp_path):
         plan_suite({"tasks": [{"name": "a", "goal": "there"}]})
     with pytest.raises(SweepError, match="task 'a': bench metrics: settle_time_s = 'long' must be a finite number"):
         plan_suite({"tasks": [{"name": "a", "settle_time_s": "long"}]})
-    with pytest.raises(SweepError, match="vessel"):   # a vessel kind the scenario does not know (yet)
-        plan_suite({"vessels": ["otter"], "tasks": [{"name": "a", "duration": 2.0}]})
+    with pytest.raises(SweepError, match="vessel"):   # a vessel kind that no registry knows
+        plan_suite({"vessels": ["nope"], "tasks": [{"name": "a", "duration": 2.0}]})
+    otter = plan_suite({"vessels": ["otter"], "controllers": ["los"], "tasks": [{"name": "a", "duration": 2.0}]})
+    assert {run.scenario.vessel.kind for run in otter.plan.runs} == {"otter"}   # the suite's vessels reach the runs
 
 
 def test_cli_bad_suite_is_one_line_and_exit_2(tmp_path, capsys):

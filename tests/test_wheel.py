@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -16,12 +17,29 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _source_tree(base: Path) -> Path:
+    """The files git tracks, copied apart: setuptools' build/ folder in a checkout keeps files that
+    were since removed (a wheel built in place shipped a deleted examples/train_ppo.py); outside a
+    git checkout, the tree itself."""
+    listed = subprocess.run(["git", "-C", str(ROOT), "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+                            capture_output=True, timeout=60)
+    if listed.returncode != 0:
+        return ROOT
+    src = base / "src"
+    for rel in filter(None, listed.stdout.decode().split("\0")):
+        path = ROOT / rel
+        if path.is_file() or path.is_symlink():
+            (src / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(path, src / rel, follow_symlinks=True)
+    return src
+
+
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory):
     base = tmp_path_factory.mktemp("wheel")
     dist = base / "dist"
     subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist),
-                    str(ROOT)], check=True, capture_output=True, timeout=600)
+                    str(_source_tree(base))], check=True, capture_output=True, timeout=600)
     wheel = next(dist.glob("usv_mj-*.whl"))
     venv = base / "venv"
     # the dependencies come from this interpreter's site-packages; usv_mj itself only from the wheel

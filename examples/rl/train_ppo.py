@@ -1,7 +1,7 @@
 """Train a stock stable-baselines3 PPO policy on ``usv_mj/Track-v0`` for the benchmark's leaderboard.
 
-    python examples/train_ppo.py --steps 780000 --out renders/ppo_track.zip      # the issue's run
-    python examples/train_ppo.py --steps 4096 --out /tmp/ppo_smoke.zip          # a smoke test
+    python examples/rl/train_ppo.py --steps 780000 --out renders/ppo_track.zip      # the issue's run
+    python examples/rl/train_ppo.py --steps 4096 --out /tmp/ppo_smoke.zip          # a smoke test
 
 Stock PPO (``MlpPolicy``, stable-baselines3's default hyper-parameters), no wrapper, on the
 Gymnasium view of the track task (the flat scaled observation, the normalized action; 30 s episodes
