@@ -97,10 +97,10 @@ def test_bad_options_are_named():
         plan_frames(straight_run(), fps=0)
     with pytest.raises(ValueError, match="speedup"):
         plan_frames(straight_run(), speedup=float("nan"))
-    from usv_mj.render.video import _check_size
+    from usv_mj.render.video import check_size
 
     with pytest.raises(ValueError, match="width = 161"):
-        _check_size(161, 120)
+        check_size(161, 120)
 
 
 # --- GL backend -----------------------------------------------------------------------------------

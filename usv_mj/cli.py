@@ -57,13 +57,13 @@ if (__name__ == "__main__" or os.path.basename(sys.argv[0] if sys.argv else "") 
 import argparse  # noqa: E402
 import importlib
 import time
-import tomllib
 from pathlib import Path
 
 from .errors import Terminated
-from .scenario import ScenarioError, _merge, load_scenario, preset_names
-
-EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT, EXIT_NO_GL = 0, 1, 2, 3
+from .command_args import (EXIT_BAD_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_STOPPED,  # noqa: F401 (re-exported)
+                           add_live_arguments, add_scenario_arguments, add_vessel_argument, live_server, parse_set,
+                           scenario_from_args)
+from .scenario import ScenarioError, load_scenario, preset_names
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
@@ -76,74 +76,6 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (usv-mj {self.prog.split()[-1]} --help)\n"
                   if self.prog != "usv-mj" else f"usv-mj: error: {message} (usv-mj --help)\n")
-
-
-def _parse_set(items: list[str]) -> dict:
-    """``--set a.b=1`` items -> nested dict; values are TOML (numbers, strings, lists, true/false)."""
-    out: dict = {}
-    for item in items:
-        if "=" not in item:
-            raise ScenarioError(f"--set {item!r}: expected KEY=VALUE, e.g. controller.k1=5")
-        key, value = item.split("=", 1)
-        try:
-            parsed = tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
-            parsed = value  # a bare word: take it as a string
-        node = out
-        parts = key.strip().split(".")
-        for part in parts[:-1]:
-            node = node.setdefault(part, {})
-            if not isinstance(node, dict):
-                raise ScenarioError(f"--set {item!r}: {part} was set to a value above, not a table")
-        node[parts[-1]] = parsed
-    return out
-
-
-def add_scenario_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--preset", default=None, help=f"base preset ({', '.join(preset_names())}); default paper")
-    p.add_argument("--scenario", metavar="FILE", help="a scenario TOML file (a preset plus overrides; README, Scenarios)")
-    p.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
-                   help="override one scenario value by dotted key, e.g. --set disturbance.scale=1e-3")
-    p.add_argument("--duration", type=float, help="simulated time [s] (default: the scenario's)")
-    p.add_argument("--sea", metavar="NAME", help="a sea preset on top of the scenario (moderate, steady-current, "
-                   "breeze, varying-current): waves, current and wind of docs/sea.md; `usv-mj presets` lists them")
-
-
-def add_vessel_argument(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--vessel", metavar="KIND", help="the hull: a vessel kind (paper, cybership2, otter, clarke83; "
-                   "`usv-mj kinds vessel`) or a vessel data file; shorthand for --set vessel.kind=KIND")
-
-
-def scenario_from_args(args):
-    overrides = {}
-    if getattr(args, "sea", None) is not None:
-        overrides["sea"] = {"preset": args.sea}
-    sets = _parse_set(args.set)
-    # every value of the file and of --set is checked, even one that a flag below replaces; but the
-    # step count (duration / control_period) only on the duration that runs: --duration's, if given
-    try:
-        load_scenario(args.scenario, preset=args.preset, overrides=_merge(overrides, sets) or None)
-    except ScenarioError as exc:
-        if not (args.duration is not None and "over 5e7 steps" in str(exc)):   # scenario.Scenario's check
-            if not sets:
-                raise
-            raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
-    overrides = _merge(overrides, sets)
-    if args.duration is not None:
-        overrides["duration"] = args.duration
-    if getattr(args, "plant", None):
-        if not isinstance(overrides.get("plant", {}), dict):
-            raise ScenarioError(f"--set plant={overrides['plant']!r}: [plant] must be a table (with --plant "
-                                "give --set plant.kind=... or drop one of them)")
-        overrides.setdefault("plant", {})["kind"] = args.plant
-    if getattr(args, "vessel", None):  # --vessel X: shorthand for --set vessel.kind=X (docs/vessels.md)
-        if not isinstance(overrides.get("vessel", {}), dict):
-            raise ScenarioError(f"--set vessel={overrides['vessel']!r}: [vessel] must be a table")
-        if isinstance(overrides.get("ship"), dict) and args.vessel != "paper":
-            raise ScenarioError(f"--vessel {args.vessel}: --set ship.* sets the paper vessel's parameters; "
-                                f"give the vessel's own as --set vessel.KEY=VALUE")
-        overrides.setdefault("vessel", {})["kind"] = args.vessel
-    return load_scenario(args.scenario, preset=args.preset, overrides=overrides)
 
 
 # --- run ---------------------------------------------------------------------------------------
@@ -173,31 +105,6 @@ def _add_run(sub):
     add_live_arguments(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=_run_command)
-
-
-def add_live_arguments(p, speed: bool = True) -> None:
-    """--live, --live-port, --live-wait (and --speed): usv_mj.runlog.live (README, Live ...)."""
-    p.add_argument("--live", action="store_true", help="serve the run to Foxglove over its WebSocket protocol "
-                   "as it runs (needs pip install \"usv_mj[live]\"); the log is still written in full")
-    p.add_argument("--live-port", type=int, default=8765, metavar="PORT",
-                   help="the live server's TCP port on 127.0.0.1 (default 8765; 0: any free port)")
-    p.add_argument("--live-wait", type=float, default=None, metavar="S",
-                   help="wait at most S seconds for a viewer before streaming (default: until one connects)")
-    if speed:
-        p.add_argument("--speed", type=float, default=None, metavar="X",
-                       help="with --live: X times real time (1: real time; default: as fast as it runs)")
-
-
-def live_server(args):
-    """The LiveServer of --live (None without it); ScenarioError naming the pip extra if it is missing."""
-    if not getattr(args, "live", False):
-        return None
-    from .runlog.live import LiveServer, layout_path
-
-    server = LiveServer(port=args.live_port, speed=getattr(args, "speed", None), wait_s=args.live_wait)
-    print(f"usv-mj {args.command}: live on {server.url} (Foxglove: Open connection, Foxglove WebSocket; "
-          f"the layout: Layouts, Import from file, {layout_path()})", file=sys.stderr, flush=True)
-    return server
 
 
 def _run_command(args) -> int:

@@ -656,9 +656,9 @@ def _stopped(exc: BaseException, part: str, scenario: Scenario, out_dir: str, do
     """An interrupt (or the SystemError a signal becomes inside a compiled kernel): compare.json with
     ``passed: false`` and the parts finished, then :class:`CompareInterrupted`. Other SystemErrors
     are raised again as they are."""
-    from .simulation import _interrupt_in_chain
+    from .simulation import interrupt_in_chain
 
-    cause = exc if isinstance(exc, KeyboardInterrupt) else _interrupt_in_chain(exc)
+    cause = exc if isinstance(exc, KeyboardInterrupt) else interrupt_in_chain(exc)
     if cause is None:
         raise exc
     who = str(cause) or "Ctrl-C"
@@ -686,7 +686,7 @@ def _json_default(obj):
 def add_arguments(parser) -> None:
     """Arguments of ``usv-mj compare``: the scenario options of ``usv-mj run`` (--preset, --scenario,
     --set, --duration), --out and -q."""
-    from .cli import add_scenario_arguments, add_vessel_argument
+    from .command_args import add_scenario_arguments, add_vessel_argument
 
     add_scenario_arguments(parser)
     add_vessel_argument(parser)
@@ -702,7 +702,7 @@ def run_command(args) -> int:
 
     Bad scenario input raises :class:`usv_mj.scenario.ScenarioError` (the CLI prints it, exit 2).
     """
-    from .cli import scenario_from_args
+    from .command_args import scenario_from_args
     from .scenario import ScenarioError
 
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):

@@ -117,7 +117,7 @@ def run_block(k, stop, n, dt, data, base, n_diag, max_force, max_speed, max_yaw_
 '''
 
 
-def _fn_name(fn) -> tuple[str, str]:
+def kernel_name(fn) -> tuple[str, str]:
     py = getattr(fn, "py_func", None)
     if py is None:
         raise TypeError(f"a kernel must be a numba njit function, got {fn!r}")
@@ -176,7 +176,7 @@ def compiled_block(kernels: dict):
     found = _LOOPS.get(key)
     if found is not None:
         return found
-    names = {role: _fn_name(kernels[role].fn) for role in _ROLES}
+    names = {role: kernel_name(kernels[role].fn) for role in _ROLES}
     imports = "\n".join(f"from {m} import {n} as {role}_fn" for role, (m, n) in names.items())
     fields = {f"{role}_args": ", ".join(f"{role}_a[{i}]" for i in range(len(kernels[role].args)))
               for role in _ROLES}

@@ -65,7 +65,7 @@ def figure_titles(criterion_kind: str, weights: bool) -> dict:
 ZOOM_S = 2.0   # s: the first seconds of figures 5-6, drawn row by row
 
 
-def _save(fig, path: Path, note: str = "") -> None:
+def save_figure(fig, path: Path, note: str = "") -> None:
     """Write the figure; ``note`` (a log cut or damaged: what was recovered) in red across its top."""
     if note:
         fig.subplots_adjust(top=min(fig.subplotpars.top, 0.84))
@@ -114,7 +114,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     ax.legend(loc="best")
     ax.set_title("Fig. 1: trajectory tracking")
     paths.append(out / "fig1_trajectory.png")
-    _save(fig, paths[-1], note)
+    save_figure(fig, paths[-1], note)
 
     for axis, name_, unit, fname in ((1, "x", "m", "fig2_error_x.png"), (2, "y", "m", "fig3_error_y.png"),
                                       (3, "psi", "rad", "fig4_error_psi.png")):
@@ -139,7 +139,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         ax.legend(loc="upper right")
         ax.set_title(f"Fig. {axis + 1}: tracking error of {name_} in the prescribed-performance funnel")
         paths.append(out / fname)
-        _save(fig, paths[-1], note)
+        save_figure(fig, paths[-1], note)
 
     dt = record.metadata.get("control_period_s") or 0.001
     n_zoom = min(len(record), int(round(ZOOM_S / dt)) + 1)   # rows with t <= 2 s
@@ -162,7 +162,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         fig.suptitle(f"Fig. {num}: {FIGURES[fname]}")
         fig.tight_layout()
         paths.append(out / fname)
-        _save(fig, paths[-1], note)
+        save_figure(fig, paths[-1], note)
 
     weights = ("w_u_norm", "w_v_norm", "w_r_norm")
     fig, ax = plt.subplots(figsize=(8, 4))
@@ -187,7 +187,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="best")
     paths.append(out / "fig7_weights.png")
-    _save(fig, paths[-1], note)
+    save_figure(fig, paths[-1], note)
     return paths
 
 
@@ -270,7 +270,7 @@ def _criterion_error_figure(record, baseline, criterion, axis, path, note=""):
     ax.legend(loc="upper right")
     title = figure_titles(criterion.kind, True)[path.name]
     ax.set_title(f"Fig. {axis + 1}: {title[:1].lower() + title[1:]}")
-    _save(fig, path, note)
+    save_figure(fig, path, note)
     return path
 
 
@@ -298,7 +298,7 @@ def readme_figure(record: RunRecord, path, baseline: RunRecord | None = None) ->
     b.legend()
     b.grid(alpha=0.3)
     fig.tight_layout()
-    _save(fig, Path(path))
+    save_figure(fig, Path(path))
     return Path(path)
 
 

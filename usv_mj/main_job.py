@@ -156,7 +156,9 @@ def _sea_outputs(scenario: Scenario, record: RunRecord, summary: dict, summary_o
     return "\n".join(lines)
 
 
-def _write_json(path: Path, data: dict) -> None:
+def write_json(path: Path, data: dict) -> None:
+    """``data`` as indented JSON at ``path``, whole or not at all (a temporary file, then renamed);
+    NaN or inf is refused (ValueError)."""
     tmp = path.with_suffix(".json.tmp")
     try:
         tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
@@ -392,7 +394,7 @@ def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
     try:
         if tb:
             (stage / "traceback.txt").write_text(tb)
-        _write_json(stage / "summary.json", summary)
+        write_json(stage / "summary.json", summary)
         (stage / "report.md").write_text(
             f"# Run report\n\n**The run {summary['status']}:** {summary['stop_reason']}\n\n"
             + (f"Missing outputs: {', '.join(summary['missing_outputs'])}.\n" if summary["missing_outputs"] else "")
@@ -401,195 +403,264 @@ def _write_failure(stage: Path, summary: dict, tb: str | None) -> None:
         pass
 
 
+class _StagedJob:
+    """The job itself, writing into the staging folder ``out``, in the phases :func:`_run_staged`
+    calls in turn: :meth:`main_run` (the render workers, the log, the simulation), :meth:`outputs`
+    (the baseline, the summaries, the half-step check, the figures, the report, the video) and
+    :meth:`finish` (summary.json, and the report of a job that stopped early). The phases share the
+    job's state: the files written, why the outputs stopped, an output that could not be written."""
+
+    def __init__(self, scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
+                 video, log, progress, step_check, render_opts, log_rate=None, live=None, extra_outputs=None):
+        self.scenario, self.out, self.final_out, self.signals = scenario, out, final_out, signals
+        self.plant_kind = plant_kind or scenario.plant.kind
+        run_baseline = scenario.baseline.enabled if baseline is None else baseline
+        self.run_baseline = run_baseline and scenario.controller.kind != scenario.baseline.kind
+        self.video, self.log, self.progress, self.step_check = video, log, progress, step_check
+        self.render_opts, self.log_rate, self.live = render_opts, log_rate, live
+        self.extra_outputs = extra_outputs   # (record, out) -> (report sections, {name: path}), or None
+        self.dt = scenario.control_period
+        self.files: dict = {}
+        self.expected = ["summary.json", "report.md", "figures"] + (["run.mcap"] if log else []) + \
+                        (["video.mp4", "video.png"] if video else [])
+        self.stack = ExitStack()
+        self.writer = None
+        self.every = None        # the log's n-th step
+        self.pool = None
+        self.stopped = None      # why the outputs after the simulation stopped (interrupt or fault)
+        self.fault = None        # an output that could not be written: one line
+        self.record = self.base_rec = self.check = None
+        self.summary = self.base_summary = self.summary_out = None
+        self.render_stats = None
+        self.phase = "starting the video"
+        self.seen_in_loop = 0    # the signals the loop itself reported (1: the one that interrupted it)
+
+    def close_all(self) -> None:
+        """Close the log (then the render pool) whatever comes in between; the log error, if any."""
+        with self.signals.deferred():
+            try:
+                self.stack.close()
+            except Exception as exc:       # RunLogError (disk full, worker gone) or OSError
+                self.fault = self.fault or _one_line(exc)
+
+    # --- the main run --------------------------------------------------------------------------
+
+    def main_run(self) -> None:
+        """The render workers (opening while the ship is simulated), the log and the main run; a
+        failure or an interrupt here writes the failure's summary and raises :class:`RunFailed`."""
+        import traceback
+
+        scenario, out, render_opts, signals = self.scenario, self.out, self.render_opts, self.signals
+        try:
+            if self.video:
+                from .render import RenderWorkers
+
+                if scenario.obstacles and "model" not in render_opts:
+                    from .obstacles.compose import compose_scene, export_scene
+
+                    render_opts["model"] = export_scene(compose_scene(scenario.obstacles))
+                # the render workers open their GL contexts while the ship is simulated
+                self.pool = self.stack.enter_context(RenderWorkers(**{k: v for k, v in render_opts.items()
+                                                                      if k in ("width", "height", "camera", "workers",
+                                                                               "gl", "model", "shadows")}))
+            sink_main = []
+            if self.log:
+                from .runlog import RunLogWriter
+
+                self.writer = self.stack.enter_context(RunLogWriter(out / "run.mcap", scenario, live=self.live))
+                from .runlog.writer import log_every
+
+                self.every = log_every(self.log_rate, self.dt)
+                sink_main = [self.writer.sink(run="main", log_every=self.every)]
+                self.files["mcap"] = out / "run.mcap"
+            cb, close = progress_bar(scenario.duration, f"{scenario.controller.kind.upper()} on {self.plant_kind}",
+                                     self.progress, self.dt)
+            try:
+                self.record = _simulate(scenario, self.plant_kind, None, sink_main, cb, store=out / "record")
+            finally:
+                close()
+        except KeyboardInterrupt:
+            # outside the loop's own handler (setting up, or a second signal while it finished)
+            self.close_all()
+            reason = f"interrupted ({signals.last}) before the run could be summarized"
+            with signals.deferred():      # a burst of signals: the next ones wait until the summary is written
+                _write_failure(out, _failed_summary(scenario, self.plant_kind, "interrupted", reason,
+                                                    [n for n in self.expected if n not in ("summary.json", "report.md",
+                                                                                           "run.mcap")]), None)
+            raise RunFailed(f"{reason}; outputs in {self.final_out}/", self.final_out, None) from None
+        except Exception as exc:
+            self.close_all()
+            from .render import GLUnavailableError
+
+            if isinstance(exc, GLUnavailableError):
+                raise
+            tb = traceback.format_exc()
+            reason = _one_line(exc) if self.fault is None else self.fault
+            status = "failed"
+            if signals.received:
+                # a signal that landed inside compiled code can come out as another exception (SystemError)
+                status, reason = "interrupted", f"interrupted by {signals.last} ({reason})"
+            missing = [name for name in self.expected if name not in ("summary.json", "report.md", "run.mcap")]
+            summary_fail = _failed_summary(scenario, self.plant_kind, status, reason, missing)
+            summary_fail["traceback"] = "traceback.txt"
+            _write_failure(out, summary_fail, tb)
+            raise RunFailed(f"the run {status}: {reason} (traceback in {self.final_out}/traceback.txt)",
+                            self.final_out, summary_fail, out / "traceback.txt") from None
+        self._name_the_signal()
+
+    def _name_the_signal(self) -> None:
+        """The loop says Ctrl-C for every KeyboardInterrupt; say which signal it was (in a burst, the first)."""
+        record, signals = self.record, self.signals
+        first = signals.received[0] if signals.received else "Ctrl-C"     # the one that stopped the loop
+        if record.status == "interrupted" and first != "Ctrl-C":
+            record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", first)
+            if record.events and record.events[-1].kind == "interrupted":
+                record.events[-1] = dataclasses.replace(record.events[-1], message=record.stop_reason)
+            record.finish_store()   # a streamed record's record.json says it too
+
+    # --- the outputs ---------------------------------------------------------------------------
+
+    def outputs(self) -> None:
+        """The baseline, the summaries, the half-step check, the figures, the report and the video;
+        an interrupt or an output that cannot be written stops them (:attr:`stopped` says where)."""
+        scenario, out, record, signals = self.scenario, self.out, self.record, self.signals
+        video_job = None
+        # a signal whose exception was swallowed (raised inside a weakref callback, say) still stops the job
+        self.seen_in_loop = 1 if record.status == "interrupted" else 0
+        try:
+            if len(signals.received) > self.seen_in_loop:
+                raise KeyboardInterrupt(signals.last)
+            # The video of the main run is drawn by the render workers while this process simulates the
+            # baseline and the half-step check and draws the figures (the job then uses both cores).
+            video_job = _start_video(self.pool, record, out / "video.mp4", self.render_opts) \
+                if self.pool is not None else None
+            if self.run_baseline and record.status != "interrupted":
+                self.phase = f"running the {scenario.baseline.kind.upper()} baseline"
+                self.base_rec = self._baseline()
+            self.summary = summarize(record)
+            # the baseline judged as the main run is (its criterion and its words)
+            self.base_summary = summarize(self.base_rec, criterion_of_record(record)) \
+                if self.base_rec is not None else None
+            self.phase = "running the half-step check"
+            self.check = step_size_check(scenario, record, self.plant_kind) \
+                if self.step_check and record.status == "completed" else None
+            self.summary_out = _summary_out(self.summary, self.base_summary, self.check)
+            self.phase = "drawing the figures"
+            self.files["figures"] = draw_figures(record, out / "figures", self.base_rec, obstacles=scenario.obstacles)
+            extra_sections = []
+            if self.extra_outputs is not None:
+                self.phase = "writing the manoeuvre's outputs"
+                sections, extra_files = self.extra_outputs(record, out)
+                extra_sections += list(sections)
+                self.files.update(extra_files)
+            if not scenario.sea.calm:
+                self.phase = "drawing the sea figures"
+                extra_sections.append(_sea_outputs(scenario, record, self.summary, self.summary_out, out,
+                                                   self.plant_kind, self.files))
+            self.phase = "writing the report"
+            self.files["report"] = write_report(out / "report.md", self.summary, self.base_summary, self.check,
+                                                extra_sections)
+            self.phase = "rendering the video"
+            self.render_stats = video_job.result() if video_job is not None else None
+            if self.render_stats is not None:
+                self.files["video"] = out / "video.mp4"
+                self.files["still"] = Path(self.render_stats["png"])
+                self.summary_out["render"] = {k: (str(v) if isinstance(v, Path) else v)
+                                              for k, v in self.render_stats.items()
+                                              if isinstance(v, (int, float, str, Path))}
+        except KeyboardInterrupt:
+            self.stopped = f"interrupted ({signals.last}) while {self.phase}"
+        except Exception as exc:   # an output that cannot be written (disk full, read-only) or a worker
+            self.fault = _one_line(exc)
+            self.stopped = f"stopped while {self.phase}: {self.fault}"
+
+    def _baseline(self) -> RunRecord:
+        """The baseline controller's run, logged beside the main run's log."""
+        scenario, out = self.scenario, self.out
+        sink_base = []
+        if self.log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
+            from .runlog import RunLogWriter
+
+            base_writer = self.stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario,
+                                                                companion_of=self.writer, live=self.live))
+            sink_base = [base_writer.sink(run="baseline", log_every=self.every)]
+            self.files["baseline_mcap"] = out / "baseline.mcap"
+        cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", self.progress,
+                                 self.dt)
+        try:
+            return _simulate(scenario, self.plant_kind, scenario.baseline.kind, sink_base, cb,
+                             store=out / "baseline_record")
+        finally:
+            close()
+
+    # --- the finish ----------------------------------------------------------------------------
+
+    def finish(self) -> JobResult:
+        """Close the log and the workers, write summary.json (and, when the job stopped early, the
+        report that says so); :class:`RunFailed` when an output could not be written."""
+        out, final_out, signals, files = self.out, self.final_out, self.signals, self.files
+        self.close_all()
+        if self.fault and not self.stopped:
+            self.stopped = self.fault
+        if not self.stopped and len(signals.received) > self.seen_in_loop:
+            self.stopped = f"interrupted ({signals.last}) while {self.phase}"
+        hold = signals.deferred()       # the finish holds further signals: the summary and report are written whole
+        hold.__enter__()
+        try:
+            if self.summary is None:
+                self.summary = summarize(self.record)
+            if self.summary_out is None:
+                self.summary_out = _summary_out(self.summary, self.base_summary, self.check)
+            if self.stopped:
+                self._stopped_report()
+            files["summary"] = out / "summary.json"
+            write_json(files["summary"], _relocate(self.summary_out, out, final_out))
+        except KeyboardInterrupt:
+            self.stopped = self.stopped or f"interrupted ({signals.last}) while writing the summary"
+        except OSError as exc:
+            self.fault = self.fault or _one_line(exc)
+            files.pop("summary", None)
+        finally:
+            hold.__exit__(None, None, None)
+        if self.fault:
+            stopped, fault = self.stopped, self.fault
+            message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
+            raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),
+                            final_out, self.summary_out)
+        return JobResult(out, self.record, self.summary_out, self.base_rec, self.base_summary, self.check, files,
+                         self.render_stats)
+
+    def _stopped_report(self) -> None:
+        """summary.json and report.md of a job whose outputs stopped early (what is missing)."""
+        out, final_out, stopped, summary_out = self.out, self.final_out, self.stopped, self.summary_out
+        if self.run_baseline and self.base_rec is None and self.record.status != "interrupted":
+            summary_out["baseline"] = {"status": "not run", "stop_reason": stopped}
+        summary_out["job_stopped"] = stopped
+        summary_out["missing_outputs"] = _missing(out, self.expected, self.log)
+        # the summary first: a second Ctrl-C while the report is written ends the job at once
+        self.files["summary"] = out / "summary.json"
+        write_json(self.files["summary"], _relocate(summary_out, out, final_out))
+        try:
+            write_report(out / "report.md", self.summary, self.base_summary, self.check,
+                         [f"## The job stopped early\n\n{stopped}. Missing outputs: "
+                          f"{', '.join(m for m in summary_out['missing_outputs'] if m != 'report.md') or 'none'}."])
+            self.files["report"] = out / "report.md"
+        except KeyboardInterrupt:
+            summary_out["job_stopped"] = f"{stopped}; interrupted again ({self.signals.last}) while writing the report"
+        summary_out["missing_outputs"] = _missing(out, self.expected, self.log)
+
+
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,
                 video, log, progress, step_check, render_opts, log_rate=None, live=None,
                 extra_outputs=None) -> JobResult:
-    """The job itself, writing into the staging folder ``out``."""
-    import traceback
-
-    plant_kind = plant_kind or scenario.plant.kind
-    run_baseline = scenario.baseline.enabled if baseline is None else baseline
-    run_baseline = run_baseline and scenario.controller.kind != scenario.baseline.kind
-    dt = scenario.control_period
-    files: dict = {}
-    expected = ["summary.json", "report.md", "figures"] + (["run.mcap"] if log else []) + \
-               (["video.mp4", "video.png"] if video else [])
-    stack = ExitStack()
-    writer = None
-    pool = None
-    stopped = None           # why the outputs after the simulation stopped (interrupt or fault)
-    fault = None             # an output that could not be written: one line
-    record = base_rec = check = None
-    summary = base_summary = summary_out = None
-    render_stats = None
-
-    def close_all():
-        """Close the log (then the render pool) whatever comes in between; the log error, if any."""
-        nonlocal fault
-        with signals.deferred():
-            try:
-                stack.close()
-            except Exception as exc:       # RunLogError (disk full, worker gone) or OSError
-                fault = fault or _one_line(exc)
-
-    try:
-        if video:
-            from .render import RenderWorkers
-
-            if scenario.obstacles and "model" not in render_opts:
-                from .obstacles.compose import compose_scene, export_scene
-
-                render_opts["model"] = export_scene(compose_scene(scenario.obstacles))
-            # the render workers open their GL contexts while the ship is simulated
-            pool = stack.enter_context(RenderWorkers(**{k: v for k, v in render_opts.items()
-                                                        if k in ("width", "height", "camera", "workers", "gl",
-                                                                 "model", "shadows")}))
-        sink_main, sink_base = [], []
-        if log:
-            from .runlog import RunLogWriter
-
-            writer = stack.enter_context(RunLogWriter(out / "run.mcap", scenario, live=live))
-            from .runlog.writer import log_every
-
-            every = log_every(log_rate, dt)
-            sink_main = [writer.sink(run="main", log_every=every)]
-            files["mcap"] = out / "run.mcap"
-        cb, close = progress_bar(scenario.duration, f"{scenario.controller.kind.upper()} on {plant_kind}", progress, dt)
-        try:
-            record = _simulate(scenario, plant_kind, None, sink_main, cb, store=out / "record")
-        finally:
-            close()
-    except KeyboardInterrupt:
-        # outside the loop's own handler (setting up, or a second signal while it finished)
-        close_all()
-        reason = f"interrupted ({signals.last}) before the run could be summarized"
-        with signals.deferred():      # a burst of signals: the next ones wait until the summary is written
-            _write_failure(out, _failed_summary(scenario, plant_kind, "interrupted", reason,
-                                                [n for n in expected if n not in ("summary.json", "report.md",
-                                                                                  "run.mcap")]), None)
-        raise RunFailed(f"{reason}; outputs in {final_out}/", final_out, None) from None
-    except Exception as exc:
-        close_all()
-        from .render import GLUnavailableError
-
-        if isinstance(exc, GLUnavailableError):
-            raise
-        tb = traceback.format_exc()
-        reason = _one_line(exc) if fault is None else fault
-        status = "failed"
-        if signals.received:
-            # a signal that landed inside compiled code can come out as another exception (SystemError)
-            status, reason = "interrupted", f"interrupted by {signals.last} ({reason})"
-        missing = [name for name in expected if name not in ("summary.json", "report.md", "run.mcap")]
-        summary_fail = _failed_summary(scenario, plant_kind, status, reason, missing)
-        summary_fail["traceback"] = "traceback.txt"
-        _write_failure(out, summary_fail, tb)
-        raise RunFailed(f"the run {status}: {reason} (traceback in {final_out}/traceback.txt)", final_out,
-                        summary_fail, out / "traceback.txt") from None
-    first = signals.received[0] if signals.received else "Ctrl-C"     # the one that stopped the loop
-    if record.status == "interrupted" and first != "Ctrl-C":
-        # the loop says Ctrl-C for every KeyboardInterrupt; say which signal it was (in a burst, the first)
-        record.stop_reason = record.stop_reason.replace("the user (Ctrl-C)", first)
-        if record.events and record.events[-1].kind == "interrupted":
-            record.events[-1] = dataclasses.replace(record.events[-1], message=record.stop_reason)
-        record.finish_store()   # a streamed record's record.json says it too
-
-    phase = "starting the video"
-    video_job = None
-    # a signal whose exception was swallowed (raised inside a weakref callback, say) still stops the job
-    seen_in_loop = 1 if record.status == "interrupted" else 0
-    try:
-        if len(signals.received) > seen_in_loop:
-            raise KeyboardInterrupt(signals.last)
-        # The video of the main run is drawn by the render workers while this process simulates the
-        # baseline and the half-step check and draws the figures (the job then uses both cores).
-        video_job = _start_video(pool, record, out / "video.mp4", render_opts) if pool is not None else None
-        if run_baseline and record.status != "interrupted":
-            phase = f"running the {scenario.baseline.kind.upper()} baseline"
-            if log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
-                base_writer = stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario, companion_of=writer,
-                                                                      live=live))
-                sink_base = [base_writer.sink(run="baseline", log_every=every)]
-                files["baseline_mcap"] = out / "baseline.mcap"
-            cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", progress, dt)
-            try:
-                base_rec = _simulate(scenario, plant_kind, scenario.baseline.kind, sink_base, cb,
-                                     store=out / "baseline_record")
-            finally:
-                close()
-        summary = summarize(record)
-        # the baseline judged as the main run is (its criterion and its words)
-        base_summary = summarize(base_rec, criterion_of_record(record)) if base_rec is not None else None
-        phase = "running the half-step check"
-        check = step_size_check(scenario, record, plant_kind) if step_check and record.status == "completed" else None
-        summary_out = _summary_out(summary, base_summary, check)
-        phase = "drawing the figures"
-        files["figures"] = draw_figures(record, out / "figures", base_rec, obstacles=scenario.obstacles)
-        extra_sections = []
-        if extra_outputs is not None:
-            phase = "writing the manoeuvre's outputs"
-            sections, extra_files = extra_outputs(record, out)
-            extra_sections += list(sections)
-            files.update(extra_files)
-        if not scenario.sea.calm:
-            phase = "drawing the sea figures"
-            extra_sections.append(_sea_outputs(scenario, record, summary, summary_out, out, plant_kind, files))
-        phase = "writing the report"
-        files["report"] = write_report(out / "report.md", summary, base_summary, check, extra_sections)
-        phase = "rendering the video"
-        render_stats = video_job.result() if video_job is not None else None
-        if render_stats is not None:
-            files["video"] = out / "video.mp4"
-            files["still"] = Path(render_stats["png"])
-            summary_out["render"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in render_stats.items()
-                                     if isinstance(v, (int, float, str, Path))}
-    except KeyboardInterrupt:
-        stopped = f"interrupted ({signals.last}) while {phase}"
-    except Exception as exc:   # an output that cannot be written (disk full, read-only) or a worker
-        fault = _one_line(exc)
-        stopped = f"stopped while {phase}: {fault}"
-    close_all()
-    if fault and not stopped:
-        stopped = fault
-    if not stopped and len(signals.received) > seen_in_loop:
-        stopped = f"interrupted ({signals.last}) while {phase}"
-    hold = signals.deferred()       # the finish holds further signals: the summary and report are written whole
-    hold.__enter__()
-    try:
-        if summary is None:
-            summary = summarize(record)
-        if summary_out is None:
-            summary_out = _summary_out(summary, base_summary, check)
-        if stopped:
-            if run_baseline and base_rec is None and record.status != "interrupted":
-                summary_out["baseline"] = {"status": "not run", "stop_reason": stopped}
-            summary_out["job_stopped"] = stopped
-            summary_out["missing_outputs"] = _missing(out, expected, log)
-            # the summary first: a second Ctrl-C while the report is written ends the job at once
-            files["summary"] = out / "summary.json"
-            _write_json(files["summary"], _relocate(summary_out, out, final_out))
-            try:
-                write_report(out / "report.md", summary, base_summary, check,
-                             [f"## The job stopped early\n\n{stopped}. Missing outputs: "
-                              f"{', '.join(m for m in summary_out['missing_outputs'] if m != 'report.md') or 'none'}."])
-                files["report"] = out / "report.md"
-            except KeyboardInterrupt:
-                summary_out["job_stopped"] = f"{stopped}; interrupted again ({signals.last}) while writing the report"
-            summary_out["missing_outputs"] = _missing(out, expected, log)
-        files["summary"] = out / "summary.json"
-        _write_json(files["summary"], _relocate(summary_out, out, final_out))
-    except KeyboardInterrupt:
-        stopped = stopped or f"interrupted ({signals.last}) while writing the summary"
-    except OSError as exc:
-        fault = fault or _one_line(exc)
-        files.pop("summary", None)
-    finally:
-        hold.__exit__(None, None, None)
-    if fault:
-        message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
-        raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),
-                        final_out, summary_out)
-    return JobResult(out, record, summary_out, base_rec, base_summary, check, files, render_stats)
+    """The job itself, writing into the staging folder ``out``: the main run, the outputs, the finish
+    (:class:`_StagedJob`)."""
+    job = _StagedJob(scenario, out, final_out, signals, plant_kind=plant_kind, baseline=baseline, video=video,
+                     log=log, progress=progress, step_check=step_check, render_opts=render_opts,
+                     log_rate=log_rate, live=live, extra_outputs=extra_outputs)
+    job.main_run()
+    job.outputs()
+    return job.finish()
 
 
 def _summary_out(summary: dict, base_summary: dict | None, check: dict | None) -> dict:

@@ -62,7 +62,7 @@ def check_video(render_options: dict | None) -> None:
     :func:`usv_mj.render.render_run` does not take is refused here, not after the simulation."""
     import inspect
 
-    from .render.video import _check_size, check_camera, render_run
+    from .render.video import check_size, check_camera, render_run
 
     opts = dict(render_options or {})
     known = [name for name in inspect.signature(render_run).parameters if name not in ("record", "out_path", "progress",
@@ -73,7 +73,7 @@ def check_video(render_options: dict | None) -> None:
                             f"{', '.join(known)}")
     try:
         if "width" in opts or "height" in opts:
-            _check_size(opts.get("width", 1280), opts.get("height", 720))
+            check_size(opts.get("width", 1280), opts.get("height", 720))
         check_camera(opts.get("camera", "top"), opts.get("model"))
     except ValueError as exc:
         raise ScenarioError(f"--camera/--size: {exc}") from None

@@ -293,7 +293,7 @@ class Scenario:
 
     def with_overrides(self, overrides: dict) -> "Scenario":
         """A new scenario: this one's TOML table with ``overrides`` merged in and validated again."""
-        return from_dict(_merge(self.raw, overrides), source=self.source or "<overrides>")
+        return from_dict(merge_tables(self.raw, overrides), source=self.source or "<overrides>")
 
     def without(self, *sections: str) -> "Scenario":
         """A new scenario without these top-level tables (e.g. ``"obstacles"``: the same run in open
@@ -331,15 +331,16 @@ def _parsed_preset(name: str, chain: tuple) -> dict:
     data = tomllib.loads(path.read_text())
     base = data.pop("preset", None)
     if base is not None:
-        data = _merge(_parsed_preset(base, chain + (name,)), data)
+        data = merge_tables(_parsed_preset(base, chain + (name,)), data)
     return data
 
 
-def _merge(base: dict, over: dict) -> dict:
+def merge_tables(base: dict, over: dict) -> dict:
+    """``base`` with ``over`` merged in, tables recursively (``over`` wins); neither is changed."""
     out = dict(base)
     for key, value in over.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = _merge(out[key], value)
+            out[key] = merge_tables(out[key], value)
         else:
             out[key] = value
     return out
@@ -371,7 +372,7 @@ def load_scenario(path: str | Path | None = None, preset: str | None = None, ove
     if preset is not None:
         data["preset"] = preset
     if overrides:
-        data = _merge(data, overrides)
+        data = merge_tables(data, overrides)
     return from_dict(data, source=source)
 
 
@@ -402,7 +403,7 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
                     if (set(base[section]) - {"kind", *keep}) else None
                 known |= {f.name for f in dataclasses.fields(cls)} if cls is not None else set()
             base[section] = {k: v for k, v in base[section].items() if k in known}
-    merged = _merge(base, {k: v for k, v in data.items() if k != "preset"})
+    merged = merge_tables(base, {k: v for k, v in data.items() if k != "preset"})
     merged["preset"] = name
     return _build_scenario(merged, source, own_actuators="actuators" in data)
 
@@ -431,7 +432,7 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True) -> Scen
     top["preset"] = data["preset"]
     for key, cls in _SECTIONS.items():
         if key in data:
-            top[key] = _build(cls, data[key], source, key)
+            top[key] = build_table(cls, data[key], source, key)
     if "trajectory" in data:
         top["trajectory"] = _kind_spec(TrajectorySpec, TRAJECTORIES, data["trajectory"], source, "trajectory",
                                        "paper", ())
@@ -504,7 +505,7 @@ def _build_vessel(table: Any, ship: Any, source: str) -> VesselSpec:
         options = None
     else:
         section = "ship" if kind == "paper" and ship else "vessel"
-        options = _build(cls, table, source, section)
+        options = build_table(cls, table, source, section)
     try:
         model = entry.make(options, None)
     except ValueError as exc:
@@ -528,7 +529,7 @@ def _controller_spec(table: Any, source: str, section: str, default_kind: str) -
             raise ScenarioError(f"{source}: controller {kind!r} takes no gains, got {', '.join(sorted(table))}")
         return ControllerSpec(kind=kind, gains=None)
     extra = {"kind", "enabled"} if section == "baseline" else {"kind"}
-    gains = _build(gains_cls, table, source, section, extra_known=extra)
+    gains = build_table(gains_cls, table, source, section, extra_known=extra)
     return ControllerSpec(kind=kind, gains=gains)
 
 
@@ -554,7 +555,7 @@ def _kind_spec(spec_cls, registry, table: Any, source: str, section: str, defaul
                                     + (f" besides {', '.join(common)}" if common else "")
                                     + f", got {', '.join(sorted(own))}")
         else:
-            kwargs["options"] = _build(options_cls, own, source, section, extra_known={"kind", *common})
+            kwargs["options"] = build_table(options_cls, own, source, section, extra_known={"kind", *common})
     return _construct(spec_cls, {"kind": kind, **kwargs}, source, section)
 
 
@@ -566,7 +567,7 @@ def _build_disturbance(table: Any, source: str):
     table = dict(table)
     kind = table.pop("kind", "paper")
     entry = DISTURBANCES.get(kind, f"{source}: disturbance.kind")
-    return _build(entry.options_class or entry.obj, table, source, "disturbance", extra_known={"kind"})
+    return build_table(entry.options_class or entry.obj, table, source, "disturbance", extra_known={"kind"})
 
 
 def _build_sea(table, source: str) -> SeaSettings:
@@ -597,7 +598,10 @@ def _convert(source: str, where: str, value: Any, default: Any) -> Any:
     return coerce(source, where, value, default, ScenarioError)
 
 
-def _build(cls, table: Any, source: str, section: str, extra_known: set | None = None):
+def build_table(cls, table: Any, source: str, section: str, extra_known: set | None = None):
+    """The dataclass ``cls`` from the scenario table ``[section]``: each key converted to its field's
+    type and validated (ScenarioError naming ``source`` and the key; an unknown key with "did you
+    mean"); keys in ``extra_known`` are skipped, the fields not given keep their defaults."""
     if not isinstance(table, dict):
         raise ScenarioError(f"{source}: [{section}] must be a table, got {table!r}")
     fields = {f.name: f for f in dataclasses.fields(cls)}

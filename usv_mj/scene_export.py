@@ -18,7 +18,7 @@ from .errors import ScenarioError
 
 
 def add_arguments(p) -> None:
-    from .cli import add_scenario_arguments
+    from .command_args import add_scenario_arguments
 
     add_scenario_arguments(p)
     p.add_argument("--out", metavar="FILE", default="scene.xml", help="the MJCF file to write (default scene.xml)")
@@ -27,7 +27,7 @@ def add_arguments(p) -> None:
 
 def run_command(args) -> int:
     from .builder import build
-    from .cli import scenario_from_args
+    from .command_args import scenario_from_args
 
     out = Path(args.out)
     if not str(args.out).strip() or out.is_dir():

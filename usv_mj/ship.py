@@ -321,7 +321,7 @@ def damping_matrix(p, nu):
 
 
 @njit(cache=True)
-def _array3(f):
+def array3(f):
     """A 3-tuple as a new array (the array-returning faces of the tuple kernels below)."""
     out = np.empty(3)
     out[0], out[1], out[2] = f[0], f[1], f[2]
@@ -341,7 +341,7 @@ def uncertainty_terms(p, eta, nu):
 @njit(cache=True)
 def uncertainty_force(p, eta, nu):
     """:func:`uncertainty_terms` as an array."""
-    return _array3(uncertainty_terms(p, eta, nu))
+    return array3(uncertainty_terms(p, eta, nu))
 
 
 @njit(cache=True)
@@ -357,7 +357,7 @@ def disturbance_terms(dp, t):
 @njit(cache=True)
 def disturbance_force(dp, t):
     """:func:`disturbance_terms` as an array."""
-    return _array3(disturbance_terms(dp, t))
+    return array3(disturbance_terms(dp, t))
 
 
 @njit(cache=True)
@@ -408,7 +408,7 @@ def hull_terms(p, dp, t, eta, nu, nu_r):
 @njit(cache=True)
 def hydrodynamic_force(p, dp, t, eta, nu):
     """Everything on the hull but the thrust: d(t) + Delta - C(nu) nu - D(nu) nu (Eq. 2), body frame."""
-    return _array3(hull_terms(p, dp, t, eta, nu, nu))
+    return array3(hull_terms(p, dp, t, eta, nu, nu))
 
 
 @njit(cache=True)
@@ -448,7 +448,7 @@ def derivative_into(out, p, x, f0, f1, f2, tau_u, tau_r):
 @njit(cache=True)
 def kinematics(eta, nu):
     """eta_dot = J(psi) nu (Eq. 1), an array."""
-    return _array3(kinematics_terms(eta[2], nu[0], nu[1], nu[2]))
+    return array3(kinematics_terms(eta[2], nu[0], nu[1], nu[2]))
 
 
 @njit(cache=True)

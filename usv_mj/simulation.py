@@ -25,7 +25,7 @@ from .limits import within_limits
 from .builder import Parts, build, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from .record import COL, N_CORE, SL_REF, SL_STATE, Event, RunRecord
 from .scenario import Scenario
-from .trajectories import make_reference as _make_reference
+from . import trajectories
 
 #: a record bigger than this (rows x columns x 8 bytes) streams to disk when ``store`` is None
 STREAM_BYTES = 256 * 2 ** 20
@@ -43,7 +43,7 @@ class RunSink(Protocol):
 
 def make_reference(scenario: Scenario, duration: float | None = None):
     """The scenario's reference trajectory over ``duration`` [s] (default: the scenario's)."""
-    return _make_reference(scenario.trajectory, scenario.duration if duration is None else duration, scenario)
+    return trajectories.make_reference(scenario.trajectory, scenario.duration if duration is None else duration, scenario)
 
 
 def state_limit_exceeded(x, ex: float, ey: float, limits) -> bool:
@@ -215,7 +215,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         _interrupted(record, exc, k * dt)
     except Exception as exc:  # recorded, then re-raised after the sinks are finished
         k = record.n_rows if compiled is not None else k
-        cause = _interrupt_in_chain(exc)
+        cause = interrupt_in_chain(exc)
         if cause is not None:  # a signal that landed in compiled code surfaces as SystemError
             _interrupted(record, cause, k * dt)
             _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
@@ -237,7 +237,7 @@ def _interrupted(record: RunRecord, exc: BaseException, t: float) -> None:
     record.events.append(Event(t, "interrupted", record.stop_reason))
 
 
-def _interrupt_in_chain(exc: BaseException) -> KeyboardInterrupt | None:
+def interrupt_in_chain(exc: BaseException) -> KeyboardInterrupt | None:
     """The KeyboardInterrupt behind ``exc`` (its cause or context), if any: Python raises a
     signal handler's exception inside a numba kernel as a SystemError caused by it."""
     seen = set()
@@ -277,7 +277,7 @@ def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=())
 def _state_diverged(record: RunRecord, t_next: float, x, ex: float, ey: float, limits) -> None:
     """Record the divergence event and the stop (both loops): which limit the state left, and the state."""
     record.events.append(Event(t_next, "divergence",
-        f"state left its limits at t = {t_next:.3f} s: {_which_limit(x, ex, ey, limits)}; "
+        f"state left its limits at t = {t_next:.3f} s: {which_limit(x, ex, ey, limits)}; "
         f"(x, y, psi, u, v, r) = ({', '.join(f'{v:.4g}' for v in x)})",
         {"state": [_json_number(v) for v in x]}))
     record.status = "diverged"
@@ -290,7 +290,7 @@ def _json_number(v) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def _which_limit(x, ex, ey, limits) -> str:
+def which_limit(x, ex, ey, limits) -> str:
     """Name the first state value that is not finite or over its limit (for the divergence event)."""
     checks = (("surge speed u", x[3], limits.max_speed, "limits.max_speed", "m/s"),
               ("sway speed v", x[4], limits.max_speed, "limits.max_speed", "m/s"),

@@ -134,7 +134,7 @@ def _wait_closed(viewer, threads, timeout_s: float = 5.0) -> None:
 
 
 def add_arguments(p) -> None:
-    from .cli import add_scenario_arguments
+    from .command_args import add_scenario_arguments
 
     add_scenario_arguments(p)
     p.add_argument("--plant", choices=("mujoco",), default="mujoco", help="the viewer shows the MuJoCo plant")
@@ -145,7 +145,7 @@ def add_arguments(p) -> None:
 
 def run_command(args) -> int:
     from .builder import build
-    from .cli import scenario_from_args
+    from .command_args import scenario_from_args
     from .simulation import simulate
 
     if not (args.speed > 0 and args.speed < float("inf")):

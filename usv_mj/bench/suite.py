@@ -50,7 +50,7 @@ import numpy as np
 from ..errors import SweepError
 from .metrics import MetricOptions
 from ..scenario import ScenarioError, from_dict, load_scenario
-from ..sweep.spec import RunSpec, SweepPlan, _check_references, _draw, _load_base, _parse_axis, apply_values
+from ..sweep.spec import RunSpec, SweepPlan, apply_values, check_references, draw_values, load_base, parse_axis
 from ..toml_values import read_toml
 
 SUITE_KEYS = ("name", "episodes", "seed", "duration", "plant", "controllers", "vessels", "conditions", "tasks",
@@ -221,7 +221,7 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
             raise SweepError(f"{source}: [[tasks]] {ti}: name must be a unique non-empty string, got {name!r}")
         names.append(name)
         where = f"task {name!r}"
-        base = _load_base(f"{source} {where}", task.get("base", "paper"), directory)
+        base = load_base(f"{source} {where}", task.get("base", "paper"), directory)
         fixed = {"duration": _positive(source, f"{where}: duration", task.get("duration"), duration),
                  "baseline.enabled": False}
         if "plant" in data:
@@ -235,11 +235,11 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
         vary = task.get("vary", {})
         if not isinstance(vary, dict):
             raise SweepError(f"{source}: {where}: vary must be a table of path = distribution, got {vary!r}")
-        axes = [_parse_axis(f"{source} {where}", p, s) for p, s in vary.items()]
+        axes = [parse_axis(f"{source} {where}", p, s) for p, s in vary.items()]
         if any(a.kind == "grid" for a in axes):
             raise SweepError(f"{source}: {where}: vary takes distributions ({{ uniform = [a, b] }}, ...), not grids")
         rng = np.random.default_rng([seed, ti])
-        drawn = {a.path: _draw(rng, a, n_ep) for a in axes}
+        drawn = {a.path: draw_values(rng, a, n_ep) for a in axes}
         heading = task.get("band_heading_deg", 10.0)
         try:
             options = MetricOptions(
@@ -264,7 +264,7 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
                         if ctrl.policy:
                             options.update({"episode_fn": POLICY_EPISODE, "policy": _policy_path(ctrl.policy, directory)})
                         runs.append(RunSpec(len(runs), run_values, scenario, options))
-    _check_references(runs, source)
+    check_references(runs, source)
     plan = SweepPlan(source=source, base=runs[0].scenario, axes=[], runs=runs, samples=1, seed=seed,
                      transient=20.0, name=str(data.get("name", Path(source).stem)))
     doc = {"suite": data, "runs": [[r.run_id, r.values, r.scenario.raw, r.options] for r in runs]}

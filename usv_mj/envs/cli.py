@@ -39,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from usv_mj.outdir import add_overwrite_argument
 
     add_overwrite_argument(parser, "the --video file and its .png still when usv_mj wrote them")
-    from usv_mj.cli import add_live_arguments
+    from usv_mj.command_args import add_live_arguments
 
     add_live_arguments(parser)   # --live: each episode served to Foxglove as it ends (usv_mj.runlog.live)
 
@@ -76,20 +76,20 @@ def run_command(args: argparse.Namespace) -> int:
         args.video = None
     if args.video is not None:  # the video's size and file are checked before any episode runs
         from usv_mj.outdir import check_file
-        from usv_mj.render.video import _check_size, parse_size
+        from usv_mj.render.video import check_size, parse_size
 
         try:
-            _check_size(*parse_size(args.video_size))
+            check_size(*parse_size(args.video_size))
             check_file(args.video, args.overwrite, "--video")
         except (ValueError, argparse.ArgumentTypeError) as exc:
             print(f"usv-mj env: error: {exc}", file=sys.stderr)
             return 2
     options = {"quantize": not args.no_quantize}
     if args.set:
-        from usv_mj.cli import _parse_set
+        from usv_mj.command_args import parse_set
 
         try:
-            options["overrides"] = _parse_set(args.set)
+            options["overrides"] = parse_set(args.set)
         except ScenarioError as exc:
             print(f"usv-mj env: error: {exc}", file=sys.stderr)
             return 2
@@ -137,7 +137,7 @@ def run_command(args: argparse.Namespace) -> int:
 
 
 def _live_server(args):
-    from usv_mj.cli import live_server
+    from usv_mj.command_args import live_server
 
     if getattr(args, "live", False):
         import tempfile

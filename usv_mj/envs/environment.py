@@ -18,7 +18,7 @@ with warnings.catch_warnings():
 from dm_env import specs
 
 from usv_mj.builder import make_environment, make_plant
-from usv_mj.scenario import Scenario, load_scenario
+from usv_mj.scenario import Scenario, load_scenario, merge_tables
 
 from . import ALL_TASKS
 from .physics import USVPhysics
@@ -60,7 +60,7 @@ class USVEnvironment(control.Environment):
         self._history = collections.deque(maxlen=HISTORY_ROWS)
         self._frames = None
         physics.owner = weakref.ref(self)
-        self._fusable = hasattr(task, "fused_step") and hasattr(task, "observation_dict")
+        self._fusable = hasattr(task, "fused_kernels") and hasattr(task, "observation_dict")
 
     @property
     def flat_observation(self) -> bool:
@@ -109,7 +109,7 @@ class USVEnvironment(control.Environment):
     def step(self, action):
         """``dm_control.rl.control.Environment.step``; when the task can do its part (before_step,
         the physics step, after_step, the reward and the observation vector) in one call
-        (:meth:`TrackTask.fused_step`), that call and dm_control's bookkeeping after it (step
+        (:meth:`_fused_step`), that call and dm_control's bookkeeping after it (step
         limit, discount, TimeStep) instead. Then the step is kept for :meth:`render_frame` and the
         time limit noted in the task's :attr:`~TrackTask.info`."""
         if self._closed:
@@ -117,7 +117,7 @@ class USVEnvironment(control.Environment):
         task, physics = self._task, self._physics
         fused = None
         if self._fusable and not self._reset_next_step:
-            fused = task.fused_step(action, physics, self._n_sub_steps)
+            fused = self._fused_step(action)
         if fused is None:
             ts = super().step(action)
             if ts.first():   # it reset (after a last step): reset() kept the step
@@ -137,6 +137,19 @@ class USVEnvironment(control.Environment):
         if ts.last() and ts.discount == 1.0:
             task.mark_time_limit(physics.time())
         return ts
+
+    def _fused_step(self, action):
+        """before_step, physics.step, after_step, get_reward and the observation vector in one native
+        call: the task gives the parts (:meth:`TrackTask.fused_kernels`), the physics steps
+        (:meth:`USVPhysics.step_native`); (reward, observation vector), or None with nothing done
+        when the task cannot fuse this step."""
+        task, physics = self._task, self._physics
+        f = task.fused_kernels(physics, self._n_sub_steps)
+        if f is None:
+            return None
+        a0, a1 = task.fused_action(action, physics)
+        ev, t = physics.step_native(f.plant_kernel, task.fused_native, f, a0, a1, physics)
+        return task.fused_result(ev, t, physics)
 
     def _remember(self) -> None:
         task, ph = self._task, self._physics
@@ -207,16 +220,7 @@ def _scenario(task: str, options: dict, duration: float) -> Scenario:
         base["funnel"] = HARBOUR_FUNNEL
         base["trajectory"] = {"kind": "waypoints", "points": [[0.0, 0.0], [40.0, 0.0]], "speed": 0.6}
         base["initial"] = {"eta": [0.0, 0.0, 0.0]}
-    return load_scenario(preset=preset, overrides=_nested_merge(base, overrides))
-
-
-def _nested_merge(a: dict, b: dict) -> dict:
-    """``a`` with ``b`` merged in, tables recursively (``b`` wins)."""
-    out = dict(a)
-    for key, value in b.items():
-        out[key] = _nested_merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) \
-            else value
-    return out
+    return load_scenario(preset=preset, overrides=merge_tables(base, overrides))
 
 
 #: [m] the harbour tasks' goal_distance: past the piers (x = 10-21 m) and the buoys drawn at 0.55-0.9

@@ -36,7 +36,7 @@ from usv_mj.controllers.hysteresis_quantizer import quantize_step
 from usv_mj.controllers.performance_funnel import funnel_bound
 from usv_mj.limits import within_limits
 from usv_mj.obstacles.clearance import mujoco_clearance_kernel
-from usv_mj.plants.mujoco_callback import _call_model_data
+from usv_mj.plants.mujoco_callback import call_model_data
 from usv_mj.ship import wrap_angle
 
 #: entries of the observation vector before the preview (position_error 2, heading_error 1,
@@ -161,7 +161,7 @@ def harbor_sense(obs, start, max_range, m_addr, d_addr, sensor_pos, sensordata, 
     where nothing was hit (-1) or beyond it; returns :func:`clearance_summary` (before the contacts, which the
     caller adds when ``d.ncon`` > 0)."""
     mujoco_clearance_kernel(*monitor)
-    _call_model_data(sensor_pos, m_addr, d_addr)
+    call_model_data(sensor_pos, m_addr, d_addr)
     for i in range(sensor_adr.shape[0]):
         v = sensordata[sensor_adr[i]]
         obs[start + i] = max_range if (v < 0.0 or v > max_range) else v
@@ -250,14 +250,14 @@ def _generated(ref_fn, n_ref: int, plant_fn, n_plant: int):
     observation; ``step_track``, ``step_harbor``: the action, the plant's step and that) for these
     kernels, written to the compiled loop's cache directory under a name that carries the
     package's source fingerprint, as there (compiled once, then loaded from disk)."""
-    from usv_mj.compiled_loop import _fn_name, load_generated
+    from usv_mj.compiled_loop import kernel_name, load_generated
 
     key = (ref_fn, n_ref, plant_fn, n_plant)
     found = _GENERATED.get(key)
     if found is not None:
         return found
-    ref_module, ref_name = _fn_name(ref_fn)
-    plant_module, plant_name = _fn_name(plant_fn)
+    ref_module, ref_name = kernel_name(ref_fn)
+    plant_module, plant_name = kernel_name(plant_fn)
     source = _TEMPLATE.format(ref_module=ref_module, ref_name=ref_name, plant_module=plant_module,
                               plant_name=plant_name, ref_args=", ".join(f"ref_a[{i}]" for i in range(n_ref)),
                               plant_args=", ".join(f"plant_a[{i}]" for i in range(n_plant)))

@@ -88,6 +88,25 @@ class USVPhysics(dm_mujoco.Physics):
         except HydrodynamicCallbackError as exc:
             self.failure = str(exc)
 
+    def step_native(self, plant_kernel, step, *args):
+        """One control period through a native function that steps the plant's kernel itself
+        (the fused step of :meth:`usv_mj.envs.USVEnvironment.step`): ``step(k, t, *args)`` with k the
+        plant's step count and t [s] the time after the step returns the evaluation at the new
+        state (``.x``, and ``.failed`` when the plant's step failed); the plant is brought to that
+        state (``plant_kernel.sync``) and a failure kept in :attr:`failure`, as :meth:`step` keeps it.
+        Returns (evaluation, t)."""
+        plant = self.plant
+        k = plant.step_count
+        t = plant.time_at(k + 1)
+        ev = step(k, t, *args)
+        plant_kernel.sync(k + 1, ev.x)
+        if ev.failed:  # as step(): the plant's error is the physics' failure
+            try:
+                plant_kernel.fail(k)
+            except HydrodynamicCallbackError as exc:
+                self.failure = str(exc)
+        return ev, t
+
     def reset(self, keyframe_id=None) -> None:
         """Back to the origin at rest at t = 0 through :meth:`MuJoCoPlant.reset` (the task then puts
         the hull at its initial pose with :meth:`set_initial_state`)."""

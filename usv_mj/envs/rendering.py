@@ -42,30 +42,30 @@ class _Drawer:
             self.local = FrameRenderer(**self.kwargs)
         else:
             from usv_mj.render.gl_backend import backend_environment
-            from usv_mj.render.video import _worker_init
+            from usv_mj.render.video import worker_init
 
             from usv_mj.spawning import spawn_context
 
             self.pool = spawn_context().Pool(
-                1, initializer=_worker_init, initargs=(backend_environment(self.backend), self.kwargs))
+                1, initializer=worker_init, initargs=(backend_environment(self.backend), self.kwargs))
             # an environment dropped without close() still stops its worker
             weakref.finalize(self, self.pool.terminate)
 
     def frame(self, spec) -> np.ndarray:
         if self.local is not None:
             return np.array(self.local.render(spec), dtype=np.uint8)
-        from usv_mj.render.video import _worker_render
+        from usv_mj.render.video import worker_render
 
-        return np.array(self.pool.apply(_worker_render, (spec,)), dtype=np.uint8)
+        return np.array(self.pool.apply(worker_render, (spec,)), dtype=np.uint8)
 
     def close(self) -> None:
         if self.local is not None:
             self.local.close()
         if self.pool is not None:
-            from usv_mj.render.video import _worker_close
+            from usv_mj.render.video import worker_close
 
             try:
-                self.pool.apply(_worker_close)     # the worker frees its GL context before it is stopped
+                self.pool.apply(worker_close)     # the worker frees its GL context before it is stopped
             except Exception:  # noqa: BLE001 - a worker that is gone has nothing to free
                 pass
             self.pool.terminate()

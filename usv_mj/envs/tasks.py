@@ -50,8 +50,9 @@ the episode with discount 1 and kind ``time_limit``.
 Speed: a step's arithmetic runs compiled (:mod:`usv_mj.envs.native`): one evaluation per state
 gives the reference rows, the observation vector (the dict's entries are views of it), the
 reward's and the termination's numbers (harbor: with the clearance monitor's update and the
-rangefinders), and :meth:`TrackTask.fused_step` does the action, the plant's step and that
-evaluation in one native call for :meth:`usv_mj.envs.USVEnvironment.step`. The results are those
+rangefinders), and :meth:`usv_mj.envs.USVEnvironment.step` does the action, the plant's step and
+that evaluation in one native call (the task gives the parts, :meth:`TrackTask.fused_kernels`, and
+:meth:`usv_mj.envs.physics.USVPhysics.step_native` steps: a task never steps the physics). The results are those
 of the definitions above bit for bit (tests/test_envs.py).
 """
 
@@ -71,8 +72,7 @@ from dm_env import specs
 
 from usv_mj.builder import make_quantizers
 from usv_mj.controllers.performance_funnel import funnels_of
-from usv_mj.plants.mujoco_callback import HydrodynamicCallbackError
-from usv_mj.simulation import _which_limit, make_reference
+from usv_mj.simulation import make_reference, which_limit
 
 from . import native
 from .physics import USVPhysics
@@ -171,6 +171,20 @@ class _HarbourStep(NamedTuple):
     c_min: float            # their minimum [m]
 
 
+class _FusedKernels(NamedTuple):
+    """What a fused step runs (:meth:`TrackTask.fused_kernels`), and what it was made for."""
+
+    plant: object           # the plant whose kernel it steps
+    reference: object       # the reference it evaluates
+    t_end: float            # [s] the last step time it holds for (FUSED_HORIZON, the reference's table)
+    t0: float               # [s] the plant's time at step 0 when it was made
+    plant_kernel: object    # the plant's kernel (plant.kernel(t_end)): args, sync, fail
+    step: object            # the native step function (native.step_track / step_harbor), or its entry point
+    key_fn: object          # None, or the reference's key function: the kernels are made again when it changes
+    key: object             # the key they were made at
+    entered: bool           # ``step`` is already the entry point (native.entry_point)
+
+
 class TrackTask(base.Task):
     """Follow the scenario's reference (docs/model.md §4 for the paper preset) from a randomised start.
 
@@ -229,7 +243,7 @@ class TrackTask(base.Task):
         self._ev_key = None         # ... (state array, time, physics, reference)
         self._ev_handed = False     # its observation vector was handed out (the next one gets a copy)
         self._act_of = (None, None)  # (physics, act_kernel's arguments with its data.ctrl)
-        self._fused = None          # the fused step's kernels (fused_step)
+        self._fused = None          # the fused step's kernels (fused_kernels)
         self._views = None          # observation_views, once made
         TrackTask._fill_params(self, self._params)
         self._fusable = self._fusable_class()
@@ -302,7 +316,7 @@ class TrackTask(base.Task):
             ex, ey = x[0] - ref[0], x[1] - ref[1]
             lim = self.scenario.limits
             self._terminate("diverged", f"state left its limits at t = {physics.time():.3f} s: "
-                                        f"{_which_limit(x, ex, ey, lim)}")
+                                        f"{which_limit(x, ex, ey, lim)}")
             return
         dist = math.hypot(ev.ex, ev.ey)  # the state is finite here: ex, ey are those of the raw state
         if dist >= self.max_distance:
@@ -311,42 +325,49 @@ class TrackTask(base.Task):
 
     # --- one step in fewer layers (USVEnvironment.step) -------------------------------------------
 
-    def fused_step(self, action, physics, n_sub_steps: int):
-        """``before_step(action)``, ``physics.step(n_sub_steps)``, ``after_step``, ``get_reward``
-        and the observation vector, as dm_control's ``Environment.step`` calls them, in one method
-        (what :meth:`USVEnvironment.step` calls) with one native call for the action, the plant's
-        step (its :meth:`~usv_mj.plants.mujoco_plant.MuJoCoPlant.kernel`) and the evaluation;
-        returns (reward, observation vector), or None with nothing done when it does not apply
-        (a subclass overriding one of those methods, another physics, a step that is not one
-        control period, a physics that failed, a plant or reference without a kernel)."""
+    def fused_kernels(self, physics, n_sub_steps: int) -> _FusedKernels | None:
+        """The native functions of a fused step (:meth:`usv_mj.envs.USVEnvironment.step`: the
+        action, the plant's step and the evaluation in one native call, as dm_control's
+        ``Environment.step`` calls ``before_step``, ``physics.step``, ``after_step``, ``get_reward``
+        and the observation), or None when it does not apply (a subclass overriding one of those
+        methods, another physics, a step that is not one control period, a physics that failed, a
+        plant or reference without a kernel). Made again when the plant, the reference or its
+        key change, or the step's time passes ``t_end``."""
         if not self._fusable or physics.failure is not None or type(physics).step is not _PHYSICS_STEP:
             return None
         plant = physics.plant
-        k = plant.step_count
-        t = plant.time_at(k + 1)
+        t = plant.time_at(plant.step_count + 1)
         f = self._fused
-        # (plant, reference, t_end, t0, plant kernel, step function, reference key function, key,
-        #  the step function is its entry point)
-        if (f is None or f[0] is not plant or f[1] is not self.reference or t > f[2] or f[3] != plant.time_at(0)
-                or (f[6] is not None and f[6]() != f[7])):
+        if (f is None or f.plant is not plant or f.reference is not self.reference or t > f.t_end
+                or f.t0 != plant.time_at(0) or (f.key_fn is not None and f.key_fn() != f.key)):
             f = self._fused = self._fused_setup(plant, t)
             if f is None:
                 return None
         if n_sub_steps != plant.substeps:
             return None
+        return f
+
+    def fused_action(self, action, physics) -> tuple[float, float]:
+        """before_step's part of a fused step: the action checked (tau_u [N], tau_r [N m]), the
+        last evaluation dropped and what happens before the physics step (:meth:`_before_physics`)."""
         a0, a1 = self._checked(action)
         self._ev = None
         self._before_physics(physics)
-        pk = f[4]
-        ev = self._native_step(f[5], a0, a1, physics, k, t, pk.args)
-        if not f[8]:  # compiled (or loaded) now: call its entry point from here on (native.entry_point)
-            self._fused = f[:5] + (native.entry_point(f[5]) or f[5],) + f[6:8] + (True,)
-        pk.sync(k + 1, ev.x)
-        if ev.failed:  # as USVPhysics.step: the plant's error is the physics' failure
-            try:
-                pk.fail(k)
-            except HydrodynamicCallbackError as exc:
-                physics.failure = str(exc)
+        return a0, a1
+
+    def fused_native(self, k: int, t: float, f: _FusedKernels, a0: float, a1: float, physics):
+        """The native call of a fused step from step k to time t [s] (what
+        :meth:`usv_mj.envs.physics.USVPhysics.step_native` runs before it keeps the plant's step):
+        the action, the plant's kernel and the evaluation at the new state. After the first call,
+        the step function's entry point is called (native.entry_point)."""
+        ev = self._native_step(f.step, a0, a1, physics, k, t, f.plant_kernel.args)
+        if not f.entered:  # compiled (or loaded) now: call its entry point from here on
+            self._fused = f._replace(step=native.entry_point(f.step) or f.step, entered=True)
+        return ev
+
+    def fused_result(self, ev, t: float, physics) -> tuple[float, np.ndarray]:
+        """after_step, get_reward and the observation vector of a fused step made to the state of
+        ``ev`` at t [s]: (reward, observation vector)."""
         self._keep(ev, ev.x, t, physics)
         self._check(physics, ev)
         reward = self._reward(ev)
@@ -370,8 +391,8 @@ class TrackTask(base.Task):
         mod = evaluator.module(pk)
         if mod is None:
             return None
-        return (plant, self.reference, t_end, plant.time_at(0), pk, self._step_function(mod), evaluator.key_fn,
-                evaluator.key, False)
+        return _FusedKernels(plant, self.reference, t_end, plant.time_at(0), pk, self._step_function(mod),
+                             evaluator.key_fn, evaluator.key, False)
 
     @staticmethod
     def _step_function(mod):

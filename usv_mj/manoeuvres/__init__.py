@@ -66,7 +66,7 @@ def record_outputs(record, out, spec: ManoeuvreSpec | None = None, length: float
     ``manoeuvre.json``; returns (report sections, {name: path}, result). ``spec`` and ``length``
     default to the record's own (:func:`spec_of_record`, :func:`vessel_length` of its metadata); a
     record of no manoeuvre gives ([], {}, None). ``usv-mj plot`` remakes them from a log."""
-    from usv_mj.main_job import _write_json
+    from usv_mj.main_job import write_json
 
     from .figures import draw_manoeuvre_figures
 
@@ -80,7 +80,7 @@ def record_outputs(record, out, spec: ManoeuvreSpec | None = None, length: float
     _check_finished(result)
     label = f"{record.metadata.get('plant')} plant"
     figs = draw_manoeuvre_figures(record, spec.kind, result, out / "figures", execute_time(spec), label)
-    _write_json(out / "manoeuvre.json", result)
+    write_json(out / "manoeuvre.json", result)
     return [report_section(result)], {"manoeuvre": out / "manoeuvre.json", "manoeuvre_figures": figs}, result
 
 

@@ -24,7 +24,7 @@ from .options import KINDS
 
 
 def add_arguments(p) -> None:
-    from usv_mj.cli import add_scenario_arguments, add_vessel_argument
+    from usv_mj.command_args import add_scenario_arguments, add_vessel_argument
     from usv_mj.render import add_video_arguments
 
     p.add_argument("kind", nargs="?", choices=tuple(KINDS), help="the manoeuvre (default: the scenario's [manoeuvre])")
@@ -47,7 +47,7 @@ def add_arguments(p) -> None:
 
 
 def _scenario(args):
-    from usv_mj.cli import scenario_from_args
+    from usv_mj.command_args import scenario_from_args
 
     duration, args.duration = args.duration, None   # the manoeuvre's duration, not the scenario's
     own = None
@@ -81,7 +81,7 @@ def _scenario(args):
 
 
 def run_command(args) -> int:
-    from usv_mj.cli import EXIT_OK, EXIT_STOPPED
+    from usv_mj.command_args import EXIT_OK, EXIT_STOPPED
     from usv_mj.main_job import RunFailed
     from usv_mj.render import video_options
 

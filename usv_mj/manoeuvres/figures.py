@@ -1,6 +1,6 @@
 """The figures of a manoeuvre: the track with its measures marked, the time series, the spiral's loop.
 
-Written into ``figures/`` beside the run's own seven (:mod:`usv_mj.figures`, whose ``_save`` they
+Written into ``figures/`` beside the run's own seven (:mod:`usv_mj.figures`, whose ``save_figure`` they
 share): ``manoeuvre_track.png``, ``manoeuvre_time.png`` and, for the spiral, ``manoeuvre_spiral.png``.
 Axes in metres, degrees, seconds and rad/s; x east, y north (README, Conventions).
 """
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from usv_mj.decimate import decimate
-from usv_mj.figures import _save, plt
+from usv_mj.figures import save_figure, plt
 
 TITLES = {"turning": "Turning circle", "zigzag": "Zig-zag", "spiral": "Dieudonné spiral", "stopping": "Stopping test"}
 
@@ -69,7 +69,7 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
     ax.set_title(f"{TITLES[kind]}: track ({label})")
     fig.tight_layout()
     paths.append(out / "manoeuvre_track.png")
-    _save(fig, paths[-1])
+    save_figure(fig, paths[-1])
 
     fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     psi0 = record.value("psi", 0)
@@ -104,7 +104,7 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
     axes[0].set_title(f"{TITLES[kind]}: heading and yaw rate ({label})")
     fig.tight_layout()
     paths.append(out / "manoeuvre_time.png")
-    _save(fig, paths[-1])
+    save_figure(fig, paths[-1])
 
     if kind == "spiral":
         fig, ax = plt.subplots(figsize=(7, 5))
@@ -126,5 +126,5 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
         ax.legend(fontsize=8)
         fig.tight_layout()
         paths.append(out / "manoeuvre_spiral.png")
-        _save(fig, paths[-1])
+        save_figure(fig, paths[-1])
     return paths

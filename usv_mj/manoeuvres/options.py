@@ -165,7 +165,7 @@ class ManoeuvreSpec:
 
 def manoeuvre_from_table(table, source: str = "<dict>") -> ManoeuvreSpec:
     """A validated :class:`ManoeuvreSpec` from a ``[manoeuvre]`` table (every key checked)."""
-    from usv_mj.scenario import _build
+    from usv_mj.scenario import build_table
 
     if not isinstance(table, dict):
         raise ScenarioError(f"{source}: [manoeuvre] must be a table, got {table!r}")
@@ -174,7 +174,7 @@ def manoeuvre_from_table(table, source: str = "<dict>") -> ManoeuvreSpec:
     if kind not in KINDS:
         raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
     try:
-        options = _build(KINDS[kind], table, source, "manoeuvre", extra_known={"kind"})
+        options = build_table(KINDS[kind], table, source, "manoeuvre", extra_known={"kind"})
     except ScenarioError as exc:
         msg = str(exc)
         raise ScenarioError(msg if msg.startswith(source) else f"{source}: {msg}") from None
@@ -268,7 +268,7 @@ def manoeuvre_scenario(scenario, spec: ManoeuvreSpec | None = None):
     """``scenario`` made to run manoeuvre ``spec`` (default: its own ``[manoeuvre]``), validated
     again; its ``[controller]`` is replaced whole by the manoeuvre's input and its ``[trajectory]``
     by the original course (a line from the start at the approach speed)."""
-    from usv_mj.scenario import _merge, from_dict
+    from usv_mj.scenario import from_dict, merge_tables
 
     spec = spec if spec is not None else scenario.manoeuvre
     if spec is None:
@@ -278,7 +278,7 @@ def manoeuvre_scenario(scenario, spec: ManoeuvreSpec | None = None):
     raw = {k: v for k, v in scenario.raw.items() if k not in ("controller", "trajectory")}
     if spec.options.conditions == "calm":
         raw.pop("sea", None)
-    data = _merge(raw, over)
+    data = merge_tables(raw, over)
     data["controller"] = ctrl
     # the reference: the original course at the approach speed (what the run's figures and video
     # show the track against; a manoeuvre is not judged on it)

@@ -22,7 +22,7 @@ __getattr__, __dir__, _ = lazy_names(__name__, {
     "GeometricClearance": ".clearance", "MuJoCoClearance": ".clearance", "make_clearance_monitor": ".clearance",
     "HULL_RADIUS": ".compose", "ContactParams": ".compose", "HarbourPlant": ".compose", "compose_scene": ".compose",
     "export_scene": ".compose", "hull_footprint": ".compose", "place_moving_obstacles": ".compose",
-    "Guidance": ".planner", "GuidedReference": ".planner", "Plan": ".planner", "PlanningError": ".planner",
+    "Guidance": ".planner", "GuidedReference": ".guided", "Plan": ".planner", "PlanningError": ".planner",
     "SafetyEnvelope": ".planner", "plan_reference": ".planner",
     "ObstacleHook": ".hooks", "make_plan": ".hooks",
     "ObstacleLog": ".sink",

@@ -33,7 +33,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 from shapely import affinity
 
-from usv_mj.plants.mujoco_callback import _call_model_data, mujoco_function_address
+from usv_mj.plants.mujoco_callback import call_model_data, mujoco_function_address
 
 from .compose import HULL_RADIUS, hull_footprint
 
@@ -75,7 +75,7 @@ def mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, hull, obs
     of n int64) and one whose bound exceeds the least clearance so far by :data:`SKIP_MARGIN` keeps
     its bound (not exact): its distance is larger than that least one, so the minimum, its first
     index and the contact test are those of the full update."""
-    _call_model_data(kinematics, m_addr, d_addr)
+    call_model_data(kinematics, m_addr, d_addr)
     n = obstacles.shape[0]
     for i in range(n):
         if prefilter or min_only:  # np.sqrt(rel_x ** 2 + rel_y ** 2) - bound < exact_within

@@ -3,7 +3,7 @@
 - :func:`draw_obstacles`: matplotlib patches for the trajectory figure: each obstacle filled, its
   inflated safety boundary (obstacle grown by the plan's inflation) dashed.
 - :func:`scene_entities`: ``foxglove.SceneEntity`` dicts (the layout of
-  :func:`usv_mj.runlog.writer._scene`): a cube per box, a cylinder per circle, a LINE_LOOP per
+  :func:`usv_mj.runlog.messages._scene`): a cube per box, a cylinder per circle, a LINE_LOOP per
   inflated boundary, in frame "map" (REP-105: the run log's world frame), for a
   ``foxglove.SceneUpdate`` on ``P/scene/obstacles``.
 - :func:`obstacles_message`: everything about the obstacles at one logged row as plain data

@@ -130,7 +130,7 @@ def _i64_ptr(typingctx, address):
 
 
 @intrinsic
-def _call_model_data(typingctx, fn_address, m_addr, d_addr):
+def call_model_data(typingctx, fn_address, m_addr, d_addr):
     """Call the C function ``void f(const mjModel*, mjData*)`` at ``fn_address`` (numba intrinsic).
 
     The address is an argument, not a ctypes global, so that functions calling it can be cached."""
@@ -438,7 +438,7 @@ def mujoco_kernel(k, x, f_u, f_r, m_addr, d_addr, t0, dt, nsub, o_time, o_qpos, 
     ctrl[1] = f_r
     dd[o_time] = t
     for _ in range(nsub):
-        _call_model_data(mj_step_address, m_addr, d_addr)
+        call_model_data(mj_step_address, m_addr, d_addr)
     ud = carray(_f64_ptr(dw[o_ud]), (N_USERDATA,))
     out = plant_state(carray(_f64_ptr(dw[o_qpos]), (3,)), carray(_f64_ptr(dw[o_qvel]), (3,)))
     failed = ud[U_STATUS] != 0.0 or not dd[o_time] > t

@@ -38,7 +38,7 @@ _worker_renderer = None
 _worker_counter = None
 
 
-def _worker_init(env: dict, renderer_kwargs: dict, counter=None) -> None:
+def worker_init(env: dict, renderer_kwargs: dict, counter=None) -> None:
     # A pool replaces a worker whose initializer raises, forever: keep the worker alive and
     # hand the reason to the first task instead, which fails the render with it.
     global _worker_error
@@ -85,12 +85,12 @@ def warmup_frame():
                      TopView(0.0, 0.0, 6.0), hud)
 
 
-def _worker_render(spec):
+def worker_render(spec):
     _check_worker()
     return _worker_renderer.render(spec)
 
 
-def _worker_close() -> None:
+def worker_close() -> None:
     """Free the worker's renderer now, so that nothing is left for its exit (a pool terminates
     its workers with SIGTERM, which may land while one is exiting)."""
     global _worker_renderer
@@ -164,14 +164,14 @@ class _FrameSource:
 
             from usv_mj.spawning import spawn_context
 
-            self.pool = spawn_context().Pool(self.workers, initializer=_worker_init,
+            self.pool = spawn_context().Pool(self.workers, initializer=worker_init,
                                              initargs=(backend_environment(self.backend), self.kwargs))
         return self
 
     def frames(self, specs):
         if self.local is not None:
             return (self.local.render(s) for s in specs)
-        return self.pool.imap(_worker_render, specs, chunksize=2)
+        return self.pool.imap(worker_render, specs, chunksize=2)
 
     def __exit__(self, exc_type, exc, tb):
         if self.local is not None:
@@ -197,7 +197,7 @@ def check_camera(camera: str, model=None) -> None:
         raise ValueError(f"camera {camera!r} is not in the render model; choose one of {', '.join(names)}")
 
 
-def _check_size(width, height):
+def check_size(width, height):
     for name, v in (("width", width), ("height", height)):
         if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 16 or v > 8192:
             raise ValueError(f"{name} = {v!r}: the video size must be an integer number of pixels in [16, 8192]")
@@ -225,7 +225,7 @@ def render_frames(record, *, width: int = 320, height: int = 240, camera: str = 
     ``rows``: draw exactly these record rows (one frame each) instead of the video's time mapping.
     ``views``: a :class:`~usv_mj.render.planner.TopView` (or one per frame) to pin the top camera.
     """
-    _check_size(width, height)
+    check_size(width, height)
     plan = _plan(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera, max_frames=max_frames,
                  rows=rows)
     specs = plan.frames
@@ -277,7 +277,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
     ValueError for bad options.
     """
     wall0 = time.perf_counter()
-    _check_size(width, height)
+    check_size(width, height)
     check_camera(camera, model)  # before the progress bar and any worker (RenderWorkers checks again)
     if not (isinstance(crf, int) and 0 <= crf <= 51):
         raise ValueError(f"crf = {crf!r}: libx264's quality must be an integer in [0, 51]")
@@ -371,7 +371,7 @@ class RenderWorkers:
                  samples: int = 0, layers=LAYERS):
         from .gl_backend import backend_environment
 
-        _check_size(width, height)
+        check_size(width, height)
         check_camera(camera, model)       # before any worker starts: a bad name fails every one of them
         self.backend = select_backend(gl)
         self.workers = _default_workers(1 << 30) if workers is None else max(1, int(workers))
@@ -386,7 +386,7 @@ class RenderWorkers:
             # one llvmpipe thread per worker: with a process per core, more threads only contend
             # (measured 60 vs 70 ms of CPU a 720p frame with 2 workers on 2 cores)
             env["LP_NUM_THREADS"] = "1"
-        self.pool = ctx.Pool(self.workers, initializer=_worker_init, initargs=(env, self.kwargs, self.counter))
+        self.pool = ctx.Pool(self.workers, initializer=worker_init, initargs=(env, self.kwargs, self.counter))
 
     def matches(self, kwargs: dict) -> bool:
         return kwargs == self.kwargs
@@ -483,7 +483,7 @@ def parse_size(text: str) -> tuple[int, int]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 1280x720") from None
     try:
-        _check_size(w, h)
+        check_size(w, h)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"--size {text!r}: {exc}") from None
     return w, h
@@ -565,7 +565,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     add_overwrite_argument(parser, "the .mp4 and its .png still when usv_mj wrote them")
     add_video_arguments(parser)
-    from ..cli import add_live_arguments
+    from ..command_args import add_live_arguments
 
     add_live_arguments(parser)   # --live: replay the log to Foxglove instead of drawing a video
 
@@ -615,7 +615,7 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"usv-mj render: warning: the log is incomplete, the video shows what was recovered: {log.notice}",
               file=sys.stderr)
     if getattr(args, "live", False):
-        from ..cli import live_server
+        from ..command_args import live_server
 
         live = live_server(args)
         n = live.replay(mcap)

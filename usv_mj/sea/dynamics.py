@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, _array3, derivative_into, hull_terms
+from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, array3, derivative_into, hull_terms
 
 from .environment import environment_loads
 from .layout import (E_CURRENT_ON, E_WAVES_ON, E_WIND_ON, L_DRIFT, L_NU_C, L_NU_C_DOT, L_WAVE1,
@@ -61,7 +61,7 @@ def sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
 @njit(cache=True)
 def sea_force(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu):
     """:func:`sea_terms` as an array; in a calm environment usv_mj.ship.hydrodynamic_force itself."""
-    return _array3(sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu))
+    return array3(sea_terms(p, dp, ep, waves, current_grid, wind_grid, t, eta, nu))
 
 
 @njit(cache=True)

@@ -55,7 +55,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .spec import RunSpec, SweepError, _load_base, apply_values
+from .spec import RunSpec, SweepError, load_base, apply_values
 
 
 @dataclass(frozen=True)
@@ -314,7 +314,7 @@ def run_capability(load_name: str, *, base: str = "paper", duration: float | Non
         raise SweepError(f"--load must be one of {', '.join(sorted(LOADS))}, got {load_name!r}")
     load = LOADS[load_name]
     source = f"capability --load {load_name}"
-    scenario = _load_base(source, base, Path.cwd())
+    scenario = load_base(source, base, Path.cwd())
     fixed = {}
     if duration is not None:
         fixed["duration"] = duration

@@ -267,7 +267,9 @@ def _number(source, where, value, *, integer=False):
     return value
 
 
-def _parse_axis(source: str, path: str, spec: Any) -> Axis:
+def parse_axis(source: str, path: str, spec: Any) -> Axis:
+    """The ``[vary]`` entry ``path = spec`` as an :class:`Axis` (a list of values or a distribution
+    table); SweepError naming ``source`` and the entry when it is malformed."""
     where = f"[vary] {path!r}"
     if isinstance(spec, list):
         if not spec:
@@ -305,7 +307,8 @@ def _parse_axis(source: str, path: str, spec: Any) -> Axis:
     return Axis(path, kind, (a, b))
 
 
-def _draw(rng: np.random.Generator, axis: Axis, n: int) -> list:
+def draw_values(rng: np.random.Generator, axis: Axis, n: int) -> list:
+    """``n`` values of the distribution axis ``axis`` drawn from ``rng``."""
     a = axis.args
     if axis.kind == "uniform":
         return [float(v) for v in rng.uniform(a[0], a[1], n)]
@@ -337,7 +340,7 @@ def load_sweep(path: str | Path) -> SweepPlan:
     return plan_sweep(data, source=source, directory=path.parent)
 
 
-def _load_base(source: str, base: Any, directory: Path | None) -> Scenario:
+def load_base(source: str, base: Any, directory: Path | None) -> Scenario:
     if not isinstance(base, str) or not base:
         raise SweepError(f"{source}: base must be a preset name or a scenario file, got {base!r}")
     candidate = Path(base) if directory is None else (directory / base)
@@ -370,7 +373,7 @@ def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = Non
             hint = difflib.get_close_matches(key, sorted(known), n=1)
             raise SweepError(f"{source}: unknown key {key!r}" + (f" (did you mean {hint[0]!r}?)" if hint else "")
                              + f"; known keys: {', '.join(sorted(known))}")
-    base = _load_base(source, data.get("base", "paper"), directory)
+    base = load_base(source, data.get("base", "paper"), directory)
     fixed: dict = {}
     if "duration" in data:
         fixed["duration"] = _number(source, "duration", data["duration"])
@@ -407,7 +410,7 @@ def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = Non
             parse_path(p)
         except SweepError as exc:
             raise SweepError(f"{source}: [vary]: {exc}") from None
-        axes.append(_parse_axis(source, p, spec))
+        axes.append(parse_axis(source, p, spec))
     # every value an axis can take, alone on the base: catches a bad path or a range outside a
     # key's domain before any sampling (the message names the path and the value)
     for axis in axes:
@@ -423,7 +426,7 @@ def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = Non
     if n > 1_000_000:
         raise SweepError(f"{source}: {n} runs (grid {len(points)} x samples {samples}) is over 1e6: too many")
     rng = np.random.default_rng(seed)
-    drawn = {a.path: _draw(rng, a, n) for a in dists}
+    drawn = {a.path: draw_values(rng, a, n) for a in dists}
     runs = []
     for g, point in enumerate(points):
         for s in range(samples):
@@ -433,7 +436,7 @@ def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = Non
                 values[axis.path] = point[grid.index(axis)] if axis.kind == "grid" else drawn[axis.path][run_id]
             scenario = apply_values(base, values, source) if values else base
             runs.append(RunSpec(run_id, values, scenario))
-    _check_references(runs, source)
+    check_references(runs, source)
     hooks = {}
     if "test_hooks" in data:
         hooks = {k: set(int(i) for i in v) for k, v in data["test_hooks"].items()}
@@ -443,7 +446,7 @@ def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = Non
     return plan
 
 
-def _check_references(runs: list, source: str) -> None:
+def check_references(runs: list, source: str) -> None:
     """Build the reference path of every distinct (trajectory, duration) among ``runs``: the
     scenario format accepts some paths that :mod:`usv_mj.trajectories` refuses (a waypoint list of
     one point), and those must stop the sweep here, not fail every run on the workers."""
