@@ -14,6 +14,7 @@ import argparse
 import sys
 import tomllib
 
+from .errors import TooManyStepsError
 from .scenario import ScenarioError, load_scenario, merge_tables, preset_names
 
 #: the exit codes of every command: done, stopped early, bad input, no OpenGL (usv_mj.cli's docstring)
@@ -66,7 +67,7 @@ def scenario_from_args(args):
     try:
         load_scenario(args.scenario, preset=args.preset, overrides=merge_tables(overrides, sets) or None)
     except ScenarioError as exc:
-        if not (args.duration is not None and "over 5e7 steps" in str(exc)):   # scenario.Scenario's check
+        if not (args.duration is not None and isinstance(exc, TooManyStepsError)):
             if not sets:
                 raise
             raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None

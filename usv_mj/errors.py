@@ -18,6 +18,11 @@ class ScenarioError(UsvMjError, ValueError):
     """A scenario value, key or file is wrong; the message names the key and the source."""
 
 
+class TooManyStepsError(ScenarioError):
+    """duration / control_period is over the step cap (usv_mj.scenario.Scenario); its own type so
+    that a command whose --duration replaces the file's checks the count on the duration that runs."""
+
+
 class SeaSettingsError(ScenarioError):
     """A ``[sea]`` value is wrong (waves, current, wind)."""
 

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from .actuators import ActuatorSpec
-from .errors import ScenarioError, SeaSettingsError
+from .errors import ScenarioError, SeaSettingsError, TooManyStepsError
 from .obstacle_tables import GuidanceSpec, from_tables, guidance_from_table
 from .registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES, VESSELS
 from .sea.settings import SeaSettings, merge_sea_tables, sea_preset_table
@@ -280,7 +280,7 @@ class Scenario:
         if not (math.isfinite(self.control_period) and 0 < self.control_period <= 1.0):
             raise ValueError(f"control_period must be in (0, 1] s, got {self.control_period!r}")
         if self.duration / self.control_period > 5e7:
-            raise ValueError("duration / control_period is over 5e7 steps: too long a run")
+            raise TooManyStepsError("duration / control_period is over 5e7 steps: too long a run")
 
     @property
     def nominal_ship(self) -> ShipParams:
@@ -624,7 +624,8 @@ def _construct(cls, kwargs, source, section):
         prefix = f"{section}." if section else ""
         if prefix and msg.startswith(prefix):
             prefix = ""
-        raise ScenarioError(f"{source}: {prefix}{msg}") from None
+        # the type is kept (TooManyStepsError), the message gets its place
+        raise (type(exc) if isinstance(exc, ScenarioError) else ScenarioError)(f"{source}: {prefix}{msg}") from None
 
 
 def _to_plain(obj):
