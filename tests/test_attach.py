@@ -316,3 +316,15 @@ def test_a_free_hull_released_off_the_plane_returns_as_a_critically_damped_oscil
         worst = max(worst, abs(q[2] - z0 - e_z * closed) / e_z, abs(roll - e_roll * closed) / e_roll)
     water.detach()
     assert worst < 1e-6
+
+
+def test_a_held_hull_has_the_planar_joints_inverse_weights():
+    """MuJoCo scales a contact's softness by the bodies' inverse weights at qpos0 (mj_setConst): with the
+    hold's lock they are the planar hull's, as MuJoCo itself computes them for the planar joints."""
+    planar = mujoco.MjModel.from_xml_path(f"{MODELS_DIR}/usv.xml")
+    usv_mj.attach_hydrodynamics(planar, mujoco.MjData(planar)).detach()
+    free = _free_hull_model(f"{MODELS_DIR}/usv.xml")
+    water = usv_mj.attach_hydrodynamics(free, mujoco.MjData(free))
+    water.detach()
+    body = water.body
+    assert free.body_invweight0[body] == pytest.approx(planar.body_invweight0[body], rel=1e-9)

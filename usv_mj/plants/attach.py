@@ -134,6 +134,35 @@ def hold_parameters(model: mujoco.MjModel, body: int) -> np.ndarray:
     return np.array(out)
 
 
+def hold_invweights(model: mujoco.MjModel, body: int, hold: np.ndarray) -> None:
+    """MuJoCo's inverse weights at qpos0 (``body_invweight0`` of the hull and the bodies on it,
+    ``dof_invweight0`` of its free joint), recomputed as ``mj_setConst`` computes them but on the mass
+    matrix with the hold's lock inertia: the constraint solver scales a contact's softness (its
+    impedance R) by them, and with the lock they are the planar joints' (the same R on the hull)."""
+    d = mujoco.MjData(model)
+    d.qpos[:] = model.qpos0
+    mujoco.mj_kinematics(model, d)
+    mujoco.mj_comPos(model, d)
+    mujoco.mj_crb(model, d)
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, d, full)
+    full[2, 2] += hold[1]
+    full[3, 3] += hold[4]
+    full[4, 4] += hold[7]
+    inverse = np.linalg.inv(full)
+    jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    for b in range(1, model.nbody):
+        if model.body_rootid[b] != body:
+            continue
+        mujoco.mj_jacBodyCom(model, d, jacp, jacr, b)
+        jac = np.vstack((jacp, jacr))
+        a = jac @ inverse @ jac.T
+        model.body_invweight0[b] = (np.trace(a[:3, :3]) / 3.0, np.trace(a[3:, 3:]) / 3.0)
+    diagonal = np.diag(inverse)
+    model.dof_invweight0[0:3] = diagonal[0:3].mean()
+    model.dof_invweight0[3:6] = diagonal[3:6].mean()
+
+
 def set_rigid_body(model: mujoco.MjModel, body: int, ship, split) -> None:
     """Write the rigid part of ``ship`` (``split.rigid_body``: mass [kg], COM offset x_g [m], yaw
     inertia about the origin [kg m^2]) into ``body``'s inertial. Roll and pitch inertias play no
@@ -223,7 +252,9 @@ class Hydrodynamics:
         write_parameters(data.userdata, ship, disturbance, split, None)
         self.free = is_free_hull(model, body)
         if self.free:  # held to the plane (module docstring)
-            data.userdata[mcb.U_HOLD:mcb.U_HOLD + 10] = hold_parameters(model, body)
+            hold = hold_parameters(model, body)
+            hold_invweights(model, body, hold)
+            data.userdata[mcb.U_HOLD:mcb.U_HOLD + 10] = hold
             data.userdata[mcb.U_LAYOUT] = mcb.LAYOUT_FREE
         if self.environment is not None:
             self.extend(horizon)

@@ -32,6 +32,11 @@ MuJoCo calls the passive callback once per RK4 stage after building ``d.M`` for 
 and with ``d.time`` at the stage time, so d(t) is evaluated exactly where the analytic plant
 evaluates it.
 
+A hull on a free joint (``d.userdata[U_LAYOUT]`` = LAYOUT_FREE, written by
+:func:`usv_mj.attach_hydrodynamics`) takes the same terms on the free joint's x, y and yaw dofs
+and has heave, roll and pitch held by the callback (:func:`held_free_body_terms`, docs/attach.md);
+the plant's planar layout (0) is the path above, unchanged.
+
 Everything the callback needs is read from ``(m, d)``: the parameters live in ``d.userdata``
 behind a magic marker (layout ``U_*`` below), so two plants with different ships in one process do
 not disturb each other, and models without the marker (a viewer's scene, another library) are left
