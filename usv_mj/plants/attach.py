@@ -68,8 +68,8 @@ _PLANAR = ((_SLIDE, (1.0, 0.0, 0.0), "a slide along x"), (_SLIDE, (0.0, 1.0, 0.0
 
 
 def hull_body(model: mujoco.MjModel, body: str = "hull", where: str = "the model") -> int:
-    """The id of ``body`` after checking that it is a planar hull the callback can act on (module
-    docstring); ValueError naming what is wrong otherwise."""
+    """The id of ``body`` after checking that it is a hull the callback can act on, on planar joints
+    or on a free joint (module docstring); ValueError naming what is wrong otherwise."""
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
     if bid < 0:
         raise ValueError(f"attach_hydrodynamics: no body {body!r} in {where}")
