@@ -19,6 +19,8 @@ from usv_mj.plants.mujoco_callback import N_USERDATA  # what the hydrodynamics n
 import usv_mj
 from usv_mj import build, load_scenario
 from usv_mj.cli import main
+from usv_mj.plants import attach
+from usv_mj.plants import mujoco_callback as mcb
 from usv_mj.plants.attach import hull_body
 from usv_mj.plants.mujoco_callback import MODELS_DIR
 
@@ -130,7 +132,12 @@ def test_detach_leaves_mujoco_alone():
      '<joint type="slide" axis="0 1 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
      '</worldbody></mujoco>', f'nuserdata="{N_USERDATA}"'),
     ('<mujoco><size nuserdata="96"/><worldbody><body name="hull"><freejoint/><geom size="0.5"/></body>'
-     '</worldbody></mujoco>', "1 joints"),
+     '</worldbody></mujoco>', "is 'simple' to MuJoCo"),
+    ('<mujoco><size nuserdata="96"/><worldbody><body name="buoy"><joint type="slide" axis="0 0 1"/>'
+     '<geom size="0.5"/></body><body name="hull"><freejoint/><geom size="0.5" pos="0.1 0 0"/></body>'
+     '</worldbody></mujoco>', "must be the model's first joint"),
+    ('<mujoco><size nuserdata="96"/><worldbody><body name="hull"><joint type="ball"/><geom size="0.5"/></body>'
+     '</worldbody></mujoco>', "or one free joint"),
     ('<mujoco><size nuserdata="96"/><worldbody><body name="hull"><joint type="slide" axis="0 1 0"/>'
      '<joint type="slide" axis="1 0 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
      '</worldbody></mujoco>', "slide along x"),
@@ -215,3 +222,109 @@ def test_an_environments_scene_outlives_its_close():
     again = mujoco.MjModel.from_xml_string(xml)
     assert (again.nbody, again.ngeom, again.nsensor, again.nu) == counts
     assert counts[1] > 3 and counts[2] > 0   # the harbour's obstacles and the rangefinder fan are in it
+
+
+# --- a free body held to the plane ---------------------------------------------------------------
+
+G = 9.81
+
+
+def _free_hull_model(path, gravity=True):
+    """The scene with the hull's three planar joints replaced by a free joint, and MuJoCo's gravity on
+    (as in a user's scene): what the attach call must hold to the plane."""
+    spec = mujoco.MjSpec.from_file(str(path))
+    hull = spec.body("hull")
+    for joint in list(hull.joints):
+        spec.delete(joint)
+    hull.add_freejoint()
+    if gravity:
+        spec.option.gravity = [0.0, 0.0, -G]
+        spec.option.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+    return spec.compile()
+
+
+def _tilt(q):
+    """Angle [rad] between the body's z axis and world z, from the quaternion (w, x, y, z)."""
+    w, x, y, z = q / np.linalg.norm(q)
+    n0, n1, n2 = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+    return math.atan2(math.hypot(n0, n1), n2)
+
+
+@pytest.mark.parametrize("overrides", [None, {"sea": {"preset": "moderate"}}], ids=["calm", "sea"])
+def test_a_free_body_held_to_the_plane_follows_the_plant(tmp_path, overrides):
+    """A free joint (gravity on) after the attach call: x, y and yaw are the project's plant's to
+    1e-9 m / rad over 10 s. The hold lets a load F move a held dof by F / k at most (critically
+    damped, no overshoot): the hull's weight m g / k_z in heave, its moment m g x_g / k_pitch in
+    pitch, and those move the plane's motion only to second order, so the planar bound is the planar
+    joints' own round-off."""
+    scenario = load_scenario(None, overrides=overrides)
+    out = tmp_path / "scene.xml"
+    assert main(["scene", "--out", str(out)] + (["--sea", "moderate"] if overrides else [])) == 0
+    eta0, nu0 = (0.5, -0.3, 0.2), (0.4, 0.05, -0.02)
+    ref = _plant_trajectory(scenario, eta0, nu0)
+
+    model = _free_hull_model(out)
+    data = mujoco.MjData(model)
+    water = usv_mj.attach_hydrodynamics(model, data, body="hull", scenario=scenario)
+    assert water.free
+    z0 = float(model.qpos0[2])
+    c, s = math.cos(eta0[2]), math.sin(eta0[2])
+    data.qpos[:7] = (eta0[0], eta0[1], z0, math.cos(eta0[2] / 2), 0.0, 0.0, math.sin(eta0[2] / 2))
+    data.qvel[:6] = (c * nu0[0] - s * nu0[1], s * nu0[0] + c * nu0[1], 0.0, 0.0, 0.0, nu0[2])  # body-frame omega
+    data.ctrl[:2] = TAU
+    n = len(ref)
+    got, heave, tilt = np.empty((n, 3)), np.empty(n), np.empty(n)
+    for k in range(n):
+        mujoco.mj_step(model, data)
+        q = data.qpos
+        got[k] = q[0], q[1], 2.0 * math.atan2(q[6], q[3])
+        heave[k], tilt[k] = q[2] - z0, _tilt(q[3:7].copy())
+    assert data.userdata[mcb.U_STATUS] == 0.0
+    water.detach()
+    assert np.max(np.abs(ref[:, :2] - got[:, :2])) < 1e-9
+    assert np.max(np.abs(np.angle(np.exp(1j * (ref[:, 2] - got[:, 2]))))) < 1e-9
+    assert np.hypot(*(ref[-1, :2] - eta0[:2])) > 2.0  # it did move
+
+    # the hold, from its own parameters (m, x_g from the ship's rigid body)
+    m, x_g = float(model.body_mass[water.body]), float(model.body_ipos[water.body][0])
+    hold = attach.hold_parameters(model, water.body)
+    w = 2 * math.pi / attach.HOLD_PERIOD_S
+    assert hold[2] == pytest.approx((attach.HOLD_LOCK + 1) * m * w * w, rel=1e-12)
+    sag, trim = m * G / hold[2], m * G * x_g / hold[8]
+    assert 2e-13 < sag < 3e-13 and np.all(heave <= 0) and np.max(-heave) <= sag * (1 + 1e-6)
+    assert np.max(tilt) <= trim * (1 + 1e-3) + 1e-16
+    assert -heave[-1] == pytest.approx(sag, rel=1e-3)  # settled at the static deflection
+
+
+def test_a_free_hull_released_off_the_plane_returns_as_a_critically_damped_oscillator():
+    """Released 5 cm high and heeled 0.02 rad (no gravity, no thrust, no d(t)), heave and roll each
+    follow e(t) = e0 (1 + w t) exp(-w t), w = 2 pi / HOLD_PERIOD_S, the closed form of
+    e'' + 2 w e' + w^2 e = 0 from rest."""
+    scenario = load_scenario(overrides={"disturbance": {"scale": 0.0}})
+    model = _free_hull_model(f"{MODELS_DIR}/usv.xml", gravity=False)
+    data = mujoco.MjData(model)
+    water = usv_mj.attach_hydrodynamics(model, data, scenario=scenario)
+    z0, e_z, e_roll = float(model.qpos0[2]), 0.05, 0.02
+    data.qpos[:7] = (0.0, 0.0, z0 + e_z, math.cos(e_roll / 2), math.sin(e_roll / 2), 0.0, 0.0)
+    w = 2 * math.pi / attach.HOLD_PERIOD_S
+    worst = 0.0
+    while data.time < 3.0 - 1e-9:
+        mujoco.mj_step(model, data)
+        closed = (1 + w * data.time) * math.exp(-w * data.time)
+        q = data.qpos
+        roll = 2 * math.atan2(q[4], q[3])
+        worst = max(worst, abs(q[2] - z0 - e_z * closed) / e_z, abs(roll - e_roll * closed) / e_roll)
+    water.detach()
+    assert worst < 1e-6
+
+
+def test_a_held_hull_has_the_planar_joints_inverse_weights():
+    """MuJoCo scales a contact's softness by the bodies' inverse weights at qpos0 (mj_setConst): with the
+    hold's lock they are the planar hull's, as MuJoCo itself computes them for the planar joints."""
+    planar = mujoco.MjModel.from_xml_path(f"{MODELS_DIR}/usv.xml")
+    usv_mj.attach_hydrodynamics(planar, mujoco.MjData(planar)).detach()
+    free = _free_hull_model(f"{MODELS_DIR}/usv.xml")
+    water = usv_mj.attach_hydrodynamics(free, mujoco.MjData(free))
+    water.detach()
+    body = water.body
+    assert free.body_invweight0[body] == pytest.approx(planar.body_invweight0[body], rel=1e-9)

@@ -60,7 +60,7 @@ def test_the_wheel_carries_the_models_and_no_generic_top_level_name(installed):
     assert "usv_mj/models/usv.xml" in names and "usv_mj/models/scene.xml" in names
     assert "usv_mj/controllers/ppc.py" in names
     top = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
-    assert top == {"usv_mj"}, top
+    assert top == {"usv_mj", "usv_mj-gymnasium.pth"}, top  # the package and its one start-up file
     assert any(n.endswith(".dist-info/licenses/LICENSE") or n.endswith(".dist-info/LICENSE") for n in names)
 
 
@@ -101,18 +101,37 @@ def test_the_wheel_finds_the_examples_by_name_and_registers_the_gymnasium_ids(in
                           cwd=outside, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert json.loads((outside / "harbour" / "summary.json").read_text())["min_clearance_m"] is not None
-    code = ("from usv_mj.sweep import load_sweep; import importlib.metadata as md; "
+    # gymnasium first, nothing of usv_mj imported: the wheel's start-up file registers the ids (Gymnasium
+    # 1.x reads no entry points; usv_mj/gymnasium_hook.py), then a bare gymnasium.make makes one
+    code = ("import sys; before = sorted(m for m in sys.modules if m.startswith('usv_mj')); "
+            "import gymnasium; hooked = 'usv_mj/Track-v0' in gymnasium.registry; "
+            "from usv_mj.sweep import load_sweep; import importlib.metadata as md; "
             "p = load_sweep('quick'); print(len(p.runs), p.source); "
             "ep = [e for e in md.entry_points(group='gymnasium.envs') if e.name == 'usv_mj']; ep[0].load()(); "
-            "import gymnasium; print('usv_mj/Track-v0' in gymnasium.registry); "
+            "print('usv_mj/Track-v0' in gymnasium.registry); "
             "from usv_mj import load_scenario; print(load_scenario('examples/scenarios/harbour_gap.toml').source); "
-            "e = gymnasium.make('usv_mj.envs:usv_mj/Track-v0'); print(e.reset(seed=0)[0].shape)")
+            "e = gymnasium.make('usv_mj/Track-v0'); print(before, hooked, e.reset(seed=0)[0].shape)")
     proc = subprocess.run([str(py), "-c", code], cwd=outside, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.split("\n")
     assert lines[0].split()[1].endswith("usv_mj/examples/sweeps/quick.toml") and str(ROOT) not in lines[0]
     assert lines[1] == "True"
     assert lines[2].endswith("usv_mj/examples/scenarios/harbour_gap.toml") and str(ROOT) not in lines[2]
+    assert lines[3] == "[] True (22,)"       # start-up imported nothing of usv_mj; gymnasium's import registered
+
+
+def test_the_gymnasium_start_up_file_is_installed_and_can_be_turned_off(installed):
+    """The wheel's usv_mj-gymnasium.pth lands at the top of site-packages; USV_MJ_NO_GYMNASIUM_HOOK turns it off
+    (then the ids exist only after an import, as with Gymnasium 1.x alone)."""
+    _, py, outside, env = installed
+    site = subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=outside,
+                          env=env, capture_output=True, text=True, timeout=60, check=True).stdout.strip()
+    assert (Path(site) / "usv_mj-gymnasium.pth").is_file()
+    off = {**env, "USV_MJ_NO_GYMNASIUM_HOOK": "1"}
+    proc = subprocess.run([str(py), "-c", "import sys, gymnasium; print('usv_mj/Track-v0' in gymnasium.registry, "
+                           "'usv_mj' in sys.modules)"], cwd=outside, env=off, capture_output=True, text=True,
+                          timeout=120)
+    assert (proc.returncode, proc.stdout.split()) == (0, ["False", "False"]), proc.stderr[-2000:]
 
 
 def test_the_wheel_carries_the_default_benchmark_suite(installed):

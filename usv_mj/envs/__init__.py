@@ -47,7 +47,8 @@ the water.
 
 A Gymnasium view: :func:`gym_env`, and the ids of :data:`GYM_IDS` (``usv_mj/Track-v0``,
 ``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``, ``usv_mj/HarborWaves-v0``), registered when this
-package is imported (if gymnasium is installed), for ``gymnasium.make``; flat scaled observations
+package is imported (if gymnasium is installed), for ``gymnasium.make`` (an installed wheel imports it
+when gymnasium is imported: :mod:`usv_mj.gymnasium_hook`); flat scaled observations
 and normalized actions: :mod:`usv_mj.envs.gymnasium_env`.
 """
 
@@ -72,10 +73,11 @@ __all__ = ["ALL_TASKS", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "
 
 def register_gymnasium() -> None:
     """Register :data:`GYM_IDS` with Gymnasium's registry when gymnasium is installed (it imports
-    neither dm_control nor mujoco: the entry point is resolved by ``gymnasium.make``). Also the
-    ``gymnasium.envs`` entry point of the package (pyproject.toml), which Gymnasium before 1.0
-    calls on its import; with Gymnasium 1.x, ``gymnasium.make("usv_mj.envs:usv_mj/Track-v0")``
-    imports this module first."""
+    neither dm_control nor mujoco: the entry point is resolved by ``gymnasium.make``). Called on
+    import of this module, which the wheel's start-up hook does once gymnasium is imported
+    (:mod:`usv_mj.gymnasium_hook`: Gymnasium 1.x reads no entry points) and
+    ``gymnasium.make("usv_mj.envs:usv_mj/Track-v0")`` does first; also the ``gymnasium.envs``
+    entry point of the package (pyproject.toml), which only Gymnasium before 1.0 loaded."""
     try:
         from gymnasium.envs.registration import register, registry
     except ImportError:  # pragma: no cover - optional dependency

@@ -4,7 +4,8 @@
 
     import gymnasium
     env = gymnasium.make("usv_mj.envs:usv_mj/Track-v0") # Gymnasium imports usv_mj.envs, which registers the ids
-    env = gymnasium.make("usv_mj/Track-v0")             # the same once usv_mj.envs is imported; or gym_env("track")
+    env = gymnasium.make("usv_mj/Track-v0")             # the same from a wheel (usv_mj.gymnasium_hook), or once
+                                                        # usv_mj.envs is imported; or gym_env("track")
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
     info["kind"], info["reason"]                        # why the episode ended (None while it runs)

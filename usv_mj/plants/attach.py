@@ -22,6 +22,17 @@ Requirements on the model (checked, one clear line if not met):
   along world y and a hinge about world z (the body a child of the world, not rotated), and these
   are the model's first three degrees of freedom (put the vessel first in ``<worldbody>``; other
   bodies and joints may follow);
+- or on a free joint (``<freejoint/>``), the model's first joint, which the call then **holds to
+  the plane**: the hull forces and the added mass act on the free joint's x, y and yaw (its
+  world-frame linear and body-frame angular velocity read as the planar joints'), and heave, roll
+  and pitch are held by the callback itself, no constraint of the user's needed: each gets a lock
+  inertia of :data:`HOLD_LOCK` times the hull's mass (heave) or yaw inertia (roll, pitch) on its
+  diagonal of MuJoCo's mass matrix, and a critically damped spring of period
+  :data:`HOLD_PERIOD_S` to the level attitude at the body's height in the model (its ``qpos0``).
+  Whatever else pushes on the hull out of the plane (gravity, contacts, the user's forces), a load
+  F moves it by at most F / k (k = (K + rigid) (2 pi / period)^2: the hull's weight, 2.5e-13 m),
+  so the planar motion is the planar joints' (docs/attach.md); the body must not be MuJoCo-"simple"
+  (give it an ``<inertial>`` off its origin, e.g. ``pos="0.04 0 0"``: the call writes the values);
 - ``<size nuserdata="N"/>`` with N >= :data:`N_USERDATA` (the parameters live in ``d.userdata``);
 - the thrust is the user's: any actuators (``models/usv.xml`` has body-frame motors "surge" and
   "yaw" on the site "thruster").
@@ -32,8 +43,8 @@ m33 about the origin) and ``d.userdata`` holds the ship, the disturbance and the
 ``mjcb_passive`` is set to the native callback while any attachment or plant lives (a model
 without the marker in ``d.userdata`` is left alone by it). qpos, qvel, ctrl and time are kept.
 Any integrator works; RK4 (``models/usv.xml``'s) is what the plant uses and reproduces its
-trajectory to round-off (tests/test_attach.py: 1e-9 m over 10 s). A free body held to the plane is
-not supported yet: give the hull the three planar joints.
+trajectory to round-off (tests/test_attach.py: 1e-9 m over 10 s), on planar joints and on a free
+joint held to the plane alike.
 """
 
 from __future__ import annotations
@@ -48,6 +59,8 @@ from . import mujoco_callback as mcb
 
 N_USERDATA = mcb.N_USERDATA
 SEA_HORIZON_S = 3600.0  # default: the sea's OU grids of an attachment are made this far ahead [s]
+HOLD_LOCK = 1e12        # a free hull's heave / roll, pitch lock inertia: this times its mass / yaw inertia [-]
+HOLD_PERIOD_S = 1.0     # period of the hold's springs on heave, roll and pitch (critically damped) [s]
 
 _SLIDE, _HINGE = mujoco.mjtJoint.mjJNT_SLIDE, mujoco.mjtJoint.mjJNT_HINGE
 _PLANAR = ((_SLIDE, (1.0, 0.0, 0.0), "a slide along x"), (_SLIDE, (0.0, 1.0, 0.0), "a slide along y"),
@@ -55,8 +68,8 @@ _PLANAR = ((_SLIDE, (1.0, 0.0, 0.0), "a slide along x"), (_SLIDE, (0.0, 1.0, 0.0
 
 
 def hull_body(model: mujoco.MjModel, body: str = "hull", where: str = "the model") -> int:
-    """The id of ``body`` after checking that it is a planar hull the callback can act on (module
-    docstring); ValueError naming what is wrong otherwise."""
+    """The id of ``body`` after checking that it is a hull the callback can act on, on planar joints
+    or on a free joint (module docstring); ValueError naming what is wrong otherwise."""
     bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
     if bid < 0:
         raise ValueError(f"attach_hydrodynamics: no body {body!r} in {where}")
@@ -64,9 +77,11 @@ def hull_body(model: mujoco.MjModel, body: str = "hull", where: str = "the model
         raise ValueError(f"attach_hydrodynamics: {where} has nuserdata = {model.nuserdata}; the hydrodynamics need "
                          f"<size nuserdata=\"{N_USERDATA}\"/> or more")
     j0, nj = int(model.body_jntadr[bid]), int(model.body_jntnum[bid])
+    if nj == 1 and model.jnt_type[j0] == mujoco.mjtJoint.mjJNT_FREE:
+        return _free_hull(model, bid, j0, body, where)
     if nj != 3:
         raise ValueError(f"attach_hydrodynamics: body {body!r} in {where} has {nj} joints; it needs exactly three "
-                         f"(slide x, slide y, hinge yaw)")
+                         f"(slide x, slide y, hinge yaw) or one free joint")
     for k, (kind, axis, label) in enumerate(_PLANAR):
         j = j0 + k
         if model.jnt_type[j] != kind or not np.allclose(model.jnt_axis[j], axis, atol=1e-12):
@@ -80,6 +95,72 @@ def hull_body(model: mujoco.MjModel, body: str = "hull", where: str = "the model
         raise ValueError(f"attach_hydrodynamics: the mass matrix of body {body!r} in {where} must be dense 3x3 "
                          f"(M_rownnz = {list(model.M_rownnz[:3])})")
     return bid
+
+
+def is_free_hull(model: mujoco.MjModel, body: int) -> bool:
+    """Whether ``body`` (checked by :func:`hull_body`) moves on a free joint (held to the plane)."""
+    return int(model.body_jntnum[body]) == 1 and model.jnt_type[model.body_jntadr[body]] == mujoco.mjtJoint.mjJNT_FREE
+
+
+def _free_hull(model: mujoco.MjModel, bid: int, joint: int, body: str, where: str) -> int:
+    if model.jnt_dofadr[joint] != 0 or model.jnt_qposadr[joint] != 0:
+        raise ValueError(f"attach_hydrodynamics: the free joint of body {body!r} in {where} must be the model's "
+                         f"first joint (put the vessel first in <worldbody>)")
+    if model.body_simple[bid] or list(model.M_rownnz[:6]) != [1, 2, 3, 4, 5, 6]:
+        raise ValueError(f"attach_hydrodynamics: body {body!r} in {where} is 'simple' to MuJoCo (its mass matrix is "
+                         f"diagonal: M_rownnz = {list(model.M_rownnz[:6])}), with no room for the ship's centre of "
+                         f"mass ahead of its origin; give it an <inertial> off its origin, e.g. "
+                         f"<inertial pos=\"0.04 0 0\" mass=\"1\" diaginertia=\"1 1 1\"/> (the call writes the ship's)")
+    return bid
+
+
+def hold_parameters(model: mujoco.MjModel, body: int) -> np.ndarray:
+    """The hold of a free hull (``d.userdata[U_HOLD:U_HOLD + 10]``, :func:`mujoco_callback.held_free_body_terms`):
+    z0 [m] (the body's height in the model), then for heave, roll and pitch the lock inertia K
+    (:data:`HOLD_LOCK` times the mass [kg] or the yaw inertia about the origin [kg m^2]), the
+    stiffness k = J w^2 and the damping c = 2 J w (critical), with J = K + the rigid body's own
+    diagonal of the mass matrix (m; I_xx; I_yy + m x_g^2: COM on the body's x axis) and
+    w = 2 pi / :data:`HOLD_PERIOD_S`, so that each held dof alone is the oscillator
+    e'' + 2 w e' + w^2 e = F / J (docs/attach.md)."""
+    m = float(model.body_mass[body])
+    x_g = float(model.body_ipos[body][0])
+    ixx, iyy, izz = (float(v) for v in model.body_inertia[body])
+    iz_origin = izz + m * x_g * x_g
+    w = 2.0 * math.pi / HOLD_PERIOD_S
+    out = [float(model.qpos0[2])]
+    for lock, rigid in ((HOLD_LOCK * m, m), (HOLD_LOCK * iz_origin, ixx), (HOLD_LOCK * iz_origin, iyy + m * x_g * x_g)):
+        j = lock + rigid
+        out += [lock, j * w * w, 2.0 * j * w]
+    return np.array(out)
+
+
+def hold_invweights(model: mujoco.MjModel, body: int, hold: np.ndarray) -> None:
+    """MuJoCo's inverse weights at qpos0 (``body_invweight0`` of the hull and the bodies on it,
+    ``dof_invweight0`` of its free joint), recomputed as ``mj_setConst`` computes them but on the mass
+    matrix with the hold's lock inertia: the constraint solver scales a contact's softness (its
+    impedance R) by them, and with the lock they are the planar joints' (the same R on the hull)."""
+    d = mujoco.MjData(model)
+    d.qpos[:] = model.qpos0
+    mujoco.mj_kinematics(model, d)
+    mujoco.mj_comPos(model, d)
+    mujoco.mj_crb(model, d)
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, d, full)
+    full[2, 2] += hold[1]
+    full[3, 3] += hold[4]
+    full[4, 4] += hold[7]
+    inverse = np.linalg.inv(full)
+    jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    for b in range(1, model.nbody):
+        if model.body_rootid[b] != body:
+            continue
+        mujoco.mj_jacBodyCom(model, d, jacp, jacr, b)
+        jac = np.vstack((jacp, jacr))
+        a = jac @ inverse @ jac.T
+        model.body_invweight0[b] = (np.trace(a[:3, :3]) / 3.0, np.trace(a[3:, 3:]) / 3.0)
+    diagonal = np.diag(inverse)
+    model.dof_invweight0[0:3] = diagonal[0:3].mean()
+    model.dof_invweight0[3:6] = diagonal[3:6].mean()
 
 
 def set_rigid_body(model: mujoco.MjModel, body: int, ship, split) -> None:
@@ -115,7 +196,7 @@ def write_sea(ud: np.ndarray, packed) -> None:
     """Point the callback at the sea's packed arrays (docs/sea.md §6), or calm (``U_SEA_ON`` = 0) for
     None. The caller keeps the arrays alive while their addresses are in ``ud``."""
     if packed is None:
-        ud[mcb.U_SEA_ON:mcb.N_USERDATA] = 0.0
+        ud[mcb.U_SEA_ON:mcb.U_SEA_NWG + 1] = 0.0
         return
     ep, waves, cgrid, wgrid = packed
     for name, arr, ndim in (("ep", ep, 1), ("waves", waves, 2), ("current_grid", cgrid, 2),
@@ -149,7 +230,8 @@ class Hydrodynamics:
     """An attachment made by :func:`attach_hydrodynamics`: keeps the sea's arrays alive and the
     callback installed until :meth:`detach` (or until it is garbage-collected).
 
-    Attributes: ``model``, ``data``, ``body`` (the hull's body id), ``environment`` (the
+    Attributes: ``model``, ``data``, ``body`` (the hull's body id), ``free`` (True: a free joint
+    held to the plane), ``environment`` (the
     :class:`usv_mj.sea.Environment`, None in calm water), ``horizon`` (plant time [s] up to which
     the sea is made; :meth:`extend` makes more).
     """
@@ -168,6 +250,12 @@ class Hydrodynamics:
         data.qpos[:], data.qvel[:], data.act[:], data.ctrl[:], data.time = saved
         mcb.check_offsets(model, data)
         write_parameters(data.userdata, ship, disturbance, split, None)
+        self.free = is_free_hull(model, body)
+        if self.free:  # held to the plane (module docstring)
+            hold = hold_parameters(model, body)
+            hold_invweights(model, body, hold)
+            data.userdata[mcb.U_HOLD:mcb.U_HOLD + 10] = hold
+            data.userdata[mcb.U_LAYOUT] = mcb.LAYOUT_FREE
         if self.environment is not None:
             self.extend(horizon)
         from .mujoco_plant import REGISTRY

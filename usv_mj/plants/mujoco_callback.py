@@ -32,6 +32,11 @@ MuJoCo calls the passive callback once per RK4 stage after building ``d.M`` for 
 and with ``d.time`` at the stage time, so d(t) is evaluated exactly where the analytic plant
 evaluates it.
 
+A hull on a free joint (``d.userdata[U_LAYOUT]`` = LAYOUT_FREE, written by
+:func:`usv_mj.attach_hydrodynamics`) takes the same terms on the free joint's x, y and yaw dofs
+and has heave, roll and pitch held by the callback (:func:`held_free_body_terms`, docs/attach.md);
+the plant's planar layout (0) is the path above, unchanged.
+
 Everything the callback needs is read from ``(m, d)``: the parameters live in ``d.userdata``
 behind a magic marker (layout ``U_*`` below), so two plants with different ships in one process do
 not disturb each other, and models without the marker (a viewer's scene, another library) are left
@@ -87,7 +92,14 @@ U_SEA_CG = U_SEA_ON + 4     # address of current_grid, (n_c, 2)
 U_SEA_NCG = U_SEA_ON + 5    # n_c
 U_SEA_WG = U_SEA_ON + 6     # address of wind_grid, (n_w, 1)
 U_SEA_NWG = U_SEA_ON + 7    # n_w
-N_USERDATA = U_SEA_ON + 8
+# a free joint held to the plane (usv_mj.plants.attach, docs/attach.md): the hull's joint layout and the hold
+U_LAYOUT = U_SEA_ON + 8     # LAYOUT_PLANAR (0: slide x, slide y, hinge yaw; the plant's) or LAYOUT_FREE (1)
+U_HOLD = U_LAYOUT + 1       # 10: z0 [m], then (lock inertia, stiffness, damping) for heave [kg, N/m, N s/m],
+#                             roll and pitch [kg m^2, N m/rad, N m s/rad] (held_free_body_terms)
+U_FREE_SCRATCH = U_HOLD + 10  # 6 doubles: the planar (x, y, psi) and (x_dot, y_dot, r) read off the free joint
+N_USERDATA = U_FREE_SCRATCH + 6
+LAYOUT_PLANAR = 0.0
+LAYOUT_FREE = 1.0
 
 STATUS_OK = 0.0
 STATUS_BAD_STATE = 1.0   # non-finite qpos/qvel at the callback
@@ -228,6 +240,70 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
     qfrc[0], qfrc[1], qfrc[2] = q0, q1, q2
     mass_add[0], mass_add[1], mass_add[2] = m00, m10, m11
     mass_add[3], mass_add[4], mass_add[5] = m20, m21, m22
+    return STATUS_OK
+
+
+# --- a free joint held to the plane -------------------------------------------------------------
+
+# d.M of a free joint (dense 6x6 lower triangle, rows at 0, 1, 3, 6, 10, 15): the planar entries
+# (x, y, yaw) = dofs (0, 1, 5) in passive_terms' order M00, M10, M11, M20, M21, M22, and the held diagonal
+FREE_M_PLANAR = (0, 1, 2, 15, 16, 20)
+FREE_M_HELD = (5, 9, 14)  # z, roll (body x), pitch (body y)
+
+
+@njit(cache=True)
+def held_free_body_terms(ud, t, qpos, qvel, qfrc, mass):
+    """The hydrodynamics of a hull on a free joint, held to the plane (docs/attach.md).
+
+    ``qpos`` (7: x, y, z, quaternion w, x, y, z), ``qvel`` (6: the world-frame velocity of the body
+    origin, then the body-frame angular velocity), ``qfrc`` (6, d.qfrc_passive) and ``mass`` (21,
+    d.M, dense) of the free joint. In the plane the free joint's dofs (0, 1, 5) are the planar
+    joints' (x, y, yaw): psi from the quaternion, r the body-frame yaw rate, so :func:`passive_terms`
+    gives their force and added mass. Heave, roll and pitch are held (``ud[U_HOLD:]``): each gets a
+    lock inertia K on its diagonal of d.M and a spring-damper -k e - c e_dot, where e is the height
+    above z0 for heave and, for roll and pitch, the body-frame components of the rotation vector
+    that levels the hull. Adds to ``qfrc`` and ``mass`` only when every term is finite; returns the
+    status (``STATUS_*``).
+    """
+    w, qx, qy, qz = qpos[3], qpos[4], qpos[5], qpos[6]
+    norm2 = w * w + qx * qx + qy * qy + qz * qz
+    if not (norm2 > 0.0 and math.isfinite(norm2) and math.isfinite(qpos[2]) and math.isfinite(qvel[2])
+            and math.isfinite(qvel[3]) and math.isfinite(qvel[4])):
+        return STATUS_BAD_STATE
+    s2 = 2.0 / norm2
+    plan = ud[U_FREE_SCRATCH:U_FREE_SCRATCH + 3]
+    pvel = ud[U_FREE_SCRATCH + 3:U_FREE_SCRATCH + 6]
+    plan[0], plan[1] = qpos[0], qpos[1]
+    plan[2] = math.atan2(s2 * (w * qz + qx * qy), 1.0 - s2 * (qy * qy + qz * qz))
+    pvel[0], pvel[1], pvel[2] = qvel[0], qvel[1], qvel[5]
+    qf = ud[U_SCRATCH + 6:U_SCRATCH + 9]
+    ma = ud[U_SCRATCH + 9:U_SCRATCH + 15]
+    status = passive_terms(ud, t, plan, pvel, qf, ma)
+    if status != STATUS_OK:
+        return status
+    # world up in the body frame (the third row of R): the hull is level when it is (0, 0, 1)
+    n0 = s2 * (qx * qz - w * qy)
+    n1 = s2 * (qy * qz + w * qx)
+    n2 = 1.0 - s2 * (qx * qx + qy * qy)
+    sin_tilt = math.sqrt(n0 * n0 + n1 * n1)
+    per_sin = math.atan2(sin_tilt, n2) / sin_tilt if sin_tilt > 0.0 else 1.0
+    h = ud[U_HOLD:U_HOLD + 10]
+    f_z = -h[2] * (qpos[2] - h[0]) - h[3] * qvel[2]
+    f_roll = -h[5] * per_sin * n1 - h[6] * qvel[3]
+    f_pitch = h[8] * per_sin * n0 - h[9] * qvel[4]
+    if not (math.isfinite(f_z) and math.isfinite(f_roll) and math.isfinite(f_pitch)):
+        return STATUS_BAD_FORCE
+    qfrc[0] += qf[0]
+    qfrc[1] += qf[1]
+    qfrc[5] += qf[2]
+    qfrc[2] += f_z
+    qfrc[3] += f_roll
+    qfrc[4] += f_pitch
+    for i in range(6):
+        mass[FREE_M_PLANAR[i]] += ma[i]
+    mass[FREE_M_HELD[0]] += h[1]
+    mass[FREE_M_HELD[1]] += h[4]
+    mass[FREE_M_HELD[2]] += h[7]
     return STATUS_OK
 
 
@@ -372,6 +448,7 @@ def native_callback():
     o_nud = off["nuserdata"] // 8
     n_ud, magic = N_USERDATA, MAGIC
     u_status, u_status_time, u_calls, u_scratch = U_STATUS, U_STATUS_TIME, U_CALLS, U_SCRATCH
+    u_layout = U_LAYOUT
 
     @cfunc(types.void(types.int64, types.int64), error_model="numpy")
     def hydrodynamic_passive(m_addr, d_addr):
@@ -384,6 +461,17 @@ def native_callback():
             return
         dd = carray(_f64_ptr(d_addr), (o_time + 1,))
         t = dd[o_time]
+        if ud[u_layout] != 0.0:  # a free joint held to the plane (held_free_body_terms)
+            status = held_free_body_terms(ud, t, carray(_f64_ptr(dw[o_qpos]), (7,)), carray(_f64_ptr(dw[o_qvel]), (6,)),
+                                          carray(_f64_ptr(dw[o_frc]), (6,)), carray(_f64_ptr(dw[o_m]), (21,)))
+            ud[u_calls] += 1.0
+            if status != 0.0:
+                if ud[u_status] == 0.0:
+                    ud[u_status] = status
+                    ud[u_status_time] = t
+                return
+            factor_m(m_addr, d_addr)
+            return
         qpos = carray(_f64_ptr(dw[o_qpos]), (3,))
         qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
         frc = carray(_f64_ptr(dw[o_frc]), (3,))
