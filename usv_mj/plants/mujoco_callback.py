@@ -59,7 +59,8 @@ from numba.extending import intrinsic
 
 from usv_mj.sea.dynamics import sea_terms
 from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
-from usv_mj.ship import N_DIST_PARAMS, N_SHIP_PARAMS, hull_terms
+from usv_mj.mmg import N_MMG_PARAMS, mmg_terms
+from usv_mj.ship import MODEL_MMG, N_DIST_PARAMS, N_SHIP_PARAMS, P_MODEL, hull_terms
 
 from usv_mj.assets import models_dir
 
@@ -88,6 +89,10 @@ U_SEA_NCG = U_SEA_ON + 5    # n_c
 U_SEA_WG = U_SEA_ON + 6     # address of wind_grid, (n_w, 1)
 U_SEA_NWG = U_SEA_ON + 7    # n_w
 N_USERDATA = U_SEA_ON + 8
+# an MMG hull (usv_mj.mmg; ud[U_P + P_MODEL] = MODEL_MMG) has its N_MMG_PARAMS constants after the
+# layout: a plant of such a hull has nuserdata >= N_USERDATA_MMG (the others keep N_USERDATA)
+U_MMG = N_USERDATA
+N_USERDATA_MMG = U_MMG + N_MMG_PARAMS
 
 STATUS_OK = 0.0
 STATUS_BAD_STATE = 1.0   # non-finite qpos/qvel at the callback
@@ -150,7 +155,7 @@ def call_model_data(typingctx, fn_address, m_addr, d_addr):
 
 
 @njit(cache=True)
-def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
+def passive_terms(ud, t, qpos, qvel, ctrl, qfrc, mass_add):
     """Generalized hydrodynamic force and the mass-matrix increment at one RK4 stage.
 
     Parameters
@@ -160,6 +165,11 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
         ``ud[U_SEA_ON]`` = 1 the addresses and sizes of the sea's packed arrays, docs/sea.md §6).
     t:
         Stage time [s]. ``qpos`` = (x, y, psi) [m, m, rad], ``qvel`` = (x_dot, y_dot, r) (world).
+    ctrl:
+        ``d.ctrl``: read only for an MMG hull (``ud[U_P + P_MODEL]`` = MODEL_MMG), whose motors have
+        no gear and whose inputs are ctrl = (n_P [1/s], delta [rad]): the MMG's hull, propeller and
+        rudder force :func:`usv_mj.mmg.mmg_terms` (the analytic plant's, from the same kernel) is
+        added to the hull force.
     qfrc:
         Output, 3: J(psi) (f_h' + M_A r [-v, u, 0]) [N, N, N m] (to add to ``qfrc_passive``).
     mass_add:
@@ -194,6 +204,11 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
         f = sea_terms(p, dp, ep, waves, cgrid, wgrid, t, eta, nu)
     else:
         f = hull_terms(p, dp, t, eta, nu, nu)  # d + Delta - C nu - D nu (docs/model.md §1)
+    if p[P_MODEL] == MODEL_MMG:
+        if ud.shape[0] < N_USERDATA_MMG or not (math.isfinite(ctrl[0]) and math.isfinite(ctrl[1])):
+            return STATUS_BAD_FORCE
+        g0, g1, g2 = mmg_terms(ud, U_MMG, u, v, r, ctrl[0], ctrl[1])
+        f = (f[0] + g0, f[1] + g1, f[2] + g2)
     m = ud[U_MASS]
     mxg = m * ud[U_XG]
     # + C_RB nu: MuJoCo's rigid body already produces it, so C_A nu = C nu - C_RB nu
@@ -370,6 +385,7 @@ def native_callback():
     o_time, o_qpos, o_qvel = off["time"] // 8, off["qpos"] // 8, off["qvel"] // 8
     o_m, o_frc, o_ud = off["M"] // 8, off["qfrc_passive"] // 8, off["userdata"] // 8
     o_nud = off["nuserdata"] // 8
+    o_ctrl = off["ctrl"] // 8
     n_ud, magic = N_USERDATA, MAGIC
     u_status, u_status_time, u_calls, u_scratch = U_STATUS, U_STATUS_TIME, U_CALLS, U_SCRATCH
 
@@ -379,7 +395,7 @@ def native_callback():
         if mw[o_nud] < n_ud:
             return
         dw = carray(_i64_ptr(d_addr), (o_ud + 1,))
-        ud = carray(_f64_ptr(dw[o_ud]), (n_ud,))
+        ud = carray(_f64_ptr(dw[o_ud]), (mw[o_nud],))
         if ud[0] != magic:
             return
         dd = carray(_f64_ptr(d_addr), (o_time + 1,))
@@ -388,9 +404,10 @@ def native_callback():
         qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
         frc = carray(_f64_ptr(dw[o_frc]), (3,))
         mm = carray(_f64_ptr(dw[o_m]), (6,))
+        ctrl = carray(_f64_ptr(dw[o_ctrl]), (2,))
         qf = ud[u_scratch + 6:u_scratch + 9]
         ma = ud[u_scratch + 9:u_scratch + 15]
-        status = passive_terms(ud, t, qpos, qvel, qf, ma)
+        status = passive_terms(ud, t, qpos, qvel, ctrl, qf, ma)
         ud[u_calls] += 1.0
         if status != 0.0:
             if ud[u_status] == 0.0:
