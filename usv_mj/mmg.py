@@ -14,6 +14,10 @@ sign of the flow angle: the propeller turns one way), so the mirror is done exac
 
 With U = sqrt(u^2 + v_m^2), beta = atan2(-v_m, u), v' = v_m/U, r' = r L/U:
 
+(``Q_XB`` = x_b moves the point whose lateral velocity v_m + x_b r sets U and beta; 0 is the
+standard's midship; x_b = -x_G reproduces shipmmg 0.0.11, which takes them from v - x_G r:
+docs/vessels.md, KVLCC2)
+
     hull       X_H = 1/2 rho L d U^2 (-R'_0 + X'_vv v'^2 + X'_vr v' r' + X'_rr r'^2 + X'_vvvv v'^4)
                Y_H = 1/2 rho L d U^2 (Y'_v v' + Y'_R r' + Y'_vvv v'^3 + Y'_vvr v'^2 r' + Y'_vrr v' r'^2 + Y'_rrr r'^3)
                N_H = 1/2 rho L^2 d U^2 (N'_v v' + N'_R r' + ... N'_rrr r'^3)
@@ -57,8 +61,8 @@ from numba import njit
  Q_YV, Q_YR, Q_YVVV, Q_YVVR, Q_YVRR, Q_YRRR, Q_NV, Q_NR, Q_NVVV, Q_NVVR, Q_NVRR, Q_NRRR,
  Q_DP, Q_K0, Q_K1, Q_K2, Q_TP, Q_WP0, Q_XP, Q_WAKE, Q_C1, Q_C2P, Q_C2M,
  Q_RUDDER, Q_EPS, Q_KAPPA, Q_ETA, Q_TR, Q_AH, Q_XRAH, Q_GRM, Q_GRP, Q_LR,
- Q_MMX, Q_MMY, Q_MXG) = range(45)
-N_MMG_PARAMS = 45
+ Q_MMX, Q_MMY, Q_MXG, Q_XB) = range(46)
+N_MMG_PARAMS = 46
 WAKE_YASUKAWA, WAKE_EXPONENTIAL = 0.0, 1.0
 
 
@@ -68,11 +72,12 @@ def mmg_forces(q, b, u, v_m, r_m, n_p, delta_m):
     surge u [m/s], sway v_m [m/s, to starboard] at midship, yaw rate r_m [rad/s, to starboard],
     propeller revolutions n_p [1/s], rudder angle delta_m [rad, to starboard] at parameters ``q[b:]``."""
     L = q[b + Q_L]
-    U = math.sqrt(u * u + v_m * v_m)
+    v_b = v_m + q[b + Q_XB] * r_m     # the standard: x_b = 0, U and beta of the midship velocity
+    U = math.sqrt(u * u + v_b * v_b)
     if U > 0.0:
         vd = v_m / U
         rd = r_m * L / U
-        beta = math.atan2(-v_m, u)
+        beta = math.atan2(-v_b, u)
     else:
         vd = 0.0
         rd = 0.0

@@ -461,7 +461,7 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True) -> Scen
     if "manoeuvre" in data:
         from .manoeuvres.options import manoeuvre_from_table
 
-        top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source)
+        top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source, top.get("vessel"))
     scenario = _construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
 

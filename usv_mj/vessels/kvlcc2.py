@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from usv_mj.mmg import (N_MMG_PARAMS, Q_AH, Q_C1, Q_C2M, Q_C2P, Q_DP, Q_EPS, Q_ETA, Q_GRM, Q_GRP, Q_HULL_N,
                         Q_HULL_X, Q_K0, Q_K1, Q_K2, Q_KAPPA, Q_L, Q_LR, Q_MMX, Q_MMY, Q_MXG, Q_NR, Q_NRRR, Q_NV,
                         Q_NVRR, Q_NVVR, Q_NVVV, Q_R0, Q_RHO, Q_RUDDER, Q_TP, Q_TR, Q_WAKE, Q_WP0, Q_XP, Q_XRAH,
-                        Q_XRR, Q_XVR, Q_XVV, Q_XVVVV, Q_YR, Q_YRRR, Q_YV, Q_YVRR, Q_YVVR, Q_YVVV,
+                        Q_XB, Q_XRR, Q_XVR, Q_XVV, Q_XVVVV, Q_YR, Q_YRRR, Q_YV, Q_YVRR, Q_YVVR, Q_YVVV,
                         WAKE_EXPONENTIAL, WAKE_YASUKAWA)
 from usv_mj.registry import VESSELS
 from usv_mj.ship import MMGShipParams, RigidBodySplit
@@ -60,8 +60,12 @@ class KVLCC2Options:
     x_R_dash: rudder position (x_R = x_R_dash L_pp). gamma_R_minus, gamma_R_plus: flow straightening
         for beta_R < 0 and > 0. l_R_dash: l'_R of beta_R.
     max_rudder_deg, rudder_rate_deg_s: the steering gear [deg, deg/s].
-    service_speed: the approach speed of the manoeuvres [m/s]. propeller_rps: n_P of the
-        self-propulsion point near it [1/s] (the manoeuvres' start for finding the n_P that holds the speed).
+    service_speed: the approach speed of the manoeuvres [m/s] (U_0 = 1.179 m/s, Fn 0.142).
+    propeller_rps: n_P near the self-propulsion point at it [1/s], where the manoeuvres' search for
+        the n_P that holds the speed starts (these coefficients hold 1.179 m/s at 11.85 1/s; the
+        17.95 1/s of shipmmg's KVLCC2 tests drives this model faster: docs/vessels.md).
+    drift_point_x: x_b [m] ahead of midship of the point whose lateral velocity sets U and beta
+        (usv_mj.mmg; 0: the MMG standard's midship; -x_G: shipmmg 0.0.11's v - x_G r).
     """
 
     rho: float = 1025.0
@@ -117,7 +121,8 @@ class KVLCC2Options:
     max_rudder_deg: float = 35.0
     rudder_rate_deg_s: float = 15.8
     service_speed: float = 1.179
-    propeller_rps: float = 17.95
+    propeller_rps: float = 11.85
+    drift_point_x: float = 0.0
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
@@ -179,6 +184,7 @@ def pack(o: KVLCC2Options) -> tuple:
     q[Q_ETA] = o.D_p / o.H_R
     q[Q_XRAH] = (o.x_R_dash + o.a_H * o.x_H_dash) * o.L_pp
     q[Q_MMX], q[Q_MMY], q[Q_MXG] = m + m_x, m + m_y, o.x_G * m
+    q[Q_XB] = o.drift_point_x
     return tuple(q)
 
 
