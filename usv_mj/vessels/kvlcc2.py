@@ -119,7 +119,7 @@ class KVLCC2Options:
     gamma_R_plus: float = 0.640
     l_R_dash: float = -0.710
     max_rudder_deg: float = 35.0
-    rudder_rate_deg_s: float = 15.8
+    rudder_rate_deg_s: float = 15.68  # SIMMAN 2020 case 1.2: 2.32 deg/s full scale, 15.68 deg/s model
     service_speed: float = 1.179
     propeller_rps: float = 11.85
     drift_point_x: float = 0.0
