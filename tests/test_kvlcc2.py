@@ -196,3 +196,10 @@ def test_spiral_and_stopping_are_refused_on_the_ruddered_vessel(scenario):
 
     with pytest.raises(ScenarioError, match="not available on the ruddered vessel"):
         manoeuvre_from_table({"kind": "spiral"}, "<test>", scenario.vessel)
+
+
+def test_a_sea_is_refused_on_the_mmg_vessel():
+    from usv_mj.errors import ScenarioError
+
+    with pytest.raises(ScenarioError, match="calm deep water only"):
+        load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "sea": {"preset": "moderate"}})
