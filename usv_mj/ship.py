@@ -4,7 +4,10 @@ Every formula of the hull lives here (docs/model.md §1, paper Eqs. 1-2, 6-7 and
 MuJoCo passive-force callback and the PPC controller's nominal model all call these functions, so a
 change of the physics is a change in this one file. The other vessels (usv_mj.vessels,
 docs/vessels.md) are written onto the same packed layout; the two terms they add, C(nu)'s own masses
-and the cross-flow drag, are the paper ship's m11, m22, m23 and zero.
+and the cross-flow drag, are the paper ship's m11, m22, m23 and zero. A ruddered ship of the MMG
+standard method (:mod:`usv_mj.mmg`, KVLCC2) sets the model switch ``P_MODEL``: its inputs are then
+(n_P, delta) and :func:`derivative_into` adds the MMG's force (:class:`MMGShipParams`; 0, the
+switch of every other hull, leaves their numbers as they were).
 
 Conventions
 -----------

@@ -28,6 +28,9 @@ In a sea (docs/sea.md §6; ``d.userdata[U_SEA_ON]`` = 1) that term is :func:`usv
 plant keeps the arrays alive and rewrites the addresses whenever the environment's grids grow). The
 C_RB nu and exact added-mass terms are unchanged. The environment is a pure function of
 (t, eta, nu), so every RK4 stage sees the sea at its own stage time and pose.
+An MMG hull (KVLCC2, :mod:`usv_mj.mmg`; ``ud[U_P + P_MODEL]`` = MODEL_MMG) adds the MMG's hull,
+propeller and rudder force :func:`usv_mj.mmg.mmg_terms` of the inputs ``d.ctrl`` = (n_P, delta) (its
+motors have zero gear) on the constants at ``U_MMG``, after the layout (``N_USERDATA_MMG`` words).
 MuJoCo calls the passive callback once per RK4 stage after building ``d.M`` for that stage's pose
 and with ``d.time`` at the stage time, so d(t) is evaluated exactly where the analytic plant
 evaluates it.
