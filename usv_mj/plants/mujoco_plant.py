@@ -165,6 +165,10 @@ class MuJoCoPlant(PlantBase):
         the paper's: the file as it is. ``from_scenario`` passes the scenario's vessel's, and its
         rigid body as ``split``.
 
+    An MMG hull (``usv_mj.ship.is_mmg(ship)``: KVLCC2) loads with the motors' gear set to zero and
+    ``nuserdata`` >= ``N_USERDATA_MMG``: ``ctrl`` = (n_P [1/s], delta [rad]) is then the actuator
+    input and the callback makes the propeller's and the rudder's force from it (usv_mj.mmg).
+
     Attributes
     ----------
     model, data:
