@@ -25,11 +25,11 @@ loop quantizes the inputs like any controller's.
 
 from __future__ import annotations
 
-import bisect
 import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from usv_mj.criteria import NotJudged
 from usv_mj.errors import ScenarioError
@@ -92,15 +92,28 @@ class OpenLoopGains:
         return (0.0,), (0.0 if v is None else v,)
 
 
-def table_value(times, values, t: float, interpolation: str) -> float:
-    """The table's value at time ``t`` (module docstring: zero-order hold or linear, ends held)."""
-    i = bisect.bisect_right(times, t) - 1  # the last time <= t (so times[i + 1] > t: no division by 0)
+@njit(cache=True)
+def table_at(times, values, t, linear):
+    """The table's value at time ``t`` [s] (module docstring: zero-order hold, or linear when
+    ``linear``; ends held): the one evaluation, for ``__call__`` and the compiled loop."""
+    i = np.searchsorted(times, t, side="right") - 1  # the last time <= t (times[i + 1] > t: no division by 0)
     if i < 0:
         return values[0]
-    if interpolation == "step" or i == len(times) - 1:
+    if not linear or i == len(times) - 1:
         return values[i]
     s = (t - times[i]) / (times[i + 1] - times[i])
     return values[i] + s * (values[i + 1] - values[i])
+
+
+def table_value(times, values, t: float, interpolation: str) -> float:
+    """The table's value at time ``t`` (:func:`table_at` on the tuples of :meth:`OpenLoopGains.table`)."""
+    return float(table_at(np.asarray(times, float), np.asarray(values, float), float(t), interpolation == "linear"))
+
+
+@njit(cache=True)
+def open_loop_kernel(t, x, ref, tu, vu, tr, vr, linear, diag):
+    """The compiled loop's kernel of :class:`OpenLoopController` (usv_mj.kernels): ``__call__`` natively."""
+    return table_at(tu, vu, t, linear), table_at(tr, vr, t, linear), diag
 
 
 @CONTROLLERS.register("open_loop", gains=OpenLoopGains)
@@ -117,14 +130,19 @@ class OpenLoopController:
 
     def __init__(self, gains: OpenLoopGains):
         self.gains = gains
-        self._u = gains.table("tau_u")
-        self._r = gains.table("tau_r")
-        self._interp = gains.interpolation
+        self._u = tuple(np.asarray(a, float) for a in gains.table("tau_u"))
+        self._r = tuple(np.asarray(a, float) for a in gains.table("tau_r"))
+        self._linear = gains.interpolation == "linear"
         self._diag = np.zeros(0)
 
     def reset(self) -> None:
         pass
 
+    def kernel(self):
+        """(open_loop_kernel, its tables) for the compiled loop."""
+        from usv_mj.kernels import Kernel
+
+        return Kernel(open_loop_kernel, (*self._u, *self._r, self._linear, self._diag))
+
     def __call__(self, t, state, reference):
-        return (table_value(*self._u, float(t), self._interp), table_value(*self._r, float(t), self._interp),
-                self._diag)
+        return open_loop_kernel(float(t), state, reference, *self._u, *self._r, self._linear, self._diag)

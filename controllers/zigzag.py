@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass, fields
 
 import numpy as np
+from numba import njit
 
 from usv_mj.criteria import NotJudged
 from usv_mj.errors import ScenarioError
@@ -56,6 +57,28 @@ class ZigzagGains:
             raise ScenarioError(f"controller.first_turn must be 'starboard' or 'port', got {self.first_turn!r}")
 
 
+# the switching state: started (0/1), psi of the last call [rad], heading change [rad], turn (+-1), switches
+S_STARTED, S_PSI_PREV, S_DPSI, S_TURN, S_SWITCHES = range(5)
+
+
+@njit(cache=True)
+def zigzag_kernel(t, x, ref, tau_u, amplitude, switch, st, diag):
+    """The zig-zag's switching law (module docstring) on the state ``st``: ``__call__`` and the
+    compiled loop's kernel (usv_mj.kernels). Returns (tau_u, tau_r, diag)."""
+    psi = x[2]
+    if st[S_STARTED] == 0.0:
+        st[S_STARTED] = 1.0
+    else:
+        st[S_DPSI] += wrap_angle(psi - st[S_PSI_PREV])
+    st[S_PSI_PREV] = psi
+    dpsi, turn = st[S_DPSI], st[S_TURN]
+    if (turn < 0 and dpsi <= -switch) or (turn > 0 and dpsi >= switch):
+        st[S_TURN] = -turn
+        st[S_SWITCHES] += 1.0
+    diag[0], diag[1], diag[2] = st[S_DPSI], st[S_TURN], st[S_SWITCHES]
+    return tau_u, st[S_TURN] * amplitude, diag
+
+
 @CONTROLLERS.register("zigzag", gains=ZigzagGains)
 class ZigzagController:
     """The zig-zag's switching logic on the heading (module docstring)."""
@@ -76,26 +99,21 @@ class ZigzagController:
         self.gains = gains
         self._switch = math.radians(gains.psi_switch_deg)
         self._diag = np.zeros(len(self.diagnostic_fields))
+        self._st = np.zeros(5)
         self.reset()
 
     def reset(self) -> None:
-        self._started = False
-        self._psi_prev = 0.0
-        self._dpsi = 0.0
-        self._turn = TURNS[self.gains.first_turn]
-        self._switches = 0
+        self._st[:] = 0.0
+        self._st[S_TURN] = TURNS[self.gains.first_turn]
         self._diag[:] = 0.0
 
+    def kernel(self):
+        """(zigzag_kernel, its gains and state) for the compiled loop."""
+        from usv_mj.kernels import Kernel
+
+        return Kernel(zigzag_kernel, (float(self.gains.tau_u), float(self.gains.tau_r_amplitude), self._switch,
+                                      self._st, self._diag))
+
     def __call__(self, t, state, reference):
-        psi = float(state[2])
-        if not self._started:
-            self._started = True
-        else:
-            self._dpsi += float(wrap_angle(psi - self._psi_prev))
-        self._psi_prev = psi
-        if (self._turn < 0 and self._dpsi <= -self._switch) or (self._turn > 0 and self._dpsi >= self._switch):
-            self._turn = -self._turn
-            self._switches += 1
-        d = self._diag
-        d[0], d[1], d[2] = self._dpsi, self._turn, self._switches
-        return self.gains.tau_u, self._turn * self.gains.tau_r_amplitude, d
+        return zigzag_kernel(float(t), np.asarray(state, float), reference, float(self.gains.tau_u),
+                             float(self.gains.tau_r_amplitude), self._switch, self._st, self._diag)

@@ -53,7 +53,7 @@ def add_scenario_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def add_vessel_argument(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--vessel", metavar="KIND", help="the hull: a vessel kind (paper, cybership2, otter, clarke83; "
+    p.add_argument("--vessel", metavar="KIND", help="the hull: a vessel kind (paper, cybership2, otter, clarke83, kvlcc2; "
                    "`usv-mj kinds vessel`) or a vessel data file; shorthand for --set vessel.kind=KIND")
 
 

@@ -348,6 +348,7 @@ DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.disturbances"}, "usv_mj
 #: the hulls (docs/vessels.md): a module, or a data file of usv_mj/vessels/data/ read by
 #: usv_mj.vessels.datafile (its kinds are named here, so that looking one up imports no physics)
 VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_mj.vessels.clarke83",
+                              "kvlcc2": "usv_mj.vessels.kvlcc2",
                               "cybership2": "usv_mj.vessels.datafile", "otter": "usv_mj.vessels.datafile"},
                    "usv_mj.vessels")
 #: every registry by its scenario section (``usv-mj kinds`` lists them)

@@ -455,13 +455,17 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True) -> Scen
     top["baseline"] = BaselineSpec(enabled=enabled, kind=spec.kind, gains=spec.gains)
     if "sea" in data:
         top["sea"] = _build_sea(data["sea"], source)
+        vessel = getattr(top.get("vessel"), "model", None)
+        if getattr(vessel, "inputs", "forces") == "rudder" and not top["sea"].calm:
+            raise ScenarioError(f"{source}: [sea]: the vessel {top['vessel'].kind!r} (the MMG model) runs in calm "
+                                f"deep water only; remove the sea (docs/vessels.md)")
     if "obstacles" in data or "guidance" in data:
         top["obstacles"] = from_tables(data.get("obstacles"), source)
         top["guidance"] = guidance_from_table(data.get("guidance"), source)
     if "manoeuvre" in data:
         from .manoeuvres.options import manoeuvre_from_table
 
-        top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source)
+        top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source, top.get("vessel"))
     scenario = _construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
 

@@ -4,7 +4,10 @@ Every formula of the hull lives here (docs/model.md §1, paper Eqs. 1-2, 6-7 and
 MuJoCo passive-force callback and the PPC controller's nominal model all call these functions, so a
 change of the physics is a change in this one file. The other vessels (usv_mj.vessels,
 docs/vessels.md) are written onto the same packed layout; the two terms they add, C(nu)'s own masses
-and the cross-flow drag, are the paper ship's m11, m22, m23 and zero.
+and the cross-flow drag, are the paper ship's m11, m22, m23 and zero. A ruddered ship of the MMG
+standard method (:mod:`usv_mj.mmg`, KVLCC2) sets the model switch ``P_MODEL``: its inputs are then
+(n_P, delta) and :func:`derivative_into` adds the MMG's force (:class:`MMGShipParams`; 0, the
+switch of every other hull, leaves their numbers as they were).
 
 Conventions
 -----------
@@ -36,6 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, vectorize
 
+from usv_mj.mmg import N_MMG_PARAMS, mmg_terms
+
 # --- packed parameter layout --------------------------------------------------------------------
 P_M11, P_M22, P_M23, P_M33 = 0, 1, 2, 3
 P_D11 = 4  # 3 coefficients: c0 + c1 |u| + c2 u^2
@@ -49,7 +54,13 @@ P_UNCERTAINTY = 19  # scale of Delta (1 = the paper's Delta, 0 = none)
 P_C11, P_C22, P_C23 = 20, 21, 22
 # cross-flow drag (Fossen 2021, §6.7; the Otter's): 0.5 rho T C_d [kg/m^2], hull length [m], strips
 P_CF, P_CF_L, P_CF_N = 23, 24, 25
-N_SHIP_PARAMS = 26
+# the model switch (0: the force model above, the thrust channels are (tau_u [N], tau_r [N m]);
+# 1: the MMG standard method of usv_mj.mmg, the channels are (n_P [1/s], delta [rad]) and the
+# force is usv_mj.mmg.mmg_terms, whose parameters follow the N_SHIP_PARAMS words: P_MMG)
+P_MODEL = 26
+MODEL_FORCES, MODEL_MMG = 0.0, 1.0
+N_SHIP_PARAMS = 27
+P_MMG = N_SHIP_PARAMS  # MMGShipParams.as_array(): the N_MMG_PARAMS words of usv_mj.mmg after the layout
 
 # disturbance: scale, amplitudes (3), cos frequencies (3), sin frequencies (3)
 D_SCALE, D_AMP, D_WCOS, D_WSIN = 0, 1, 4, 7
@@ -156,6 +167,38 @@ class ShipParams:
 
     def mass_matrix(self) -> np.ndarray:
         return mass_matrix(self.as_array())
+
+
+@dataclass(frozen=True)
+class MMGShipParams(ShipParams):
+    """A hull whose forces are the MMG standard method's (:mod:`usv_mj.mmg`; usv_mj.vessels.kvlcc2).
+
+    The inherited masses are the MMG's M (m11 = m + m_x, m22 = m + m_y, m23 = x_G m,
+    m33 = I_zG + x_G^2 m + J_z); damping, C(nu)'s masses, cross-flow and Delta are zero (the MMG
+    force holds them all). ``mmg``: the :data:`usv_mj.mmg.N_MMG_PARAMS` packed constants of the
+    MMG block (usv_mj.vessels.kvlcc2.pack). The plants' input channels are (n_P [1/s], delta [rad]).
+    """
+
+    mmg: tuple = ()
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if len(self.mmg) != N_MMG_PARAMS or not all(math.isfinite(c) for c in self.mmg):
+            raise ValueError(f"ship.mmg must be {N_MMG_PARAMS} finite numbers, got {len(self.mmg)}")
+        object.__setattr__(self, "mmg", tuple(float(c) for c in self.mmg))
+
+    def as_array(self) -> np.ndarray:
+        """The layout's N_SHIP_PARAMS words (P_MODEL = MODEL_MMG) followed by the MMG block (P_MMG)."""
+        p = np.zeros(N_SHIP_PARAMS + N_MMG_PARAMS)
+        p[:N_SHIP_PARAMS] = super().as_array()
+        p[P_MODEL] = MODEL_MMG
+        p[P_MMG:] = self.mmg
+        return p
+
+
+def is_mmg(ship) -> bool:
+    """True for a hull whose input channels are (n_P, delta) (:class:`MMGShipParams`)."""
+    return isinstance(ship, MMGShipParams)
 
 
 @dataclass(frozen=True)
@@ -438,8 +481,15 @@ def kinematics_terms(psi, u, v, r):
 @njit(cache=True)
 def derivative_into(out, p, x, f0, f1, f2, tau_u, tau_r):
     """out = d/dt of x = (eta, nu) given the non-thrust body force (f0, f1, f2): (J(psi) nu,
-    M^-1 (f + [tau_u, 0, tau_r])) (Eqs. 1-2). The one assembly of the state derivative."""
-    a0, a1, a2 = mass_solve_terms(p, f0 + tau_u, f1, f2 + tau_r)
+    M^-1 (f + [tau_u, 0, tau_r])) (Eqs. 1-2). The one assembly of the state derivative.
+
+    An MMG hull (``p[P_MODEL]`` = MODEL_MMG, :class:`MMGShipParams`) reads its inputs as (n_P [1/s],
+    delta [rad]) and adds :func:`usv_mj.mmg.mmg_terms` instead of the thrust."""
+    if p[P_MODEL] == MODEL_MMG:  # the inputs are (n_P, delta): the MMG's forces (usv_mj.mmg)
+        g0, g1, g2 = mmg_terms(p, P_MMG, x[3], x[4], x[5], tau_u, tau_r)
+        a0, a1, a2 = mass_solve_terms(p, f0 + g0, f1 + g1, f2 + g2)
+    else:
+        a0, a1, a2 = mass_solve_terms(p, f0 + tau_u, f1, f2 + tau_r)
     out[0], out[1], out[2] = kinematics_terms(x[2], x[3], x[4], x[5])
     out[3], out[4], out[5] = a0, a1, a2
     return out

@@ -42,15 +42,23 @@ def vessel_length(scenario) -> float:
     """The vessel's length L [m]: its ``[vessel]``'s main dimensions (:mod:`usv_mj.vessels`), from a
     Scenario or from its ``to_dict()`` (a run's metadata); the paper hull's 2 m for a table that
     names no vessel (an older log)."""
+    dims = getattr(vessel_model(scenario), "dimensions", None)
+    return float(dims.L) if dims is not None else PAPER_HULL_LENGTH_M
+
+
+def vessel_model(scenario):
+    """The resolved :class:`usv_mj.vessels.Vessel` of a Scenario or of its ``to_dict()`` (a run's
+    metadata: its ``[vessel]`` table; ``[ship]`` only for the paper vessel, whose options it is), or
+    None for a table that names no vessel (an older log)."""
     if isinstance(scenario, dict):
-        if not isinstance(scenario.get("vessel"), dict):
-            return PAPER_HULL_LENGTH_M
+        table = scenario.get("vessel")
+        if not isinstance(table, dict):
+            return None
         from usv_mj.scenario import from_dict
 
-        scenario = from_dict({k: scenario[k] for k in ("vessel", "ship") if k in scenario}, source="<metadata>")
-    vessel = getattr(scenario, "vessel", None)
-    dims = getattr(getattr(vessel, "model", None), "dimensions", None)
-    return float(dims.L) if dims is not None else PAPER_HULL_LENGTH_M
+        keys = ("vessel", "ship") if table.get("kind", "paper") == "paper" else ("vessel",)
+        scenario = from_dict({k: scenario[k] for k in keys if k in scenario}, source="<metadata>")
+    return getattr(getattr(scenario, "vessel", None), "model", None)
 
 
 def spec_of_record(record) -> ManoeuvreSpec | None:
@@ -88,14 +96,17 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
     """The measures of manoeuvre ``spec`` in a run's ``record`` (:mod:`.measures`) with the IMO rows."""
     o = spec.options
     t = record["t"]
+    vessel = vessel_model(record.metadata.get("scenario") or {})
+    ruddered = getattr(vessel, "inputs", "forces") == "rudder"
+    scale = getattr(vessel, "scale", None)
     if spec.kind == "turning":
         m = turning_measures(t, record["x"], record["y"], record["psi"], record["u"], record["v"], record["r"],
                              t_execute=o.approach_s, steady_after_deg=o.steady_after_deg, length=length)
-        crit = imo.criteria("turning", m, length, o.approach_speed)
+        crit = imo.criteria("turning", m, length, o.approach_speed, scale=scale)
     elif spec.kind == "zigzag":
         m = zigzag_measures(t, record["heading_change"], record["tau_r"], o.angle_deg, record["x"], record["y"],
                             length)
-        crit = imo.criteria("zigzag", m, length, o.approach_speed, switch_deg=o.angle_deg)
+        crit = imo.criteria("zigzag", m, length, o.approach_speed, switch_deg=o.angle_deg, scale=scale)
     elif spec.kind == "spiral":
         holds = [(i * o.hold_s, (i + 1) * o.hold_s, c, b) for i, (c, b) in enumerate(o.commands())]
         m = spiral_measures(t, record["r"], holds, o.settle_fraction)
@@ -108,11 +119,17 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
     # where an actuator limit cut the command (usv_mj.actuators): the "rudder" or the approach force
     # was then not what the options asked for
     saturated = {axis: float(np.mean(record[f"sat_{axis}"] > 0)) if len(t) else 0.0 for axis in ("u", "r")}
+    rudder = ("commanded yaw moment tau_r [N m], realized by the vessel's actuators (docs/manoeuvres.md)"
+              if not ruddered else
+              "rudder angle delta [rad] (the tau_r channel, positive to port), moved at the vessel's rudder rate; "
+              "the propeller's n_P [1/s] (the tau_u channel) held at the approach's (docs/manoeuvres.md)")
+    if ruddered:   # the rudder rate cuts every step of the command by design: not a saturation
+        saturated["note"] = "ruddered vessel: sat_r marks the steering gear's rate limit at work"
+        m["propeller_rps"] = float(record["f_u"][-1]) if len(t) else None
     return {"kind": spec.kind, "options": asdict(o), "length_m": length, "plant": record.metadata.get("plant"),
             "saturated_fraction": saturated,
             "status": record.status, "simulated_s": float(t[-1]) if len(t) else 0.0,
-            "rudder": "commanded yaw moment tau_r [N m], realized by the vessel's actuators (docs/manoeuvres.md)",
-            "measures": m, "imo": crit}
+            "rudder": rudder, "measures": m, "imo": crit}
 
 
 def _fmt(v, unit=""):
@@ -137,7 +154,7 @@ def report_section(result: dict) -> str:
         lines += ["", "| command [N m] | branch | steady r [rad/s] | spread [rad/s] |", "|---|---|---|---|"]
         lines += [f"| {p['command']:g} | {p['branch']} | {p['yaw_rate']:+.4f} | {p['spread']:.1e} |" for p in m["points"]]
     sat = result.get("saturated_fraction") or {}
-    if any(sat.values()):
+    if any(v for k, v in sat.items() if k != "note") and "note" not in sat:
         lines += ["", f"**The actuators cut the command** in {100 * sat['u']:.1f} % (surge) and "
                   f"{100 * sat['r']:.1f} % (yaw) of the steps: the manoeuvre is not the one its options ask for."]
     c = result["imo"]
@@ -211,7 +228,7 @@ def _run_kind(kind, scenario, plant_kind, out_dir, video, options):
         raise ArgumentTypeError(f"{where}: unknown option {unknown[0]!r}; the options are {', '.join(known)} "
                                 "(and plant_kind, out_dir, video)")
     base = scenario.manoeuvre.options if (scenario.manoeuvre is not None and scenario.manoeuvre.kind == kind) \
-        else KINDS[kind]()
+        else manoeuvre_from_table({"kind": kind}, where, getattr(scenario, "vessel", None)).options
     opts = replace(base, **options)   # validated again: a bad value is one ScenarioError naming its key
     return run_manoeuvre(scenario, ManoeuvreSpec(kind, opts), plant_kind=plant_kind, out_dir=out_dir, video=video)
 

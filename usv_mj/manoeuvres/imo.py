@@ -18,6 +18,11 @@ formally apply; they are printed beside its results for orientation only.
   administration may allow up to 20 L for large ships).
 
 L is the length between perpendiculars [m], V the test speed [m/s].
+
+A vessel that is the model of a ship at scale 1:lambda (``scale``; the KVLCC2 7 m model is 1:45.714)
+is judged as that ship: under Froude similarity the measures in L and the angles are the ship's,
+its length is lambda L and its speed sqrt(lambda) V, so the standards apply by the ship's length and
+the overshoot limits take the ship's L/V = sqrt(lambda) (L/V)_model (both L/V are printed).
 """
 
 from __future__ import annotations
@@ -47,10 +52,18 @@ def _row(name: str, value, limit: float, unit: str) -> dict:
             "met": None if value is None else bool(value < limit)}
 
 
-def criteria(kind: str, measures: dict, length: float, speed: float, switch_deg: float | None = None) -> dict:
+def criteria(kind: str, measures: dict, length: float, speed: float, switch_deg: float | None = None,
+             scale: float | None = None) -> dict:
     """The criteria of MSC.137(76) that concern manoeuvre ``kind`` ("turning", "zigzag", "stopping";
     the spiral has none) against ``measures`` (in ship lengths where the criterion is), with
-    ``applies`` saying whether they formally apply to a vessel of ``length`` [m]."""
+    ``applies`` saying whether they formally apply to a vessel of ``length`` [m] (a model at
+    ``scale``: to its full-scale ship, module docstring)."""
+    model_lv = length / speed if speed else None
+    full = None
+    if scale:
+        full = {"scale": scale, "length_m": length * scale, "speed_m_s": speed * scale ** 0.5,
+                "L_over_V_s": model_lv * scale ** 0.5 if model_lv is not None else None}
+        length, speed = full["length_m"], full["speed_m_s"]
     rows = []
     if kind == "turning":
         rows = [_row("advance < 4.5 L", measures.get("advance_L"), 4.5, "L"),
@@ -69,5 +82,13 @@ def criteria(kind: str, measures: dict, length: float, speed: float, switch_deg:
     note = ("the vessel is 100 m or longer: the criteria apply" if ok else
             f"the vessel is {length:g} m long (under 100 m): IMO MSC.137(76) does not formally apply; "
             "the criteria are printed for orientation")
-    return {"standard": "IMO MSC.137(76)", "applies": ok, "note": note, "length_m": length,
-            "speed_m_s": speed, "L_over_V_s": length / speed if speed else None, "rows": rows}
+    if full is not None:
+        note = (f"a 1:{scale:g} model of a {full['length_m']:.0f} m ship: the criteria "
+                f"{'apply to' if ok else 'do not formally apply to'} that ship (L/V = {model_lv:.2f} s at model "
+                f"scale, {full['L_over_V_s']:.1f} s at full scale, which sets the overshoot limits)")
+    out = {"standard": "IMO MSC.137(76)", "applies": ok, "note": note, "length_m": length,
+           "speed_m_s": speed, "L_over_V_s": length / speed if speed else None, "rows": rows}
+    if full is not None:
+        out["model_L_over_V_s"] = model_lv
+        out["full_scale"] = full
+    return out

@@ -62,13 +62,15 @@ class TurningOptions:
     approach_s: float = 5.0          # s: the straight run before the execute
     yaw_moment: float = 10.0         # N m: the "rudder", |tau_r| held from the execute
     side: str = "starboard"          # "starboard" (tau_r < 0) or "port"
+    rudder_deg: float = 35.0         # deg: a ruddered vessel's rudder angle (in place of yaw_moment)
     steady_after_deg: float = 360.0  # deg: heading change after which the turn counts as steady
     duration: float = 60.0           # s: the whole run (approach included)
     control_period: float = 0.01     # s
     conditions: str = "calm"         # "calm" or "scenario" (module docstring)
 
     def __post_init__(self):
-        _check(self, positive=("approach_speed", "yaw_moment", "duration", "control_period", "steady_after_deg"),
+        _check(self, positive=("approach_speed", "yaw_moment", "duration", "control_period", "steady_after_deg",
+                               "rudder_deg"),
                nonnegative=("approach_s",))
         if self.steady_after_deg < 180:
             raise ScenarioError(f"manoeuvre.steady_after_deg must be >= 180, got {self.steady_after_deg!r}")
@@ -163,8 +165,10 @@ class ManoeuvreSpec:
         return getattr(self.options, name)
 
 
-def manoeuvre_from_table(table, source: str = "<dict>") -> ManoeuvreSpec:
-    """A validated :class:`ManoeuvreSpec` from a ``[manoeuvre]`` table (every key checked)."""
+def manoeuvre_from_table(table, source: str = "<dict>", vessel=None) -> ManoeuvreSpec:
+    """A validated :class:`ManoeuvreSpec` from a ``[manoeuvre]`` table (every key checked); the
+    vessel's own defaults (``Vessel.manoeuvre_defaults`` of ``vessel``, a VesselSpec) fill the keys
+    the table does not give."""
     from usv_mj.scenario import build_table
 
     if not isinstance(table, dict):
@@ -173,6 +177,12 @@ def manoeuvre_from_table(table, source: str = "<dict>") -> ManoeuvreSpec:
     kind = table.pop("kind", "turning")
     if kind not in KINDS:
         raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
+    model = getattr(vessel, "model", None)
+    own = (getattr(model, "manoeuvre_defaults", None) or {}).get(kind, {})
+    table = {**own, **table}
+    if getattr(model, "inputs", "forces") == "rudder" and kind in ("spiral", "stopping"):
+        raise ScenarioError(f"{source}: manoeuvre {kind!r} is not available on the ruddered vessel "
+                            f"{vessel.kind!r} (turning and zigzag are; docs/manoeuvres.md)")
     try:
         options = build_table(KINDS[kind], table, source, "manoeuvre", extra_known={"kind"})
     except ScenarioError as exc:
@@ -194,6 +204,8 @@ def approach_force(scenario, speed: float) -> float:
 
     from usv_mj.builder import make_plant
 
+    vessel = getattr(getattr(scenario, "vessel", None), "model", None)
+    guess = getattr(vessel, "nominal_rps", None)   # a ruddered vessel: the force channel is n_P [1/s]
     if hasattr(scenario.disturbance, "scale"):
         scenario = dataclasses.replace(scenario, disturbance=dataclasses.replace(scenario.disturbance, scale=0.0))
     plant = make_plant(scenario, "analytic", environment=None)
@@ -203,7 +215,7 @@ def approach_force(scenario, speed: float) -> float:
             plant.step(force, 0.0)
             return float(plant.state[3]) - speed
 
-        f0, f1 = 0.0, 1.0
+        f0, f1 = (float(guess), 1.02 * float(guess)) if guess else (0.0, 1.0)
         g0, g1 = gain(f0), gain(f1)
         for _ in range(30):
             if g1 == g0:
@@ -241,13 +253,18 @@ def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
         over.update(disturbance={"scale": 0.0}, quantizer={"enabled": False}, **_no_delta(scenario))
         scenario = scenario.with_overrides(over)  # the drag with the test's Delta (none)
     force = approach_force(scenario, o.approach_speed)
+    # a ruddered vessel (usv_mj.mmg): the channels are (n_P [1/s], delta [rad]); its [actuators]
+    # limit the rudder's angle and rate (docs/manoeuvres.md §2)
+    ruddered = getattr(getattr(getattr(scenario, "vessel", None), "model", None), "inputs", "forces") == "rudder"
     if spec.kind == "turning":
         sign = SIDES[o.side]
+        rudder = math.radians(o.rudder_deg) if ruddered else o.yaw_moment
         ctrl = {"kind": "open_loop", "times": [0.0, o.approach_s], "tau_u": force,
-                "tau_r": [0.0, sign * o.yaw_moment], "interpolation": "step"}
+                "tau_r": [0.0, sign * rudder], "interpolation": "step"}
         duration = o.duration
     elif spec.kind == "zigzag":
-        ctrl = {"kind": "zigzag", "tau_u": force, "tau_r_amplitude": o.yaw_moment, "psi_switch_deg": o.angle_deg,
+        rudder = math.radians(o.angle_deg) if ruddered else o.yaw_moment   # the 10/10: 10 deg of rudder
+        ctrl = {"kind": "zigzag", "tau_u": force, "tau_r_amplitude": rudder, "psi_switch_deg": o.angle_deg,
                 "first_turn": o.first_turn}
         duration = o.duration
     elif spec.kind == "spiral":

@@ -186,7 +186,13 @@ def write_parameters(ud: np.ndarray, ship, disturbance, split, packed_sea=None) 
     ud[mcb.U_MASS] = m
     ud[mcb.U_XG] = x_g
     ud[mcb.U_MA:mcb.U_MA + 9] = split.added_mass(ship).ravel()
-    ud[mcb.U_P:mcb.U_P + len(ship.as_array())] = ship.as_array()
+    p = ship.as_array()
+    ud[mcb.U_P:mcb.U_P + mcb.N_SHIP_PARAMS] = p[:mcb.N_SHIP_PARAMS]
+    if len(p) > mcb.N_SHIP_PARAMS:  # an MMG hull's constants (usv_mj.mmg) after the layout
+        if len(ud) < mcb.N_USERDATA_MMG:
+            raise ValueError(f"usv_mj hydrodynamics: an MMG hull needs nuserdata >= {mcb.N_USERDATA_MMG}, "
+                             f"got {len(ud)}")
+        ud[mcb.U_MMG:mcb.U_MMG + len(p) - mcb.N_SHIP_PARAMS] = p[mcb.N_SHIP_PARAMS:]
     ud[mcb.U_DP:mcb.U_DP + len(disturbance.as_array())] = disturbance.as_array()
     write_sea(ud, packed_sea)
     ud[mcb.U_MAGIC] = mcb.MAGIC
@@ -239,6 +245,10 @@ class Hydrodynamics:
     callback = "native"  # what the callback registry of the MuJoCo plant reads
 
     def __init__(self, model, data, body: int, ship, disturbance, split, environment, horizon: float):
+        from usv_mj.ship import is_mmg
+
+        if is_mmg(ship):  # its inputs are ctrl = (n_P, delta) on gearless motors: the MuJoCo plant's build
+            raise ValueError("attach_hydrodynamics: an MMG hull (KVLCC2) runs on usv_mj's MuJoCo plant only")
         self.model, self.data, self.body = model, data, body
         self.ship, self.disturbance, self.split = ship, disturbance, split
         self.environment = environment if environment is not None and not environment.calm else None

@@ -28,6 +28,9 @@ In a sea (docs/sea.md §6; ``d.userdata[U_SEA_ON]`` = 1) that term is :func:`usv
 plant keeps the arrays alive and rewrites the addresses whenever the environment's grids grow). The
 C_RB nu and exact added-mass terms are unchanged. The environment is a pure function of
 (t, eta, nu), so every RK4 stage sees the sea at its own stage time and pose.
+An MMG hull (KVLCC2, :mod:`usv_mj.mmg`; ``ud[U_P + P_MODEL]`` = MODEL_MMG) adds the MMG's hull,
+propeller and rudder force :func:`usv_mj.mmg.mmg_terms` of the inputs ``d.ctrl`` = (n_P, delta) (its
+motors have zero gear) on the constants at ``U_MMG``, after the layout (``N_USERDATA_MMG`` words).
 MuJoCo calls the passive callback once per RK4 stage after building ``d.M`` for that stage's pose
 and with ``d.time`` at the stage time, so d(t) is evaluated exactly where the analytic plant
 evaluates it.
@@ -64,7 +67,8 @@ from numba.extending import intrinsic
 
 from usv_mj.sea.dynamics import sea_terms
 from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
-from usv_mj.ship import N_DIST_PARAMS, N_SHIP_PARAMS, hull_terms
+from usv_mj.mmg import N_MMG_PARAMS, mmg_terms
+from usv_mj.ship import MODEL_MMG, N_DIST_PARAMS, N_SHIP_PARAMS, P_MODEL, hull_terms
 
 from usv_mj.assets import models_dir
 
@@ -100,6 +104,10 @@ U_FREE_SCRATCH = U_HOLD + 10  # 6 doubles: the planar (x, y, psi) and (x_dot, y_
 N_USERDATA = U_FREE_SCRATCH + 6
 LAYOUT_PLANAR = 0.0
 LAYOUT_FREE = 1.0
+# an MMG hull (usv_mj.mmg; ud[U_P + P_MODEL] = MODEL_MMG) has its N_MMG_PARAMS constants after the
+# layout: a plant of such a hull has nuserdata >= N_USERDATA_MMG (the others keep N_USERDATA)
+U_MMG = N_USERDATA
+N_USERDATA_MMG = U_MMG + N_MMG_PARAMS
 
 STATUS_OK = 0.0
 STATUS_BAD_STATE = 1.0   # non-finite qpos/qvel at the callback
@@ -162,7 +170,7 @@ def call_model_data(typingctx, fn_address, m_addr, d_addr):
 
 
 @njit(cache=True)
-def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
+def passive_terms(ud, t, qpos, qvel, ctrl, qfrc, mass_add):
     """Generalized hydrodynamic force and the mass-matrix increment at one RK4 stage.
 
     Parameters
@@ -172,6 +180,11 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
         ``ud[U_SEA_ON]`` = 1 the addresses and sizes of the sea's packed arrays, docs/sea.md §6).
     t:
         Stage time [s]. ``qpos`` = (x, y, psi) [m, m, rad], ``qvel`` = (x_dot, y_dot, r) (world).
+    ctrl:
+        ``d.ctrl``: read only for an MMG hull (``ud[U_P + P_MODEL]`` = MODEL_MMG), whose motors have
+        no gear and whose inputs are ctrl = (n_P [1/s], delta [rad]): the MMG's hull, propeller and
+        rudder force :func:`usv_mj.mmg.mmg_terms` (the analytic plant's, from the same kernel) is
+        added to the hull force.
     qfrc:
         Output, 3: J(psi) (f_h' + M_A r [-v, u, 0]) [N, N, N m] (to add to ``qfrc_passive``).
     mass_add:
@@ -206,6 +219,11 @@ def passive_terms(ud, t, qpos, qvel, qfrc, mass_add):
         f = sea_terms(p, dp, ep, waves, cgrid, wgrid, t, eta, nu)
     else:
         f = hull_terms(p, dp, t, eta, nu, nu)  # d + Delta - C nu - D nu (docs/model.md §1)
+    if p[P_MODEL] == MODEL_MMG:
+        if ud.shape[0] < N_USERDATA_MMG or not (math.isfinite(ctrl[0]) and math.isfinite(ctrl[1])):
+            return STATUS_BAD_FORCE
+        g0, g1, g2 = mmg_terms(ud, U_MMG, u, v, r, ctrl[0], ctrl[1])
+        f = (f[0] + g0, f[1] + g1, f[2] + g2)
     m = ud[U_MASS]
     mxg = m * ud[U_XG]
     # + C_RB nu: MuJoCo's rigid body already produces it, so C_A nu = C nu - C_RB nu
@@ -278,7 +296,8 @@ def held_free_body_terms(ud, t, qpos, qvel, qfrc, mass):
     pvel[0], pvel[1], pvel[2] = qvel[0], qvel[1], qvel[5]
     qf = ud[U_SCRATCH + 6:U_SCRATCH + 9]
     ma = ud[U_SCRATCH + 9:U_SCRATCH + 15]
-    status = passive_terms(ud, t, plan, pvel, qf, ma)
+    # ctrl is read only for an MMG hull, which the attach call refuses on a free body: pvel stands in
+    status = passive_terms(ud, t, plan, pvel, pvel, qf, ma)
     if status != STATUS_OK:
         return status
     # world up in the body frame (the third row of R): the hull is level when it is (0, 0, 1)
@@ -446,6 +465,7 @@ def native_callback():
     o_time, o_qpos, o_qvel = off["time"] // 8, off["qpos"] // 8, off["qvel"] // 8
     o_m, o_frc, o_ud = off["M"] // 8, off["qfrc_passive"] // 8, off["userdata"] // 8
     o_nud = off["nuserdata"] // 8
+    o_ctrl = off["ctrl"] // 8
     n_ud, magic = N_USERDATA, MAGIC
     u_status, u_status_time, u_calls, u_scratch = U_STATUS, U_STATUS_TIME, U_CALLS, U_SCRATCH
     u_layout = U_LAYOUT
@@ -456,7 +476,7 @@ def native_callback():
         if mw[o_nud] < n_ud:
             return
         dw = carray(_i64_ptr(d_addr), (o_ud + 1,))
-        ud = carray(_f64_ptr(dw[o_ud]), (n_ud,))
+        ud = carray(_f64_ptr(dw[o_ud]), (mw[o_nud],))
         if ud[0] != magic:
             return
         dd = carray(_f64_ptr(d_addr), (o_time + 1,))
@@ -476,9 +496,10 @@ def native_callback():
         qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
         frc = carray(_f64_ptr(dw[o_frc]), (3,))
         mm = carray(_f64_ptr(dw[o_m]), (6,))
+        ctrl = carray(_f64_ptr(dw[o_ctrl]), (2,))
         qf = ud[u_scratch + 6:u_scratch + 9]
         ma = ud[u_scratch + 9:u_scratch + 15]
-        status = passive_terms(ud, t, qpos, qvel, qf, ma)
+        status = passive_terms(ud, t, qpos, qvel, ctrl, qf, ma)
         ud[u_calls] += 1.0
         if status != 0.0:
             if ud[u_status] == 0.0:

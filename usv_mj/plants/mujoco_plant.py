@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 
 from usv_mj.registry import PLANTS
-from usv_mj.ship import PaperDisturbance, RigidBodySplit, ShipParams
+from usv_mj.ship import PaperDisturbance, RigidBodySplit, ShipParams, is_mmg
 
 from . import attach
 from . import mujoco_callback as mcb
@@ -165,6 +165,10 @@ class MuJoCoPlant(PlantBase):
         the paper's: the file as it is. ``from_scenario`` passes the scenario's vessel's, and its
         rigid body as ``split``.
 
+    An MMG hull (``usv_mj.ship.is_mmg(ship)``: KVLCC2) loads with the motors' gear set to zero and
+    ``nuserdata`` >= ``N_USERDATA_MMG``: ``ctrl`` = (n_P [1/s], delta [rad]) is then the actuator
+    input and the callback makes the propeller's and the rudder's force from it (usv_mj.mmg).
+
     Attributes
     ----------
     model, data:
@@ -197,6 +201,8 @@ class MuJoCoPlant(PlantBase):
             raise TypeError(f"MuJoCoPlant: environment must be a usv_mj.sea.Environment or None, "
                             f"got {type(environment).__name__}")
         self.environment = environment if environment is not None and not environment.calm else None
+        if self.environment is not None and is_mmg(ship):
+            raise ValueError("MuJoCoPlant: the MMG vessel (KVLCC2) runs in calm water only (no [sea])")
         self._sea_arrays = None        # the packed arrays whose addresses are in d.userdata
         self._sea_horizon = math.inf   # plant time up to which they are valid [s]
         self.model_path = os.path.abspath(model_path or DEFAULT_MODEL)
@@ -225,8 +231,12 @@ class MuJoCoPlant(PlantBase):
             raise FileNotFoundError(f"MuJoCoPlant: model file not found: {path}")
         spec = mujoco.MjSpec.from_file(path)
         scale_hull(spec, self.dimensions)
-        if spec.nuserdata < mcb.N_USERDATA:
-            spec.nuserdata = mcb.N_USERDATA
+        need = mcb.N_USERDATA_MMG if is_mmg(self.ship) else mcb.N_USERDATA
+        if spec.nuserdata < need:
+            spec.nuserdata = need
+        if is_mmg(self.ship):  # the motors carry (n_P [1/s], delta [rad]); the callback makes the force
+            for act in spec.actuators:
+                act.gear = [0.0] * 6
         self._set_ctrlrange(spec)
         model = spec.compile()
         where = f"in {path}"
@@ -485,7 +495,7 @@ class MuJoCoPlant(PlantBase):
             return
         try:
             qf, ma = self._scratch
-            status = mcb.passive_terms(self._userdata, d.time, d.qpos, d.qvel, qf, ma)
+            status = mcb.passive_terms(self._userdata, d.time, d.qpos, d.qvel, d.ctrl, qf, ma)
             if status != mcb.STATUS_OK:
                 if self._userdata[mcb.U_STATUS] == 0.0:
                     self._userdata[mcb.U_STATUS] = status

@@ -7,6 +7,8 @@ A scenario names its hull by ``[vessel] kind`` (:data:`usv_mj.registry.VESSELS`;
 - ``cybership2``, ``otter``: data files of ``usv_mj/vessels/data/`` (:mod:`usv_mj.vessels.datafile`),
   the hydrodynamic derivatives of their sources in Fossen's notation;
 - ``clarke83``: a ship from its main dimensions (:mod:`usv_mj.vessels.clarke83`);
+- ``kvlcc2``: the KVLCC2 7 m model by the MMG standard method, rudder and propeller as its inputs
+  (:mod:`usv_mj.vessels.kvlcc2`, :mod:`usv_mj.mmg`);
 - a data file of the user's (``kind = "path/to/boat.toml"``) or a module (``"pkg.mod:Name"``, an
   entry point of the group ``usv_mj.vessels``).
 
@@ -69,6 +71,14 @@ class Vessel:
     actuators: an ``[actuators]`` table (usv_mj.actuators.ActuatorSpec keys) or None (the scenario's).
     source: where its numbers come from (one line; docs/vessels.md has the full citation).
     notes: what its model leaves out or approximates (one line each).
+    inputs: "forces" (the input channels are the surge force tau_u [N] and yaw moment tau_r [N m])
+        or "rudder" (a ruddered ship, usv_mj.mmg: propeller revolutions n_P [1/s] and rudder angle
+        delta [rad], positive to port).
+    manoeuvre_defaults: {manoeuvre kind: {option: value}} the vessel's own defaults of the
+        standard manoeuvres (usv_mj.manoeuvres.options; a scenario's [manoeuvre] keys win).
+    scale: the model's scale 1:scale of a full-scale ship (IMO's criteria then apply to that ship), or None.
+    nominal_rps: a ruddered vessel's propeller revolutions near its service speed [1/s] (where the
+        manoeuvres' search for the n_P that holds the approach speed starts).
     """
 
     kind: str
@@ -78,6 +88,10 @@ class Vessel:
     actuators: dict | None = None
     source: str = ""
     notes: tuple = ()
+    inputs: str = "forces"
+    manoeuvre_defaults: dict | None = None
+    scale: float | None = None
+    nominal_rps: float | None = None
 
     def rigid_body(self) -> tuple[float, float, float]:
         """(m [kg], x_g [m], I_z about the origin [kg m^2]) that MuJoCo carries."""
