@@ -210,8 +210,9 @@ def _run_kind(kind, scenario, plant_kind, out_dir, video, options):
     if unknown:
         raise ArgumentTypeError(f"{where}: unknown option {unknown[0]!r}; the options are {', '.join(known)} "
                                 "(and plant_kind, out_dir, video)")
+    vessel = getattr(getattr(scenario, "vessel", None), "model", None)
     base = scenario.manoeuvre.options if (scenario.manoeuvre is not None and scenario.manoeuvre.kind == kind) \
-        else KINDS[kind]()
+        else manoeuvre_from_table({"kind": kind}, where, vessel).options   # the vessel's defaults
     opts = replace(base, **options)   # validated again: a bad value is one ScenarioError naming its key
     return run_manoeuvre(scenario, ManoeuvreSpec(kind, opts), plant_kind=plant_kind, out_dir=out_dir, video=video)
 

@@ -69,6 +69,9 @@ class Vessel:
     actuators: an ``[actuators]`` table (usv_mj.actuators.ActuatorSpec keys) or None (the scenario's).
     source: where its numbers come from (one line; docs/vessels.md has the full citation).
     notes: what its model leaves out or approximates (one line each).
+    manoeuvre: the vessel's own defaults of the standard manoeuvres' options ({key: value}, e.g.
+        approach_speed, yaw_moment; a data file's ``[manoeuvre]`` table) or None: the paper hull's
+        Froude-scaled to its length (usv_mj.manoeuvres.options.vessel_defaults).
     """
 
     kind: str
@@ -78,6 +81,7 @@ class Vessel:
     actuators: dict | None = None
     source: str = ""
     notes: tuple = ()
+    manoeuvre: dict | None = None
 
     def rigid_body(self) -> tuple[float, float, float]:
         """(m [kg], x_g [m], I_z about the origin [kg m^2]) that MuJoCo carries."""
