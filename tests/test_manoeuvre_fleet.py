@@ -85,3 +85,12 @@ def test_course_frame_of_a_circle():
     along, across = course_frame(p[:, 0], p[:, 1], psi0 - a, 0)
     assert (along[90], across[90]) == pytest.approx((R, R), abs=1e-12)
     assert (along[180], across[180]) == pytest.approx((0.0, 2 * R), abs=1e-12)
+
+
+def test_vessel_length_from_a_records_metadata():
+    """usv-mj plot reads L from a run's metadata: to_dict writes [ship] beside every vessel."""
+    from usv_mj import load_scenario
+    from usv_mj.manoeuvres import vessel_length
+
+    for kind, L in (("otter", 2.0), ("cybership2", 1.255), ("paper", 1.98)):
+        assert vessel_length(load_scenario(preset="paper", overrides={"vessel": {"kind": kind}}).to_dict()) == L

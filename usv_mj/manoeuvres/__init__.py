@@ -43,13 +43,12 @@ def vessel_length(scenario) -> float:
     Scenario or from its ``to_dict()`` (a run's metadata); the paper hull's 2 m for a table that
     names no vessel (an older log)."""
     if isinstance(scenario, dict):
-        if not isinstance(scenario.get("vessel"), dict):
-            return PAPER_HULL_LENGTH_M
-        from usv_mj.scenario import from_dict
+        from usv_mj.vessels import of_table
 
-        scenario = from_dict({k: scenario[k] for k in ("vessel", "ship") if k in scenario}, source="<metadata>")
-    vessel = getattr(scenario, "vessel", None)
-    dims = getattr(getattr(vessel, "model", None), "dimensions", None)
+        model = of_table(scenario)
+    else:
+        model = getattr(getattr(scenario, "vessel", None), "model", None)
+    dims = getattr(model, "dimensions", None)
     return float(dims.L) if dims is not None else PAPER_HULL_LENGTH_M
 
 

@@ -170,8 +170,31 @@ def camera_names(model_path=None) -> list:
     return _names_of(m)
 
 
+def hull_dimensions(source) -> tuple[float, float, float] | None:
+    """(L, B, T) [m] of the vessel of ``source`` (a Scenario, a record, or a record's metadata
+    ``scenario`` table), or None for the paper hull (the model file's own, drawn unchanged) and
+    for a record that names no vessel."""
+    from usv_mj.vessels import PAPER_DIMENSIONS
+
+    vessel = getattr(source, "vessel", None)
+    model = getattr(vessel, "model", None)
+    if vessel is None:
+        md = getattr(source, "metadata", None)
+        from usv_mj.errors import ScenarioError
+        from usv_mj.vessels import of_table
+
+        try:
+            model = of_table(md.get("scenario") if isinstance(md, dict) else source)
+        except (ScenarioError, ValueError):   # a vessel this process cannot resolve: the model file's hull
+            return None
+    d = getattr(model, "dimensions", None)
+    if d is None or (d.L, d.B, d.T) == (PAPER_DIMENSIONS.L, PAPER_DIMENSIONS.B, PAPER_DIMENSIONS.T):
+        return None
+    return (float(d.L), float(d.B), float(d.T))
+
+
 def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720, ghost: bool = True,
-                       samples: int = 0, sea: bool = True) -> tuple[mujoco.MjModel, str]:
+                       samples: int = 0, sea: bool = True, hull=None) -> tuple[mujoco.MjModel, str]:
     """Compile the scene with a mocap ``ghost`` hull added and an off-screen buffer of width x height.
 
     ``samples``: multisampling of the off-screen buffer (0: none; 2 or MuJoCo's default 4 cost about
@@ -179,8 +202,16 @@ def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720,
     ``sea``: add the wave surface of docs/sea.md §6, a hidden hfield geom (``SEA_GEOM``, contype =
     conaffinity = 0) of SEA_NODES x SEA_NODES nodes that :meth:`FrameRenderer.update_sea` shows,
     re-centres, fills and uploads per frame when the run had a sea.
+    ``hull``: the vessel's (L, B, T) [m] (:func:`hull_dimensions`): the model file's hull scaled to it
+    by the MuJoCo plant's own :func:`usv_mj.plants.mujoco_plant.scale_hull` (what the plant
+    simulates is what is drawn); None: the file's hull (the paper's).
     """
     spec, label = load_scene_spec(model_path)
+    if hull is not None:
+        from usv_mj.plants.mujoco_plant import scale_hull
+        from usv_mj.vessels import Dimensions
+
+        scale_hull(spec, Dimensions(*hull))
     base = spec.compile()
     for jname in ("x", "y", "yaw"):
         if mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_JOINT, jname) < 0:
@@ -234,17 +265,18 @@ class FrameRenderer:
     layers: which of :data:`LAYERS` to draw ("hud" and "legend" are the 2-D overlay).
     shadows, reflections: MuJoCo's shadow and reflection passes (off: about 2-3x faster on Mesa).
     samples: multisampling (0 fastest, MuJoCo's default 4).
+    hull: the vessel's (L, B, T) [m] or None (the model file's hull): :func:`build_replay_model`.
     """
 
     def __init__(self, width: int, height: int, camera: str = "top", *, model_path=None,
-                 layers=LAYERS, shadows: bool = False, reflections: bool = False, samples: int = 0):
+                 layers=LAYERS, shadows: bool = False, reflections: bool = False, samples: int = 0, hull=None):
         self.width, self.height = int(width), int(height)
         self.layers = frozenset(layers)
         unknown = self.layers - set(LAYERS)
         if unknown:
             raise ValueError(f"unknown render layers {sorted(unknown)}; known: {', '.join(LAYERS)}")
         self.model, self.model_label = build_replay_model(model_path, width=self.width, height=self.height,
-                                                          ghost=True, samples=samples)
+                                                          ghost=True, samples=samples, hull=hull)
         m = self.model
         if not shadows:
             m.vis.quality.shadowsize = 0

@@ -30,7 +30,7 @@ import numpy as np
 
 from usv_mj.ship import RigidBodySplit, ShipParams
 
-__all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS", "register_file"]
+__all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS", "register_file", "of_table"]
 
 
 @dataclass(frozen=True)
@@ -132,6 +132,18 @@ def from_derivatives(m, x_g, I_z, X_udot, Y_vdot, Y_rdot, N_vdot, N_rdot,
         coriolis_masses={"full": None, "rigid": (m, m, m * x_g), "none": (0.0, 0.0, 0.0)}[coriolis],
         crossflow=(crossflow_k, crossflow_L, strips) if crossflow_k > 0 else (0.0, 0.0, 0.0))
     return ship, split
+
+
+def of_table(table) -> Vessel | None:
+    """The vessel of a scenario's ``to_dict()`` (a run's metadata ``scenario``): its ``[vessel]``
+    resolved (with ``[ship]``, the paper kind's options, for the paper kind only: to_dict writes
+    the packed hull under ``ship`` beside every vessel); None when the table names no vessel."""
+    if not isinstance(table, dict) or not isinstance(table.get("vessel"), dict):
+        return None
+    from usv_mj.scenario import from_dict
+
+    kinds = ("vessel", "ship") if table["vessel"].get("kind", "paper") == "paper" else ("vessel",)
+    return from_dict({k: table[k] for k in kinds if k in table}, source="<metadata>").vessel.model
 
 
 def register_file(path) -> str:
