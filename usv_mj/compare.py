@@ -30,6 +30,14 @@ over min(duration, 30) s; there the controller's own discretization (explicit Eu
 quantizer) changes with dt, so no common reference exists and only the plants' difference at each
 dt is reported (it shrinks at RK4's order as long as both runs see the same quantizer switching).
 
+The closed-loop check (``closed_loop_position_below_1e-3_m_or_step_error``, and the saturated
+case's): below CLOSED_LOOP_TOLERANCE_M, or within the sum of the two plants' own integration
+errors, each estimated by step halving (:func:`step_errors`: the same closed loop at twice the
+plant's substeps, Richardson's 16/15 for RK4). A hull whose closed loop needs a finer step than 1 ms
+for 1e-3 m (CyberShip II under the paper's gains: 4.4e-3 m, order 4) then passes exactly when its
+plants agree within their discretisation error; another model (a 1 % heavier hull) does not
+(docs/vessels.md, tests/test_compare_step_error.py).
+
 Sea state (docs/sea.md §6-7): a scenario with a ``[sea]`` table (or ``--sea NAME``) runs both
 plants in the same :class:`usv_mj.sea.Environment` (one per comparison; it is a pure function of
 (t, eta, nu), so sharing it is safe), and the same tolerances apply (docs/sea.md §7 check 14).
