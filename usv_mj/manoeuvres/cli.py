@@ -166,8 +166,10 @@ def _run_fleet(args) -> int:
     print(f"  outputs in {out}/: manoeuvre_vessels.png, vessels.json, vessels.md and one folder per vessel "
           f"({', '.join(r['folder'] for r in fleet['rows'])})")
     bad = [v for v, job in fleet["jobs"].items() if job.summary.get("status") != "completed" or job.summary.get("job_stopped")]
-    if bad:
-        print(f"usv-mj manoeuvre: the run of {', '.join(bad)} did not complete", file=sys.stderr)
+    missing = [v for v in kinds if v not in fleet["jobs"]]
+    if bad or missing:
+        print(f"usv-mj manoeuvre: the run of {', '.join(bad)} did not complete"
+              + (f"; not run: {', '.join(missing)}" if missing else ""), file=sys.stderr)
         return EXIT_STOPPED
     return EXIT_OK
 

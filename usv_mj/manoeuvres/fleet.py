@@ -172,6 +172,8 @@ def run_fleet(scenario_for, kinds: list[str], kind: str, out: Path, *, plant_kin
                    "saturated_fraction": result["saturated_fraction"], "imo": result["imo"]}
             rows.append(row)
             tracks[vessel] = {"along": along, "across": across, "length": result["length_m"], "rudder": row["rudder"]}
+            if job.summary.get("job_stopped") or job.summary.get("status") == "interrupted":
+                break          # Ctrl-C or a signal: the vessels done so far are written, the rest not run
         plant = rows[0]["plant"] if rows else plant_kind
         files = {"figure": draw_tracks(kind, tracks, stage.path / "manoeuvre_vessels.png", f"{plant} plant")}
         files["json"] = stage.path / "vessels.json"
