@@ -10,7 +10,8 @@ import pytest
 
 from tests.test_render import _gl_or_skip, pose_record
 from usv_mj.render.planner import TopView
-from usv_mj.render.replay import build_replay_model, hull_dimensions
+from usv_mj.render.replay import build_replay_model
+from usv_mj.render.world import hull_dimensions
 
 
 def _hull_box(model, names=("hull_mid", "hull_bow")):

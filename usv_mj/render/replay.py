@@ -170,29 +170,6 @@ def camera_names(model_path=None) -> list:
     return _names_of(m)
 
 
-def hull_dimensions(source) -> tuple[float, float, float] | None:
-    """(L, B, T) [m] of the vessel of ``source`` (a Scenario, a record, or a record's metadata
-    ``scenario`` table), or None for the paper hull (the model file's own, drawn unchanged) and
-    for a record that names no vessel."""
-    from usv_mj.vessels import PAPER_DIMENSIONS
-
-    vessel = getattr(source, "vessel", None)
-    model = getattr(vessel, "model", None)
-    if vessel is None:
-        md = getattr(source, "metadata", None)
-        from usv_mj.errors import ScenarioError
-        from usv_mj.vessels import of_table
-
-        try:
-            model = of_table(md.get("scenario") if isinstance(md, dict) else source)
-        except (ScenarioError, ValueError):   # a vessel this process cannot resolve: the model file's hull
-            return None
-    d = getattr(model, "dimensions", None)
-    if d is None or (d.L, d.B, d.T) == (PAPER_DIMENSIONS.L, PAPER_DIMENSIONS.B, PAPER_DIMENSIONS.T):
-        return None
-    return (float(d.L), float(d.B), float(d.T))
-
-
 def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720, ghost: bool = True,
                        samples: int = 0, sea: bool = True, hull=None) -> tuple[mujoco.MjModel, str]:
     """Compile the scene with a mocap ``ghost`` hull added and an off-screen buffer of width x height.
@@ -202,7 +179,7 @@ def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720,
     ``sea``: add the wave surface of docs/sea.md §6, a hidden hfield geom (``SEA_GEOM``, contype =
     conaffinity = 0) of SEA_NODES x SEA_NODES nodes that :meth:`FrameRenderer.update_sea` shows,
     re-centres, fills and uploads per frame when the run had a sea.
-    ``hull``: the vessel's (L, B, T) [m] (:func:`hull_dimensions`): the model file's hull scaled to it
+    ``hull``: the vessel's (L, B, T) [m] (:func:`usv_mj.render.world.hull_dimensions`): the model file's hull scaled to it
     by the MuJoCo plant's own :func:`usv_mj.plants.mujoco_plant.scale_hull` (what the plant
     simulates is what is drawn); None: the file's hull (the paper's).
     """

@@ -225,7 +225,7 @@ def render_frames(record, *, width: int = 320, height: int = 240, camera: str = 
     ``rows``: draw exactly these record rows (one frame each) instead of the video's time mapping.
     ``views``: a :class:`~usv_mj.render.planner.TopView` (or one per frame) to pin the top camera.
     ``hull``: the drawn hull's (L, B, T) [m]; "record" (default): the record's vessel's
-    (:func:`usv_mj.render.replay.hull_dimensions`); None: the model file's hull.
+    (:func:`usv_mj.render.world.hull_dimensions`); None: the model file's hull.
     """
     check_size(width, height)
     plan = _plan(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera, max_frames=max_frames,
@@ -245,7 +245,7 @@ def render_frames(record, *, width: int = 320, height: int = 240, camera: str = 
 def _hull(record, hull):
     """The (L, B, T) the video draws: ``hull`` itself, or the record's vessel's for "record"."""
     if isinstance(hull, str) and hull == "record":
-        from .replay import hull_dimensions
+        from .world import hull_dimensions
 
         return hull_dimensions(record)
     return None if hull is None else tuple(float(v) for v in hull)
@@ -280,7 +280,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
     pool: :class:`RenderWorkers` started earlier (same size, camera and options, and the same hull:
         ``RenderWorkers(hull=hull_dimensions(scenario))``); not closed here.
     hull: the drawn hull's (L, B, T) [m]; "record" (default): the record's vessel's, scaled as the
-        MuJoCo plant scales it (:func:`usv_mj.render.replay.hull_dimensions`); None: the model file's.
+        MuJoCo plant scales it (:func:`usv_mj.render.world.hull_dimensions`); None: the model file's.
     samples: multisampling. crf, preset: libx264 quality and speed (ultrafast: about 15 ms of CPU a
         720p frame, veryfast about 35 ms). max_frames: cap (tests).
 
