@@ -54,3 +54,16 @@ def test_a_record_of_another_vessel_is_drawn_at_its_size():
         lengths.append(cols.max() - cols.min() + 1)
     # the silhouette includes the outboard motor aft of the transom (scaled too): twice as long within 10 %
     assert lengths[1] / lengths[0] == pytest.approx(2.0, rel=0.1)
+
+
+def test_the_closest_zoom_keeps_a_long_hull_in_the_picture():
+    from usv_mj import load_scenario
+    from usv_mj.render.planner import MIN_HALF_HEIGHT, plan_frames
+
+    rec = pose_record([(0.0, 0.0, 0.0), (0.5, 0.0, 0.0)])              # a hull alone: the closest zoom
+    paper = plan_frames(rec, rows=[0], width=320, height=240).frames[0].view.half_height
+    assert paper == pytest.approx(MIN_HALF_HEIGHT)                       # the paper hull's picture: unchanged
+    rec.metadata["scenario"] = load_scenario(preset="paper", overrides={
+        "vessel": {"kind": "clarke83", "L": 7.0, "B": 1.2, "T": 0.45}}).to_dict()
+    long_ = plan_frames(rec, rows=[0], width=320, height=240).frames[0].view.half_height
+    assert long_ == pytest.approx(MIN_HALF_HEIGHT * 7.0 / 2.0)           # the same share of the height as 2 m
