@@ -36,6 +36,15 @@ Dynamics, discretized exactly at the control period h (so they are the same on b
   f_{k+1} = c_k + (f_k - c_k) a, and the force the plant receives over [t_k, t_k + h) is its
   average over the period, c_k + (f_k - c_k) (T/h)(1 - a): the held force then carries exactly
   the impulse of the continuous lag (the plants hold their input over the period). f_0 = 0.
+- ``shaft_time_constant_s`` = T_n > 0 (twin only): first-order propeller shaft speed, as Fossen's
+  Otter (``vehicles/otter.py``: n_dot = (n_c - n)/T_n, thrust k n|n| with k = ``thrust_coeff_forward``
+  for n > 0 and ``thrust_coeff_reverse`` for n < 0, per propeller). Each thruster's saturated thrust
+  T_c becomes its shaft command n_c = sign(T_c) sqrt(|T_c| / k); over the period the shaft speed is
+  n(t) = n_c + (n_k - n_c) e^(-t/T_n) exactly, and the thrust the plant receives is the period's
+  average of k(n) n|n| (closed form, split where n changes sign): the held thrust carries exactly
+  the impulse of the continuous model, as the thrust lag's does. A thrust lag T f_dot = c - f is
+  not the same response: from rest a step in n gives thrust (1 - e^(-t/T_n))^2 of its final value
+  (40 % at t = T_n, where a first-order thrust lag is at 63 %). n_0 = 0. Not with ``time_constant_s``.
 - ``surge_rate_n_s`` / ``yaw_rate_nm_s``: the applied force changes by at most rate * h per period
   (after the lag); on the twin hull the result is allocated again so that it stays reachable.
 
@@ -81,6 +90,9 @@ class ActuatorSpec:
     surge_rate_n_s: largest rate of change of the surge force [N/s] (inf: none).
     yaw_rate_nm_s: largest rate of change of the yaw moment [N m/s] (inf: none).
     priority: twin: which channel wins when both cannot be met, "yaw" (default) or "surge".
+    shaft_time_constant_s: twin: the propellers' shaft-speed time constant T_n [s] (0: none).
+    thrust_coeff_forward: twin, with the shaft lag: k of thrust = k n|n| for n > 0 [N s^2/rad^2].
+    thrust_coeff_reverse: twin, with the shaft lag: k for n < 0 [N s^2/rad^2].
 
     In a scenario file a limit that is not given is none (or write ``inf``).
     """
@@ -96,6 +108,9 @@ class ActuatorSpec:
     surge_rate_n_s: float = math.inf
     yaw_rate_nm_s: float = math.inf
     priority: str = "yaw"
+    shaft_time_constant_s: float = 0.0
+    thrust_coeff_forward: float = 0.0
+    thrust_coeff_reverse: float = 0.0
 
     def __post_init__(self) -> None:
         if self.kind not in ACTUATOR_KINDS:
@@ -108,6 +123,20 @@ class ActuatorSpec:
         if not (isinstance(self.time_constant_s, (int, float)) and math.isfinite(self.time_constant_s)
                 and self.time_constant_s >= 0):
             raise ValueError(f"time_constant_s must be >= 0 s, got {self.time_constant_s!r}")
+        for name in ("shaft_time_constant_s", "thrust_coeff_forward", "thrust_coeff_reverse"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if self.shaft_time_constant_s > 0:
+            if self.kind != "twin":
+                raise ValueError(f"shaft_time_constant_s = {self.shaft_time_constant_s!r}: a shaft-speed lag needs "
+                                 f"kind = 'twin' (per propeller), got kind = {self.kind!r}")
+            if not (self.thrust_coeff_forward > 0 and self.thrust_coeff_reverse > 0):
+                raise ValueError("shaft_time_constant_s > 0 needs thrust_coeff_forward > 0 and thrust_coeff_reverse > 0 "
+                                 "(thrust = k n|n| per propeller)")
+            if self.time_constant_s > 0:
+                raise ValueError("give time_constant_s (a thrust lag) or shaft_time_constant_s (a shaft-speed lag), "
+                                 "not both")
         if self.priority not in PRIORITIES:
             raise ValueError(f"priority must be one of {', '.join(PRIORITIES)}, got {self.priority!r}")
         if self.kind == "twin" and not (math.isfinite(self.thruster_forward_n)
@@ -118,7 +147,7 @@ class ActuatorSpec:
     @property
     def unlimited(self) -> bool:
         """True when nothing limits or delays the force (the paper's reading)."""
-        return (self.kind == "unlimited" and self.time_constant_s == 0.0
+        return (self.kind == "unlimited" and self.time_constant_s == 0.0 and self.shaft_time_constant_s == 0.0
                 and math.isinf(self.surge_rate_n_s) and math.isinf(self.yaw_rate_nm_s))
 
     def describe(self) -> str:
@@ -132,6 +161,9 @@ class ActuatorSpec:
                          f"{self.thruster_forward_n:g}] N, {self.priority} priority")
         if self.time_constant_s > 0:
             parts.append(f"thrust lag T = {self.time_constant_s:g} s")
+        if self.shaft_time_constant_s > 0:
+            parts.append(f"shaft-speed lag T_n = {self.shaft_time_constant_s:g} s, thrust k n|n| (k "
+                         f"{self.thrust_coeff_forward:g} / {self.thrust_coeff_reverse:g})")
         if math.isfinite(self.surge_rate_n_s) or math.isfinite(self.yaw_rate_nm_s):
             parts.append(f"rate limits {self.surge_rate_n_s:g} N/s, {self.yaw_rate_nm_s:g} N m/s")
         return "; ".join(parts)
@@ -153,11 +185,13 @@ class ActuatorSpec:
 
 K_UNLIMITED, K_BOX, K_TWIN = 0, 1, 2
 # parameter vector
-A_KIND, A_LO_U, A_HI_U, A_LO_R, A_HI_R, A_SEP, A_FWD, A_REV, A_YAW_FIRST, A_LAG_A, A_LAG_B, A_DU, A_DR = range(13)
-N_ACT_PARAMS = 13
-# state vector: lag thrust at the sample time (u, r), last applied force (u, r)
-S_LAG_U, S_LAG_R, S_F_U, S_F_R = range(4)
-N_ACT_STATE = 4
+(A_KIND, A_LO_U, A_HI_U, A_LO_R, A_HI_R, A_SEP, A_FWD, A_REV, A_YAW_FIRST, A_LAG_A, A_LAG_B, A_DU, A_DR,
+ A_SHAFT_T, A_SHAFT_H, A_K_FWD, A_K_REV) = range(17)
+N_ACT_PARAMS = 17
+# state vector: lag thrust at the sample time (u, r), last applied force (u, r), shaft speeds
+# (port, starboard) at the sample time [rad/s]
+S_LAG_U, S_LAG_R, S_F_U, S_F_R, S_N_P, S_N_S = range(6)
+N_ACT_STATE = 6
 
 
 @register_jitable
@@ -186,6 +220,44 @@ def saturate(p, q_u, q_r):
 
 
 @register_jitable
+def _n_squared_integral(c, d, t1, t2, tn):
+    """Integral over [t1, t2] of n(t)^2 with n(t) = c + d exp(-t / tn)."""
+    e1, e2 = math.exp(-t1 / tn), math.exp(-t2 / tn)
+    return c * c * (t2 - t1) + 2.0 * c * d * tn * (e1 - e2) + 0.5 * d * d * tn * (e1 * e1 - e2 * e2)
+
+
+@register_jitable
+def shaft_step(thrust, n0, tn, h, k_fwd, k_rev):
+    """One period of one propeller's shaft-speed lag (module docstring): (the period's average
+    thrust [N], the shaft speed at its end [rad/s]) for the thrust command ``thrust`` [N] from the
+    shaft speed ``n0`` [rad/s]; tn the time constant, h the period [s]."""
+    if thrust >= 0.0:
+        c = math.sqrt(thrust / k_fwd)
+    else:
+        c = -math.sqrt(-thrust / k_rev)
+    d = n0 - c
+    n1 = c + d * math.exp(-h / tn)
+    if c == 0.0:
+        t0 = h                            # n decays towards 0 keeping the sign of n0
+    elif n0 != 0.0 and (n0 > 0.0) != (c > 0.0):
+        t0 = tn * math.log(-d / c)        # n(t0) = 0: the sign changes (inside the period if t0 < h)
+        if t0 >= h:
+            t0 = h
+    else:
+        t0 = 0.0                          # n keeps the sign of c throughout
+    k0 = k_fwd if n0 > 0.0 else k_rev     # the sign of n on [0, t0)
+    k1 = k_fwd if c > 0.0 else k_rev      # and on [t0, h]
+    s0 = 1.0 if n0 > 0.0 else -1.0
+    s1 = 1.0 if c > 0.0 else -1.0
+    impulse = 0.0
+    if t0 > 0.0:
+        impulse += s0 * k0 * _n_squared_integral(c, d, 0.0, t0, tn)
+    if t0 < h:
+        impulse += s1 * k1 * _n_squared_integral(c, d, t0, h, tn)
+    return impulse / h, n1
+
+
+@register_jitable
 def actuator_step(p, state, q_u, q_r):
     """One control period: (f_u, f_r, sat_u, sat_r) from the quantized command (q_u, q_r); updates
     ``state`` (module docstring for the equations)."""
@@ -199,6 +271,15 @@ def actuator_step(p, state, q_u, q_r):
         f_r = c_r + (lr - c_r) * b
         state[S_LAG_U] = c_u + (lu - c_u) * a
         state[S_LAG_R] = c_r + (lr - c_r) * a
+    elif p[A_SHAFT_T] > 0.0:  # twin: each propeller's shaft speed lags, thrust k n|n|
+        half = 0.5 * p[A_SEP]
+        t_s, n_s = shaft_step(0.5 * c_u + c_r / p[A_SEP], state[S_N_S], p[A_SHAFT_T], p[A_SHAFT_H],
+                              p[A_K_FWD], p[A_K_REV])
+        t_p, n_p = shaft_step(0.5 * c_u - c_r / p[A_SEP], state[S_N_P], p[A_SHAFT_T], p[A_SHAFT_H],
+                              p[A_K_FWD], p[A_K_REV])
+        state[S_N_S], state[S_N_P] = n_s, n_p
+        f_u = t_p + t_s
+        f_r = half * (t_s - t_p)
     else:
         f_u, f_r = c_u, c_r
     du, dr = p[A_DU], p[A_DR]
@@ -247,6 +328,9 @@ def pack(spec: ActuatorSpec, control_period: float) -> np.ndarray:
         p[A_LAG_B] = -math.expm1(-x) / x  # (T/h)(1 - exp(-h/T)), accurate for small h/T
     p[A_DU] = spec.surge_rate_n_s * h
     p[A_DR] = spec.yaw_rate_nm_s * h
+    if spec.shaft_time_constant_s > 0:
+        p[A_SHAFT_T], p[A_SHAFT_H] = spec.shaft_time_constant_s, h
+        p[A_K_FWD], p[A_K_REV] = spec.thrust_coeff_forward, spec.thrust_coeff_reverse
     return p
 
 

@@ -174,7 +174,8 @@ def check_start_clear(scenario: Scenario) -> None:
         return
     from .obstacles.clearance import GeometricClearance
 
-    clearance = GeometricClearance(scenario.obstacles, exact_within=math.inf).update(
+    clearance = GeometricClearance(scenario.obstacles, exact_within=math.inf,
+                                   dimensions=scenario.vessel.model.dimensions).update(
         0.0, np.r_[scenario.initial.eta, 0, 0, 0])
     for i in np.flatnonzero(clearance <= 0.0):
         raise ScenarioError(f"{scenario.source}: initial.eta = {list(scenario.initial.eta)} puts the hull inside "
@@ -267,13 +268,14 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
 def _obstacle_parts(scenario, plant, plan, duration, statics, contact):
     """The clearance monitor, the obstacle log and the online guidance as one loop hook and a sink."""
     from .obstacles.clearance import make_clearance_monitor
-    from .obstacles.compose import HULL_RADIUS, ContactParams
+    from .obstacles.compose import ContactParams, vessel_hull_radius
     from .obstacles.hooks import ObstacleHook
     from .obstacles.planner import Guidance
     from .obstacles.sink import ObstacleLog
 
     obstacles = statics.obstacles
-    monitor = make_clearance_monitor(plant, obstacles)
+    dims = scenario.vessel.model.dimensions          # the vessel's hull (the paper's: the constants)
+    monitor = make_clearance_monitor(plant, obstacles, dims)
     n_rows = int(round(duration / scenario.control_period)) + 1
     inflation = plan.safety_radius if plan is not None else None
     log = ObstacleLog(obstacles, n_rows, scenario.guidance.margin_m, scenario.control_period, monitor.note, inflation)
@@ -290,7 +292,7 @@ def _obstacle_parts(scenario, plant, plan, duration, statics, contact):
         "avoid": scenario.guidance.avoid, "margin_m": scenario.guidance.margin_m,
         "plan_verified": None if plan is None else plan.verified,
         "plan_iterations": None if plan is None else plan.iterations,
-        "hull_radius_m": HULL_RADIUS, "eps_m": scenario.ship.eps,
+        "hull_radius_m": vessel_hull_radius(dims), "eps_m": scenario.ship.eps,
         "contact": dataclasses.asdict(contact or ContactParams()) if is_mujoco else None}}
     if monitor.note:
         metadata["note"] = monitor.note

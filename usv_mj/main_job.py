@@ -460,9 +460,11 @@ class _StagedJob:
 
                     render_opts["model"] = export_scene(compose_scene(scenario.obstacles))
                 # the render workers open their GL contexts while the ship is simulated
-                self.pool = self.stack.enter_context(RenderWorkers(**{k: v for k, v in render_opts.items()
-                                                                      if k in ("width", "height", "camera", "workers",
-                                                                               "gl", "model", "shadows")}))
+                from .render.world import hull_dimensions
+
+                self.pool = self.stack.enter_context(RenderWorkers(hull=hull_dimensions(scenario), **{
+                    k: v for k, v in render_opts.items() if k in ("width", "height", "camera", "workers", "gl",
+                                                                  "model", "shadows")}))
             sink_main = []
             if self.log:
                 from .runlog import RunLogWriter

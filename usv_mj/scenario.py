@@ -465,7 +465,9 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True) -> Scen
     if "manoeuvre" in data:
         from .manoeuvres.options import manoeuvre_from_table
 
-        top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source, top.get("vessel"))
+        vessel = top.get("vessel")
+        top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source,
+                                                vessel.model if vessel is not None else None)
     scenario = _construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
 

@@ -51,14 +51,13 @@ def vessel_model(scenario):
     metadata: its ``[vessel]`` table; ``[ship]`` only for the paper vessel, whose options it is), or
     None for a table that names no vessel (an older log)."""
     if isinstance(scenario, dict):
-        table = scenario.get("vessel")
-        if not isinstance(table, dict):
-            return None
-        from usv_mj.scenario import from_dict
+        from usv_mj.vessels import of_table
 
-        keys = ("vessel", "ship") if table.get("kind", "paper") == "paper" else ("vessel",)
-        scenario = from_dict({k: scenario[k] for k in keys if k in scenario}, source="<metadata>")
-    return getattr(getattr(scenario, "vessel", None), "model", None)
+        model = of_table(scenario)
+    else:
+        model = getattr(getattr(scenario, "vessel", None), "model", None)
+    dims = getattr(model, "dimensions", None)
+    return float(dims.L) if dims is not None else PAPER_HULL_LENGTH_M
 
 
 def spec_of_record(record) -> ManoeuvreSpec | None:
@@ -227,8 +226,9 @@ def _run_kind(kind, scenario, plant_kind, out_dir, video, options):
     if unknown:
         raise ArgumentTypeError(f"{where}: unknown option {unknown[0]!r}; the options are {', '.join(known)} "
                                 "(and plant_kind, out_dir, video)")
+    vessel = getattr(getattr(scenario, "vessel", None), "model", None)
     base = scenario.manoeuvre.options if (scenario.manoeuvre is not None and scenario.manoeuvre.kind == kind) \
-        else manoeuvre_from_table({"kind": kind}, where, getattr(scenario, "vessel", None)).options
+        else manoeuvre_from_table({"kind": kind}, where, vessel).options   # the vessel's defaults
     opts = replace(base, **options)   # validated again: a bad value is one ScenarioError naming its key
     return run_manoeuvre(scenario, ManoeuvreSpec(kind, opts), plant_kind=plant_kind, out_dir=out_dir, video=video)
 

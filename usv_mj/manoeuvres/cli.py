@@ -4,6 +4,10 @@
     usv-mj manoeuvre zigzag --set manoeuvre.angle_deg=20      the 20/20 zig-zag
     usv-mj manoeuvre spiral --out renders/spiral --video      the spiral, with a video
     usv-mj manoeuvre --scenario my.toml                       the scenario's own [manoeuvre]
+    usv-mj manoeuvre turning --vessel all                     every vessel's turning circle in one figure
+
+``--vessel A,B,...`` (or ``all``: every registered kind) runs the manoeuvre on each vessel into
+--out/VESSEL/ and writes manoeuvre_vessels.png, vessels.json and vessels.md beside them (:mod:`.fleet`).
 
 The manoeuvre's options are ``--set manoeuvre.KEY=VALUE`` (``usv-mj kinds`` does not list them:
 :mod:`usv_mj.manoeuvres.options`); ``--duration`` sets ``manoeuvre.duration``. Writes into --out
@@ -36,6 +40,10 @@ def add_arguments(p) -> None:
             action.help += " (with --set manoeuvre.conditions=scenario: a manoeuvre runs in calm water by default)"
     p.add_argument("--plant", choices=("mujoco", "analytic"), help="which plant integrates the ship")
     add_vessel_argument(p)
+    for action in p._actions:
+        if "--vessel" in action.option_strings:
+            action.help += ("; here also a list KIND,KIND,... or 'all' (every registered vessel): one run each into "
+                            "--out/KIND/, and their tracks and measures side by side")
     p.add_argument("--out", metavar="DIR", help="output folder (default renders/manoeuvre-KIND)")
     p.add_argument("--overwrite", action="store_true", help="replace an earlier run in --out (replaced whole)")
     g = p.add_mutually_exclusive_group()
@@ -87,6 +95,10 @@ def run_command(args) -> int:
 
     from . import run_manoeuvre
 
+    from .fleet import is_fleet
+
+    if is_fleet(args.vessel):
+        return _run_fleet(args)
     scenario, kind = _scenario(args)
     try:
         render_options = video_options(args)
@@ -109,6 +121,55 @@ def run_command(args) -> int:
         return EXIT_STOPPED
     if job.summary["status"] != "completed":
         print(f"usv-mj manoeuvre: the run {job.summary['status']}: {job.summary.get('stop_reason')}", file=sys.stderr)
+        return EXIT_STOPPED
+    return EXIT_OK
+
+
+def _run_fleet(args) -> int:
+    """``--vessel A,B,...`` / ``--vessel all``: the manoeuvre on each vessel (:mod:`.fleet`)."""
+    import copy
+
+    from usv_mj.command_args import EXIT_OK, EXIT_STOPPED
+    from usv_mj.main_job import RunFailed
+    from usv_mj.render import video_options
+
+    from .fleet import run_fleet, table_lines, vessel_list
+
+    kinds = vessel_list(args.vessel)
+    found = {}
+
+    def scenario_for(vessel):
+        one = copy.copy(args)
+        one.vessel, one.set = vessel, list(args.set)
+        scenario, found["kind"] = _scenario(one)
+        return scenario
+
+    scenario_for(kinds[0])     # the manoeuvre's kind (and the flags) checked before the list is run
+    kind = found["kind"]
+    try:
+        render_options = video_options(args)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+    if args.out is not None and args.out.strip() == "":
+        raise ScenarioError("--out '': an empty path; name the output folder")
+    out = Path(args.out) if args.out is not None else Path("renders") / f"manoeuvre-{kind}-vessels"
+    t0 = time.perf_counter()
+    try:
+        fleet = run_fleet(scenario_for, kinds, kind, out, plant_kind=args.plant, video=args.video,
+                          progress=not args.quiet, overwrite=args.overwrite, render_options=render_options)
+    except RunFailed as exc:
+        print(f"usv-mj manoeuvre: {exc}", file=sys.stderr)
+        return EXIT_STOPPED
+    plant = fleet["rows"][0]["plant"] if fleet["rows"] else args.plant
+    print(f"usv-mj manoeuvre {kind}: {len(kinds)} vessels, {plant} plant ({time.perf_counter() - t0:.1f} s)")
+    print("\n".join(table_lines(kind, fleet["rows"])))
+    print(f"  outputs in {out}/: manoeuvre_vessels.png, vessels.json, vessels.md and one folder per vessel "
+          f"({', '.join(r['folder'] for r in fleet['rows'])})")
+    bad = [v for v, job in fleet["jobs"].items() if job.summary.get("status") != "completed" or job.summary.get("job_stopped")]
+    missing = [v for v in kinds if v not in fleet["jobs"]]
+    if bad or missing:
+        print(f"usv-mj manoeuvre: the run of {', '.join(bad)} did not complete"
+              + (f"; not run: {', '.join(missing)}" if missing else ""), file=sys.stderr)
         return EXIT_STOPPED
     return EXIT_OK
 

@@ -165,10 +165,42 @@ class ManoeuvreSpec:
         return getattr(self.options, name)
 
 
-def manoeuvre_from_table(table, source: str = "<dict>", vessel=None) -> ManoeuvreSpec:
-    """A validated :class:`ManoeuvreSpec` from a ``[manoeuvre]`` table (every key checked); the
-    vessel's own defaults (``Vessel.manoeuvre_defaults`` of ``vessel``, a VesselSpec) fill the keys
-    the table does not give."""
+#: the paper hull's length [m], the one the defaults of :data:`KINDS` are chosen for (usv_mj.vessels.PAPER_DIMENSIONS)
+PAPER_LENGTH_M = 1.98
+#: how each option scales with the length ratio lam = L / 1.98 m under Froude similarity (same
+#: Froude number U / sqrt(g L), same density): speeds sqrt(lam), forces lam^3, moments lam^4
+FROUDE_POWERS = {"approach_speed": 0.5, "stop_speed": 0.5, "yaw_moment": 4.0, "max_yaw_moment": 4.0,
+                 "astern_force": 3.0}
+
+
+def vessel_defaults(kind: str, vessel_model=None) -> dict:
+    """The defaults of manoeuvre ``kind``'s options on a vessel (a :class:`usv_mj.vessels.Vessel`;
+    None: the paper hull): the vessel's own, where it declares them (``Vessel.manoeuvre``: a data
+    file's ``[manoeuvre]`` table, its keys for every kind that has them and its ``[manoeuvre.KIND]``
+    subtables for one kind; e.g. the Otter's turning at the reference's propeller speeds),
+    and the speeds and the "rudder" of :data:`KINDS`'s defaults (chosen for the paper hull at
+    0.6 m/s, 10 N m) Froude-scaled to the vessel's length otherwise (:data:`FROUDE_POWERS`; the same
+    test in nondimensional terms: Fn = 0.136, N' = tau_r / (0.5 rho U^2 L^3) = 0.0070). The paper
+    hull's are :data:`KINDS`'s exactly (an empty dict). Only keys ``kind``'s options have."""
+    if vessel_model is None:
+        return {}
+    names = {f.name for f in fields(KINDS[kind])}
+    dims = getattr(vessel_model, "dimensions", None)
+    out = {}
+    # a ruddered vessel's "rudder" is an angle, not a moment: nothing of the paper's test scales to it
+    if dims is not None and float(dims.L) != PAPER_LENGTH_M and getattr(vessel_model, "inputs", "forces") != "rudder":
+        lam = float(dims.L) / PAPER_LENGTH_M
+        base = KINDS[kind]()
+        out = {k: getattr(base, k) * lam ** p for k, p in FROUDE_POWERS.items() if k in names}
+    own = getattr(vessel_model, "manoeuvre", None) or {}
+    out.update({k: v for k, v in own.items() if k in names and not isinstance(v, dict)})
+    out.update({k: v for k, v in (own.get(kind) or {}).items() if k in names})  # the kind's own table wins
+    return out
+
+
+def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> ManoeuvreSpec:
+    """A validated :class:`ManoeuvreSpec` from a ``[manoeuvre]`` table (every key checked); a key the
+    table does not give takes the vessel's default (:func:`vessel_defaults`), then the kind's."""
     from usv_mj.scenario import build_table
 
     if not isinstance(table, dict):
@@ -177,12 +209,10 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel=None) -> Manoeuvr
     kind = table.pop("kind", "turning")
     if kind not in KINDS:
         raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
-    model = getattr(vessel, "model", None)
-    own = (getattr(model, "manoeuvre_defaults", None) or {}).get(kind, {})
-    table = {**own, **table}
-    if getattr(model, "inputs", "forces") == "rudder" and kind in ("spiral", "stopping"):
+    table = {**vessel_defaults(kind, vessel_model), **table}
+    if getattr(vessel_model, "inputs", "forces") == "rudder" and kind in ("spiral", "stopping"):
         raise ScenarioError(f"{source}: manoeuvre {kind!r} is not available on the ruddered vessel "
-                            f"{vessel.kind!r} (turning and zigzag are; docs/manoeuvres.md)")
+                            f"{vessel_model.kind!r} (turning and zigzag are; docs/manoeuvres.md)")
     try:
         options = build_table(KINDS[kind], table, source, "manoeuvre", extra_known={"kind"})
     except ScenarioError as exc:

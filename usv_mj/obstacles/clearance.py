@@ -35,7 +35,7 @@ from shapely import affinity
 
 from usv_mj.plants.mujoco_callback import call_model_data, mujoco_function_address
 
-from .compose import HULL_RADIUS, hull_footprint
+from .compose import hull_footprint, vessel_collision_geoms, vessel_hull_radius
 
 ANALYTIC_NOTE = ("the analytic plant has no contact physics: clearance is computed from the geometry, "
                  "a collision is recorded when it reaches zero, and the hull passes through obstacles")
@@ -153,7 +153,9 @@ class MuJoCoClearance:
         self._is_hull[self.hull_geoms] = True
         self.exact_within = float(exact_within)
         self._ogeoms = np.array(self.obstacle_geoms, dtype=np.int64)
-        self._bound = HULL_RADIUS + np.array([o.bounding_radius for o in plant.obstacles], dtype=float)
+        # the plant's hull as MuJoCo collides it (scaled to the vessel at load)
+        self._bound = vessel_hull_radius(getattr(plant, "dimensions", None)) + np.array(
+            [o.bounding_radius for o in plant.obstacles], dtype=float)
         self.exact = np.ones(n, dtype=bool)  # which entries of the last update are exact
         self._order = np.zeros(n, dtype=np.int64)  # the kernel's visiting order (min_only)
         # the native update (mujoco_clearance_kernel): views of the mjData's arrays, the libmujoco
@@ -350,18 +352,21 @@ class GeometricClearance:
     """Clearance from the geometry for plants without contact physics (module docstring).
 
     ``obstacles``: the :class:`~usv_mj.obstacle_tables.ObstacleSpec` tuple; moving obstacles are
-    placed at ``center + velocity t``.
+    placed at ``center + velocity t``. ``dimensions``: the vessel's main dimensions (its
+    footprint: the collision geoms scaled as the MuJoCo plant scales them); None: the paper hull.
     """
 
     note = ANALYTIC_NOTE
 
-    def __init__(self, obstacles, resolution: int = 16, method: str = "numba", exact_within: float = 10.0):
+    def __init__(self, obstacles, resolution: int = 16, method: str = "numba", exact_within: float = 10.0,
+                 dimensions=None):
         if method not in ("numba", "shapely"):
             raise ValueError(f"GeometricClearance: method must be 'numba' or 'shapely', got {method!r}")
         self.method = method
         self.obstacles = tuple(obstacles)
         n = len(self.obstacles)
-        self.footprint = shapely.orient_polygons(hull_footprint(resolution))  # counter-clockwise exterior
+        # the vessel's footprint (``dimensions``: usv_mj.vessels.Dimensions; None: the paper hull's)
+        self.footprint = shapely.orient_polygons(hull_footprint(resolution, vessel_collision_geoms(dimensions)))
         self._vertices = np.asarray(self.footprint.exterior.coords)  # body frame, closed ring
         self._body = np.ascontiguousarray(self._vertices[:-1])
         if not np.isclose(shapely.convex_hull(self.footprint).area, self.footprint.area, rtol=1e-9):
@@ -444,9 +449,10 @@ class GeometricClearance:
         return out
 
 
-def make_clearance_monitor(plant, obstacles):
+def make_clearance_monitor(plant, obstacles, dimensions=None):
     """The monitor that fits ``plant``: :class:`MuJoCoClearance` when it has ``obstacle_geoms``
-    (a :class:`~usv_mj.obstacles.compose.HarbourPlant`), :class:`GeometricClearance` otherwise."""
+    (a :class:`~usv_mj.obstacles.compose.HarbourPlant`), :class:`GeometricClearance` of the
+    vessel's ``dimensions`` otherwise."""
     if hasattr(plant, "obstacle_geoms"):
         return MuJoCoClearance(plant)
-    return GeometricClearance(obstacles)
+    return GeometricClearance(obstacles, dimensions=dimensions)

@@ -82,12 +82,12 @@ HULL_CONTYPE, HULL_CONAFFINITY = 1, 2
 OBSTACLE_CONTYPE, OBSTACLE_CONAFFINITY = 2, 1
 
 
-def hull_radius() -> float:
+def hull_radius(geoms=None) -> float:
     """Radius [m] of the smallest disc about the body origin that holds the hull's collision geoms
-    in the water plane (the box's far corners: sqrt(0.98^2 + 0.38^2) = 1.0511 m; the ellipsoid
-    reaches x = 1.0 m)."""
+    (``geoms``: default :data:`HULL_COLLISION_GEOMS`) in the water plane (the paper hull's: the
+    box's far corners, sqrt(0.98^2 + 0.38^2) = 1.0511 m; the ellipsoid reaches x = 1.0 m)."""
     r = 0.0
-    for _, kind, size, pos in HULL_COLLISION_GEOMS:
+    for _, kind, size, pos in (HULL_COLLISION_GEOMS if geoms is None else geoms):
         if kind == "box":
             for sx in (-1, 1):
                 for sy in (-1, 1):
@@ -101,15 +101,49 @@ def hull_radius() -> float:
 HULL_RADIUS = hull_radius()
 
 
-def hull_footprint(resolution: int = 32):
-    """The hull's collision geoms as one shapely polygon in the body frame (water-plane section).
+def _is_paper(dimensions) -> bool:
+    from usv_mj.vessels import PAPER_DIMENSIONS as ref
+
+    return dimensions is None or (dimensions.L, dimensions.B, dimensions.T) == (ref.L, ref.B, ref.T)
+
+
+def vessel_collision_geoms(dimensions=None) -> tuple:
+    """:data:`HULL_COLLISION_GEOMS` of a vessel of main ``dimensions`` (usv_mj.vessels.Dimensions):
+    scaled by the MuJoCo plant's own :func:`usv_mj.plants.mujoco_plant.scale_hull` (the one rule:
+    the plant scales these geoms so at load), so what the analytic plant's clearance and the
+    planner see is what MuJoCo collides. None or the paper's: the constant itself."""
+    if _is_paper(dimensions):
+        return HULL_COLLISION_GEOMS
+    import mujoco
+
+    from usv_mj.plants.mujoco_plant import scale_hull
+
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="hull")
+    types = {"box": mujoco.mjtGeom.mjGEOM_BOX, "ellipsoid": mujoco.mjtGeom.mjGEOM_ELLIPSOID}
+    for name, kind, size, pos in HULL_COLLISION_GEOMS:
+        body.add_geom(name=name, type=types[kind], size=list(size), pos=list(pos))
+    scale_hull(spec, dimensions)
+    return tuple((name, kind, tuple(float(v) for v in g.size), tuple(float(v) for v in g.pos))
+                 for (name, kind, _, _), g in zip(HULL_COLLISION_GEOMS, body.geoms))
+
+
+def vessel_hull_radius(dimensions=None) -> float:
+    """:func:`hull_radius` of the vessel's collision geoms (:func:`vessel_collision_geoms`);
+    :data:`HULL_RADIUS` itself for the paper hull."""
+    return HULL_RADIUS if _is_paper(dimensions) else hull_radius(vessel_collision_geoms(dimensions))
+
+
+def hull_footprint(resolution: int = 32, geoms=None):
+    """The hull's collision geoms (``geoms``: default :data:`HULL_COLLISION_GEOMS`; a vessel's:
+    :func:`vessel_collision_geoms`) as one shapely polygon in the body frame (water-plane section).
 
     The ellipsoid is a polygon inscribed with ``4*resolution`` vertices (so distances computed
     with it can be larger than MuJoCo's by at most a(1 - cos(pi/(4 resolution))): 0.7 mm at 16)."""
     import shapely
 
     parts = []
-    for _, kind, size, pos in HULL_COLLISION_GEOMS:
+    for _, kind, size, pos in (HULL_COLLISION_GEOMS if geoms is None else geoms):
         if kind == "box":
             parts.append(shapely.box(pos[0] - size[0], pos[1] - size[1], pos[0] + size[0], pos[1] + size[1]))
         else:

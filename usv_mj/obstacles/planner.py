@@ -109,7 +109,10 @@ class SafetyEnvelope:
     @classmethod
     def from_scenario(cls, scenario, margin: float) -> "SafetyEnvelope":
         f = scenario.funnel
-        return cls(PerformanceFunnel(f.rho_xy[0], f.rho_xy[1], f.rate), scenario.ship.eps, HULL_RADIUS, margin)
+        from .compose import vessel_hull_radius
+
+        radius = vessel_hull_radius(scenario.vessel.model.dimensions)   # the vessel's (the paper's: HULL_RADIUS)
+        return cls(PerformanceFunnel(f.rho_xy[0], f.rho_xy[1], f.rate), scenario.ship.eps, radius, margin)
 
 
 # --- the path: arc-length table from a virtual boat --------------------------------------------

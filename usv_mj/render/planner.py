@@ -236,6 +236,11 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     nf = frame_count(duration, fps, sp) if duration > 0 else 1
     if max_frames is not None:
         nf = max(1, min(nf, int(max_frames)))
+    # the closest zoom keeps a hull longer than 2 m at the paper hull's share of the picture
+    from .world import hull_dimensions
+
+    hull = hull_dimensions(record)
+    min_half = MIN_HALF_HEIGHT * max(1.0, hull[0] / 2.0) if hull is not None else MIN_HALF_HEIGHT
     explicit_rows = rows is not None
     if explicit_rows:
         rows = np.asarray(rows, dtype=int).ravel()
@@ -311,7 +316,7 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
                 pts += [(fc[0] - fh[0], fc[1] - fh[1]), (fc[0] + fh[0], fc[1] + fh[1])]
         if obstacle_table is not None:                # obstacles close to the hull stay in the picture
             pts += _obstacles_near(obstacle_table, float(t[k]), float(x[k]), float(y[k]))
-        view = top_view(np.array(pts, float), aspect)
+        view = top_view(np.array(pts, float), aspect, min_half)
         hud = {"t": float(t[k]), "t_end": t1, "speedup": played, "title": title, "camera": camera, "funnel": funnel,
                "e": tuple(float(e[i][k]) for i in range(3)), "rho": tuple(float(rho[i][k]) for i in range(3)),
                "tau_u": float(tau["tau_u"][k]), "q_tau_u": float(tau["q_tau_u"][k]),

@@ -171,7 +171,7 @@ def camera_names(model_path=None) -> list:
 
 
 def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720, ghost: bool = True,
-                       samples: int = 0, sea: bool = True) -> tuple[mujoco.MjModel, str]:
+                       samples: int = 0, sea: bool = True, hull=None) -> tuple[mujoco.MjModel, str]:
     """Compile the scene with a mocap ``ghost`` hull added and an off-screen buffer of width x height.
 
     ``samples``: multisampling of the off-screen buffer (0: none; 2 or MuJoCo's default 4 cost about
@@ -179,8 +179,16 @@ def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720,
     ``sea``: add the wave surface of docs/sea.md §6, a hidden hfield geom (``SEA_GEOM``, contype =
     conaffinity = 0) of SEA_NODES x SEA_NODES nodes that :meth:`FrameRenderer.update_sea` shows,
     re-centres, fills and uploads per frame when the run had a sea.
+    ``hull``: the vessel's (L, B, T) [m] (:func:`usv_mj.render.world.hull_dimensions`): the model file's hull scaled to it
+    by the MuJoCo plant's own :func:`usv_mj.plants.mujoco_plant.scale_hull` (what the plant
+    simulates is what is drawn); None: the file's hull (the paper's).
     """
     spec, label = load_scene_spec(model_path)
+    if hull is not None:
+        from usv_mj.plants.mujoco_plant import scale_hull
+        from usv_mj.vessels import Dimensions
+
+        scale_hull(spec, Dimensions(*hull))
     base = spec.compile()
     for jname in ("x", "y", "yaw"):
         if mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_JOINT, jname) < 0:
@@ -234,17 +242,18 @@ class FrameRenderer:
     layers: which of :data:`LAYERS` to draw ("hud" and "legend" are the 2-D overlay).
     shadows, reflections: MuJoCo's shadow and reflection passes (off: about 2-3x faster on Mesa).
     samples: multisampling (0 fastest, MuJoCo's default 4).
+    hull: the vessel's (L, B, T) [m] or None (the model file's hull): :func:`build_replay_model`.
     """
 
     def __init__(self, width: int, height: int, camera: str = "top", *, model_path=None,
-                 layers=LAYERS, shadows: bool = False, reflections: bool = False, samples: int = 0):
+                 layers=LAYERS, shadows: bool = False, reflections: bool = False, samples: int = 0, hull=None):
         self.width, self.height = int(width), int(height)
         self.layers = frozenset(layers)
         unknown = self.layers - set(LAYERS)
         if unknown:
             raise ValueError(f"unknown render layers {sorted(unknown)}; known: {', '.join(LAYERS)}")
         self.model, self.model_label = build_replay_model(model_path, width=self.width, height=self.height,
-                                                          ghost=True, samples=samples)
+                                                          ghost=True, samples=samples, hull=hull)
         m = self.model
         if not shadows:
             m.vis.quality.shadowsize = 0

@@ -219,11 +219,13 @@ def _default_workers(n_frames: int) -> int:
 def render_frames(record, *, width: int = 320, height: int = 240, camera: str = "top", rows=None,
                   fps: float = DEFAULT_FPS, speedup: float | None = None, max_frames: int | None = None,
                   layers=LAYERS, views=None, workers: int = 1, gl: str | None = None, model=None,
-                  shadows: bool = False, samples: int = 0) -> list[np.ndarray]:
+                  shadows: bool = False, samples: int = 0, hull="record") -> list[np.ndarray]:
     """Frames of ``record`` as (height, width, 3) uint8 arrays, without writing a video.
 
     ``rows``: draw exactly these record rows (one frame each) instead of the video's time mapping.
     ``views``: a :class:`~usv_mj.render.planner.TopView` (or one per frame) to pin the top camera.
+    ``hull``: the drawn hull's (L, B, T) [m]; "record" (default): the record's vessel's
+    (:func:`usv_mj.render.world.hull_dimensions`); None: the model file's hull.
     """
     check_size(width, height)
     plan = _plan(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera, max_frames=max_frames,
@@ -235,9 +237,18 @@ def render_frames(record, *, width: int = 320, height: int = 240, camera: str = 
             s.view = v
     backend = select_backend(gl)
     kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
-                  shadows=shadows, samples=samples)
+                  shadows=shadows, samples=samples, hull=_hull(record, hull))
     with _FrameSource(backend, max(1, int(workers)), kwargs) as source:
         return [np.array(f) for f in source.frames(specs)]
+
+
+def _hull(record, hull):
+    """The (L, B, T) the video draws: ``hull`` itself, or the record's vessel's for "record"."""
+    if isinstance(hull, str) and hull == "record":
+        from .world import hull_dimensions
+
+        return hull_dimensions(record)
+    return None if hull is None else tuple(float(v) for v in hull)
 
 
 def _plan(record, *, fps, speedup, width, height, camera, max_frames=None, rows=None) -> Plan:
@@ -249,7 +260,8 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
                fps: float = DEFAULT_FPS, speedup: float | None = None, camera: str = "top",
                workers: int | None = None, progress: bool = True, gl: str | None = None, model=None,
                shadows: bool = False, samples: int = 0, layers=LAYERS, crf: int = 23, preset: str = "ultrafast",
-               max_frames: int | None = None, segment_frames: int = 120, pool: "RenderWorkers | None" = None) -> dict:
+               max_frames: int | None = None, segment_frames: int = 120, pool: "RenderWorkers | None" = None,
+               hull="record") -> dict:
     """Render ``record`` (a finished :class:`~usv_mj.record.RunRecord`) to an mp4 and a PNG of its last frame.
 
     Parameters
@@ -265,7 +277,10 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
         process boundary.
     gl: "egl", "osmesa" or None (auto: the MUJOCO_GL variable, else EGL, else OSMesa).
     model: the scene MJCF (default models/scene.xml). shadows: MuJoCo's shadow pass (slow on Mesa).
-    pool: :class:`RenderWorkers` started earlier (same size, camera and options); not closed here.
+    pool: :class:`RenderWorkers` started earlier (same size, camera and options, and the same hull:
+        ``RenderWorkers(hull=hull_dimensions(scenario))``); not closed here.
+    hull: the drawn hull's (L, B, T) [m]; "record" (default): the record's vessel's, scaled as the
+        MuJoCo plant scales it (:func:`usv_mj.render.world.hull_dimensions`); None: the model file's.
     samples: multisampling. crf, preset: libx264 quality and speed (ultrafast: about 15 ms of CPU a
         720p frame, veryfast about 35 ms). max_frames: cap (tests).
 
@@ -290,7 +305,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
     _remove_dead_render_folders(out.parent)
     png = out.with_suffix(".png")
     kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
-                  shadows=shadows, samples=samples)
+                  shadows=shadows, samples=samples, hull=_hull(record, hull))
     if pool is not None:
         if pool.pool is None:
             raise ValueError("pool: these RenderWorkers are closed")
@@ -347,6 +362,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
         "width": width, "height": height, "video_fps": float(fps), "video_s": count / float(fps),
         "speedup": plan.played_speedup, "camera": camera, "workers": workers_used,
         "gl": backend, "gl_renderer": renderer_name(backend), "model": model_label,
+        "hull_LBT_m": kwargs["hull"],
     }
 
 
@@ -368,7 +384,7 @@ class RenderWorkers:
 
     def __init__(self, *, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT, camera: str = "top",
                  workers: int | None = None, gl: str | None = None, model=None, shadows: bool = False,
-                 samples: int = 0, layers=LAYERS):
+                 samples: int = 0, layers=LAYERS, hull=None):
         from .gl_backend import backend_environment
 
         check_size(width, height)
@@ -376,7 +392,7 @@ class RenderWorkers:
         self.backend = select_backend(gl)
         self.workers = _default_workers(1 << 30) if workers is None else max(1, int(workers))
         self.kwargs = dict(width=width, height=height, camera=camera, model_path=model, layers=tuple(layers),
-                           shadows=shadows, samples=samples)
+                           shadows=shadows, samples=samples, hull=_hull(None, hull))
         from usv_mj.spawning import spawn_context
 
         ctx = spawn_context()

@@ -73,6 +73,30 @@ def render_world(record) -> RenderWorld | None:
     return None if world.empty else world
 
 
+def hull_dimensions(source) -> tuple[float, float, float] | None:
+    """(L, B, T) [m] (no MuJoCo import: the planner and the parent process call it before the GL
+    backend is chosen) of the vessel of ``source`` (a Scenario, a record, or a record's metadata
+    ``scenario`` table), or None for the paper hull (the model file's own, drawn unchanged) and
+    for a record that names no vessel."""
+    from usv_mj.vessels import PAPER_DIMENSIONS
+
+    vessel = getattr(source, "vessel", None)
+    model = getattr(vessel, "model", None)
+    if vessel is None:
+        md = getattr(source, "metadata", None)
+        from usv_mj.errors import ScenarioError
+        from usv_mj.vessels import of_table
+
+        try:
+            model = of_table(md.get("scenario") if isinstance(md, dict) else source)
+        except (ScenarioError, ValueError):   # a vessel this process cannot resolve: the model file's hull
+            return None
+    d = getattr(model, "dimensions", None)
+    if d is None or (d.L, d.B, d.T) == (PAPER_DIMENSIONS.L, PAPER_DIMENSIONS.B, PAPER_DIMENSIONS.T):
+        return None
+    return (float(d.L), float(d.B), float(d.T))
+
+
 def _ship(table: dict):
     from usv_mj.ship import ShipParams
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from usv_mj.ship import RigidBodySplit, ShipParams
 
-__all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS", "register_file"]
+__all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS", "register_file", "of_table"]
 
 
 @dataclass(frozen=True)
@@ -74,11 +74,13 @@ class Vessel:
     inputs: "forces" (the input channels are the surge force tau_u [N] and yaw moment tau_r [N m])
         or "rudder" (a ruddered ship, usv_mj.mmg: propeller revolutions n_P [1/s] and rudder angle
         delta [rad], positive to port).
-    manoeuvre_defaults: {manoeuvre kind: {option: value}} the vessel's own defaults of the
-        standard manoeuvres (usv_mj.manoeuvres.options; a scenario's [manoeuvre] keys win).
     scale: the model's scale 1:scale of a full-scale ship (IMO's criteria then apply to that ship), or None.
     nominal_rps: a ruddered vessel's propeller revolutions near its service speed [1/s] (where the
         manoeuvres' search for the n_P that holds the approach speed starts).
+    manoeuvre: the vessel's own defaults of the standard manoeuvres' options ({key: value}, e.g.
+        approach_speed, yaw_moment; a data file's ``[manoeuvre]`` table), each applied to every manoeuvre
+        that has the option, and {manoeuvre kind: {key: value}} for one kind only (these win), or None: the paper hull's
+        Froude-scaled to its length (usv_mj.manoeuvres.options.vessel_defaults).
     """
 
     kind: str
@@ -89,9 +91,9 @@ class Vessel:
     source: str = ""
     notes: tuple = ()
     inputs: str = "forces"
-    manoeuvre_defaults: dict | None = None
     scale: float | None = None
     nominal_rps: float | None = None
+    manoeuvre: dict | None = None
 
     def rigid_body(self) -> tuple[float, float, float]:
         """(m [kg], x_g [m], I_z about the origin [kg m^2]) that MuJoCo carries."""
@@ -142,6 +144,18 @@ def from_derivatives(m, x_g, I_z, X_udot, Y_vdot, Y_rdot, N_vdot, N_rdot,
         coriolis_masses={"full": None, "rigid": (m, m, m * x_g), "none": (0.0, 0.0, 0.0)}[coriolis],
         crossflow=(crossflow_k, crossflow_L, strips) if crossflow_k > 0 else (0.0, 0.0, 0.0))
     return ship, split
+
+
+def of_table(table) -> Vessel | None:
+    """The vessel of a scenario's ``to_dict()`` (a run's metadata ``scenario``): its ``[vessel]``
+    resolved (with ``[ship]``, the paper kind's options, for the paper kind only: to_dict writes
+    the packed hull under ``ship`` beside every vessel); None when the table names no vessel."""
+    if not isinstance(table, dict) or not isinstance(table.get("vessel"), dict):
+        return None
+    from usv_mj.scenario import from_dict
+
+    kinds = ("vessel", "ship") if table["vessel"].get("kind", "paper") == "paper" else ("vessel",)
+    return from_dict({k: table[k] for k in kinds if k in table}, source="<metadata>").vessel.model
 
 
 def register_file(path) -> str:

@@ -21,6 +21,9 @@ or by naming it in a scenario: ``[vessel] kind = "path/to/boat.toml"``. A file::
     cd = 1.0                     # 2-D drag coefficient; rho [kg/m^3] and strips (20) optional
     [actuators]                  # optional: the vessel's own [actuators] table (usv_mj.actuators)
     kind = "twin"
+    [manoeuvre]                  # optional: its own defaults of the manoeuvres' options
+    approach_speed = 2.34        # m/s (otherwise the paper hull's test Froude-scaled to L:
+    yaw_moment = 15.8            # N m  usv_mj.manoeuvres.options.vessel_defaults)
 
 Every number of ``[derivatives]``, ``[dimensions]`` and ``[crossflow]`` is an option of the kind,
 so a scenario may change one (``[vessel] kind = "otter"``, ``m = 90.0``); the options dataclass of
@@ -46,7 +49,7 @@ DERIVATIVES = ("m", "x_g", "I_z", "X_udot", "Y_vdot", "Y_rdot", "N_vdot", "N_rdo
                "N_v", "N_vv", "N_rv", "N_r", "N_vr", "N_rr")
 REQUIRED = ("m", "x_g", "I_z", "X_udot", "Y_vdot", "Y_rdot", "N_vdot", "N_rdot")
 TOP_KEYS = {"description", "source", "notes", "coriolis", "uncertainty_scale", "derivatives", "dimensions",
-            "crossflow", "actuators"}
+            "crossflow", "actuators", "manoeuvre"}
 RHO_WATER = 1025.0  # kg/m^3, the cross-flow drag's default density
 UNITS = {"m": "kg", "x_g": "m", "I_z": "kg m^2", "X_udot": "kg", "Y_vdot": "kg", "Y_rdot": "kg m", "N_vdot": "kg m",
          "N_rdot": "kg m^2", "X_u": "kg/s", "X_uu": "kg/m", "X_uuu": "kg s/m^2", "Y_v": "kg/s", "Y_vv": "kg/m",
@@ -124,8 +127,30 @@ def read_file(path) -> dict:
     actuators = data.get("actuators")
     if actuators is not None and not isinstance(actuators, dict):
         raise ScenarioError(f"{path}: [actuators] must be a table, got {actuators!r}")
+    manoeuvre = data.get("manoeuvre")
+    if manoeuvre is not None:
+        if not isinstance(manoeuvre, dict):
+            raise ScenarioError(f"{path}: [manoeuvre] must be a table, got {manoeuvre!r}")
+        from usv_mj.manoeuvres.options import KINDS
+
+        known = {f.name for cls in KINDS.values() for f in dataclasses.fields(cls)}
+        items = [(k, v) for k, v in manoeuvre.items() if not (k in KINDS and isinstance(v, dict))]
+        for kind in (k for k, v in manoeuvre.items() if k in KINDS and isinstance(v, dict)):
+            own = {f.name for f in dataclasses.fields(KINDS[kind])}   # [manoeuvre.KIND]: that kind's options
+            for key, value in manoeuvre[kind].items():
+                if key not in own:
+                    raise ScenarioError(f"{path}: unknown key manoeuvre.{kind}.{key!r}; the {kind} options are "
+                                        f"{', '.join(sorted(own))}")
+                items.append((f"{kind}.{key}", value))
+        for key, value in items:
+            if "." not in key and key not in known:
+                raise ScenarioError(f"{path}: unknown key manoeuvre.{key!r}; the manoeuvres' options are "
+                                    f"{', '.join(sorted(known))}")
+            if not isinstance(value, str):
+                _number(path, f"manoeuvre.{key}", value)
     return {"options": options, "description": str(data.get("description", "")),
-            "source": str(data.get("source", "")), "notes": tuple(notes), "actuators": actuators}
+            "source": str(data.get("source", "")), "notes": tuple(notes), "actuators": actuators,
+            "manoeuvre": manoeuvre}
 
 
 def _options_class(kind: str, defaults: dict):
@@ -157,7 +182,7 @@ class DataVessel:
         ship, split = from_derivatives(**der, coriolis=o.coriolis, crossflow_k=k_cf, crossflow_L=o.L,
                                        strips=o.strips, uncertainty_scale=o.uncertainty_scale, where="vessel")
         return Vessel(self.kind, ship, split, Dimensions(o.L, o.B, o.T), self.contents["actuators"],
-                      self.contents["source"], self.contents["notes"])
+                      self.contents["source"], self.contents["notes"], self.contents.get("manoeuvre"))
 
 
 def register_file(path, kind: str | None = None, replace: bool = False) -> str:

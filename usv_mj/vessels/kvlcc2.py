@@ -212,12 +212,12 @@ def kvlcc2_vessel(options, scenario=None) -> Vessel:
     """The KVLCC2 7 m model of ``options`` (None: the defaults of the module docstring's source)."""
     o = options if options is not None else KVLCC2Options()
     ship, split = hull(o)
-    manoeuvres = {"turning": {"approach_speed": o.service_speed, "duration": 200.0, "control_period": 0.01},
-                  "zigzag": {"approach_speed": o.service_speed, "duration": 100.0, "control_period": 0.01}}
+    manoeuvres = {"approach_speed": o.service_speed, "control_period": 0.01,
+                  "turning": {"duration": 200.0}, "zigzag": {"duration": 100.0}}
     return Vessel("kvlcc2", ship, split, Dimensions(o.L_pp, o.B, o.d), actuators(o),
                   "Yasukawa and Yoshimura (2015), J. Mar. Sci. Technol. 20, 37-52 (MMG standard method), KVLCC2 7 m "
                   "model; numbers as in shipmmg's KVLCC2 L7 test set",
                   ("3 DOF: roll (and the heel in a turn), heave and pitch are left out",
                    "inputs: tau_u is n_P [1/s], tau_r is the rudder angle delta [rad] (positive to port)",
                    f"the wake model is {o.wake_model!r}; calm deep water only (no [sea])"),
-                  inputs="rudder", manoeuvre_defaults=manoeuvres, scale=SCALE, nominal_rps=o.propeller_rps)
+                  inputs="rudder", manoeuvre=manoeuvres, scale=SCALE, nominal_rps=o.propeller_rps)
