@@ -53,11 +53,8 @@ def vessel_model(scenario):
     if isinstance(scenario, dict):
         from usv_mj.vessels import of_table
 
-        model = of_table(scenario)
-    else:
-        model = getattr(getattr(scenario, "vessel", None), "model", None)
-    dims = getattr(model, "dimensions", None)
-    return float(dims.L) if dims is not None else PAPER_HULL_LENGTH_M
+        return of_table(scenario)
+    return getattr(getattr(scenario, "vessel", None), "model", None)
 
 
 def spec_of_record(record) -> ManoeuvreSpec | None:
