@@ -209,6 +209,7 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> Ma
     kind = table.pop("kind", "turning")
     if kind not in KINDS:
         raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
+    vessel_model = getattr(vessel_model, "model", vessel_model)   # a scenario's VesselSpec or its Vessel
     table = {**vessel_defaults(kind, vessel_model), **table}
     if getattr(vessel_model, "inputs", "forces") == "rudder" and kind in ("spiral", "stopping"):
         raise ScenarioError(f"{source}: manoeuvre {kind!r} is not available on the ruddered vessel "
