@@ -182,7 +182,7 @@ class DataVessel:
         ship, split = from_derivatives(**der, coriolis=o.coriolis, crossflow_k=k_cf, crossflow_L=o.L,
                                        strips=o.strips, uncertainty_scale=o.uncertainty_scale, where="vessel")
         return Vessel(self.kind, ship, split, Dimensions(o.L, o.B, o.T), self.contents["actuators"],
-                      self.contents["source"], self.contents["notes"], self.contents.get("manoeuvre"))
+                      self.contents["source"], self.contents["notes"], manoeuvre=self.contents.get("manoeuvre"))
 
 
 def register_file(path, kind: str | None = None, replace: bool = False) -> str:
