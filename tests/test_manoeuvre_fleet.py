@@ -121,3 +121,15 @@ def test_otter_turn_beside_the_references_own_simulation():
     assert 2 * radius == pytest.approx(16.896, rel=0.025)
     assert speed == pytest.approx(2.433, rel=0.04)
     assert rate == pytest.approx(0.2880, rel=0.06)               # to port: r > 0 here, < 0 in the NED reference
+
+
+def test_a_ruddered_vessels_rudder_is_its_angle_not_the_unused_moment():
+    from usv_mj.manoeuvres.fleet import rudder_label
+
+    o = {"rudder_deg": 35.0, "angle_deg": 10.0, "yaw_moment": 10.0, "side": "starboard", "first_turn": "port"}
+    assert rudder_label({"kind": "turning", "rudder": "rudder angle delta [rad] ...", "options": o}) == \
+        "35 deg rudder starboard"
+    assert rudder_label({"kind": "zigzag", "rudder": "rudder angle delta [rad] ...", "options": o}) == \
+        "10 deg rudder starboard"
+    assert rudder_label({"kind": "turning", "rudder": "commanded yaw moment tau_r [N m]", "options": o}) == \
+        "10 N m starboard"

@@ -84,6 +84,10 @@ def rudder_label(result: dict) -> str:
     """The "rudder" a vessel ran with, from its options: a yaw moment, or whatever its own path uses."""
     o = result.get("options", {})
     side = o.get("side") or o.get("first_turn") or ""
+    if str(result.get("rudder", "")).startswith("rudder angle"):   # a ruddered vessel: an angle, not a moment
+        angle = o.get("rudder_deg") if result.get("kind") == "turning" else o.get("angle_deg")
+        if angle is not None:
+            return f"{angle:g} deg rudder {side}".strip()
     for key, unit in (("yaw_moment", "N m"), ("max_yaw_moment", "N m")):
         if key in o:
             return f"{o[key]:.4g} {unit} {side}".strip()
