@@ -29,6 +29,11 @@ if ! "$PYTHON" -c 'import torch' 2>/dev/null; then
   "$PYTHON" -m pip install --disable-pip-version-check -q "torch==2.13.0" 2>&1 | grep -v "Running pip as the 'root' user" || true
 fi
 "$PYTHON" -m pip install --disable-pip-version-check -q -e ".[test,gym,hpc,rl,live]" 2>&1 | grep -v "Running pip as the 'root' user" || true
+# the KVLCC2 oracle (pyproject's "oracles" extra) without its pins: Pillow < 11 and scikit-learn,
+# neither of which its simulate_mmg_3dof imports (it needs numpy, scipy and matplotlib, all present)
+if ! "$PYTHON" -c 'import shipmmg.mmg_3dof' 2>/dev/null; then
+  "$PYTHON" -m pip install --disable-pip-version-check -q --no-deps "shipmmg==0.0.11" 2>&1 | grep -v "Running pip as the 'root' user" || true
+fi
 "$PYTHON" -c "import usv_mj, mujoco; print(f'setup: usv_mj {usv_mj.__version__} with mujoco {mujoco.__version__} ready')"
 # numba compiles the kernels and the main job's loop combinations once per checkout (about 15 s on
 # a fresh machine): done here, with a stamp per source fingerprint, so that the main job starts warm
