@@ -120,6 +120,8 @@ def open_loop_kernel(t, x, ref, tu, vu, tr, vr, linear, diag):
 class OpenLoopController:
     """Commanded tau_u(t), tau_r(t) from :class:`OpenLoopGains`; no feedback (module docstring)."""
 
+    commands = "any"   # its channels are numbers given as they are: a force, or a ruddered vessel's n_P and angle (usv_mj.builder.commands_error)
+
     name = "open_loop"
     diagnostic_fields = ()
     criterion = NotJudged("open-loop input")

@@ -83,6 +83,8 @@ def zigzag_kernel(t, x, ref, tau_u, amplitude, switch, st, diag):
 class ZigzagController:
     """The zig-zag's switching logic on the heading (module docstring)."""
 
+    commands = "any"   # its channels are numbers given as they are: a force, or a ruddered vessel's n_P and angle (usv_mj.builder.commands_error)
+
     name = "zigzag"
     diagnostic_fields = (
         "heading_change",  # dpsi = psi - psi_0, unwrapped [rad]

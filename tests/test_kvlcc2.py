@@ -247,3 +247,21 @@ def test_compiled_and_python_loops_give_the_same_record(plant):
     for col in ("x", "y", "psi", "u", "v", "r", "f_u", "f_r", "sat_r", "heading_change"):
         assert np.array_equal(fast[col], slow[col]), col
     assert np.ptp(fast["f_r"]) > 0.3   # the rudder went both ways
+
+
+def test_a_force_controller_is_refused_on_the_ruddered_vessel():
+    """PPC's (tau_u, tau_r) would be read as (n_P, delta): the build says so instead of running it;
+    the open-loop controller, whose channels are the vessel's own, builds."""
+    from usv_mj import load_scenario
+    from usv_mj.builder import build, check_commands
+    from usv_mj.errors import ScenarioError
+
+    s = load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "duration": 1.0})
+    for kind in ("ppc", "pi", "los"):
+        with pytest.raises(ScenarioError, match=f"the '{kind}' controller commands a surge force"):
+            check_commands(s, kind)
+        with pytest.raises(ScenarioError, match="takes the propeller's n_P and the rudder angle"):
+            build(s, plant_kind="analytic", controller_kind=kind)
+    with build(s, plant_kind="analytic", controller_kind="open_loop") as parts:
+        assert parts.controller.commands == "any"
+    check_commands(load_scenario(preset="paper"), "ppc")   # a vessel that takes forces: no objection

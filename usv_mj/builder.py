@@ -152,6 +152,30 @@ def make_controller(scenario: Scenario, kind: str | None = None):
     return entry.make(gains, scenario)
 
 
+def commands_error(scenario: Scenario, controller, kind: str) -> str | None:
+    """Why controller ``kind`` (an instance or its registered class) cannot drive the scenario's
+    vessel (None: it can). A controller commands a surge force and a yaw moment unless it says
+    otherwise (``commands = "any"``: its channels are plain numbers, as the open-loop and zig-zag
+    controllers'; ``commands = "rudder"``); a ruddered vessel (``Vessel.inputs = "rudder"``, KVLCC2)
+    reads its channels as the propeller's n_P [1/s] and the rudder angle [rad], and no allocation
+    from forces to a rudder exists yet, so a force would be read as revolutions."""
+    inputs = getattr(getattr(scenario.vessel, "model", None), "inputs", "forces")
+    commands = getattr(controller, "commands", "forces")
+    if inputs == "forces" or commands in ("any", inputs):
+        return None
+    return (f"the {kind!r} controller commands a surge force and a yaw moment, but the vessel "
+            f"{scenario.vessel.kind!r} takes the propeller's n_P and the rudder angle (no allocation from "
+            f"forces to a rudder yet): use `usv-mj manoeuvre`, or the open_loop or zigzag controller, whose "
+            f"channels are the vessel's own")
+
+
+def check_commands(scenario: Scenario, kind: str, note: str = "") -> None:
+    """:func:`commands_error` for the registered controller ``kind``, as one ScenarioError (+ ``note``)."""
+    problem = commands_error(scenario, CONTROLLERS.get(kind, "controller").obj, kind)
+    if problem is not None:
+        raise ScenarioError(f"{scenario.source}: {problem}{note}")
+
+
 def make_quantizers(scenario: Scenario):
     """The hysteresis quantizers of the surge and yaw channels (Eq. 3), from ``[quantizer]``."""
     from .controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
@@ -250,6 +274,9 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
         plant = make_plant(scenario, kind, env, contact=contact, safety_radii=safety)
     try:
         controller = controller if controller is not None else make_controller(scenario, controller_kind)
+        problem = commands_error(scenario, controller, controller_kind or scenario.controller.kind)
+        if problem is not None:
+            raise ScenarioError(f"{scenario.source}: {problem}")
         if reference is None:
             reference = plan.reference if plan is not None else make_reference(scenario.trajectory, duration, scenario)
         hooks, sinks = (), ()

@@ -358,6 +358,12 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     out = Path(out_dir)
     render_opts = dict(render_options or {})
     check_run(scenario, out, video=video, render_options=render_opts, overwrite=overwrite)
+    from .builder import check_commands
+
+    run_baseline = scenario.baseline.enabled if baseline is None else baseline
+    check_commands(scenario, scenario.controller.kind)
+    if run_baseline and scenario.baseline.kind != scenario.controller.kind:
+        check_commands(scenario, scenario.baseline.kind, " (it is the baseline: --no-baseline skips it)")
     with _OutLock(out), _Signals() as signals:
         stage = Staging(out)
         try:
