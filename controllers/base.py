@@ -85,6 +85,8 @@ class Controller(Protocol):
 
     name: str
     diagnostic_fields: tuple[str, ...]
+    # optional: "forces" (the default: tau_u [N], tau_r [N m]), "any" or "rudder" (usv_mj.builder.commands_error)
+    commands: str
 
     def reset(self) -> None: ...
 
