@@ -179,12 +179,16 @@ class AppendFile:
     Read back with :meth:`read` (pread: nothing stays mapped) or :meth:`mapped` (memory-mapped;
     pages become resident as they are touched: a binary search touches a few)."""
 
-    def __init__(self, path, dtype):
+    def __init__(self, path, dtype, mode: str = "write"):
         self.path = Path(path)
         self.dtype = np.dtype(dtype).newbyteorder("<")
         self.count = 0
-        self._file = open(self.path, "w+b")
-        self._file.write(_header(0, self.dtype.str))
+        if mode == "write":
+            self._file = open(self.path, "w+b")
+            self._file.write(_header(0, self.dtype.str))
+        else:   # read: as many whole elements as the file holds (a killed run's too)
+            self._file = open(self.path, "rb")
+            self.count = max(0, (os.fstat(self._file.fileno()).st_size - HEADER_BYTES) // self.dtype.itemsize)
 
     def append(self, values) -> None:
         values = np.ascontiguousarray(values, dtype=self.dtype).reshape(-1)
@@ -193,7 +197,8 @@ class AppendFile:
             self.count += values.size
 
     def flush(self) -> None:
-        self._file.flush()
+        if self._file.writable():
+            self._file.flush()
 
     def finish(self) -> None:
         self._file.flush()
@@ -203,12 +208,12 @@ class AppendFile:
         lo, hi = max(0, lo), min(hi, self.count)
         if hi <= lo:
             return np.empty(0, self.dtype)
-        self._file.flush()
+        self.flush()
         size = self.dtype.itemsize
         return np.frombuffer(os.pread(self._file.fileno(), (hi - lo) * size, HEADER_BYTES + lo * size), self.dtype)
 
     def mapped(self) -> np.ndarray:
-        self._file.flush()
+        self.flush()
         if self.count == 0:
             return np.empty(0, self.dtype)
         return np.memmap(self._file, dtype=self.dtype, mode="r", offset=HEADER_BYTES, shape=(self.count,))

@@ -383,13 +383,16 @@ class SparseRows:
     (the obstacles within reach, the contacts), not with rows x obstacles; rows [lo, hi) are read
     by a binary search in the row file (a few pages) and the entries between."""
 
-    def __init__(self, folder, name: str, m: int, fill: float):
+    def __init__(self, folder, name: str, m: int, fill: float, mode: str = "write"):
         from usv_mj.record_store import AppendFile
 
         self.m, self.fill = m, fill
-        self.row = AppendFile(Path(folder) / f"{name}.row.npy", "<i8")
-        self.index = AppendFile(Path(folder) / f"{name}.index.npy", "<i4")
-        self.value = AppendFile(Path(folder) / f"{name}.value.npy", "<f8")
+        self.row = AppendFile(Path(folder) / f"{name}.row.npy", "<i8", mode)
+        self.index = AppendFile(Path(folder) / f"{name}.index.npy", "<i4", mode)
+        self.value = AppendFile(Path(folder) / f"{name}.value.npy", "<f8", mode)
+        # a killed run's files may end in a partial entry: the entries all three files hold
+        self.row.count = self.index.count = self.value.count = min(self.row.count, self.index.count,
+                                                                   self.value.count)
 
     def append(self, lo: int, block: np.ndarray, keep: np.ndarray) -> None:
         r, i = np.nonzero(keep)   # row-major: in row order
@@ -408,3 +411,44 @@ class SparseRows:
     def finish(self) -> None:
         for part in (self.row, self.index, self.value):
             part.finish()
+
+
+class StoredObstacleLog:
+    """A streamed obstacle log read back from its folder (``<record folder>/obstacles``), lazily:
+    :meth:`block` and the array-likes ``clearance``, ``normal_force``, ``obstacle_xy``
+    (:class:`LazyRows`) read only the rows asked for. ``rows``: the rows it holds; ``names``, the
+    obstacles'; ``meta``: its ``obstacles.json``."""
+
+    def __init__(self, folder):
+        folder = Path(folder)
+        meta_path = folder / "obstacles.json"
+        if not meta_path.exists():
+            raise FileNotFoundError(f"{folder}: no stored obstacle log (obstacles.json missing)")
+        self.meta = json.loads(meta_path.read_text())
+        self.names = list(self.meta["obstacles"])
+        m = len(self.names)
+        self.obstacles = self.names
+        self.dt = float(self.meta["control_period_s"])
+        self._center0 = np.asarray(self.meta["center"], dtype=float).reshape(m, 2)
+        self._velocity = np.asarray(self.meta["velocity"], dtype=float).reshape(m, 2)
+        self._parts = (SparseRows(folder, "clearance", m, np.nan, mode="read"),
+                       SparseRows(folder, "normal_force", m, 0.0, mode="read"))
+        rows = self._parts[0].row
+        last = int(rows.read(rows.count - 1, rows.count)[0]) + 1 if rows.count else 0
+        self.rows = self.capacity = int(self.meta["rows"]) if self.meta.get("status") != "running" else last
+        self.clearance, self.normal_force, self.obstacle_xy = (LazyRows(self, i) for i in range(3))
+
+    def block(self, lo: int, hi: int) -> tuple:
+        """Rows [lo, hi) as (clearance, normal force, centres) arrays (NaN past the end)."""
+        lo, hi = max(0, int(lo)), max(int(lo), int(hi))
+        m, r = len(self.names), hi - lo
+        c, f = np.full((r, m), np.nan), np.full((r, m), np.nan)
+        top = max(0, min(hi, self.rows) - lo)
+        self._parts[0].read(lo, lo + top, c[:top])
+        self._parts[1].read(lo, lo + top, f[:top])
+        if self._velocity.any():
+            xy = self._center0[None] + self._velocity[None] * (np.arange(lo, hi) * self.dt)[:, None, None]
+        else:
+            xy = np.repeat(self._center0[None], r, axis=0)
+        xy[top:] = np.nan
+        return c, f, xy
