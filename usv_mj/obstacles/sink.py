@@ -1,10 +1,13 @@
 """The obstacle log: clearance and contact force per control step, and the obstacle events.
 
 :class:`ObstacleLog` is a :class:`usv_mj.simulation.RunSink` (``start``/``rows``/``finish``) that is
-also fed once per control step by :class:`usv_mj.obstacles.run.ObstacleStepper` with
-:meth:`ObstacleLog.record_step`. It keeps, per step k (the record's row k):
+also fed once per control step by :class:`usv_mj.obstacles.hooks.ObstacleHook` with
+:meth:`ObstacleLog.record_step` (or, in the compiled loop, by its kernel in
+:mod:`usv_mj.obstacles.native_step`). It keeps, per step k (the record's row k):
 
-- ``clearance[k, i]``: signed distance [m] hull <-> obstacle i (negative: penetration);
+- ``clearance[k, i]``: signed distance [m] hull <-> obstacle i (negative: penetration); NaN when the
+  monitor's broad phase left obstacle i out: beyond reach, at least ``exact_within`` away
+  (:data:`BEYOND_REACH`; docs/obstacles.md);
 - ``normal_force[k, i]``: summed normal contact force [N] between the hull and obstacle i;
 - ``obstacle_xy[k, i]``: obstacle i's centre [m] (moving obstacles move);
 
@@ -18,9 +21,16 @@ and appends :class:`usv_mj.record.Event` s to the record as they happen:
   says once that the hull passes through);
 - ``replan`` (from :class:`usv_mj.obstacles.planner.Guidance`, via :meth:`add_event`).
 
+Memory: with an in-memory record the arrays hold every row; with a streamed record (one on disk,
+:mod:`usv_mj.record_store`) only a window of rows is in memory and the rows go to
+``<record folder>/obstacles/`` as sparse entries (:class:`SparseRows`), so a long run's memory does
+not depend on its duration; ``clearance`` etc. are then :class:`LazyRows` (``[lo:hi]`` reads those
+rows), and :class:`StoredObstacleLog` reads such a folder back lazily.
+
 :meth:`summary` gives the ``summary.json`` fields ``min_clearance_m`` (over the run and all
-obstacles) and ``contacts`` (number of contact or collision events) plus per-obstacle minima;
-``finish`` also stores it in ``record.metadata["obstacles"]``.
+obstacles) and ``contacts`` (number of contact or collision events) plus per-obstacle minima, reduced
+online as the rows come (the same values as a reduction over all of them); ``finish`` also stores
+it in ``record.metadata["obstacles"]``.
 """
 
 from __future__ import annotations
@@ -77,6 +87,7 @@ class ObstacleLog:
         self._min_row = np.zeros(n, np.int64)
         self._any_ok = np.zeros(n, dtype=bool)
         self._peak = np.zeros(n)
+        self._force_top = 0   # rows from here on have no contact force
         self._reduced = 0
         self._store = None   # a streamed log's files (_SparseRows per array): start() with a streamed record
         self._window(self.capacity)
@@ -117,6 +128,7 @@ class ObstacleLog:
         if normal_force.any():   # (the rows are zeros until a contact: a window's are cleared when it slides)
             self._force[j] = normal_force
             self._force_dirty = True
+            self._force_top = max(self._force_top, k + 1)
         if self._any_moving and self._store is None:
             self._xy[k] = self._center0 + self._velocity * t
         if k >= self.n_rows:
@@ -201,19 +213,25 @@ class ObstacleLog:
         self._reduced = hi
 
     def _reduce(self, lo: int, c: np.ndarray, f: np.ndarray) -> None:
-        """The summary's reductions over rows [lo, lo + len(c)) (the first least entry wins: the
-        rows come in order, so the result is numpy's argmin over all of them)."""
+        """The summary's reductions over rows [lo, lo + len(c)): per obstacle the least finite entry
+        and the first row holding it (the rows come in order, so this is numpy's argmin over all of
+        them with the non-finite entries left out), the peak force. One pass of ``np.fmin`` (NaN:
+        beyond reach, skipped) over the block; the rows of the least entries are looked up only
+        for the obstacles whose minimum it lowers."""
         if not len(c):
             return
-        ok = np.isfinite(c)
-        cc = np.where(ok, c, np.inf)
-        first = cc.argmin(axis=0)
-        least = cc[first, np.arange(c.shape[1])]
-        better = least < self._min
-        self._min[better] = least[better]
-        self._min_row[better] = lo + first[better]
-        self._any_ok |= ok.any(axis=0)
-        np.maximum(self._peak, f.max(axis=0), out=self._peak)
+        least = np.fmin.reduce(c, axis=0)
+        if np.isneginf(least).any():   # an entry of -inf (not finite: left out), never in practice
+            least = np.where(np.isfinite(c), c, np.inf).min(axis=0)
+        ok = np.isfinite(least)
+        better = np.flatnonzero(ok & (least < self._min))
+        if better.size:
+            first = np.argmax(c[:, better] == least[better], axis=0)
+            self._min[better] = c[first, better]   # (that row's value: of 0.0 and -0.0, the first)
+            self._min_row[better] = lo + first
+        self._any_ok |= ok
+        if self._force_top > lo:   # a contact force in these rows
+            np.maximum(self._peak, f.max(axis=0), out=self._peak)
 
     def block(self, lo: int, hi: int) -> tuple:
         """Rows [lo, hi) as (clearance (r, m), normal force (r, m), centres (r, m, 2)) arrays: from the
