@@ -221,6 +221,8 @@ def main():
     t0 = time.perf_counter()
     simulate(loop)
     open_loop = (time.perf_counter() - t0) / loop.steps * 1e6
+    simulate(loop.with_overrides({"duration": 0.5, "obstacles": obstacle_field(10, tables_only=True),
+                                  "guidance": {"avoid": False}}))   # the hook's kernel compiled (not timed)
     print(f"closed loop ({args.loop_seconds:g} s, PPC, MuJoCo) per step: open water {open_loop:.1f}", end="")
     for count in args.counts:
         osc = loop.with_overrides({"obstacles": obstacle_field(count, tables_only=True), "guidance": {"avoid": False}})
