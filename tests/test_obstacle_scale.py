@@ -277,3 +277,22 @@ def test_the_video_of_a_stored_run_reads_only_the_rows_it_draws(tmp_path, monkey
     per_frame = 2 * len(disk.column_names) + 4 * 17 + 2 * 2 * (2 * 17) + 10   # (the search: 2 reads of t)
     assert values <= len(plan.frames) * per_frame < 0.03 * len(disk) * len(disk.column_names)
     assert {lo for name, lo, hi in reads if name == "psi"} <= drawn | {len(disk) - 1}
+
+
+def test_a_streamed_obstacle_log_goes_to_the_run_log_as_an_in_memory_one_does(tmp_path):
+    """The MCAP obstacle topic of a streamed run (its rows read from the log's window and files)
+    is bit for bit the in-memory run's, NaN beyond reach included."""
+    from usv_mj.runlog import RunLogWriter, read_run
+
+    sc = _harbour(tmp_path, duration=2.0, plant={"kind": "analytic"})
+    topics = []
+    for store in (False, tmp_path / "rec"):
+        path = tmp_path / f"run_{bool(store)}.mcap"
+        with RunLogWriter(path, sc) as writer:
+            rec = simulate(sc, sinks=[writer.sink("main")], block=250, store=store)
+        assert rec.statics.obstacle_log.stored == bool(store)
+        topics.append(read_run(path).obstacles)
+    a, b = topics
+    assert np.isnan(a["clearance_m"]).any() and np.isfinite(a["clearance_m"]).any()
+    for key in ("t", "clearance_m", "normal_force_N", "center"):
+        assert np.array_equal(np.asarray(a[key]).view(np.uint64), np.asarray(b[key]).view(np.uint64)), key
