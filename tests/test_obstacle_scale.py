@@ -296,3 +296,30 @@ def test_a_streamed_obstacle_log_goes_to_the_run_log_as_an_in_memory_one_does(tm
     assert np.isnan(a["clearance_m"]).any() and np.isfinite(a["clearance_m"]).any()
     for key in ("t", "clearance_m", "normal_force_N", "center"):
         assert np.array_equal(np.asarray(a[key]).view(np.uint64), np.asarray(b[key]).view(np.uint64)), key
+
+
+def test_a_big_obstacle_log_streams_beside_an_in_memory_record(tmp_path, monkeypatch):
+    """Many obstacles make a log bigger than the record: past LOG_STREAM_BYTES it streams into a
+    temporary folder (removed with it) even when the record stays in memory; the same values."""
+    import gc
+
+    from usv_mj.obstacles import sink
+
+    sc = _harbour(tmp_path, duration=3.0, plant={"kind": "analytic"})
+    full = simulate(sc, block=250, store=False)
+    monkeypatch.setattr(sink, "LOG_STREAM_BYTES", 1 << 20)       # this log: 3001 rows x 40 x 16 = 1.9 MB
+    monkeypatch.setattr(sink, "WINDOW_ROWS", 300)
+    small = simulate(sc, block=250, store=False)
+    lf, ls = full.statics.obstacle_log, small.statics.obstacle_log
+    assert not small.stored and ls.stored and not lf.stored
+    assert ls._clear.shape == (300, 40)
+    n = full.n_rows
+    for field in ("clearance", "normal_force", "obstacle_xy"):
+        a, b = np.asarray(getattr(lf, field)[:n]), np.asarray(getattr(ls, field)[:n])
+        assert np.array_equal(a.view(np.uint64), b.view(np.uint64)), field
+    assert full.metadata["obstacles"] == small.metadata["obstacles"]
+    folder = ls._folder
+    assert (folder / "clearance.value.npy").exists()
+    del small, ls
+    gc.collect()
+    assert not folder.exists()

@@ -89,8 +89,12 @@ class ObstacleLog:
         self._peak = np.zeros(n)
         self._force_top = 0   # rows from here on have no contact force
         self._reduced = 0
-        self._store = None   # a streamed log's files (_SparseRows per array): start() with a streamed record
-        self._window(self.capacity)
+        self._store = None   # a streamed log's files (SparseRows per array): start(), or a big log
+        self._temporary = None
+        # a log bigger than LOG_STREAM_BYTES streams even beside an in-memory record (many obstacles:
+        # 1000 of them make 16 kB a row), into a temporary folder; it never holds all its rows
+        self._big = self.capacity * n * 16 > LOG_STREAM_BYTES
+        self._window(min(self.capacity, WINDOW_ROWS) if self._big else self.capacity)
 
     def _window(self, rows: int) -> None:
         """The in-memory rows: all of them (``rows`` = the capacity), or a window of a streamed log."""
@@ -98,6 +102,11 @@ class ObstacleLog:
         self._clear = np.full((rows, n), np.nan)
         self._force = np.zeros((rows, n))  # pages untouched until a contact: no memory
         self._force_dirty = False
+        self._views()
+
+    def _views(self) -> None:
+        """``clearance``, ``normal_force``, ``obstacle_xy``: the arrays (in memory) or :class:`LazyRows`."""
+        n, rows = len(self.obstacles), len(self._clear)
         self._xy = None
         if self._store is None:
             self.clearance, self.normal_force = self._clear, self._force
@@ -121,7 +130,9 @@ class ObstacleLog:
         j = k - int(self._base[0])
         if j >= len(self._clear):
             if self._store is None:
-                return
+                if not self._big:
+                    return
+                self._open_store(None, len(self._clear))
             self._slide(k)
             j = 0
         self._clear[j] = clearance
@@ -273,14 +284,37 @@ class ObstacleLog:
         ``<record folder>/obstacles/`` (:class:`SparseRows` files, removed with a temporary record's
         folder) and a window of as many rows as the record's is kept in memory."""
         self.record = record
-        if getattr(record, "stored", False) and self._store is None and self.n_rows == 0:
-            folder = Path(record.path) / OBSTACLE_FOLDER
-            folder.mkdir(parents=True, exist_ok=True)
-            m = len(self.obstacles)
-            self._store = (SparseRows(folder, "clearance", m, np.nan), SparseRows(folder, "normal_force", m, 0.0))
-            self._folder = folder
-            self._write_meta("running")
-            self._window(max(2, min(self.capacity, len(record.buffer))))
+        if self._store is None and self.n_rows == 0:
+            if getattr(record, "stored", False):
+                self._open_store(Path(record.path) / OBSTACLE_FOLDER, max(2, min(self.capacity, len(record.buffer))))
+            elif self._big:
+                self._open_store(None, min(self.capacity, WINDOW_ROWS))
+
+    def _open_store(self, folder, window: int) -> None:
+        """Stream from here on into ``folder`` (None: a temporary one, removed with the log) with a
+        window of ``window`` rows in memory; rows recorded before (a big log fed without a run) go
+        to the files first and stay in the window."""
+        import tempfile
+        import weakref
+
+        if folder is None:
+            folder = Path(tempfile.mkdtemp(prefix="usv_mj_obstacles_"))
+            self._temporary = weakref.finalize(self, _remove_folder, str(folder))
+        folder.mkdir(parents=True, exist_ok=True)
+        m = len(self.obstacles)
+        self._store = (SparseRows(folder, "clearance", m, np.nan), SparseRows(folder, "normal_force", m, 0.0))
+        self._folder = folder
+        self._write_meta("running")
+        self.n_rows = self._rows_known()
+        if self._reduced:   # reduced before there were files (the window starts at row 0: no slide yet)
+            c, f = self._clear[:self._reduced], self._force[:self._reduced]
+            self._store[0].append(0, c, ~np.isnan(c))
+            self._store[1].append(0, f, f != 0.0)
+        self._spill(self.n_rows)
+        if self.n_rows == 0:
+            self._window(window)
+        else:
+            self._views()
 
     def _write_meta(self, status: str) -> None:
         meta = {"format": "usv_mj obstacle log 1", "status": status, "rows": self._reduced,
@@ -354,6 +388,17 @@ class ObstacleLog:
 
 
 OBSTACLE_FOLDER = "obstacles"
+#: an obstacle log bigger than this (rows x obstacles x 16 bytes) streams to disk even when the record
+#: stays in memory (the record's own threshold: usv_mj.simulation.STREAM_BYTES)
+LOG_STREAM_BYTES = 256 * 2 ** 20
+#: rows of a streamed log's window when the record has none (an in-memory record)
+WINDOW_ROWS = 4002
+
+
+def _remove_folder(folder: str) -> None:
+    import shutil
+
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 class LazyRows:
