@@ -233,7 +233,7 @@ def test_the_obstacle_log_streams_with_the_record_and_its_memory_does_not_grow(l
     assert sizes[("harbour", 2.0)] == sizes[("harbour", 4.0)]
 
 
-def _stored_run(tmp_path, rows=120_001, dt=0.01):
+def _stored_run(tmp_path, rows=120_001, dt=0.01, name="rec"):
     from usv_mj.record import RunRecord
 
     t = np.arange(rows) * dt
@@ -241,8 +241,8 @@ def _stored_run(tmp_path, rows=120_001, dt=0.01):
             "y_d": np.zeros(rows), "psi_d": np.zeros(rows), "tau_u": 10 * np.sin(t), "q_tau_u": 10 * np.sin(t),
             "tau_r": np.cos(t), "q_tau_r": np.cos(t)}
     mem = RunRecord.from_arrays(cols, metadata={"preset": "test", "controller": "pi", "plant": "analytic"})
-    mem.save(tmp_path / "rec")
-    return mem, RunRecord.open(tmp_path / "rec")
+    mem.save(tmp_path / name)
+    return mem, RunRecord.open(tmp_path / name)
 
 
 def test_the_video_of_a_stored_run_reads_only_the_rows_it_draws(tmp_path, monkeypatch):
@@ -323,3 +323,20 @@ def test_a_big_obstacle_log_streams_beside_an_in_memory_record(tmp_path, monkeyp
     del small, ls
     gc.collect()
     assert not folder.exists()
+
+
+def test_render_takes_a_long_runs_stored_record_lazily(tmp_path):
+    """``usv-mj render RUN`` of a run directory that kept ``record/`` reads that record lazily (the
+    MCAP would be read whole), and a streamed harbour run's record.json carries the obstacle summary
+    the video's world needs."""
+    from usv_mj.record import RunRecord
+    from usv_mj.render.video import stored_record
+
+    _stored_run(tmp_path / "run", rows=1001, name="record")
+    found = stored_record(tmp_path / "run")
+    assert found is not None and found[0].stored and found[1] == tmp_path / "run" / "run.mcap"
+    assert stored_record(tmp_path) is None
+    sc = _harbour(tmp_path, duration=1.0, plant={"kind": "analytic"})
+    rec = simulate(sc, store=tmp_path / "harbour" / "record")
+    again = RunRecord.open(tmp_path / "harbour" / "record")
+    assert again.metadata["obstacles"] == rec.metadata["obstacles"]

@@ -337,6 +337,8 @@ class ObstacleLog:
                 part.finish()
             self._write_meta("completed")
         record.metadata["obstacles"] = self.summary()
+        if getattr(record, "stored", False):   # its record.json (written before the sinks end) gets it too
+            record.finish_store()
 
     # --- results -----------------------------------------------------------------------------------
 
