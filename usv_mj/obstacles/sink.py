@@ -128,6 +128,8 @@ class ObstacleLog:
         if k >= self.capacity:
             return
         j = k - int(self._base[0])
+        if j < 0:   # a row before the window (never: the rows come in order); it went to the files already
+            return
         if j >= len(self._clear):
             if self._store is None:
                 if not self._big:
