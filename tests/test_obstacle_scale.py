@@ -169,6 +169,13 @@ def test_a_run_with_the_broad_phase_keeps_the_minimum_its_obstacle_near_misses_a
         assert np.array_equal(b[measured], e[measured]) and (e[~measured] > REACH).all()
         assert rec.metadata["obstacles"]["beyond_reach_m"] == REACH
         assert np.isnan(b).any()                                             # some were beyond reach
+    from usv_mj.report import write_report
+    from usv_mj.summary import summarize
+
+    summary = summarize(runs["auto"])
+    assert summary["beyond_reach_m"] == REACH and summarize(every)["beyond_reach_m"] is None
+    text = write_report(tmp_path / "report.md", summary).read_text()
+    assert f"never came within {REACH:g} m" in text
 
 
 def test_standing_obstacles_are_posed_once_and_the_dynamics_do_not_change():
