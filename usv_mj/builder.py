@@ -305,7 +305,9 @@ def _obstacle_parts(scenario, plant, plan, duration, statics, contact):
     monitor = make_clearance_monitor(plant, obstacles, dims)
     n_rows = int(round(duration / scenario.control_period)) + 1
     inflation = plan.safety_radius if plan is not None else None
-    log = ObstacleLog(obstacles, n_rows, scenario.guidance.margin_m, scenario.control_period, monitor.note, inflation)
+    reach = monitor.exact_within if getattr(monitor, "broad_phase", False) else None
+    log = ObstacleLog(obstacles, n_rows, scenario.guidance.margin_m, scenario.control_period, monitor.note, inflation,
+                      exact_within=reach)
     guidance = None
     if plan is not None and any(o.moving for o in obstacles):
         guidance = Guidance(plan.reference, obstacles, plan.envelope, scenario.guidance, scenario.trajectory.speed,

@@ -228,6 +228,25 @@ class RunRecord:
         self.spill(self.n_rows)
         return float(self._store.read(name, k, k + 1)[0])
 
+    def take(self, name: str, rows) -> np.ndarray:
+        """Column ``name`` at the given row indices (ints in [0, n_rows)), float64: indexing of an
+        in-memory record; a stored one reads only those rows (one pread per run of consecutive
+        rows), never the whole column (the video's frames of a long run: usv_mj.render.planner)."""
+        rows = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if rows.size and (rows.min() < 0 or rows.max() >= self.n_rows):
+            raise IndexError(f"rows {int(rows.min())}..{int(rows.max())} of a record of {self.n_rows} rows")
+        if self._store is None:
+            return np.array(self.buffer[: self.n_rows, self.col[name]][rows], dtype=float)
+        if name not in self.col:
+            raise KeyError(name)
+        self.spill(self.n_rows)
+        wanted, where = np.unique(rows, return_inverse=True)
+        values = np.empty(wanted.size)
+        breaks = np.flatnonzero(np.diff(wanted) != 1) + 1
+        for lo, hi in zip(np.r_[0, breaks], np.r_[breaks, wanted.size]):
+            values[lo:hi] = self._store.read(name, int(wanted[lo]), int(wanted[hi - 1]) + 1)
+        return values[where.reshape(-1)]
+
     def column_chunks(self, name: str, rows: int = CHUNK_ROWS):
         """Column ``name`` in consecutive chunks of at most ``rows`` rows: views of an in-memory
         record, reads of a stored one (no page of it stays resident)."""

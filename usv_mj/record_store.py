@@ -37,8 +37,8 @@ META_FILE = "record.json"
 _MAGIC = b"\x93NUMPY\x01\x00"
 
 
-def _header(rows: int) -> bytes:
-    text = "{'descr': '<f8', 'fortran_order': False, 'shape': (%d,), }" % rows
+def _header(rows: int, descr: str = "<f8") -> bytes:
+    text = "{'descr': '%s', 'fortran_order': False, 'shape': (%d,), }" % (descr, rows)
     room = HEADER_BYTES - len(_MAGIC) - 2
     body = text.ljust(room - 1) + "\n"
     if len(body) != room:
@@ -170,6 +170,59 @@ class ColumnStore:
         """The column in consecutive chunks of ``rows`` rows (read by pread: bounded memory)."""
         for lo in range(0, self.rows, rows):
             yield self.read(name, lo, lo + rows)
+
+
+class AppendFile:
+    """One 1-D ``.npy`` file of ``dtype`` (little-endian) appended in blocks, the header written by
+    :meth:`finish` (a file left unfinished has its length in its size): the column files' format
+    for other element types (the obstacle log's sparse entries, :mod:`usv_mj.obstacles.sink`).
+    Read back with :meth:`read` (pread: nothing stays mapped) or :meth:`mapped` (memory-mapped;
+    pages become resident as they are touched: a binary search touches a few)."""
+
+    def __init__(self, path, dtype, mode: str = "write"):
+        self.path = Path(path)
+        self.dtype = np.dtype(dtype).newbyteorder("<")
+        self.count = 0
+        if mode == "write":
+            self._file = open(self.path, "w+b")
+            self._file.write(_header(0, self.dtype.str))
+        else:   # read: as many whole elements as the file holds (a killed run's too)
+            self._file = open(self.path, "rb")
+            self.count = max(0, (os.fstat(self._file.fileno()).st_size - HEADER_BYTES) // self.dtype.itemsize)
+
+    def append(self, values) -> None:
+        values = np.ascontiguousarray(values, dtype=self.dtype).reshape(-1)
+        if values.size:
+            self._file.write(values.data)
+            self.count += values.size
+
+    def flush(self) -> None:
+        if self._file.writable():
+            self._file.flush()
+
+    def finish(self) -> None:
+        self._file.flush()
+        os.pwrite(self._file.fileno(), _header(self.count, self.dtype.str), 0)
+
+    def read(self, lo: int, hi: int) -> np.ndarray:
+        lo, hi = max(0, lo), min(hi, self.count)
+        if hi <= lo:
+            return np.empty(0, self.dtype)
+        self.flush()
+        size = self.dtype.itemsize
+        return np.frombuffer(os.pread(self._file.fileno(), (hi - lo) * size, HEADER_BYTES + lo * size), self.dtype)
+
+    def mapped(self) -> np.ndarray:
+        self.flush()
+        if self.count == 0:
+            return np.empty(0, self.dtype)
+        return np.memmap(self._file, dtype=self.dtype, mode="r", offset=HEADER_BYTES, shape=(self.count,))
+
+    def close(self) -> None:
+        try:
+            self._file.close()
+        except OSError:
+            pass
 
 
 def _remove(files, directory: str) -> None:

@@ -136,7 +136,10 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     if summary.get("obstacles"):
         lines += ["", "## Obstacles", "",
                   f"Minimum clearance over the run: {_fmt(summary['min_clearance_m'])} m; contact events: "
-                  f"{summary['contacts']}.", "",
+                  f"{summary['contacts']}."
+                  + (f" Obstacles the hull never came within {summary['beyond_reach_m']:g} m of (the clearance "
+                     f"monitor's reach) were not measured: their minimum is —, and it is more than that."
+                     if summary.get("beyond_reach_m") is not None else ""), "",
                   "| obstacle | kind | min clearance [m] | at t [s] | peak normal force [N] | safety inflation [m] |",
                   "|---|---|---|---|---|---|"]
         for o in summary["obstacles"]:

@@ -193,4 +193,7 @@ def summarize(record: RunRecord, criterion=None) -> dict:
         "min_clearance_m": (meta.get("obstacles") or {}).get("min_clearance_m"),
         "contacts": (meta.get("obstacles") or {}).get("contacts", 0),
         "obstacles": (meta.get("obstacles") or {}).get("per_obstacle"),
+        # the clearance monitor's reach [m] when its broad phase ran (obstacles never within it have
+        # no minimum; docs/obstacles.md), else None
+        "beyond_reach_m": (meta.get("obstacles") or {}).get("beyond_reach_m"),
     }

@@ -19,6 +19,20 @@ contact) and ``in_contact`` (bool per obstacle):
 
 Both report, for obstacles farther than ``exact_within`` (10 m) by a bounding-circle test, that
 lower bound instead of the exact distance (cheap with 50 obstacles; ``math.inf`` = always exact).
+
+Broad phase (``broad_phase=True``, what a run's monitor uses: :func:`make_clearance_monitor`): a
+step's work scales with the obstacles within reach, not with all of them. The standing obstacles
+sit in a uniform grid (:class:`StandingGrid`, built once: cells of about the reach, each listing the
+obstacles whose bounding box overlaps it); a step looks only at the cells that the square of half
+side ``exact_within + R_hull`` about the hull overlaps, and measures exactly those of their obstacles
+whose bounding-circle lower bound is under ``exact_within`` (the same test and the same distance
+as without the broad phase, so these entries are bit for bit the same). Every other entry is
+**NaN, meaning "beyond reach": not measured, its clearance is at least ``exact_within``** (the
+bounding-circle bound says so; :data:`BEYOND_REACH`). Nothing is claimed that was not measured:
+the minimum over the obstacles, its obstacle, the near misses (margin < ``exact_within``) and the
+contacts are those of the all-pairs update whenever the minimum is within reach (a run whose hull
+never comes within ``exact_within`` of any obstacle has no measured minimum). Moving obstacles
+are tested all-pairs (they are few; a moving grid is not worth it) with the same rule.
 """
 
 from __future__ import annotations
@@ -57,6 +71,81 @@ def _call_geom_distance(typingctx, fn_address, m_addr, d_addr, geom1, geom2, dis
     return sig, codegen
 
 
+class StandingGrid:
+    """A uniform grid over standing obstacles' bounding boxes (the broad phase; module docstring).
+
+    ``centers`` (n, 2) [m], ``radii`` (n,) [m] bounding radii, ``reach`` [m] the half side of the
+    square a query covers (cells are about that size, so a query looks at 2 x 2 to 3 x 3 cells;
+    larger when the scene is so spread that the cells would outnumber ``MAX_CELLS_PER_OBSTACLE``
+    per obstacle). ``index``: the obstacles' own indices (their positions in the monitor's arrays).
+    The boxes are padded by ``PAD`` so that a rounding at a cell edge can add a candidate, never
+    lose one. :attr:`args` are :func:`grid_candidates`'s grid arguments."""
+
+    MAX_CELLS_PER_OBSTACLE = 16
+    PAD = 1e-6  # [m]
+
+    def __init__(self, centers, radii, reach: float, index=None):
+        centers = np.asarray(centers, dtype=float).reshape(-1, 2)
+        radii = np.asarray(radii, dtype=float).reshape(-1)
+        n = len(radii)
+        index = np.arange(n, dtype=np.int64) if index is None else np.asarray(index, dtype=np.int64)
+        pad = self.PAD + 1e-12 * (float(np.max(np.abs(centers))) if n else 0.0)
+        lo = centers - (radii + pad)[:, None] if n else np.zeros((0, 2))
+        hi = centers + (radii + pad)[:, None] if n else np.zeros((0, 2))
+        x0, y0 = (lo.min(axis=0) if n else (0.0, 0.0))
+        x1, y1 = (hi.max(axis=0) if n else (1.0, 1.0))
+        h = max(float(reach), 1e-3)
+        limit = self.MAX_CELLS_PER_OBSTACLE * max(n, 64)
+        while math.ceil((x1 - x0) / h + 1) * math.ceil((y1 - y0) / h + 1) > limit:
+            h *= 2.0
+        nx, ny = int((x1 - x0) // h) + 1, int((y1 - y0) // h) + 1
+        ix0 = np.clip(np.floor((lo[:, 0] - x0) / h).astype(np.int64), 0, nx - 1)
+        ix1 = np.clip(np.floor((hi[:, 0] - x0) / h).astype(np.int64), 0, nx - 1)
+        iy0 = np.clip(np.floor((lo[:, 1] - y0) / h).astype(np.int64), 0, ny - 1)
+        iy1 = np.clip(np.floor((hi[:, 1] - y0) / h).astype(np.int64), 0, ny - 1)
+        cells, items = [], []
+        for j in range(n):
+            for ix in range(ix0[j], ix1[j] + 1):
+                for iy in range(iy0[j], iy1[j] + 1):
+                    cells.append(ix * ny + iy)
+                    items.append(index[j])
+        cells = np.asarray(cells, dtype=np.int64)
+        order = np.argsort(cells, kind="stable")
+        self.items = np.asarray(items, dtype=np.int64)[order]
+        self.start = np.searchsorted(cells[order], np.arange(nx * ny + 1)).astype(np.int64)
+        self.geometry = np.array([x0, y0, h, float(reach) + pad])
+        self.shape = np.array([nx, ny], dtype=np.int64)
+        self.args = (self.geometry, self.shape, self.start, self.items)
+
+
+@njit(cache=True)
+def grid_candidates(geometry, shape, start, items, x, y, seen, stamp, out):
+    """The obstacles of :class:`StandingGrid` cells that the square of half side ``geometry[3]``
+    about (x, y) overlaps, each once (``seen`` (n,) int64 and ``stamp`` (1,) int64: scratch), into
+    ``out``; returns how many."""
+    x0, y0, h, reach = geometry[0], geometry[1], geometry[2], geometry[3]
+    nx, ny = shape[0], shape[1]
+    fx0, fx1 = np.floor((x - reach - x0) / h), np.floor((x + reach - x0) / h)
+    fy0, fy1 = np.floor((y - reach - y0) / h), np.floor((y + reach - y0) / h)
+    if not (fx1 >= 0.0 and fx0 < nx and fy1 >= 0.0 and fy0 < ny):  # also a NaN pose: no candidate
+        return 0
+    ix0, ix1 = int(max(fx0, 0.0)), int(min(fx1, nx - 1.0))
+    iy0, iy1 = int(max(fy0, 0.0)), int(min(fy1, ny - 1.0))
+    stamp[0] += 1
+    s = stamp[0]
+    count = 0
+    for ix in range(ix0, ix1 + 1):
+        for iy in range(iy0, iy1 + 1):
+            c = ix * ny + iy
+            for j in range(start[c], start[c + 1]):
+                i = items[j]
+                if seen[i] != s:
+                    seen[i] = s
+                    out[count] = i
+                    count += 1
+    return count
+
+
 #: [m] a skipped obstacle's bound must beat the best distance so far by this much (min_only): far
 #: above the error of MuJoCo's convex distance (its tolerance, 1e-6) and of the bounding circles
 SKIP_MARGIN = 1e-2
@@ -65,7 +154,8 @@ SKIP_MARGIN = 1e-2
 @njit(cache=True)
 def mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, hull, obstacles, bound, exact_within,
                             prefilter, distmax, qpos, geom_xpos, clearance, exact, witness, fromto, normal_force,
-                            in_contact, min_only, order):
+                            in_contact, min_only, order, broad, grid_geometry, grid_shape, grid_start, grid_items,
+                            moving, seen, stamp, active, n_active, touched, n_touched):
     """:meth:`MuJoCoClearance.update` but the contacts, natively: ``mj_kinematics`` (at address
     ``kinematics``), the bounding-circle prefilter (when ``prefilter``) and ``mj_geomDistance`` (at
     ``geom_distance``) of every hull geom against every obstacle left to do, in the same order.
@@ -74,8 +164,18 @@ def mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, hull, obs
     whether any entry is <= 0): the obstacles are visited by increasing bound (``order``, scratch
     of n int64) and one whose bound exceeds the least clearance so far by :data:`SKIP_MARGIN` keeps
     its bound (not exact): its distance is larger than that least one, so the minimum, its first
-    index and the contact test are those of the full update."""
+    index and the contact test are those of the full update.
+
+    ``broad`` (the broad phase, module docstring): the candidates of the standing obstacles' grid
+    (``grid_*``, :class:`StandingGrid`) and the ``moving`` obstacles are tested, the entries of the
+    last update (``active[:n_active[0]]``) and the contacts :meth:`MuJoCoClearance.add_contacts`
+    set (``touched[:n_touched[0]]``) are cleared first; everything else stays NaN (beyond reach)."""
     call_model_data(kinematics, m_addr, d_addr)
+    if broad:
+        _mujoco_broad(m_addr, d_addr, geom_distance, hull, obstacles, bound, exact_within, distmax, qpos, geom_xpos,
+                      clearance, exact, witness, fromto, normal_force, in_contact, order, grid_geometry, grid_shape,
+                      grid_start, grid_items, moving, seen, stamp, active, n_active, touched, n_touched)
+        return
     n = obstacles.shape[0]
     for i in range(n):
         if prefilter or min_only:  # np.sqrt(rel_x ** 2 + rel_y ** 2) - bound < exact_within
@@ -97,7 +197,6 @@ def mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, hull, obs
                 order[i] = order[i - 1]
                 i -= 1
             order[i] = j
-    address = fromto.ctypes.data
     for j in range(n):
         i = order[j]
         if not exact[i]:
@@ -105,20 +204,61 @@ def mujoco_clearance_kernel(m_addr, d_addr, kinematics, geom_distance, hull, obs
         if min_only and clearance[i] - SKIP_MARGIN > least:
             exact[i] = False
             continue
-        best = math.inf
-        for h in range(hull.shape[0]):
-            dist = _call_geom_distance(geom_distance, m_addr, d_addr, np.int32(hull[h]), np.int32(obstacles[i]),
-                                       distmax, address)
-            if dist < best:
-                best = dist
-                for k in range(6):
-                    witness[i, k] = fromto[k]
+        best = _hull_distance(m_addr, d_addr, geom_distance, hull, obstacles[i], distmax, fromto, witness, i)
         clearance[i] = best
         if best < least:
             least = best
     for i in range(n):
         normal_force[i] = 0.0
         in_contact[i] = False
+    n_touched[0] = 0
+
+
+@njit(cache=True)
+def _hull_distance(m_addr, d_addr, geom_distance, hull, geom, distmax, fromto, witness, i):
+    """min over the hull geoms of mj_geomDistance to ``geom`` [m], its fromto into witness[i]."""
+    address = fromto.ctypes.data
+    best = math.inf
+    for h in range(hull.shape[0]):
+        dist = _call_geom_distance(geom_distance, m_addr, d_addr, np.int32(hull[h]), np.int32(geom), distmax, address)
+        if dist < best:
+            best = dist
+            for k in range(6):
+                witness[i, k] = fromto[k]
+    return best
+
+
+@njit(cache=True)
+def _mujoco_broad(m_addr, d_addr, geom_distance, hull, obstacles, bound, exact_within, distmax, qpos, geom_xpos,
+                  clearance, exact, witness, fromto, normal_force, in_contact, scratch, grid_geometry, grid_shape,
+                  grid_start, grid_items, moving, seen, stamp, active, n_active, touched, n_touched):
+    """The broad phase of :func:`mujoco_clearance_kernel` (its docstring); the same bound and the
+    same distance as its all-pairs loop, for the candidates only."""
+    for j in range(n_active[0]):
+        i = active[j]
+        clearance[i] = np.nan
+        exact[i] = False
+    for j in range(n_touched[0]):
+        i = touched[j]
+        normal_force[i] = 0.0
+        in_contact[i] = False
+    n_touched[0] = 0
+    count = grid_candidates(grid_geometry, grid_shape, grid_start, grid_items, qpos[0], qpos[1], seen, stamp, scratch)
+    for j in range(moving.shape[0]):
+        scratch[count] = moving[j]
+        count += 1
+    na = 0
+    for j in range(count):
+        i = scratch[j]
+        rx = geom_xpos[obstacles[i], 0] - qpos[0]
+        ry = geom_xpos[obstacles[i], 1] - qpos[1]
+        lower = math.sqrt(rx * rx + ry * ry) - bound[i]
+        if lower < exact_within:
+            clearance[i] = _hull_distance(m_addr, d_addr, geom_distance, hull, obstacles[i], distmax, fromto, witness, i)
+            exact[i] = True
+            active[na] = i
+            na += 1
+    n_active[0] = na
 
 
 class MuJoCoClearance:
@@ -128,12 +268,15 @@ class MuJoCoClearance:
     lower bound |c_obstacle - p_hull| - R_hull - R_obstacle is below it; the others report that
     lower bound (a true lower bound of the clearance, exact enough for the minimum and the
     near-miss events as long as ``exact_within`` exceeds the margin). ``math.inf``: always exact.
+    ``broad_phase``: the grid of the module docstring (at least :data:`PREFILTER_FROM` obstacles
+    and a finite ``exact_within``): the obstacles out of reach are NaN instead of their bound, and
+    a step costs what the obstacles within reach cost.
     """
 
     note = ""
     PREFILTER_FROM = 8  # fewer obstacles: the numpy bound costs more than it saves
 
-    def __init__(self, plant, exact_within: float = 10.0, distmax: float = 1e4):
+    def __init__(self, plant, exact_within: float = 10.0, distmax: float = 1e4, broad_phase: bool = False):
         self.plant = plant
         self.model, self.data = plant.model, plant.data
         self.hull_geoms = [int(g) for g in plant.hull_geoms]
@@ -154,8 +297,8 @@ class MuJoCoClearance:
         self.exact_within = float(exact_within)
         self._ogeoms = np.array(self.obstacle_geoms, dtype=np.int64)
         # the plant's hull as MuJoCo collides it (scaled to the vessel at load)
-        self._bound = vessel_hull_radius(getattr(plant, "dimensions", None)) + np.array(
-            [o.bounding_radius for o in plant.obstacles], dtype=float)
+        hull_r = vessel_hull_radius(getattr(plant, "dimensions", None))
+        self._bound = hull_r + np.array([o.bounding_radius for o in plant.obstacles], dtype=float)
         self.exact = np.ones(n, dtype=bool)  # which entries of the last update are exact
         self._order = np.zeros(n, dtype=np.int64)  # the kernel's visiting order (min_only)
         # the native update (mujoco_clearance_kernel): views of the mjData's arrays, the libmujoco
@@ -169,6 +312,25 @@ class MuJoCoClearance:
         for og in self.obstacle_geoms:
             for hg in self.hull_geoms:
                 mujoco.mj_geomDistance(self.model, self.data, hg, og, self.distmax, None)
+        # the broad phase (module docstring): the standing obstacles' grid from their geoms' poses
+        # (world-body geoms: constant), the moving ones tested all-pairs
+        self.broad_phase = (bool(broad_phase) and math.isfinite(self.exact_within)
+                            and n >= self.PREFILTER_FROM)
+        mocap = np.asarray(getattr(plant, "obstacle_mocap", np.full(n, -1)), dtype=np.int64).reshape(-1)
+        moving = np.flatnonzero(mocap >= 0) if len(mocap) == n else np.zeros(0, np.int64)
+        standing = np.setdiff1d(np.arange(n), moving)
+        self._moving = moving.astype(np.int64)
+        self._grid = StandingGrid(self._geom_xpos[self._ogeoms[standing], :2], self._bound[standing] - hull_r,
+                                  self.exact_within + hull_r, standing)
+        self._seen = np.zeros(n, np.int64)
+        self._stamp = np.zeros(1, np.int64)
+        self._active = np.zeros(n, np.int64)
+        self._n_active = np.zeros(1, np.int64)
+        self._touched = np.zeros(n, np.int64)
+        self._n_touched = np.zeros(1, np.int64)
+        if self.broad_phase:
+            self.clearance[:] = np.nan
+            self.exact[:] = False
         self._args = self.kernel_args()   # update's (made once: 2 us a step)
 
     def update(self, t: float = 0.0, plant_or_state=None) -> np.ndarray:
@@ -187,9 +349,12 @@ class MuJoCoClearance:
         obstacles farther than the nearest are then their bounds, :attr:`exact` False)."""
         m_addr, d_addr, kinematics, geom_distance = self._addresses
         prefilter = math.isfinite(self.exact_within) and len(self._ogeoms) >= self.PREFILTER_FROM
+        broad = self.broad_phase and not min_only
         return (m_addr, d_addr, kinematics, geom_distance, self._hgeoms, self._ogeoms, self._bound, self.exact_within,
                 prefilter, self.distmax, self._qpos, self._geom_xpos, self.clearance, self.exact, self.witness,
-                self._fromto, self.normal_force, self.in_contact, bool(min_only), self._order)
+                self._fromto, self.normal_force, self.in_contact, bool(min_only), self._order, broad,
+                *self._grid.args, self._moving, self._seen, self._stamp, self._active, self._n_active, self._touched,
+                self._n_touched)
 
     def add_contacts(self) -> bool:
         """The hull's contacts in ``d.contact`` into :attr:`normal_force` and :attr:`in_contact`
@@ -210,6 +375,9 @@ class MuJoCoClearance:
             if i < 0:
                 continue
             mujoco.mj_contactForce(m, d, c, self._force)
+            if not self.in_contact[i]:   # what the next update clears (the broad phase clears only these)
+                self._touched[self._n_touched[0]] = i
+                self._n_touched[0] += 1
             self.normal_force[i] += abs(self._force[0])
             self.in_contact[i] = True
         return True
@@ -336,6 +504,58 @@ def footprint_clearances(body, body_radius, x, y, psi, centers, radii, boxes, bo
 
 
 
+@njit(cache=True)
+def footprint_clearances_broad(body, body_radius, x, y, psi, centers, radii, boxes, box_radii, exact_within, kind,
+                               slot, grid_geometry, grid_shape, grid_start, grid_items, moving, seen, stamp, scratch,
+                               active, n_active, clearance, in_contact):
+    """:func:`footprint_clearances` and :func:`scatter_clearances` with the broad phase (module
+    docstring): the candidates of the grid and the ``moving`` obstacles (obstacle i is circle
+    ``slot[i]`` when ``kind[i]`` is 0, box ``slot[i]`` otherwise) get the same bound test and the same
+    distance; the last update's entries (``active``) become NaN first. Returns whether any
+    obstacle is reached (clearance <= 0)."""
+    for j in range(n_active[0]):
+        i = active[j]
+        clearance[i] = np.nan
+        in_contact[i] = False
+    count = grid_candidates(grid_geometry, grid_shape, grid_start, grid_items, x, y, seen, stamp, scratch)
+    for j in range(moving.shape[0]):
+        scratch[count] = moving[j]
+        count += 1
+    if count == 0:
+        n_active[0] = 0
+        return False
+    c, s = math.cos(psi), math.sin(psi)
+    n = body.shape[0]
+    hull = np.empty((n, 2))
+    for i in range(n):
+        hull[i, 0] = x + c * body[i, 0] - s * body[i, 1]
+        hull[i, 1] = y + s * body[i, 0] + c * body[i, 1]
+    na = 0
+    hit = False
+    for j in range(count):
+        i = scratch[j]
+        q = slot[i]
+        if kind[i] == 0:
+            lower = math.hypot(centers[q, 0] - x, centers[q, 1] - y) - body_radius - radii[q]
+            if lower > exact_within:
+                continue
+            value = point_polygon_signed_distance(hull, centers[q, 0], centers[q, 1]) - radii[q]
+        else:
+            bx = 0.25 * (boxes[q, 0, 0] + boxes[q, 1, 0] + boxes[q, 2, 0] + boxes[q, 3, 0])
+            by = 0.25 * (boxes[q, 0, 1] + boxes[q, 1, 1] + boxes[q, 2, 1] + boxes[q, 3, 1])
+            lower = math.hypot(bx - x, by - y) - body_radius - box_radii[q]
+            if lower > exact_within:
+                continue
+            value = convex_signed_distance(hull, boxes[q])
+        clearance[i] = value
+        in_contact[i] = value <= 0.0
+        hit = hit or in_contact[i]
+        active[na] = i
+        na += 1
+    n_active[0] = na
+    return hit
+
+
 def _penetration(a, b) -> float:
     """Indicative penetration depth [m] of two overlapping polygons: the deepest vertex of one
     inside the other, measured to the other's boundary."""
@@ -359,7 +579,7 @@ class GeometricClearance:
     note = ANALYTIC_NOTE
 
     def __init__(self, obstacles, resolution: int = 16, method: str = "numba", exact_within: float = 10.0,
-                 dimensions=None):
+                 dimensions=None, broad_phase: bool = False):
         if method not in ("numba", "shapely"):
             raise ValueError(f"GeometricClearance: method must be 'numba' or 'shapely', got {method!r}")
         self.method = method
@@ -393,6 +613,30 @@ class GeometricClearance:
         self._box_radii = np.array([self.obstacles[i].bounding_radius for i in self._boxes])
         self._out_c = np.zeros(len(self._circles))
         self._out_b = np.zeros(len(self._boxes))
+        # the broad phase (module docstring; the numba method): a grid over the standing obstacles
+        # (their bounding circles about their centres at t = 0), the moving ones all-pairs
+        self.broad_phase = (bool(broad_phase) and method == "numba" and math.isfinite(self.exact_within)
+                            and n >= MuJoCoClearance.PREFILTER_FROM)
+        self._kind = np.zeros(n, np.int64)
+        self._slot = np.zeros(n, np.int64)
+        self._kind[self._boxes] = 1
+        self._slot[self._circles] = np.arange(len(self._circles))
+        self._slot[self._boxes] = np.arange(len(self._boxes))
+        radius = np.array([o.bounding_radius for o in self.obstacles], dtype=float).reshape(n)
+        center = self._center0.copy()
+        if len(self._boxes):
+            center[self._boxes] = self._corners0.mean(axis=1)  # the kernel's bound is about the corners' mean
+        moving = np.array([i for i, o in enumerate(self.obstacles) if o.moving], dtype=np.int64)
+        standing = np.setdiff1d(np.arange(n), moving)
+        self._moving = moving
+        self._grid = StandingGrid(center[standing], radius[standing], self.exact_within + self._body_radius, standing)
+        self._seen = np.zeros(n, np.int64)
+        self._stamp = np.zeros(1, np.int64)
+        self._scratch = np.zeros(n, np.int64)
+        self._active = np.zeros(n, np.int64)
+        self._n_active = np.zeros(1, np.int64)
+        if self.broad_phase:
+            self.clearance[:] = np.nan
 
     def hull_at(self, x: float, y: float, psi: float):
         """The hull footprint at pose (x [m], y [m], psi [rad]) as a shapely polygon."""
@@ -409,10 +653,20 @@ class GeometricClearance:
         boxes = self._corners0
         if self._any_moving_box:
             boxes = boxes + (self._velocity[self._boxes] * t)[:, None, :]
+        if self.broad_phase:
+            footprint_clearances_broad(self._body, self._body_radius, float(state[0]), float(state[1]),
+                                       float(state[2]), centers, self._radius, boxes, self._box_radii,
+                                       self.exact_within, *self._broad_args())
+            return self.clearance
         footprint_clearances(self._body, self._body_radius, float(state[0]), float(state[1]), float(state[2]),
                              centers, self._radius, boxes, self._box_radii, self.exact_within, self._out_c, self._out_b)
         scatter_clearances(self._out_c, self._out_b, self._circles, self._boxes, self.clearance, self.in_contact)
         return self.clearance
+
+    def _broad_args(self) -> tuple:
+        """:func:`footprint_clearances_broad`'s arguments after ``exact_within``."""
+        return (self._kind, self._slot, *self._grid.args, self._moving, self._seen, self._stamp, self._scratch,
+                self._active, self._n_active, self.clearance, self.in_contact)
 
     def kernel_args(self) -> tuple:
         """The monitor's arguments of :func:`usv_mj.obstacles.native_step.geometric_obstacle_step`
@@ -422,7 +676,7 @@ class GeometricClearance:
         centers = np.ascontiguousarray(self._center0[self._circles])
         return (self._body, self._body_radius, centers, self._radius, self._corners0, self._box_radii,
                 float(self.exact_within), self._out_c, self._out_b, self._circles, self._boxes, self.clearance,
-                self.in_contact)
+                self.in_contact, self.broad_phase, *self._broad_args()[:-2])
 
     def update_shapely(self, t: float, state) -> np.ndarray:
         """The same with shapely (the reference for the numba kernels; slower)."""
@@ -452,7 +706,8 @@ class GeometricClearance:
 def make_clearance_monitor(plant, obstacles, dimensions=None):
     """The monitor that fits ``plant``: :class:`MuJoCoClearance` when it has ``obstacle_geoms``
     (a :class:`~usv_mj.obstacles.compose.HarbourPlant`), :class:`GeometricClearance` of the
-    vessel's ``dimensions`` otherwise."""
+    vessel's ``dimensions`` otherwise; both with the broad phase (a run's monitor: its log's far
+    entries are NaN, module docstring)."""
     if hasattr(plant, "obstacle_geoms"):
-        return MuJoCoClearance(plant)
-    return GeometricClearance(obstacles, dimensions=dimensions)
+        return MuJoCoClearance(plant, broad_phase=True)
+    return GeometricClearance(obstacles, dimensions=dimensions, broad_phase=True)

@@ -40,7 +40,7 @@ class ObstacleHook:
             return None
         if type(log) is not ObstacleLog:  # the kernel stores the rows as ObstacleLog.record_step does
             return None
-        rows = np.zeros(1, np.int64)
+        rows = log.kernel_rows
 
         def sync():  # the rows the kernel stored count as recorded (ObstacleLog.n_rows)
             log.n_rows = max(log.n_rows, int(rows[0]))

@@ -13,6 +13,12 @@ rho1, rho2, "ok" while |z1| < 1 and |z2| < 1), the wake trail (hull positions ov
 view (:class:`TopView`) and the values of the heads-up overlay.
 
 Only rows whose state (x, y, psi) is finite are played: a diverged run ends at its last finite row.
+
+What is read: only the rows drawn (:func:`frame_rows`): every column at the frame rows, (x, y) at
+the trail's samples and (x_d, y_d) at the path's, found by a search that reads a few values of
+``t`` per sample (:func:`search_rows`), never whole columns, so the video of a ten-hour run stored
+on disk (:meth:`usv_mj.record.RunRecord.take`) costs what its frames cost. The Do & Pan offset and
+the control bars' scale are fitted over the frame rows.
 """
 
 from __future__ import annotations
@@ -121,22 +127,97 @@ def do_pan_offset(record) -> float:
     return eps
 
 
+POSE = ("t", "x", "y", "psi")
+#: the columns a frame reads at its row (a record without one of them: NaN)
+FRAME_COLUMNS = ("t", "x", "y", "psi", "x_d", "y_d", "psi_d", "e1", "e2", "e3", "rho1", "rho2", "rho3",
+                 "z1", "z2", "z3", "tau_u", "q_tau_u", "tau_r", "q_tau_r", "f_u", "f_r", "sat_u", "sat_r")
+
+
+def _column(record, name):
+    """Column ``name`` of the frame rows' record (NaN when the run has no such column)."""
+    try:
+        return np.asarray(record[name], dtype=float)
+    except (KeyError, IndexError):
+        return np.full(len(record), np.nan)
+
+
 def valid_rows(record) -> int:
-    """Number of leading rows with a finite hull pose (a diverged run may end in a non-finite row)."""
+    """Number of leading rows with a finite hull pose (a diverged run may end in a non-finite row).
+
+    A record stored on disk that completed (or was interrupted) with a finite last row is taken
+    whole without reading its columns: the loop checks every state it records (a diverged or
+    failed run's is scanned in chunks, bounded memory)."""
     n = len(record)
     if n == 0:
         return 0
+    if getattr(record, "stored", False):
+        last = [_take(record, c, [n - 1])[0] for c in POSE]
+        if getattr(record, "status", "") in ("completed", "interrupted") and np.isfinite(last).all():
+            return n
+        lo = 0
+        for chunks in zip(*(record.column_chunks(c) for c in POSE)):
+            good = np.logical_and.reduce([np.isfinite(c) for c in chunks])
+            if not good.all():
+                return lo + int(np.argmin(good))
+            lo += len(good)
+        return n
     good = np.isfinite(record["x"]) & np.isfinite(record["y"]) & np.isfinite(record["psi"]) & np.isfinite(record["t"])
     if good.all():
         return n
     return int(np.argmin(good))   # the first non-finite row
 
 
-def _column(record, name, n):
+def _take(record, name, rows) -> np.ndarray:
+    """Column ``name`` at ``rows`` (NaN when the record has no such column): only those rows."""
+    rows = np.asarray(rows, dtype=np.int64)
     try:
-        return np.asarray(record[name][:n], dtype=float)
+        take = getattr(record, "take", None)
+        if take is not None:
+            return take(name, rows.reshape(-1)).reshape(rows.shape)
+        return np.asarray(record[name], dtype=float)[rows]
     except (KeyError, IndexError):
-        return np.full(n, np.nan)
+        return np.full(rows.shape, np.nan)
+
+
+def search_rows(record, n: int, times) -> np.ndarray:
+    """``np.searchsorted(record["t"][:n], times)`` (the left insertion points), reading only a few
+    values of t per time: a guess from the mean step (the loop's rows are uniform in t), then
+    steps until t[i - 1] < time <= t[i]; the whole column only if that does not settle."""
+    times = np.asarray(times, dtype=float)
+    if not getattr(record, "stored", False):
+        return np.searchsorted(np.asarray(record["t"][:n], float), times)
+    t0, t1 = _take(record, "t", [0, n - 1])
+    step = (t1 - t0) / (n - 1) if n > 1 and t1 > t0 else 1.0
+    flat = times.reshape(-1)
+    guess = np.clip(np.ceil((flat - t0) / step), 0, n).astype(np.int64)
+    for _ in range(8):
+        below = _take(record, "t", np.clip(guess - 1, 0, n - 1))
+        at = _take(record, "t", np.clip(guess, 0, n - 1))
+        down = (guess > 0) & (below >= flat)
+        up = (guess < n) & (at < flat) & ~down
+        if not (down.any() or up.any()):
+            return guess.reshape(times.shape)
+        guess = guess - down + up
+    return np.searchsorted(np.asarray(record["t"][:n], float), times)   # t is not uniform: the column
+
+
+def frame_rows(record, n: int, rows, trail_s: float, ahead_s: float, segments: int) -> tuple:
+    """The rows each frame draws: (trail rows (frames, segments + 1), path rows (same)): the
+    samples uniform in time over the trail_s before and the ahead_s after each frame row."""
+    t = _take(record, "t", rows)
+    t0, t1 = _take(record, "t", [0, n - 1])
+    i = np.arange(segments + 1)[None, :]
+
+    def linspace(a, b):   # np.linspace(a, b, segments + 1) per row, its arithmetic exactly
+        out = i * ((b - a) / segments)[:, None] + a[:, None]
+        out[:, -1] = b
+        return out
+
+    ts = linspace(np.maximum(t0, t - trail_s), t)
+    ta = linspace(t, np.minimum(t1, t + ahead_s))
+    trail = np.clip(search_rows(record, n, ts), 0, np.asarray(rows)[:, None])
+    path = np.clip(search_rows(record, n, ta), np.asarray(rows)[:, None], n - 1)
+    return trail, path
 
 
 def _actuator_limits(metadata):
@@ -229,8 +310,7 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     n = valid_rows(record)
     if n == 0:
         raise ValueError("the run has no row with a finite hull pose (x, y, psi): nothing to render")
-    t = np.asarray(record["t"][:n], float)
-    t0, t1 = float(t[0]), float(t[-1])
+    t0, t1 = (float(v) for v in _take(record, "t", [0, n - 1]))
     duration = t1 - t0
     sp = default_speedup(duration) if speedup is None else float(speedup)
     nf = frame_count(duration, fps, sp) if duration > 0 else 1
@@ -246,30 +326,39 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
         rows = np.asarray(rows, dtype=int).ravel()
         if rows.size == 0 or rows.min() < 0 or rows.max() >= n:
             raise ValueError(f"rows {rows.tolist()[:8]}: every row must be in 0..{n - 1} (the rows with a finite pose)")
-        times = t[rows]
+        times = _take(record, "t", rows)
         nf = len(rows)
     else:
         times = np.array([t1]) if nf == 1 else t0 + duration * np.arange(nf) / (nf - 1)
-        rows = np.clip(np.searchsorted(t, times), 0, n - 1)
+        rows = np.clip(search_rows(record, n, times), 0, n - 1)
         prev = np.clip(rows - 1, 0, n - 1)
-        rows = np.where(np.abs(t[prev] - times) < np.abs(t[rows] - times), prev, rows)
+        rows = np.where(np.abs(_take(record, "t", prev) - times) < np.abs(_take(record, "t", rows) - times), prev, rows)
     played = duration * fps / (nf - 1) if nf > 1 and duration > 0 and not explicit_rows else sp
     span = max(10.0, 3.0 * sp)
     trail_s = span if trail_s is None else float(trail_s)
     ahead_s = span if ahead_s is None else float(ahead_s)
 
-    x, y, psi = (np.asarray(record[c][:n], float) for c in ("x", "y", "psi"))
-    xd, yd, psid = (_column(record, c, n) for c in ("x_d", "y_d", "psi_d"))
-    e = [_column(record, f"e{i}", n) for i in (1, 2, 3)]
-    rho = [_column(record, f"rho{i}", n) for i in (1, 2, 3)]
-    z = [_column(record, f"z{i}", n) for i in (1, 2, 3)]
+    # every column at the frame rows only (a record of those rows: the summaries' formulas apply)
+    from ..record import RunRecord
+
+    names = [c for c in getattr(record, "column_names", ()) if c in FRAME_COLUMNS] or list(FRAME_COLUMNS)
+    sub = RunRecord.from_arrays({c: _take(record, c, rows) for c in names})
+    t = sub["t"]
+    x, y, psi = (sub[c] for c in ("x", "y", "psi"))
+    xd, yd, psid = (_column(sub, c) for c in ("x_d", "y_d", "psi_d"))
+    e = [_column(sub, f"e{i}") for i in (1, 2, 3)]
+    rho = [_column(sub, f"rho{i}") for i in (1, 2, 3)]
+    z = [_column(sub, f"z{i}") for i in (1, 2, 3)]
     funnel = bool(np.isfinite(rho[0]).any())
     if not funnel:  # a controller without a funnel: the HUD shows the pose errors, with no bound
         from ..summary import pose_errors
 
-        e = [np.asarray(v[:n], float) for v in pose_errors(record).values()]
-    tau = {k: _column(record, k, n) for k in ("tau_u", "q_tau_u", "tau_r", "q_tau_r", "f_u", "f_r", "sat_u", "sat_r")}
-    eps = do_pan_offset(record)
+        e = [np.asarray(v, float) for v in pose_errors(sub).values()]
+    tau = {k: _column(sub, k) for k in ("tau_u", "q_tau_u", "tau_r", "q_tau_r", "f_u", "f_r", "sat_u", "sat_r")}
+    eps = do_pan_offset(sub)
+    trail_rows, path_rows = frame_rows(record, n, rows, trail_s, ahead_s, segments)
+    trail_xy = np.stack([_take(record, "x", trail_rows), _take(record, "y", trail_rows)], axis=-1)
+    path_xy = np.stack([_take(record, "x_d", path_rows), _take(record, "y_d", path_rows)], axis=-1)
     md = getattr(record, "metadata", {}) or {}
     lim_u, lim_r = _actuator_limits(md)
     scale_u = _bar_scale(lim_u, tau["tau_u"], tau["q_tau_u"])
@@ -287,8 +376,8 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
                                    for o in json.loads(world.obstacles)], float).reshape(-1, 5)
 
     frames = []
-    for j, (k, tf) in enumerate(zip(rows, times)):
-        k = int(k)
+    for j in range(len(rows)):
+        k = j   # the frame's row in ``sub``
         has_ref = math.isfinite(xd[k]) and math.isfinite(yd[k])
         ref = (float(xd[k]), float(yd[k]), float(psid[k]) if math.isfinite(psid[k]) else 0.0) if has_ref else \
             (float("nan"),) * 3
@@ -300,13 +389,9 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
         zk = [z[i][k] if math.isfinite(z[i][k]) else (e[i][k] / rho[i][k] if rho[i][k] else float("nan"))
               for i in (0, 1)]
         ok = bool(abs(zk[0]) < 1.0 and abs(zk[1]) < 1.0)
-        # wake trail and path ahead, sampled uniformly in time
-        ts = np.linspace(max(t0, t[k] - trail_s), t[k], segments + 1)
-        tr = np.clip(np.searchsorted(t, ts), 0, k)
-        trail = np.stack([x[tr], y[tr]], axis=1)
-        ta = np.linspace(t[k], min(t1, t[k] + ahead_s), segments + 1)
-        pa = np.clip(np.searchsorted(t, ta), k, n - 1)
-        path = np.stack([xd[pa], yd[pa]], axis=1)
+        # wake trail and path ahead, sampled uniformly in time (frame_rows)
+        trail = trail_xy[j]
+        path = path_xy[j]
         path = path[np.all(np.isfinite(path), axis=1)]
         # top camera: hull, reference, funnel corners
         pts = [(x[k], y[k])]

@@ -592,6 +592,18 @@ def load_run_record(path: str | os.PathLike):
     return log.record, p
 
 
+def stored_record(path: str | os.PathLike):
+    """(the stored RunRecord, the run's .mcap path) of a run directory that kept its record on disk
+    (``record/``: runs too long to hold in memory, usv_mj.main_job), or None. It is read lazily: the
+    video reads only the rows it draws (usv_mj.render.planner), where the MCAP would be read whole."""
+    p = Path(path)
+    if not (p.is_dir() and (p / "record" / "record.json").is_file()):
+        return None
+    from usv_mj.record import RunRecord
+
+    return RunRecord.open(p / "record"), p / "run.mcap"
+
+
 def load_run_log(path: str | os.PathLike):
     """(the RunLog, the .mcap path) of a run directory (its run.mcap) or of an .mcap file."""
     p = Path(path)
@@ -622,12 +634,19 @@ def default_output(run_path: Path, mcap_path: Path) -> Path:
 def run_command(args: argparse.Namespace) -> int:
     """``usv-mj render RUN``: 0 on success, 2 on bad input, 3 when no OpenGL backend starts."""
     try:
-        log, mcap = load_run_log(args.run)
-        record = log.record
+        stored = stored_record(args.run) if not getattr(args, "live", False) else None
+        if stored is not None:   # a long run's record on disk: read lazily, only the rows drawn
+            record, mcap = stored
+            log = None
+        else:
+            log, mcap = load_run_log(args.run)
+            record = log.record
     except (FileNotFoundError, ValueError, RuntimeError) as exc:
         print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
-    if log.notice:
+    if log is None and record.status != "completed":
+        print(f"usv-mj render: warning: the run's record says {record.status}: {record.stop_reason}", file=sys.stderr)
+    elif log is not None and log.notice:
         print(f"usv-mj render: warning: the log is incomplete, the video shows what was recovered: {log.notice}",
               file=sys.stderr)
     if getattr(args, "live", False):
