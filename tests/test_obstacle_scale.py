@@ -153,8 +153,9 @@ def test_a_run_with_the_broad_phase_keeps_the_minimum_its_obstacle_near_misses_a
     runs = {loop: simulate(sc, loop=loop) for loop in ("auto", "python")}
     real = clearance_mod.make_clearance_monitor
     monkeypatch.setattr(clearance_mod, "make_clearance_monitor",
-                        lambda p, o: (MuJoCoClearance(p, exact_within=math.inf) if hasattr(p, "obstacle_geoms")
-                                      else GeometricClearance(o, exact_within=math.inf)))
+                        lambda p, o, dims=None: (MuJoCoClearance(p, exact_within=math.inf)
+                                                 if hasattr(p, "obstacle_geoms")
+                                                 else GeometricClearance(o, exact_within=math.inf, dimensions=dims)))
     every = simulate(sc, loop="python")
     monkeypatch.setattr(clearance_mod, "make_clearance_monitor", real)
     assert runs["auto"].metadata["loop"] == "compiled"
