@@ -120,3 +120,32 @@ def test_the_default_suite_scores_every_vessel_that_has_landed():
             assert run.scenario.control_period == 0.01 and run.scenario.plant.substeps == 10
         else:
             assert run.scenario.control_period == 0.001 and run.scenario.plant.substeps == 1
+
+
+def test_usv_mj_bench_prints_the_leaderboard_it_writes(tmp_path, monkeypatch):
+    """The command end to end (a new folder, then --resume of the finished one): exit 0, and the
+    leaderboard it prints is the one report.md opens with."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    (tmp_path / "probe_policy.py").write_text(PROBE)
+    suite = tmp_path / "s.toml"
+    suite.write_text('duration = 2.0\nepisodes = 1\nplant = "analytic"\nvessels = ["paper", "otter"]\n'
+                     'controllers = ["ppc", { name = "probe", policy = "probe_policy:Probe" }]\n'
+                     '[[tasks]]\nname = "line"\nsettle_time_s = 1.0\n'
+                     'set = { "trajectory.kind" = "line", "initial.eta" = [0.0, 0.5, 0.0] }\n')
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), str(tmp_path)])}
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "usv_mj.cli", "bench", str(suite), "--out", str(out), "--workers", "1",
+           "--no-progress", "--no-figures"]
+    done = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    printed = [line for line in done.stdout.splitlines() if line.startswith("|")]
+    report = (out / "report.md").read_text()
+    assert printed and "\n".join(printed[:4]) in report
+    assert "| vessel | `ppc` | `probe` |" in printed and any(line.startswith("| otter |") for line in printed)
+    again = subprocess.run(cmd + ["--resume"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0 and "4 episodes (0 run now)" in again.stdout, again.stderr
