@@ -1,7 +1,11 @@
 """Train a stock stable-baselines3 PPO policy on ``usv_mj/Track-v0`` for the benchmark's leaderboard.
 
-    python examples/rl/train_ppo.py --steps 3000000 --out examples/rl/ppo_track.zip   # the shipped policy
+    python examples/rl/train_ppo.py --steps 5000000 --checkpoint 500000 --out /tmp/ppo/ppo_track.zip
     python examples/rl/train_ppo.py --steps 4096 --out /tmp/ppo_smoke.zip           # a smoke test
+
+The shipped policy, ``usv_mj/bench/suites/ppo_track.zip`` (the default suite's ``ppo``), is the
+first command's checkpoint at 3,000,320 steps (``ppo_track-3000320.zip``; the run was stopped
+there, after 43.8 min at 1141 steps/s on a shared 2-core machine; README, Benchmark).
 
 Stock PPO (``MlpPolicy``, stable-baselines3's default hyper-parameters: a rollout of 2048 steps,
 minibatches of 64, 10 epochs, lr 3e-4, gamma 0.99, GAE 0.95, clip 0.2), no wrapper, on the
@@ -49,7 +53,7 @@ def main() -> int:
                         "must divide 2048)")
     parser.add_argument("--threads", type=int, default=1, help="torch intra-op threads (default 1)")
     parser.add_argument("--checkpoint", type=int, default=500_000, help="save every N steps (0: never)")
-    parser.add_argument("--out", default="examples/rl/ppo_track.zip", help="the model file (.zip)")
+    parser.add_argument("--out", default="renders/ppo_track.zip", help="the model file (.zip)")
     args = parser.parse_args()
     if args.n_envs < 1 or 2048 % args.n_envs:
         parser.error(f"--n-envs must divide 2048, got {args.n_envs}")
@@ -63,6 +67,7 @@ def main() -> int:
 
     torch.set_num_threads(args.threads)
     out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
     env = make_vec_env("usv_mj/Track-v0", n_envs=args.n_envs, seed=args.seed)
     model = PPO("MlpPolicy", env, n_steps=2048 // args.n_envs, seed=args.seed, verbose=0, device="cpu")
     t0 = time.perf_counter()
