@@ -40,10 +40,6 @@ from ..errors import ScenarioError
 SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C")
 DEFAULT_CONTROL_PERIOD = 0.01
 """s: the control period of ``usv_mj/Track-v0`` (10 RK4 steps of 1 ms), the one a policy trained there learnt."""
-REWARD_POSITION_M = 0.25
-"""m: the track reward's position term is 1 up to this error (usv_mj.envs.tasks, ``tolerance`` bounds)."""
-REWARD_HEADING_RAD = 0.1
-"""rad: the track reward's heading term is 1 up to this error."""
 
 
 def default_criterion(settle_time_s: float = 20.0):
@@ -52,9 +48,10 @@ def default_criterion(settle_time_s: float = 20.0):
     import math
 
     from ..criteria import PoseTolerance
+    from ..envs.tasks import TRACK_REWARD_HEADING_RAD, TRACK_REWARD_POSITION_M
 
-    return PoseTolerance(settle_time_s=float(settle_time_s), position_m=REWARD_POSITION_M,
-                         heading_deg=math.degrees(REWARD_HEADING_RAD))
+    return PoseTolerance(settle_time_s=float(settle_time_s), position_m=TRACK_REWARD_POSITION_M,
+                         heading_deg=math.degrees(TRACK_REWARD_HEADING_RAD))
 
 
 def load_policy(spec: str, env):
