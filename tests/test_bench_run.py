@@ -205,8 +205,11 @@ def test_the_default_suite_plans(tmp_path):
     suite = load_suite()
     assert suite.tasks == ["paper-track", "line-0.6", "line-1.0", "circle-0.6", "circle-1.0", "lawnmower", "harbour"]
     assert suite.conditions == ["calm", "sea", "limited"]
-    assert [c.name for c in suite.controllers] == ["ppc", "pi", "los"]
-    assert len(suite.plan.runs) == 7 * 3 * 3 * 3
+    assert [c.name for c in suite.controllers] == ["ppc", "pi", "los", "ppo"]
+    # 2 episodes x 3 conditions x 4 vessels x (7 tasks x 3 controllers + 6 tasks for the policy, no harbour)
+    assert len(suite.plan.runs) == 2 * 3 * 4 * (7 * 3 + 6)
+    ppo = [r for r in suite.plan.runs if r.values["controller"] == "ppo"]
+    assert Path(ppo[0].options["policy"]).is_file()   # the shipped policy, beside the suite
     harbour = [r for r in suite.plan.runs if r.values["task"] == "harbour"]
     assert harbour[0].scenario.obstacles and harbour[0].options["metrics"]["goal"] == (45.0, 0.0)
     sea = [r for r in suite.plan.runs if r.values["condition"] == "sea"][0].scenario.sea
@@ -220,23 +223,28 @@ def test_a_policy_on_the_gymnasium_observation_is_scored_like_a_controller(tmp_p
     (tmp_path / "zero_policy.py").write_text("import numpy as np\n\ndef zero(obs):\n    return np.zeros(2, np.float32)\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     suite = plan_suite({"duration": 5.0, "episodes": 1, "controllers": [
-        "ppc", {"name": "ppc-policy", "policy": "usv_mj.envs:PPCPolicy"}, {"name": "zero", "policy": "zero_policy:zero"}],
+        "ppc", {"name": "ppc-policy", "policy": "usv_mj.envs:PPCPolicy", "control_period": 0.001},
+        {"name": "zero", "policy": "zero_policy:zero"}],
         "tasks": [{"name": "line", "set": {"trajectory.kind": "line", "initial.eta": [0.0, 1.0, 0.0],
                                            "plant.kind": "mujoco"}}]})
     rows = {r.values["controller"]: run_one(r.run_id, r.scenario, r.values, r.options) for r in suite.plan.runs}
     assert all(r["status"] == "ok" for r in rows.values()), {k: r["reason"] for k, r in rows.items()}
-    # the paper's law as a policy on the observation (usv_mj.envs.PPCPolicy) is the ppc controller run
-    # through the environment: the same track, within the float32 observation's rounding
+    # the paper's law as a policy on the observation (usv_mj.envs.PPCPolicy), at the law's own 1 ms
+    # period, is the ppc controller run through the environment: the same track, within the float32
+    # observation's rounding
     assert rows["ppc-policy"]["m.iae_cross_track"] == pytest.approx(rows["ppc"]["m.iae_cross_track"], rel=1e-3)
     assert rows["ppc-policy"]["m.effort_u"] == pytest.approx(rows["ppc"]["m.effort_u"], rel=1e-3)
     # a zero action is no thrust: no effort, and the offset of 1 m from the line stays (IAE = 1 m x 5 s)
     assert rows["zero"]["m.effort_u"] == 0.0 and rows["zero"]["m.energy"] == 0.0
     assert rows["zero"]["m.iae_cross_track"] == pytest.approx(5.0, rel=0.02)
-    harbour = plan_suite({"duration": 5.0, "episodes": 1, "controllers": [{"name": "zero", "policy": "zero_policy:zero"}],
+    # the Track observation has no view of obstacles: a policy is not planned on the harbour, and says so
+    harbour = plan_suite({"duration": 5.0, "episodes": 1, "controllers": ["ppc", {"name": "zero", "policy": "zero_policy:zero"}],
                           "tasks": [{"name": "h", "base": str(ROOT / "examples/scenarios/harbour_gap.toml")}]})
-    r = harbour.plan.runs[0]
-    row = run_one(r.run_id, r.scenario, r.values, r.options)
-    assert row["status"] == "failed" and "no view of the obstacles" in row["reason"]
+    assert [r.values["controller"] for r in harbour.plan.runs] == ["ppc"]
+    assert harbour.skipped == [("h", "zero", "a policy's Track observation has no view of the obstacles")]
+    with pytest.raises(SweepError, match="nothing to run: zero not on h"):
+        plan_suite({"duration": 5.0, "controllers": [{"name": "zero", "policy": "zero_policy:zero"}],
+                    "tasks": [{"name": "h", "base": str(ROOT / "examples/scenarios/harbour_gap.toml")}]})
 
 
 def test_a_stable_baselines3_zip_is_a_controller(tmp_path):

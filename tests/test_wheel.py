@@ -138,9 +138,10 @@ def test_the_wheel_carries_the_default_benchmark_suite(installed):
     wheel, py, outside, env = installed
     names = zipfile.ZipFile(wheel).namelist()
     assert "usv_mj/bench/suites/default.toml" in names   # its harbour task names the shipped example harbour_gap
+    assert "usv_mj/bench/suites/ppo_track.zip" in names   # the default suite's PPO policy, beside it
     proc = subprocess.run([str(py), "-c", "from usv_mj.bench import load_suite; s = load_suite(); "
                            "print(len(s.plan.runs), s.source)"], cwd=outside, env=env, capture_output=True,
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     n, source = proc.stdout.split()
-    assert n == "189" and str(ROOT) not in source
+    assert n == "648" and str(ROOT) not in source   # 2 x 3 x 4 x (7 x 3 + 6): tests/test_bench_run.py

@@ -49,6 +49,9 @@ def run_bench(suite, out, *, report: bool = True, draw: bool = True, **kwargs):
         from .report import write_report
 
         write_report(out, result.rows, suite, draw=draw)
+        from ..outdir import record
+
+        record(Path(out), patterns=("leaderboard.json",))   # the report and figures are usv_mj's (--resume, reruns)
     return result
 
 
@@ -156,9 +159,9 @@ def run_command(args: argparse.Namespace) -> int:
                   f"episodes in), Wilcoxon signed-rank, two-sided, 5 %")
             print(compare_table(result, a, b))
             return 0
-        from ..preflight import check_output_path
+        from ..outdir import check_folder
 
-        check_output_path(out)
+        check_folder(out, resume=args.resume)   # new, empty, or (--resume) this benchmark's own folder
         for name in ("workers", "max_runs"):
             v = getattr(args, name)
             if v is not None and v < 1:
@@ -178,6 +181,10 @@ def run_command(args: argparse.Namespace) -> int:
         print(f"{len(result.rows)} of {len(suite.plan.runs)} episodes in {out}/results.parquet; run again with "
               f"--resume for the rest")
         return 0
+    from .report import aggregate, printed_leaderboard
+
+    print("\n".join(printed_leaderboard(aggregate(result.rows), [c.name for c in suite.controllers],
+                                        suite.vessels != [""])))
     print(f"{len(result.rows)} episodes ({result.ran} run now), {result.failed} not ok; {out}/report.md, "
           f"{out}/leaderboard.json, {out}/figures/")
     return 0

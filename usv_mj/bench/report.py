@@ -86,6 +86,42 @@ def ranking(agg: dict) -> dict:
     return {c: {"mean_rank": float(np.mean(r)), "wins": wins.get(c, 0), "ranked": len(r)} for c, r in ranks.items()}
 
 
+def ranking_by(agg: dict, index: int) -> dict:
+    """``{value: ranking(...)}``: the summary ranking over the tables whose key[index] (0 task, 1
+    condition, 2 vessel) is each value, in first-seen order."""
+    values = list(dict.fromkeys(k[index] for k in agg))
+    return {v: ranking({k: c for k, c in agg.items() if k[index] == v}) for v in values}
+
+
+def by_table(by: dict, controllers: list, what: str) -> list[str]:
+    """The mean rank of each controller (columns) per task or vessel (rows), the best in bold."""
+    ctrls = [c for c in controllers if any(c in r for r in by.values())]
+    lines = [f"| {what} | " + " | ".join(f"`{c}`" for c in ctrls) + " |", "| --- |" + " --- |" * len(ctrls)]
+    for value, rank in by.items():
+        best = min((r["mean_rank"] for r in rank.values()), default=None)
+        cells = []
+        for c in ctrls:
+            if c not in rank:
+                cells.append("-")
+                continue
+            text = f"{rank[c]['mean_rank']:.2f}"
+            cells.append(f"**{text}**" if rank[c]["mean_rank"] == best else text)
+        lines.append(f"| {value} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def printed_leaderboard(agg: dict, controllers: list, vessels: bool) -> list[str]:
+    """What ``usv-mj bench`` prints at the end (and report.md opens with): the summary ranking,
+    then the mean rank per task and, with vessels, per vessel (markdown)."""
+    lines = summary_table(ranking(agg))
+    lines += ["", "Mean rank per task (over its conditions" + (" and vessels" if vessels else "")
+              + "; lower is better, the best in bold):", ""] + by_table(ranking_by(agg, 0), controllers, "task")
+    if vessels:
+        lines += ["", "Mean rank per vessel (over the tasks and conditions):", ""] \
+            + by_table(ranking_by(agg, 2), controllers, "vessel")
+    return lines
+
+
 def normalised_scores(agg: dict) -> dict:
     """``{key: {controller: score}}``: per table, the mean over the ranked metrics of
     (worst - value) / (worst - best) (1 = the table's best, 0 = its worst)."""
@@ -195,7 +231,9 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
              f"Metrics: docs/metrics.md.", "", "## Summary ranking", "",
              f"Mean rank of each controller over every table and the ranked metrics ({', '.join(RANKED)}); "
              f"wins: the (table, metric) pairs it is best in.", ""]
-    lines += summary_table(rank)
+    lines += printed_leaderboard(agg, controllers, vessels)
+    if getattr(suite, "skipped", None):
+        lines += ["", "Not scored: " + "; ".join(f"`{c}` on `{t}` ({why})" for t, c, why in suite.skipped) + "."]
     lines += ["", "### At a glance", "", "Each cell: the normalised score of the heat map (1 = the best of the "
               "table on every ranked metric, 0 = the worst; the best in bold), (the mean IAE of the cross-track "
               "error [m s], the share of episodes that passed the controller's own criterion).", ""]

@@ -10,6 +10,9 @@ A suite is TOML (the default: ``usv_mj/bench/suites/default.toml``)::
     controllers = ["ppc", "pi", "los",                       # registered kinds, plug-ins, module:Name
                    { name = "ppc-k1=4", kind = "ppc", set = { "controller.k1" = 4.0 } },
                    { name = "ppo", policy = "ppo_track.zip" }]   # a learned policy (usv_mj.bench.policy)
+    # a policy's table also takes control_period (s, default 0.01: Track-v0's, the period it was
+    # trained at; held over it, zero-order hold) and criterion (a usv_mj.criteria table, default:
+    # the pose tolerance of its training reward's full-reward band, see usv_mj.bench.policy)
     vessels = []              # optional: each name becomes the override vessel.kind (empty: the task's hull)
 
     [conditions.calm]                                     # every task runs in every condition
@@ -28,9 +31,14 @@ A suite is TOML (the default: ``usv_mj/bench/suites/default.toml``)::
 
 Each episode is a :class:`usv_mj.sweep.spec.RunSpec` whose ``values`` (the ``vary.*`` columns of
 the results) are ``task``, ``condition``, ``vessel``, ``controller``, ``episode`` and the drawn
-values; its ``options`` carry the metrics' options and, for a policy, the episode function. The
-draws depend on the task and the episode index only, so every controller meets the same start
-poses and seas (the pairs of ``--compare``), on any number of workers.
+values; its ``options`` carry the metrics' options and, for a policy, the episode function and its
+criterion. A policy's episode scenario is the task's with ``control_period`` = the policy's and
+``plant.substeps`` = that period over the task's integration step (which must divide it), so the
+plant integrates as for every controller and the policy's action is held over its own period. A
+policy is not planned on a task with obstacles (its observation has no view of them): the suite's
+``skipped`` says so, and the report. The draws depend on the task and the episode index only, so
+every controller meets the same start poses and seas (the pairs of ``--compare``), on any number
+of workers.
 """
 
 from __future__ import annotations
@@ -58,7 +66,8 @@ SUITE_KEYS = ("name", "episodes", "seed", "duration", "plant", "controllers", "v
 TASK_KEYS = ("name", "base", "duration", "set", "vary", "settle_time_s", "band_cross_track_m", "band_heading_deg",
              "goal", "goal_radius_m", "episodes")
 CONDITION_KEYS = ("set", "actuators", "sea")
-CONTROLLER_KEYS = ("name", "kind", "set", "policy")
+CONTROLLER_KEYS = ("name", "kind", "set", "policy", "control_period", "criterion")
+POLICY_KEYS = ("control_period", "criterion")
 ROW_HOOK = "usv_mj.bench.episode:metrics_row"
 POLICY_EPISODE = "usv_mj.bench.policy:policy_episode"
 
@@ -77,6 +86,8 @@ class ControllerEntry:
     kind: str | None = None
     set: dict = field(default_factory=dict)
     policy: str | None = None
+    control_period: float | None = None   # s: a policy's (None: usv_mj.bench.policy.DEFAULT_CONTROL_PERIOD)
+    criterion: dict | None = None         # a policy's criterion table (None: usv_mj.bench.policy.default_criterion)
 
 
 @dataclass
@@ -91,6 +102,7 @@ class Suite:
     vessels: list         # vessel names ("" = the task's own hull)
     controllers: list     # ControllerEntry in file order
     episodes: dict        # task -> episodes
+    skipped: list = field(default_factory=list)   # (task, controller, why): pairs not planned
 
 
 def _check_keys(source, where, table, known):
@@ -120,7 +132,27 @@ def _controllers(source, items) -> list[ControllerEntry]:
         sets = item.get("set", {})
         if not isinstance(sets, dict):
             raise SweepError(f"{source}: {where}.set must be a table of path = value, got {sets!r}")
-        out.append(ControllerEntry(str(name), item.get("kind"), dict(sets), item.get("policy")))
+        extra = [k for k in POLICY_KEYS if k in item]
+        if extra and "policy" not in item:
+            raise SweepError(f"{source}: {where}: {', '.join(extra)} go with a policy, not a controller kind")
+        if "policy" in item and sets:
+            raise SweepError(f"{source}: {where}: set goes with a controller kind, not a policy")
+        period = item.get("control_period")
+        if period is not None and (isinstance(period, bool) or not isinstance(period, (int, float))
+                                   or not math.isfinite(period) or not 0 < period <= 1.0):
+            raise SweepError(f"{source}: {where}.control_period must be a number of seconds in (0, 1], got {period!r}")
+        crit = item.get("criterion")
+        if crit is not None:
+            from ..criteria import criterion_from_dict
+
+            if not isinstance(crit, dict):
+                raise SweepError(f"{source}: {where}.criterion must be a table (kind = ..., its bounds), got {crit!r}")
+            try:
+                criterion_from_dict(crit)
+            except ScenarioError as exc:
+                raise SweepError(f"{source}: {where}.criterion: {exc}") from None
+        out.append(ControllerEntry(str(name), item.get("kind"), dict(sets), item.get("policy"),
+                                   None if period is None else float(period), None if crit is None else dict(crit)))
     names = [c.name for c in out]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
@@ -213,7 +245,7 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
     tasks = data.get("tasks")
     if not isinstance(tasks, list) or not tasks:
         raise SweepError(f"{source}: a suite needs at least one [[tasks]] table")
-    runs, names, per_task = [], [], {}
+    runs, names, per_task, skipped = [], [], {}, []
     for ti, task in enumerate(tasks):
         _check_keys(source, f"[[tasks]] {ti}", task, TASK_KEYS)
         name = task.get("name")
@@ -249,12 +281,17 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
         except ScenarioError as exc:
             raise SweepError(f"{source}: {where}: {exc}") from None
         metric_opts = dataclasses.asdict(options)
+        for ctrl in controllers:
+            if ctrl.policy and base.obstacles:
+                skipped.append((name, ctrl.name, "a policy's Track observation has no view of the obstacles"))
         for cname, ctable in conditions.items():
             cond = _condition(source, cname, ctable or {}, base)
             for vessel in vessels:
                 ves = apply_values(cond, {"vessel.kind": vessel}, f"{source} vessel {vessel!r}") if vessel else cond
                 for ctrl in controllers:
-                    scen = ves if ctrl.policy else _controller(source, ctrl, ves)
+                    if ctrl.policy and base.obstacles:
+                        continue
+                    scen = _policy_scenario(source, ctrl, ves) if ctrl.policy else _controller(source, ctrl, ves)
                     for ep in range(n_ep):
                         values = {a.path: drawn[a.path][ep] for a in axes}
                         scenario = apply_values(scen, values, f"{source} {where} episode {ep}") if values else scen
@@ -262,14 +299,40 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
                                       "controller": ctrl.name, "episode": ep, **values}
                         options = {"row_hook": ROW_HOOK, "metrics": metric_opts}
                         if ctrl.policy:
-                            options.update({"episode_fn": POLICY_EPISODE, "policy": _policy_path(ctrl.policy, directory)})
+                            options.update({"episode_fn": POLICY_EPISODE, "policy": _policy_path(ctrl.policy, directory),
+                                            "criterion": _policy_criterion(ctrl, options["metrics"])})
                         runs.append(RunSpec(len(runs), run_values, scenario, options))
+    if not runs:
+        raise SweepError(f"{source}: nothing to run: "
+                         + "; ".join(f"{c} not on {t} ({why})" for t, c, why in skipped))
     check_references(runs, source)
     plan = SweepPlan(source=source, base=runs[0].scenario, axes=[], runs=runs, samples=1, seed=seed,
                      transient=20.0, name=str(data.get("name", Path(source).stem)))
     doc = {"suite": data, "runs": [[r.run_id, r.values, r.scenario.raw, r.options] for r in runs]}
     plan.fingerprint = hashlib.sha256(json.dumps(doc, sort_keys=True, default=repr).encode()).hexdigest()
-    return Suite(source, plan.name, plan, names, list(conditions), vessels, controllers, per_task)
+    return Suite(source, plan.name, plan, names, list(conditions), vessels, controllers, per_task, skipped)
+
+
+def _policy_scenario(source, ctrl: ControllerEntry, scenario):
+    """``scenario`` at the policy's control period: ``plant.substeps`` = the period over the task's
+    integration step ``control_period / plant.substeps`` (which must divide it)."""
+    from .policy import DEFAULT_CONTROL_PERIOD
+
+    period = ctrl.control_period or DEFAULT_CONTROL_PERIOD
+    h = scenario.control_period / scenario.plant.substeps
+    n = round(period / h)
+    if n < 1 or abs(n * h - period) > 1e-9 * period:
+        raise SweepError(f"{source}: controller {ctrl.name!r}: control_period {period:g} s is not a whole number "
+                         f"of the task's integration steps of {h:g} s")
+    return apply_values(scenario, {"control_period": period, "plant.substeps": n},
+                        f"{source} controller {ctrl.name!r}")
+
+
+def _policy_criterion(ctrl: ControllerEntry, metrics: dict) -> dict:
+    """The criterion table a policy's episodes are judged by (its own, else the default of the task)."""
+    from .policy import default_criterion
+
+    return dict(ctrl.criterion) if ctrl.criterion else default_criterion(metrics["settle_time_s"]).to_dict()
 
 
 def _policy_path(spec: str, directory: Path | None) -> str:
@@ -284,7 +347,8 @@ def describe(suite: Suite) -> str:
     n = len(suite.plan.runs)
     return (f"{suite.source}: {len(suite.tasks)} tasks x {len(suite.conditions)} conditions x "
             f"{len(suite.vessels)} vessel(s) x {len(suite.controllers)} controllers, "
-            f"{sorted(set(suite.episodes.values()))} episodes each: {n} episodes, all validated")
+            f"{sorted(set(suite.episodes.values()))} episodes each: {n} episodes, all validated"
+            + "".join(f"; {c} not on {t} ({why})" for t, c, why in suite.skipped))
 
 
 __all__ = ["Suite", "ControllerEntry", "load_suite", "plan_suite", "default_suite_path", "describe"]

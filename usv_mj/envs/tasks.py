@@ -83,6 +83,11 @@ FUSED_HORIZON = 60.0  # s: the fused step asks the plant for its kernel this far
 DEFAULT_PREVIEW = (0.5, 1.0, 2.0, 4.0)
 
 
+#: the track reward's full-reward band (the ``tolerance`` bounds' upper ends; the Rewards section above):
+#: |p - p_d| [m] and |wrap(psi - psi_d)| [rad]; a learned policy's benchmark criterion (usv_mj.bench.policy)
+TRACK_REWARD_POSITION_M = 0.25
+TRACK_REWARD_HEADING_RAD = 0.1
+
 DEFAULT_FORCE = 1000.0  # N and N m: the action bound of a channel whose actuator is unlimited
 
 
@@ -550,8 +555,8 @@ class TrackTask(base.Task):
 
     @staticmethod
     def _tracking_reward(ev) -> float:
-        return (2.0 * _tol_gaussian(math.hypot(ev.ex, ev.ey), 0.0, 0.25, 2.0)      # r_pos
-                + _tol_gaussian(abs(ev.e_psi), 0.0, 0.1, 0.5)) / 3.0               # r_psi
+        return (2.0 * _tol_gaussian(math.hypot(ev.ex, ev.ey), 0.0, TRACK_REWARD_POSITION_M, 2.0)      # r_pos
+                + _tol_gaussian(abs(ev.e_psi), 0.0, TRACK_REWARD_HEADING_RAD, 0.5)) / 3.0               # r_psi
 
     def get_reward(self, physics):
         return self._reward(self._evaluate(physics))
