@@ -529,3 +529,21 @@ def test_usv_mj_cli_runs_the_sweep_command_with_exit_2_on_a_bad_file(tmp_path, c
     assert "initial.eta[3]" in capsys.readouterr().err
     assert main(["capability", "--load", "disturbance", "--tol", "2", "--out", str(tmp_path / "c")]) == 2
     assert "--tol must be in (0, 1)" in capsys.readouterr().err
+
+
+def test_the_local_clusters_scheduler_says_nothing_at_info_when_the_root_logger_has_a_handler(caplog):
+    """absl gives the root logger a handler on dm_control's import (a policy suite of usv-mj bench):
+    the in-process scheduler's INFO start-up lines must not reach the console then."""
+    import logging
+
+    from usv_mj.sweep.runner import open_client
+
+    import distributed  # noqa: F401  (its import sets its logger's level, which open_client restores)
+
+    caplog.set_level(logging.INFO)
+    before = logging.getLogger("distributed").level
+    with open_client(None, 1, echo=lambda *a, **k: None):
+        pass
+    assert [r.getMessage() for r in caplog.records if r.name.startswith("distributed") and
+            r.levelno < logging.WARNING] == []
+    assert logging.getLogger("distributed").level == before   # restored for the rest of the process

@@ -376,16 +376,25 @@ def open_client(scheduler: str | None = None, workers: int | None = None,
         raise SweepError(f"--workers must be >= 1, got {n}")
     # the workers' own loggers at CRITICAL: a run that fails comes back as a row with its reason, and
     # a cluster closed under them (Ctrl-C) makes them log heartbeat ERRORs with tracebacks
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.CRITICAL)
-    client = Client(cluster)
-    echo(f"local Dask cluster: {n} worker processes x 1 thread; dashboard: {_dashboard(client)}")
+    # the scheduler runs in this process and logs its start-up at INFO: shown on the console as soon
+    # as anything has given the root logger a handler (absl does, on dm_control's import: a policy
+    # suite); the line above says what the user needs, so its INFO stays quiet while the cluster lives
+    scheduler_log = logging.getLogger("distributed")
+    level = scheduler_log.level
+    scheduler_log.setLevel(max(scheduler_log.getEffectiveLevel(), logging.WARNING))
     try:
-        yield client
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.CRITICAL)
+        client = Client(cluster)
+        echo(f"local Dask cluster: {n} worker processes x 1 thread; dashboard: {_dashboard(client)}")
+        try:
+            yield client
+        finally:
+            with _quiet_teardown():
+                client.close()
+                cluster.close()
     finally:
-        with _quiet_teardown():
-            client.close()
-            cluster.close()
+        scheduler_log.setLevel(level)
 
 
 @contextlib.contextmanager
