@@ -149,3 +149,13 @@ def test_usv_mj_bench_prints_the_leaderboard_it_writes(tmp_path, monkeypatch):
     assert "| vessel | `ppc` | `probe` |" in printed and any(line.startswith("| otter |") for line in printed)
     again = subprocess.run(cmd + ["--resume"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0 and "4 episodes (0 run now)" in again.stdout, again.stderr
+    assert "INFO:distributed" not in done.stderr + again.stderr   # the scheduler's start-up stays quiet
+    refused = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert refused.returncode == 2 and "pass --overwrite" in refused.stderr, refused.stderr
+    replaced = subprocess.run(cmd + ["--overwrite"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                              timeout=300)
+    assert replaced.returncode == 0 and "4 episodes (4 run now)" in replaced.stdout, replaced.stderr
+    assert (out / "report.md").read_text() == report   # the same suite again: the same leaderboard
+    both = subprocess.run(cmd + ["--overwrite", "--resume"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert both.returncode == 2 and "give one of them" in both.stderr, both.stderr

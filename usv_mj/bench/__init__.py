@@ -127,6 +127,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=None,
                         help="local cluster: worker processes (default: the number of cores)")
     parser.add_argument("--resume", action="store_true", help="run only the episodes missing from DIR/results.parquet")
+    from ..outdir import add_overwrite_argument
+
+    add_overwrite_argument(parser, "--out whole when it holds an earlier usv_mj output (the new benchmark is "
+                                   "staged: the old one stays until it ends)")
     parser.add_argument("--max-runs", type=int, default=None,
                         help="run at most N episodes now, then stop (--resume continues)")
     parser.add_argument("--compare", nargs=2, metavar=("A", "B"), default=None,
@@ -159,17 +163,30 @@ def run_command(args: argparse.Namespace) -> int:
                   f"episodes in), Wilcoxon signed-rank, two-sided, 5 %")
             print(compare_table(result, a, b))
             return 0
-        from ..outdir import check_folder
+        from ..outdir import Staging, check_folder, entries
 
-        check_folder(out, resume=args.resume)   # new, empty, or (--resume) this benchmark's own folder
+        if args.resume and args.overwrite:
+            raise SweepError("--resume continues the benchmark in --out, --overwrite replaces it: give one of them")
+        check_folder(out, args.overwrite, resume=args.resume)   # new, empty, this benchmark's (--resume) or --overwrite
         for name in ("workers", "max_runs"):
             v = getattr(args, name)
             if v is not None and v < 1:
                 raise SweepError(f"--{name.replace('_', '-')} must be >= 1, got {v}")
         print(describe(suite), flush=True)
-        result = run_bench(suite, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
-                           progress=not args.no_progress, max_runs=args.max_runs, jobqueue=args.jobqueue,
-                           jobs=args.jobs, draw=not args.no_figures)
+        # as usv-mj sweep: into a new folder in place (a killed one stays resumable); one that replaces
+        # an earlier output is staged, so that the old one stays until the new one ends
+        stage = Staging(Path(out)) if (Path(out).is_dir() and not args.resume and any(entries(Path(out)))) else None
+        try:
+            result = run_bench(suite, stage.path if stage else out, scheduler=args.scheduler, workers=args.workers,
+                               resume=args.resume, progress=not args.no_progress, max_runs=args.max_runs,
+                               jobqueue=args.jobqueue, jobs=args.jobs, draw=not args.no_figures)
+        except ScenarioError:
+            if stage:
+                stage.discard()
+            raise
+        finally:
+            if stage and stage.path.exists():
+                stage.commit()
     except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj bench: error: {exc}", file=sys.stderr)
         return 2
