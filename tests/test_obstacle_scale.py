@@ -19,7 +19,8 @@ import pytest
 
 from usv_mj.obstacle_tables import from_tables
 from usv_mj.obstacles import clearance as clearance_mod
-from usv_mj.obstacles.clearance import GeometricClearance, MuJoCoClearance, StandingGrid, grid_candidates
+from usv_mj.obstacles.broad_phase import StandingGrid, grid_candidates
+from usv_mj.obstacles.clearance import GeometricClearance, MuJoCoClearance
 from usv_mj.scenario import load_scenario
 from usv_mj.simulation import simulate
 

@@ -13,7 +13,7 @@ contact) and ``in_contact`` (bool per obstacle):
   contact physics (the analytic plant): the hull's collision footprint
   (:func:`~usv_mj.obstacles.compose.hull_footprint`) at the plant's pose against each obstacle's
   section. Separated: the exact polygon distance (circles exactly: distance to the centre minus
-  the radius). Overlapping: minus an estimate of the penetration depth (the deepest vertex of one
+  the radius; the kernels of usv_mj.obstacles.footprint_kernels). Overlapping: minus an estimate of the penetration depth (the deepest vertex of one
   shape inside the other, circles exactly), so the sign is right and the magnitude is indicative.
   The analytic plant passes through obstacles; :attr:`GeometricClearance.note` says so.
 
@@ -22,17 +22,18 @@ lower bound instead of the exact distance (cheap with 50 obstacles; ``math.inf``
 
 Broad phase (``broad_phase=True``, what a run's monitor uses: :func:`make_clearance_monitor`): a
 step's work scales with the obstacles within reach, not with all of them. The standing obstacles
-sit in a uniform grid (:class:`StandingGrid`, built once: cells of about the reach, each listing the
-obstacles whose bounding box overlaps it); a step looks only at the cells that the square of half
-side ``exact_within + R_hull`` about the hull overlaps, and measures exactly those of their obstacles
-whose bounding-circle lower bound is under ``exact_within`` (the same test and the same distance
-as without the broad phase, so these entries are bit for bit the same). Every other entry is
-**NaN, meaning "beyond reach": not measured, its clearance is at least ``exact_within``** (the
-bounding-circle bound says so; :data:`BEYOND_REACH`). Nothing is claimed that was not measured:
-the minimum over the obstacles, its obstacle, the near misses (margin < ``exact_within``) and the
-contacts are those of the all-pairs update whenever the minimum is within reach (a run whose hull
-never comes within ``exact_within`` of any obstacle has no measured minimum). Moving obstacles
-are tested all-pairs (they are few; a moving grid is not worth it) with the same rule.
+sit in a uniform grid (:class:`usv_mj.obstacles.broad_phase.StandingGrid`, built once: cells of
+about the reach, each listing the obstacles whose bounding box overlaps it); a step looks only at
+the cells that the square of half side ``exact_within + R_hull`` about the hull overlaps, and
+measures exactly those of their obstacles whose bounding-circle lower bound is under
+``exact_within`` (the same test and the same distance as without the broad phase, so these entries
+are bit for bit the same). Every other entry is **NaN, meaning "beyond reach": not measured, its
+clearance is at least ``exact_within``** (the bounding-circle bound says so; :data:`BEYOND_REACH`).
+Nothing is claimed that was not measured: the minimum over the obstacles, its obstacle, the near
+misses (margin < ``exact_within``) and the contacts are those of the all-pairs update whenever the
+minimum is within reach (a run whose hull never comes within ``exact_within`` of any obstacle has
+no measured minimum). Moving obstacles are tested all-pairs (they are few; a moving grid is not
+worth it) with the same rule.
 """
 
 from __future__ import annotations
@@ -49,7 +50,9 @@ from shapely import affinity
 
 from usv_mj.plants.mujoco_callback import call_model_data, mujoco_function_address
 
+from .broad_phase import StandingGrid, grid_candidates
 from .compose import hull_footprint, vessel_collision_geoms, vessel_hull_radius
+from .footprint_kernels import footprint_clearances, footprint_clearances_broad, scatter_clearances
 
 ANALYTIC_NOTE = ("the analytic plant has no contact physics: clearance is computed from the geometry, "
                  "a collision is recorded when it reaches zero, and the hull passes through obstacles")
@@ -69,81 +72,6 @@ def _call_geom_distance(typingctx, fn_address, m_addr, d_addr, geom1, geom2, dis
         return builder.call(fn, list(args[1:]))
 
     return sig, codegen
-
-
-class StandingGrid:
-    """A uniform grid over standing obstacles' bounding boxes (the broad phase; module docstring).
-
-    ``centers`` (n, 2) [m], ``radii`` (n,) [m] bounding radii, ``reach`` [m] the half side of the
-    square a query covers (cells are about that size, so a query looks at 2 x 2 to 3 x 3 cells;
-    larger when the scene is so spread that the cells would outnumber ``MAX_CELLS_PER_OBSTACLE``
-    per obstacle). ``index``: the obstacles' own indices (their positions in the monitor's arrays).
-    The boxes are padded by ``PAD`` so that a rounding at a cell edge can add a candidate, never
-    lose one. :attr:`args` are :func:`grid_candidates`'s grid arguments."""
-
-    MAX_CELLS_PER_OBSTACLE = 16
-    PAD = 1e-6  # [m]
-
-    def __init__(self, centers, radii, reach: float, index=None):
-        centers = np.asarray(centers, dtype=float).reshape(-1, 2)
-        radii = np.asarray(radii, dtype=float).reshape(-1)
-        n = len(radii)
-        index = np.arange(n, dtype=np.int64) if index is None else np.asarray(index, dtype=np.int64)
-        pad = self.PAD + 1e-12 * (float(np.max(np.abs(centers))) if n else 0.0)
-        lo = centers - (radii + pad)[:, None] if n else np.zeros((0, 2))
-        hi = centers + (radii + pad)[:, None] if n else np.zeros((0, 2))
-        x0, y0 = (lo.min(axis=0) if n else (0.0, 0.0))
-        x1, y1 = (hi.max(axis=0) if n else (1.0, 1.0))
-        h = max(float(reach), 1e-3)
-        limit = self.MAX_CELLS_PER_OBSTACLE * max(n, 64)
-        while math.ceil((x1 - x0) / h + 1) * math.ceil((y1 - y0) / h + 1) > limit:
-            h *= 2.0
-        nx, ny = int((x1 - x0) // h) + 1, int((y1 - y0) // h) + 1
-        ix0 = np.clip(np.floor((lo[:, 0] - x0) / h).astype(np.int64), 0, nx - 1)
-        ix1 = np.clip(np.floor((hi[:, 0] - x0) / h).astype(np.int64), 0, nx - 1)
-        iy0 = np.clip(np.floor((lo[:, 1] - y0) / h).astype(np.int64), 0, ny - 1)
-        iy1 = np.clip(np.floor((hi[:, 1] - y0) / h).astype(np.int64), 0, ny - 1)
-        cells, items = [], []
-        for j in range(n):
-            for ix in range(ix0[j], ix1[j] + 1):
-                for iy in range(iy0[j], iy1[j] + 1):
-                    cells.append(ix * ny + iy)
-                    items.append(index[j])
-        cells = np.asarray(cells, dtype=np.int64)
-        order = np.argsort(cells, kind="stable")
-        self.items = np.asarray(items, dtype=np.int64)[order]
-        self.start = np.searchsorted(cells[order], np.arange(nx * ny + 1)).astype(np.int64)
-        self.geometry = np.array([x0, y0, h, float(reach) + pad])
-        self.shape = np.array([nx, ny], dtype=np.int64)
-        self.args = (self.geometry, self.shape, self.start, self.items)
-
-
-@njit(cache=True)
-def grid_candidates(geometry, shape, start, items, x, y, seen, stamp, out):
-    """The obstacles of :class:`StandingGrid` cells that the square of half side ``geometry[3]``
-    about (x, y) overlaps, each once (``seen`` (n,) int64 and ``stamp`` (1,) int64: scratch), into
-    ``out``; returns how many."""
-    x0, y0, h, reach = geometry[0], geometry[1], geometry[2], geometry[3]
-    nx, ny = shape[0], shape[1]
-    fx0, fx1 = np.floor((x - reach - x0) / h), np.floor((x + reach - x0) / h)
-    fy0, fy1 = np.floor((y - reach - y0) / h), np.floor((y + reach - y0) / h)
-    if not (fx1 >= 0.0 and fx0 < nx and fy1 >= 0.0 and fy0 < ny):  # also a NaN pose: no candidate
-        return 0
-    ix0, ix1 = int(max(fx0, 0.0)), int(min(fx1, nx - 1.0))
-    iy0, iy1 = int(max(fy0, 0.0)), int(min(fy1, ny - 1.0))
-    stamp[0] += 1
-    s = stamp[0]
-    count = 0
-    for ix in range(ix0, ix1 + 1):
-        for iy in range(iy0, iy1 + 1):
-            c = ix * ny + iy
-            for j in range(start[c], start[c + 1]):
-                i = items[j]
-                if seen[i] != s:
-                    seen[i] = s
-                    out[count] = i
-                    count += 1
-    return count
 
 
 #: [m] a skipped obstacle's bound must beat the best distance so far by this much (min_only): far
@@ -383,177 +311,6 @@ class MuJoCoClearance:
         return True
 
 # --- numba kernels: signed distances between convex polygons (the hull footprint is convex) -----
-
-
-@njit(cache=True)
-def _point_segment_distance(px, py, ax, ay, bx, by):
-    dx, dy = bx - ax, by - ay
-    den = dx * dx + dy * dy
-    w = ((px - ax) * dx + (py - ay) * dy) / den if den > 0.0 else 0.0
-    if w < 0.0:
-        w = 0.0
-    elif w > 1.0:
-        w = 1.0
-    qx, qy = ax + w * dx - px, ay + w * dy - py
-    return math.sqrt(qx * qx + qy * qy)
-
-
-@njit(cache=True)
-def point_polygon_signed_distance(poly, px, py):
-    """Signed distance [m] from (px, py) to the convex counter-clockwise polygon ``poly`` (n, 2),
-    negative inside."""
-    n = poly.shape[0]
-    best = math.inf
-    inside = True
-    for i in range(n):
-        j = (i + 1) % n
-        ax, ay, bx, by = poly[i, 0], poly[i, 1], poly[j, 0], poly[j, 1]
-        if (bx - ax) * (py - ay) - (by - ay) * (px - ax) < 0.0:
-            inside = False
-        d = _point_segment_distance(px, py, ax, ay, bx, by)
-        if d < best:
-            best = d
-    return -best if inside else best
-
-
-@njit(cache=True)
-def _axis_overlap(a, b, nx, ny):
-    amin, amax, bmin, bmax = math.inf, -math.inf, math.inf, -math.inf
-    for i in range(a.shape[0]):
-        p = a[i, 0] * nx + a[i, 1] * ny
-        amin, amax = min(amin, p), max(amax, p)
-    for i in range(b.shape[0]):
-        p = b[i, 0] * nx + b[i, 1] * ny
-        bmin, bmax = min(bmin, p), max(bmax, p)
-    return min(amax - bmin, bmax - amin)
-
-
-@njit(cache=True)
-def convex_signed_distance(a, b):
-    """Signed distance [m] between two convex counter-clockwise polygons (n, 2) and (m, 2):
-    separated, the exact distance (min over vertex-edge pairs); overlapping, minus the
-    penetration depth (the smallest overlap over the edge normals: separating-axis theorem)."""
-    min_overlap = math.inf
-    for poly in (a, b):
-        n = poly.shape[0]
-        for i in range(n):
-            j = (i + 1) % n
-            ex, ey = poly[j, 0] - poly[i, 0], poly[j, 1] - poly[i, 1]
-            norm = math.sqrt(ex * ex + ey * ey)
-            if norm == 0.0:
-                continue
-            ov = _axis_overlap(a, b, -ey / norm, ex / norm)
-            if ov < min_overlap:
-                min_overlap = ov
-    if min_overlap <= 0.0:
-        best = math.inf
-        for p, q in ((a, b), (b, a)):
-            m = q.shape[0]
-            for i in range(p.shape[0]):
-                for j in range(m):
-                    k = (j + 1) % m
-                    d = _point_segment_distance(p[i, 0], p[i, 1], q[j, 0], q[j, 1], q[k, 0], q[k, 1])
-                    if d < best:
-                        best = d
-        return best
-    return -min_overlap
-
-
-@njit(cache=True)
-def scatter_clearances(out_circles, out_boxes, circles, boxes, clearance, in_contact):
-    """The circles' and boxes' clearances into the obstacles' order; in_contact = clearance <= 0.
-    Returns whether any obstacle is reached (GeometricClearance.update and the loop's hook kernel)."""
-    for j in range(circles.shape[0]):
-        clearance[circles[j]] = out_circles[j]
-    for j in range(boxes.shape[0]):
-        clearance[boxes[j]] = out_boxes[j]
-    hit = False
-    for i in range(clearance.shape[0]):
-        in_contact[i] = clearance[i] <= 0.0
-        hit = hit or in_contact[i]
-    return hit
-
-
-@njit(cache=True)
-def footprint_clearances(body, body_radius, x, y, psi, centers, radii, boxes, box_radii, exact_within,
-                         out_circles, out_boxes):
-    """Clearance of the hull footprint ``body`` (convex, CCW, body frame, within ``body_radius`` of
-    its origin) at pose (x, y, psi) to circles (centres (k, 2), radii (k,)) and boxes (corners
-    (m, 4, 2), CCW, half-diagonals ``box_radii``) [m]. Obstacles whose bounding-circle lower bound
-    exceeds ``exact_within`` get that lower bound instead of the exact distance."""
-    c, s = math.cos(psi), math.sin(psi)
-    n = body.shape[0]
-    hull = np.empty((n, 2))
-    for i in range(n):
-        hull[i, 0] = x + c * body[i, 0] - s * body[i, 1]
-        hull[i, 1] = y + s * body[i, 0] + c * body[i, 1]
-    for i in range(centers.shape[0]):
-        lower = math.hypot(centers[i, 0] - x, centers[i, 1] - y) - body_radius - radii[i]
-        if lower > exact_within:
-            out_circles[i] = lower
-        else:
-            out_circles[i] = point_polygon_signed_distance(hull, centers[i, 0], centers[i, 1]) - radii[i]
-    for i in range(boxes.shape[0]):
-        bx = 0.25 * (boxes[i, 0, 0] + boxes[i, 1, 0] + boxes[i, 2, 0] + boxes[i, 3, 0])
-        by = 0.25 * (boxes[i, 0, 1] + boxes[i, 1, 1] + boxes[i, 2, 1] + boxes[i, 3, 1])
-        lower = math.hypot(bx - x, by - y) - body_radius - box_radii[i]
-        if lower > exact_within:
-            out_boxes[i] = lower
-        else:
-            out_boxes[i] = convex_signed_distance(hull, boxes[i])
-
-
-
-@njit(cache=True)
-def footprint_clearances_broad(body, body_radius, x, y, psi, centers, radii, boxes, box_radii, exact_within, kind,
-                               slot, grid_geometry, grid_shape, grid_start, grid_items, moving, seen, stamp, scratch,
-                               active, n_active, clearance, in_contact):
-    """:func:`footprint_clearances` and :func:`scatter_clearances` with the broad phase (module
-    docstring): the candidates of the grid and the ``moving`` obstacles (obstacle i is circle
-    ``slot[i]`` when ``kind[i]`` is 0, box ``slot[i]`` otherwise) get the same bound test and the same
-    distance; the last update's entries (``active``) become NaN first. Returns whether any
-    obstacle is reached (clearance <= 0)."""
-    for j in range(n_active[0]):
-        i = active[j]
-        clearance[i] = np.nan
-        in_contact[i] = False
-    count = grid_candidates(grid_geometry, grid_shape, grid_start, grid_items, x, y, seen, stamp, scratch)
-    for j in range(moving.shape[0]):
-        scratch[count] = moving[j]
-        count += 1
-    if count == 0:
-        n_active[0] = 0
-        return False
-    c, s = math.cos(psi), math.sin(psi)
-    n = body.shape[0]
-    hull = np.empty((n, 2))
-    for i in range(n):
-        hull[i, 0] = x + c * body[i, 0] - s * body[i, 1]
-        hull[i, 1] = y + s * body[i, 0] + c * body[i, 1]
-    na = 0
-    hit = False
-    for j in range(count):
-        i = scratch[j]
-        q = slot[i]
-        if kind[i] == 0:
-            lower = math.hypot(centers[q, 0] - x, centers[q, 1] - y) - body_radius - radii[q]
-            if lower > exact_within:
-                continue
-            value = point_polygon_signed_distance(hull, centers[q, 0], centers[q, 1]) - radii[q]
-        else:
-            bx = 0.25 * (boxes[q, 0, 0] + boxes[q, 1, 0] + boxes[q, 2, 0] + boxes[q, 3, 0])
-            by = 0.25 * (boxes[q, 0, 1] + boxes[q, 1, 1] + boxes[q, 2, 1] + boxes[q, 3, 1])
-            lower = math.hypot(bx - x, by - y) - body_radius - box_radii[q]
-            if lower > exact_within:
-                continue
-            value = convex_signed_distance(hull, boxes[q])
-        clearance[i] = value
-        in_contact[i] = value <= 0.0
-        hit = hit or in_contact[i]
-        active[na] = i
-        na += 1
-    n_active[0] = na
-    return hit
 
 
 def _penetration(a, b) -> float:

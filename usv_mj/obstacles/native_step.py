@@ -22,7 +22,8 @@ from __future__ import annotations
 
 from numba import njit
 
-from .clearance import footprint_clearances, footprint_clearances_broad, mujoco_clearance_kernel, scatter_clearances
+from .clearance import mujoco_clearance_kernel
+from .footprint_kernels import footprint_clearances, footprint_clearances_broad, scatter_clearances
 
 #: [m] on the MuJoCo plant, a step whose least clearance is under this goes to Python (contacts)
 CONTACT_WATCH = 0.05
