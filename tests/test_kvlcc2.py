@@ -265,3 +265,21 @@ def test_a_force_controller_is_refused_on_the_ruddered_vessel():
     with build(s, plant_kind="analytic", controller_kind="open_loop") as parts:
         assert parts.controller.commands == "any"
     check_commands(load_scenario(preset="paper"), "ppc")   # a vessel that takes forces: no objection
+
+
+def test_the_command_line_checks_vessel_keys_against_the_vessel_flag_and_compare_refuses_a_rudder(tmp_path):
+    """--set vessel.KEY belongs to --vessel's kind (KVLCC2's rudder rate, not a paper-hull key), and
+    compare, which drives the hull with forces, refuses a ruddered vessel in one line, exit 2."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    run = lambda *a: subprocess.run([sys.executable, "-m", "usv_mj.cli", *a], cwd=tmp_path, capture_output=True,
+                                    text=True, timeout=300, env={**__import__("os").environ, "PYTHONPATH": str(root)})
+    bad = run("manoeuvre", "turning", "--vessel", "kvlcc2", "--set", "vessel.rudder_rate_deg_s=-1",
+              "--out", str(tmp_path / "m"), "-q")
+    assert bad.returncode == 2 and "vessel.rudder_rate_deg_s must be > 0, got -1.0" in bad.stderr, bad.stderr
+    refused = run("compare", "--vessel", "kvlcc2", "--duration", "5", "--out", str(tmp_path / "c"), "-q")
+    assert refused.returncode == 2 and "takes the propeller's n_P and a rudder angle" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1 and not (tmp_path / "c").exists()

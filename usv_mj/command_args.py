@@ -57,15 +57,29 @@ def add_vessel_argument(p: argparse.ArgumentParser) -> None:
                    "`usv-mj kinds vessel`) or a vessel data file; shorthand for --set vessel.kind=KIND")
 
 
+def _with_vessel(args, overrides: dict) -> dict:
+    """``overrides`` with --vessel's kind: shorthand for --set vessel.kind=X (docs/vessels.md)."""
+    if getattr(args, "vessel", None):
+        if not isinstance(overrides.get("vessel", {}), dict):
+            raise ScenarioError(f"--set vessel={overrides['vessel']!r}: [vessel] must be a table")
+        if isinstance(overrides.get("ship"), dict) and args.vessel != "paper":
+            raise ScenarioError(f"--vessel {args.vessel}: --set ship.* sets the paper vessel's parameters; "
+                                f"give the vessel's own as --set vessel.KEY=VALUE")
+        overrides = {**overrides, "vessel": {**overrides.get("vessel", {}), "kind": args.vessel}}
+    return overrides
+
+
 def scenario_from_args(args):
     overrides = {}
     if getattr(args, "sea", None) is not None:
         overrides["sea"] = {"preset": args.sea}
     sets = parse_set(args.set)
     # every value of the file and of --set is checked, even one that a flag below replaces; but the
-    # step count (duration / control_period) only on the duration that runs: --duration's, if given
+    # step count (duration / control_period) only on the duration that runs: --duration's, if given.
+    # --set vessel.KEY belongs to --vessel's kind, so that kind is in the check too
     try:
-        load_scenario(args.scenario, preset=args.preset, overrides=merge_tables(overrides, sets) or None)
+        load_scenario(args.scenario, preset=args.preset, overrides=_with_vessel(args, merge_tables(overrides, sets))
+                      or None)
     except ScenarioError as exc:
         if not (args.duration is not None and isinstance(exc, TooManyStepsError)):
             if not sets:
@@ -79,14 +93,7 @@ def scenario_from_args(args):
             raise ScenarioError(f"--set plant={overrides['plant']!r}: [plant] must be a table (with --plant "
                                 "give --set plant.kind=... or drop one of them)")
         overrides.setdefault("plant", {})["kind"] = args.plant
-    if getattr(args, "vessel", None):  # --vessel X: shorthand for --set vessel.kind=X (docs/vessels.md)
-        if not isinstance(overrides.get("vessel", {}), dict):
-            raise ScenarioError(f"--set vessel={overrides['vessel']!r}: [vessel] must be a table")
-        if isinstance(overrides.get("ship"), dict) and args.vessel != "paper":
-            raise ScenarioError(f"--vessel {args.vessel}: --set ship.* sets the paper vessel's parameters; "
-                                f"give the vessel's own as --set vessel.KEY=VALUE")
-        overrides.setdefault("vessel", {})["kind"] = args.vessel
-    return load_scenario(args.scenario, preset=args.preset, overrides=overrides)
+    return load_scenario(args.scenario, preset=args.preset, overrides=_with_vessel(args, overrides))
 
 
 def add_live_arguments(p, speed: bool = True) -> None:

@@ -628,6 +628,18 @@ def _plot_convergence(path: str, open_loop: dict, closed_loop: dict) -> None:
 # --- entry points --------------------------------------------------------------------------------
 
 
+def check_forces_vessel(scenario: Scenario) -> None:
+    """The comparison drives the hull with forces (random open-loop thrust, the PPC law): a
+    ruddered vessel, whose channels are n_P and a rudder angle, is refused in one line."""
+    from .scenario import ScenarioError
+
+    if getattr(getattr(scenario.vessel, "model", None), "inputs", "forces") == "rudder":
+        raise ScenarioError(f"{scenario.source}: compare drives the hull with forces and the PPC law; the vessel "
+                            f"{scenario.vessel.kind!r} takes the propeller's n_P and a rudder angle (its two plants "
+                            f"are compared on rudder and propeller steps by tests/test_kvlcc2.py, and `usv-mj "
+                            f"manoeuvre ... --plant analytic|mujoco` runs either)")
+
+
 def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> dict:
     """Run the open- and closed-loop comparisons of ``scenario``; write compare.json and the plots.
 
@@ -637,6 +649,7 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
     """
     if not isinstance(scenario, Scenario):
         raise TypeError(f"compare_plants: scenario must be a usv_mj.scenario.Scenario, got {type(scenario).__name__}")
+    check_forces_vessel(scenario)
     os.makedirs(out_dir, exist_ok=True)
     wall0 = time.perf_counter()
     done: dict = {}
@@ -756,6 +769,7 @@ def run_command(args) -> int:
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise ScenarioError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
     scenario = scenario_from_args(args)
+    check_forces_vessel(scenario)
     name = os.path.splitext(os.path.basename(args.scenario))[0] if args.scenario else (args.preset or "paper")
     if getattr(args, "vessel", None):
         name += "-" + os.path.splitext(os.path.basename(args.vessel))[0]
