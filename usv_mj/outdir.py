@@ -456,3 +456,28 @@ class Staging:
                 print(f"usv-mj: kept {old}: it holds {kept[0]}, which no usv_mj command wrote", file=sys.stderr)
             else:
                 old.rmdir()
+
+
+def results_folder(out, resume: bool = False):
+    """Where a sweep or a benchmark writes its results, as a context manager yielding the folder.
+    A new (or empty) folder, or ``resume``: ``out`` itself, in place (a killed job stays resumable).
+    Replacing an earlier output (``--overwrite``): a :class:`Staging` folder, so the old output stays
+    until the new one ends; it goes into place however the job ends, unless bad input is found late
+    (a ScenarioError: nothing goes into place)."""
+    import contextlib
+
+    @contextlib.contextmanager
+    def _folder():
+        path = Path(out)
+        stage = Staging(path) if (path.is_dir() and not resume and any(entries(path))) else None
+        try:
+            yield stage.path if stage else path
+        except ScenarioError:
+            if stage:
+                stage.discard()
+            raise
+        finally:
+            if stage and stage.path.exists():
+                stage.commit()
+
+    return _folder()

@@ -163,7 +163,7 @@ def run_command(args: argparse.Namespace) -> int:
                   f"episodes in), Wilcoxon signed-rank, two-sided, 5 %")
             print(compare_table(result, a, b))
             return 0
-        from ..outdir import Staging, check_folder, entries
+        from ..outdir import check_folder, results_folder
 
         if args.resume and args.overwrite:
             raise SweepError("--resume continues the benchmark in --out, --overwrite replaces it: give one of them")
@@ -173,20 +173,10 @@ def run_command(args: argparse.Namespace) -> int:
             if v is not None and v < 1:
                 raise SweepError(f"--{name.replace('_', '-')} must be >= 1, got {v}")
         print(describe(suite), flush=True)
-        # as usv-mj sweep: into a new folder in place (a killed one stays resumable); one that replaces
-        # an earlier output is staged, so that the old one stays until the new one ends
-        stage = Staging(Path(out)) if (Path(out).is_dir() and not args.resume and any(entries(Path(out)))) else None
-        try:
-            result = run_bench(suite, stage.path if stage else out, scheduler=args.scheduler, workers=args.workers,
+        with results_folder(out, args.resume) as folder:   # staged when it replaces an earlier output
+            result = run_bench(suite, folder, scheduler=args.scheduler, workers=args.workers,
                                resume=args.resume, progress=not args.no_progress, max_runs=args.max_runs,
                                jobqueue=args.jobqueue, jobs=args.jobs, draw=not args.no_figures)
-        except ScenarioError:
-            if stage:
-                stage.discard()
-            raise
-        finally:
-            if stage and stage.path.exists():
-                stage.commit()
     except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj bench: error: {exc}", file=sys.stderr)
         return 2

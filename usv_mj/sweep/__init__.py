@@ -96,7 +96,7 @@ def run_command(args: argparse.Namespace) -> int:
     if args.out is None:
         args.out = str(Path("renders") / f"sweep-{Path(args.sweep).stem}")
     try:
-        from ..outdir import Staging, check_folder, entries
+        from ..outdir import check_folder, results_folder
 
         if args.resume and args.overwrite:
             raise SweepError("--resume continues the sweep in --out, --overwrite replaces it: give one of them")
@@ -118,24 +118,13 @@ def run_command(args: argparse.Namespace) -> int:
             for run in plan.runs:   # every run's control period must allow the rate
                 log_every(log_rate, run.scenario.control_period)
         print(f"{args.sweep}: {len(plan.runs)} runs, all validated", flush=True)
-        # a sweep into a new folder writes in place (a killed one stays resumable); one that replaces
-        # an earlier output is staged, so that the old one stays until the new one ends
-        replacing = Path(args.out).is_dir() and not args.resume and any(entries(Path(args.out)))
-        stage = Staging(Path(args.out)) if replacing else None
-        try:
-            result = run_sweep(plan, stage.path if stage else args.out, scheduler=args.scheduler,
+        with results_folder(args.out, args.resume) as folder:   # staged when it replaces an earlier output
+            result = run_sweep(plan, folder, scheduler=args.scheduler,
                                workers=args.workers, resume=args.resume,
                                keep_logs=args.keep_logs, log_rate=log_rate,
                                progress=not getattr(args, "no_progress", False),
                                max_runs=max_runs, jobqueue=getattr(args, "jobqueue", None),
                                jobs=getattr(args, "jobs", 1), retry_failed=getattr(args, "retry_failed", False))
-        except ScenarioError:
-            if stage:
-                stage.discard()
-            raise
-        finally:
-            if stage and stage.path.exists():
-                stage.commit()
     except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj sweep: error: {exc}", file=sys.stderr)
         return 2
