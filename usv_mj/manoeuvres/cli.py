@@ -91,7 +91,6 @@ def _scenario(args):
 def run_command(args) -> int:
     from usv_mj.command_args import EXIT_OK, EXIT_STOPPED
     from usv_mj.main_job import RunFailed
-    from usv_mj.render import video_options
 
     from . import run_manoeuvre
 
@@ -100,13 +99,7 @@ def run_command(args) -> int:
     if is_fleet(args.vessel):
         return _run_fleet(args)
     scenario, kind = _scenario(args)
-    try:
-        render_options = video_options(args)
-    except ValueError as exc:
-        raise ScenarioError(str(exc)) from None
-    if args.out is not None and args.out.strip() == "":
-        raise ScenarioError("--out '': an empty path; name the output folder")
-    out = Path(args.out) if args.out is not None else Path("renders") / f"manoeuvre-{kind}"
+    render_options, out = _outputs(args, f"manoeuvre-{kind}")
     t0 = time.perf_counter()
     try:
         result = run_manoeuvre(scenario, plant_kind=args.plant, out_dir=out, video=args.video,
@@ -125,13 +118,25 @@ def run_command(args) -> int:
     return EXIT_OK
 
 
+def _outputs(args, default_name: str):
+    """(the video's render options, the output folder: --out or renders/DEFAULT_NAME), checked."""
+    from usv_mj.render import video_options
+
+    try:
+        render_options = video_options(args)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+    if args.out is not None and args.out.strip() == "":
+        raise ScenarioError("--out '': an empty path; name the output folder")
+    return render_options, (Path(args.out) if args.out is not None else Path("renders") / default_name)
+
+
 def _run_fleet(args) -> int:
     """``--vessel A,B,...`` / ``--vessel all``: the manoeuvre on each vessel (:mod:`.fleet`)."""
     import copy
 
     from usv_mj.command_args import EXIT_OK, EXIT_STOPPED
     from usv_mj.main_job import RunFailed
-    from usv_mj.render import video_options
 
     from .fleet import run_fleet, table_lines, vessel_list
 
@@ -146,13 +151,7 @@ def _run_fleet(args) -> int:
 
     scenario_for(kinds[0])     # the manoeuvre's kind (and the flags) checked before the list is run
     kind = found["kind"]
-    try:
-        render_options = video_options(args)
-    except ValueError as exc:
-        raise ScenarioError(str(exc)) from None
-    if args.out is not None and args.out.strip() == "":
-        raise ScenarioError("--out '': an empty path; name the output folder")
-    out = Path(args.out) if args.out is not None else Path("renders") / f"manoeuvre-{kind}-vessels"
+    render_options, out = _outputs(args, f"manoeuvre-{kind}-vessels")
     t0 = time.perf_counter()
     try:
         fleet = run_fleet(scenario_for, kinds, kind, out, plant_kind=args.plant, video=args.video,
