@@ -122,7 +122,8 @@ def draw_worst(rows: list[dict], suite, path: Path) -> None:
         for ob in (rec.metadata.get("scenario") or {}).get("obstacles") or []:
             _draw_obstacle(ax, ob)
         ax.set_aspect("equal", adjustable="datalim")
-        ax.set_title(f"{c}: {row['vary.task']} / {row['vary.condition']}, episode {row['vary.episode']}\n"
+        vessel = f" / {row['vary.vessel']}" if row.get("vary.vessel") else ""   # a suite over vessels
+        ax.set_title(f"{c}: {row['vary.task']} / {row['vary.condition']}{vessel}, episode {row['vary.episode']}\n"
                      f"IAE e_ct {row[PREFIX + 'iae_cross_track']:.1f} m s over {row['simulated_s']:.0f} s, "
                      f"{row['status']}", fontsize=8)
         ax.set_xlabel("x [m]", fontsize=8)
