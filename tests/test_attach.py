@@ -328,3 +328,16 @@ def test_a_held_hull_has_the_planar_joints_inverse_weights():
     water.detach()
     body = water.body
     assert free.body_invweight0[body] == pytest.approx(planar.body_invweight0[body], rel=1e-9)
+
+
+def test_the_readme_states_the_userdata_the_call_needs():
+    """The README's nuserdata for a user's own model is the layout's N_USERDATA (it drifted once, as
+    the packed hull grew): a model sized as the README says is accepted."""
+    import re
+    from pathlib import Path
+
+    from usv_mj.plants.mujoco_callback import N_USERDATA
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    stated = [int(n) for n in re.findall(r'<size nuserdata="(\d+)"/>` or more', text)]
+    assert stated == [N_USERDATA]
