@@ -449,6 +449,20 @@ def mujoco_function_address(name: str) -> int:
     return int(ctypes.cast(getattr(_libmujoco(), name), ctypes.c_void_p).value)
 
 
+@njit(cache=True)
+def record_call(ud, status, t):
+    """Count one callback evaluation in ``ud[U_CALLS]`` and keep the first failure (``status`` !=
+    STATUS_OK) with its time in ``ud[U_STATUS]`` / ``ud[U_STATUS_TIME]``; True when the call
+    succeeded (its force and mass may be applied). Every callback path records through it."""
+    ud[U_CALLS] += 1.0
+    if status == STATUS_OK:
+        return True
+    if ud[U_STATUS] == 0.0:
+        ud[U_STATUS] = status
+        ud[U_STATUS_TIME] = t
+    return False
+
+
 _NATIVE = None
 
 
@@ -467,7 +481,7 @@ def native_callback():
     o_nud = off["nuserdata"] // 8
     o_ctrl = off["ctrl"] // 8
     n_ud, magic = N_USERDATA, MAGIC
-    u_status, u_status_time, u_calls, u_scratch = U_STATUS, U_STATUS_TIME, U_CALLS, U_SCRATCH
+    u_scratch = U_SCRATCH
     u_layout = U_LAYOUT
 
     @cfunc(types.void(types.int64, types.int64), error_model="numpy")
@@ -484,13 +498,8 @@ def native_callback():
         if ud[u_layout] != 0.0:  # a free joint held to the plane (held_free_body_terms)
             status = held_free_body_terms(ud, t, carray(_f64_ptr(dw[o_qpos]), (7,)), carray(_f64_ptr(dw[o_qvel]), (6,)),
                                           carray(_f64_ptr(dw[o_frc]), (6,)), carray(_f64_ptr(dw[o_m]), (21,)))
-            ud[u_calls] += 1.0
-            if status != 0.0:
-                if ud[u_status] == 0.0:
-                    ud[u_status] = status
-                    ud[u_status_time] = t
-                return
-            factor_m(m_addr, d_addr)
+            if record_call(ud, status, t):
+                factor_m(m_addr, d_addr)
             return
         qpos = carray(_f64_ptr(dw[o_qpos]), (3,))
         qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
@@ -499,12 +508,7 @@ def native_callback():
         ctrl = carray(_f64_ptr(dw[o_ctrl]), (2,))
         qf = ud[u_scratch + 6:u_scratch + 9]
         ma = ud[u_scratch + 9:u_scratch + 15]
-        status = passive_terms(ud, t, qpos, qvel, ctrl, qf, ma)
-        ud[u_calls] += 1.0
-        if status != 0.0:
-            if ud[u_status] == 0.0:
-                ud[u_status] = status
-                ud[u_status_time] = t
+        if not record_call(ud, passive_terms(ud, t, qpos, qvel, ctrl, qf, ma), t):
             return
         for i in range(3):
             frc[i] += qf[i]

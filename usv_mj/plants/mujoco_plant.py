@@ -496,15 +496,11 @@ class MuJoCoPlant(PlantBase):
         try:
             qf, ma = self._scratch
             status = mcb.passive_terms(self._userdata, d.time, d.qpos, d.qvel, d.ctrl, qf, ma)
-            if status != mcb.STATUS_OK:
-                if self._userdata[mcb.U_STATUS] == 0.0:
-                    self._userdata[mcb.U_STATUS] = status
-                    self._userdata[mcb.U_STATUS_TIME] = d.time
+            if not mcb.record_call(self._userdata, status, d.time):
                 return
             d.qfrc_passive[:] += qf
             d.M[:6] += ma
             mujoco.mj_factorM(m, d)
-            self._userdata[mcb.U_CALLS] += 1.0
         except BaseException as exc:  # noqa: BLE001 - must not reach MuJoCo
             self._python_error = exc
             self._userdata[mcb.U_STATUS] = mcb.STATUS_EXCEPTION
