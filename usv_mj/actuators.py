@@ -51,6 +51,13 @@ Dynamics, discretized exactly at the control period h (so they are the same on b
 ``sat_u`` / ``sat_r`` are 1 in the periods where a limit (magnitude or rate) cut that channel's
 command, 0 otherwise (the lag alone does not set them).
 
+Allocation (a ruddered vessel, KVLCC2, driven by a force controller; usv_mj.builder.make_actuators):
+the channels of ``spec`` are then the propeller's n_P [1/s] and the rudder angle delta [rad], and
+the command (tau_u [N], tau_r [N m]) is first allocated to them at the plant state
+(:func:`usv_mj.mmg.mmg_allocate`, n_P within the surge channel's limits and delta within the yaw
+channel's); the lag and rate limits then act on (n_P, delta) as above. sat_u / sat_r are also set
+when the allocation cannot meet the command (docs/vessels.md, Force controllers on KVLCC2).
+
 On the MuJoCo plant the same limits are also the motors' ``ctrlrange`` (``ctrllimited``) of
 ``models/usv.xml``, set at load from :meth:`ActuatorSpec.generalized_limits` (twin: the range of
 each channel on its own; the coupling of the two channels through the thrusters is in this
@@ -68,6 +75,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 from numba.extending import register_jitable
+
+from usv_mj.mmg import mmg_allocate
 
 ACTUATOR_KINDS = ("unlimited", "box", "twin")
 PRIORITIES = ("yaw", "surge")
@@ -304,12 +313,26 @@ def unlimited_step(q_u, q_r):
 
 
 @njit(cache=True)
-def actuator_kernel(q_u, q_r, unlimited, p, state):
+def actuator_kernel(q_u, q_r, x, unlimited, p, state):
     """:meth:`Actuators.apply` (which calls it, or runs :func:`unlimited_step` as Python) and its
-    kernel for the compiled loop (usv_mj.kernels)."""
+    kernel for the compiled loop (usv_mj.kernels); ``x`` (the plant state) is not read."""
     if unlimited:
         return unlimited_step(q_u, q_r)
     return actuator_step(p, state, q_u, q_r)
+
+
+@njit(cache=True)
+def allocated_actuator_kernel(q_u, q_r, x, p, state, mmg):
+    """The actuators of a ruddered vessel driven by a force controller (module docstring,
+    Allocation): the command (surge force, yaw moment) becomes (n_P, delta) at the plant state
+    ``x`` (:func:`usv_mj.mmg.mmg_allocate` with the MMG block ``mmg``, n_P within the surge channel's
+    limits, delta within the yaw channel's), then the vessel's own limits and rates act on those."""
+    n_p, delta, a_u, a_r = mmg_allocate(mmg, 0, x[3], x[4], x[5], q_u, q_r, p[A_LO_U], p[A_HI_U], p[A_HI_R])
+    f_u, f_r, s_u, s_r = actuator_step(p, state, n_p, delta)
+    return f_u, f_r, max(a_u, s_u), max(a_r, s_r)
+
+
+_NO_STATE = np.zeros(6)
 
 
 def pack(spec: ActuatorSpec, control_period: float) -> np.ndarray:
@@ -336,32 +359,45 @@ def pack(spec: ActuatorSpec, control_period: float) -> np.ndarray:
 
 class Actuators:
     """The actuator model of ``spec`` at ``control_period`` h [s]: :meth:`reset`, then
-    :meth:`apply` once per control period (module docstring)."""
+    :meth:`apply` once per control period (module docstring).
 
-    def __init__(self, spec: ActuatorSpec = ActuatorSpec(), control_period: float = 1e-3):
+    ``allocation``: None, or the packed MMG block (usv_mj.mmg) of a ruddered vessel that a force
+    controller drives: the command is then allocated to (n_P, delta) first (module docstring,
+    Allocation), and ``spec``'s channels are n_P [1/s] and delta [rad]."""
+
+    def __init__(self, spec: ActuatorSpec = ActuatorSpec(), control_period: float = 1e-3, allocation=None):
         self.spec = spec
         self.control_period = float(control_period)
         self.params = pack(spec, control_period)
         self.state = np.zeros(N_ACT_STATE)
-        self.unlimited = spec.unlimited
+        self.allocation = None if allocation is None else np.array(allocation, dtype=float)
+        self.unlimited = spec.unlimited and self.allocation is None
         self.limits = spec.generalized_limits()
 
     @classmethod
-    def from_scenario(cls, scenario) -> "Actuators":
-        return cls(scenario.actuators, scenario.control_period)
+    def from_scenario(cls, scenario, allocation=None) -> "Actuators":
+        return cls(scenario.actuators, scenario.control_period, allocation)
 
     def reset(self) -> None:
         """Zero thrust, no history."""
         self.state[:] = 0.0
 
     def kernel(self):
-        """(actuator_kernel, its parameters and state) for the compiled loop."""
+        """(the kernel, its parameters and state) for the compiled loop."""
         from usv_mj.kernels import Kernel
 
+        if self.allocation is not None:
+            return Kernel(allocated_actuator_kernel, (self.params, self.state, self.allocation))
         return Kernel(actuator_kernel, (bool(self.unlimited), self.params, self.state))
 
-    def apply(self, q_u: float, q_r: float) -> tuple[float, float, float, float]:
-        """(f_u [N], f_r [N m], sat_u, sat_r) realized over the coming period from the command."""
+    def apply(self, q_u: float, q_r: float, x=None) -> tuple[float, float, float, float]:
+        """(f_u, f_r, sat_u, sat_r) realized over the coming period from the command (f: [N], [N m],
+        or (n_P [1/s], delta [rad]) with an allocation, which reads the plant state ``x``)."""
+        if self.allocation is not None:
+            if x is None:
+                raise ValueError("Actuators.apply: an allocated command needs the plant state x")
+            return allocated_actuator_kernel(float(q_u), float(q_r), np.asarray(x, dtype=float), self.params,
+                                             self.state, self.allocation)
         if self.unlimited:  # the kernel's own branch, as plain Python (a native call costs more than it)
             return unlimited_step(q_u, q_r)
-        return actuator_kernel(float(q_u), float(q_r), False, self.params, self.state)
+        return actuator_kernel(float(q_u), float(q_r), _NO_STATE, False, self.params, self.state)

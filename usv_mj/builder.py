@@ -156,17 +156,15 @@ def commands_error(scenario: Scenario, controller, kind: str) -> str | None:
     """Why controller ``kind`` (an instance or its registered class) cannot drive the scenario's
     vessel (None: it can). A controller commands a surge force and a yaw moment unless it says
     otherwise (``commands = "any"``: its channels are plain numbers, as the open-loop and zig-zag
-    controllers'; ``commands = "rudder"``); a ruddered vessel (``Vessel.inputs = "rudder"``, KVLCC2)
-    reads its channels as the propeller's n_P [1/s] and the rudder angle [rad], and no allocation
-    from forces to a rudder exists yet, so a force would be read as revolutions."""
+    controllers'; ``commands = "rudder"``: the propeller's n_P and a rudder angle). A force
+    controller drives a ruddered vessel (``Vessel.inputs = "rudder"``, KVLCC2) through the
+    allocation of :func:`make_actuators`; a rudder controller cannot drive a vessel without one."""
     inputs = getattr(getattr(scenario.vessel, "model", None), "inputs", "forces")
     commands = getattr(controller, "commands", "forces")
-    if inputs == "forces" or commands in ("any", inputs):
+    if commands in ("any", inputs) or (commands == "forces" and allocation_of(scenario) is not None):
         return None
-    return (f"the {kind!r} controller commands a surge force and a yaw moment, but the vessel "
-            f"{scenario.vessel.kind!r} takes the propeller's n_P and the rudder angle (no allocation from "
-            f"forces to a rudder yet): use `usv-mj manoeuvre`, or the open_loop or zigzag controller, whose "
-            f"channels are the vessel's own")
+    return (f"the {kind!r} controller commands the propeller's n_P and a rudder angle, but the vessel "
+            f"{scenario.vessel.kind!r} takes a surge force and a yaw moment")
 
 
 def check_commands(scenario: Scenario, kind: str, note: str = "") -> None:
@@ -174,6 +172,15 @@ def check_commands(scenario: Scenario, kind: str, note: str = "") -> None:
     problem = commands_error(scenario, CONTROLLERS.get(kind, "controller").obj, kind)
     if problem is not None:
         raise ScenarioError(f"{scenario.source}: {problem}{note}")
+
+
+def allocation_of(scenario: Scenario):
+    """The packed MMG block a force command is allocated through on the scenario's vessel
+    (usv_mj.actuators, Allocation), or None: a vessel whose inputs are forces needs none."""
+    model = getattr(scenario.vessel, "model", None)
+    if getattr(model, "inputs", "forces") != "rudder":
+        return None
+    return getattr(model.ship, "mmg", None) or None
 
 
 def make_quantizers(scenario: Scenario):
@@ -185,11 +192,14 @@ def make_quantizers(scenario: Scenario):
             HysteresisQuantizer(QuantizerParams(q.delta_r, q.u_min_r), q.enabled))
 
 
-def make_actuators(scenario: Scenario):
-    """The actuator model of ``[actuators]`` at the scenario's control period (:mod:`usv_mj.actuators`)."""
+def make_actuators(scenario: Scenario, controller=None):
+    """The actuator model of ``[actuators]`` at the scenario's control period (:mod:`usv_mj.actuators`);
+    with the allocation of a force command to the rudder and the propeller when ``controller``
+    commands forces and the vessel is ruddered (:func:`allocation_of`)."""
     from .actuators import Actuators
 
-    return Actuators.from_scenario(scenario)
+    forces = controller is not None and getattr(controller, "commands", "forces") == "forces"
+    return Actuators.from_scenario(scenario, allocation_of(scenario) if forces else None)
 
 
 def check_start_clear(scenario: Scenario) -> None:
@@ -289,7 +299,7 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
             plant.close()
         raise
     return Parts(scenario, duration, plant, controller, reference, make_quantizers(scenario),
-                 make_actuators(scenario), hooks, sinks, statics, metadata, own_plant)
+                 make_actuators(scenario, controller), hooks, sinks, statics, metadata, own_plant)
 
 
 def _obstacle_parts(scenario, plant, plan, duration, statics, contact):

@@ -91,7 +91,7 @@ def run_block(k, stop, n, dt, data, base, n_diag, max_force, max_speed, max_yaw_
             return k, {FORCE_LIMIT}, x
         q_u, k_u = qu_fn(tau_u, {qu_args})
         q_r, k_r = qr_fn(tau_r, {qr_args})
-        f_u, f_r, s_u, s_r = act_fn(q_u, q_r, {act_args})
+        f_u, f_r, s_u, s_r = act_fn(q_u, q_r, x, {act_args})
         row[{c_t}] = t
         for i in range(6):
             row[{c_x} + i] = x[i]

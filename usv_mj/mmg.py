@@ -67,21 +67,56 @@ WAKE_YASUKAWA, WAKE_EXPONENTIAL = 0.0, 1.0
 
 
 @njit(cache=True)
-def mmg_forces(q, b, u, v_m, r_m, n_p, delta_m):
-    """(X_H, Y_H, N_H, X_P, X_R, Y_R, N_R) [N, N m] of the MMG in its own frame (module docstring):
-    surge u [m/s], sway v_m [m/s, to starboard] at midship, yaw rate r_m [rad/s, to starboard],
-    propeller revolutions n_p [1/s], rudder angle delta_m [rad, to starboard] at parameters ``q[b:]``."""
+def mmg_flow(q, b, u, v_m, r_m):
+    """(U [m/s], v', r', beta [rad]) of the hull at (u, v_m, r_m) in the MMG's frame (module docstring)."""
     L = q[b + Q_L]
     v_b = v_m + q[b + Q_XB] * r_m     # the standard: x_b = 0, U and beta of the midship velocity
     U = math.sqrt(u * u + v_b * v_b)
     if U > 0.0:
-        vd = v_m / U
-        rd = r_m * L / U
-        beta = math.atan2(-v_b, u)
-    else:
-        vd = 0.0
-        rd = 0.0
-        beta = 0.0
+        return U, v_m / U, r_m * L / U, math.atan2(-v_b, u)
+    return U, 0.0, 0.0, 0.0
+
+
+@njit(cache=True)
+def mmg_wake(q, b, beta, rd):
+    """1 - w_P of the propeller in manoeuvring (module docstring) at the drift angle beta and r'."""
+    beta_p = beta - q[b + Q_XP] * rd
+    if q[b + Q_WAKE] == WAKE_EXPONENTIAL:
+        return 1.0 - q[b + Q_WP0] * math.exp(-4.0 * beta_p * beta_p)
+    c2 = q[b + Q_C2P] if beta_p > 0.0 else q[b + Q_C2M]
+    return (1.0 - q[b + Q_WP0]) * (1.0 + (1.0 - math.exp(-q[b + Q_C1] * abs(beta_p))) * (c2 - 1.0))
+
+
+@njit(cache=True)
+def mmg_thrust(q, b, u_p, n_p):
+    """K_T n_P^2 D_P^2 = T / (rho D_P^2) [m^2/s^2] at the propeller inflow u_p [m/s] and n_p [1/s]
+    (0 for n_p <= 0, module docstring): K_T(J_P) n^2 D^2 = k_0 n^2 D^2 + k_1 u_p n D + k_2 u_p^2."""
+    if n_p > 0.0:
+        dp = q[b + Q_DP]
+        j = u_p / (n_p * dp)
+        kt = q[b + Q_K0] + q[b + Q_K1] * j + q[b + Q_K2] * j * j
+        return kt * n_p * n_p * dp * dp
+    return 0.0
+
+
+@njit(cache=True)
+def mmg_rudder_inflow(q, b, U, beta, rd, u_p, kt_n2d2):
+    """(u_R, v_R) [m/s]: the rudder's inflow (module docstring); neither depends on delta."""
+    s = math.sqrt(max(u_p * u_p + 8.0 * kt_n2d2 / math.pi, 0.0))
+    a = u_p + q[b + Q_KAPPA] * (s - u_p)
+    eta = q[b + Q_ETA]
+    u_r = q[b + Q_EPS] * math.sqrt(eta * a * a + (1.0 - eta) * u_p * u_p)
+    beta_r = beta - q[b + Q_LR] * rd
+    gamma_r = q[b + Q_GRM] if beta_r < 0.0 else q[b + Q_GRP]
+    return u_r, U * gamma_r * beta_r
+
+
+@njit(cache=True)
+def mmg_forces(q, b, u, v_m, r_m, n_p, delta_m):
+    """(X_H, Y_H, N_H, X_P, X_R, Y_R, N_R) [N, N m] of the MMG in its own frame (module docstring):
+    surge u [m/s], sway v_m [m/s, to starboard] at midship, yaw rate r_m [rad/s, to starboard],
+    propeller revolutions n_p [1/s], rudder angle delta_m [rad, to starboard] at parameters ``q[b:]``."""
+    U, vd, rd, beta = mmg_flow(q, b, u, v_m, r_m)
     u2 = U * U
     vd2 = vd * vd
     rd2 = rd * rd
@@ -91,32 +126,12 @@ def mmg_forces(q, b, u, v_m, r_m, n_p, delta_m):
                                   + q[b + Q_YVVR] * vd2 * rd + q[b + Q_YVRR] * vd * rd2 + q[b + Q_YRRR] * rd2 * rd)
     n_h = q[b + Q_HULL_N] * u2 * (q[b + Q_NV] * vd + q[b + Q_NR] * rd + q[b + Q_NVVV] * vd2 * vd
                                   + q[b + Q_NVVR] * vd2 * rd + q[b + Q_NVRR] * vd * rd2 + q[b + Q_NRRR] * rd2 * rd)
-    # propeller
-    beta_p = beta - q[b + Q_XP] * rd
-    if q[b + Q_WAKE] == WAKE_EXPONENTIAL:
-        one_w = 1.0 - q[b + Q_WP0] * math.exp(-4.0 * beta_p * beta_p)
-    else:
-        c2 = q[b + Q_C2P] if beta_p > 0.0 else q[b + Q_C2M]
-        one_w = (1.0 - q[b + Q_WP0]) * (1.0 + (1.0 - math.exp(-q[b + Q_C1] * abs(beta_p))) * (c2 - 1.0))
-    u_p = u * one_w
+    u_p = u * mmg_wake(q, b, beta, rd)
+    kt_n2d2 = mmg_thrust(q, b, u_p, n_p)
     dp = q[b + Q_DP]
-    if n_p > 0.0:
-        j = u_p / (n_p * dp)
-        kt = q[b + Q_K0] + q[b + Q_K1] * j + q[b + Q_K2] * j * j
-        kt_n2d2 = kt * n_p * n_p * dp * dp      # T / (rho D_P^2)
-    else:
-        kt_n2d2 = 0.0
     x_p = (1.0 - q[b + Q_TP]) * q[b + Q_RHO] * kt_n2d2 * dp * dp
-    # rudder
-    s = math.sqrt(max(u_p * u_p + 8.0 * kt_n2d2 / math.pi, 0.0))
-    a = u_p + q[b + Q_KAPPA] * (s - u_p)
-    eta = q[b + Q_ETA]
-    u_r = q[b + Q_EPS] * math.sqrt(eta * a * a + (1.0 - eta) * u_p * u_p)
-    beta_r = beta - q[b + Q_LR] * rd
-    gamma_r = q[b + Q_GRM] if beta_r < 0.0 else q[b + Q_GRP]
-    v_r = U * gamma_r * beta_r
-    alpha_r = delta_m - math.atan2(v_r, u_r)
-    f_n = q[b + Q_RUDDER] * (u_r * u_r + v_r * v_r) * math.sin(alpha_r)
+    u_r, v_r = mmg_rudder_inflow(q, b, U, beta, rd, u_p, kt_n2d2)
+    f_n = q[b + Q_RUDDER] * (u_r * u_r + v_r * v_r) * math.sin(delta_m - math.atan2(v_r, u_r))
     sd, cd = math.sin(delta_m), math.cos(delta_m)
     x_r = -(1.0 - q[b + Q_TR]) * f_n * sd
     y_r = -(1.0 + q[b + Q_AH]) * f_n * cd
@@ -135,3 +150,89 @@ def mmg_terms(q, b, u, v, r, n_p, delta):
     f1 = y_h + y_r - q[b + Q_MMX] * u * r_m
     f2 = n_h + n_r - q[b + Q_MXG] * u * r_m
     return f0, -f1, -f2
+
+
+# --- allocation: a surge force and a yaw moment -> (n_P, delta) ----------------------------------
+ALLOCATION_ITERATIONS = 12   # secant steps at most on the propeller's share (docs/vessels.md)
+
+
+@njit(cache=True)
+def _allocate_at(q, b, U, beta, rd, u_p, lo, n_hi, delta_max, n_m, thrust):
+    """(n_P, delta_m, X_R, sat_u, sat_r) for the propeller's thrust ``thrust`` [N] and the MMG-frame
+    yaw moment ``n_m`` [N m] (:func:`mmg_allocate`)."""
+    sat_u = 0.0
+    if thrust < 0.0:
+        thrust, sat_u = 0.0, 1.0
+    dp = q[b + Q_DP]
+    c = (1.0 - q[b + Q_TP]) * q[b + Q_RHO] * dp * dp
+    qa = c * q[b + Q_K0] * dp * dp
+    qb = c * q[b + Q_K1] * dp * u_p
+    qc = c * q[b + Q_K2] * u_p * u_p - thrust
+    n_p = (-qb + math.sqrt(max(qb * qb - 4.0 * qa * qc, 0.0))) / (2.0 * qa)
+    if n_p > n_hi:
+        n_p, sat_u = n_hi, 1.0
+    elif n_p < lo:
+        n_p, sat_u = lo, 1.0
+    u_r, v_r = mmg_rudder_inflow(q, b, U, beta, rd, u_p, mmg_thrust(q, b, u_p, n_p))
+    ur2 = u_r * u_r + v_r * v_r
+    g = q[b + Q_XRAH] * q[b + Q_RUDDER] * ur2
+    if g == 0.0:   # no flow past the rudder: it can do nothing
+        return n_p, 0.0, 0.0, sat_u, (1.0 if n_m != 0.0 else 0.0)
+    sat_r = 0.0
+    phi = math.atan2(v_r, u_r)
+    s = math.sin(phi) - 2.0 * n_m / g
+    if s > 1.0:
+        s, sat_r = 1.0, 1.0
+    elif s < -1.0:
+        s, sat_r = -1.0, 1.0
+    delta_m = 0.5 * (phi + math.asin(s))
+    if delta_m > delta_max:
+        delta_m, sat_r = delta_max, 1.0
+    elif delta_m < -delta_max:
+        delta_m, sat_r = -delta_max, 1.0
+    x_r = -(1.0 - q[b + Q_TR]) * q[b + Q_RUDDER] * ur2 * math.sin(delta_m - phi) * math.sin(delta_m)
+    return n_p, delta_m, x_r, sat_u, sat_r
+
+
+@njit(cache=True)
+def mmg_allocate(q, b, u, v, r, tau_u, tau_r, n_lo, n_hi, delta_max):
+    """(n_P [1/s], delta [rad], sat_u, sat_r): the propeller revolutions and the rudder angle whose
+    propeller and rudder forces are the surge force ``tau_u`` [N] and the yaw moment ``tau_r`` [N m]
+    of a force controller, in usv_mj's body frame (y to port; delta positive to port), at the state
+    (u, v, r) and parameters ``q[b:]``:
+
+        X_P(n_P) + X_R(n_P, delta) = tau_u,   N_R(n_P, delta) = tau_r
+
+    (module docstring for X_P, X_R, N_R; the rudder's sway force Y_R is what the hull gets besides,
+    as any rudder gives). Each is solved in closed form given the other:
+
+    - the moment: u_R and v_R do not depend on delta, so with phi = atan2(v_R, u_R) and
+      g = (x_R + a_H x_H) 1/2 rho A_R f_alpha U_R^2, N_R = -g sin(delta - phi) cos delta
+      = -g (sin(2 delta - phi) - sin phi)/2 (MMG frame) gives delta = (phi + asin(sin phi - 2 N_R/g))/2;
+    - the thrust X_P = (1 - t_P) rho D_P^2 (k_0 D_P^2 n^2 + k_1 D_P u_P n + k_2 u_P^2) is a quadratic in
+      n_P: its larger root for X_P = T;
+
+    and the rudder's drag X_R couples them: the propeller's share T solves T = tau_u - X_R(T) by the
+    secant method from T = tau_u (at most :data:`ALLOCATION_ITERATIONS` steps, to 1e-9 N). n_P stays
+    in [max(n_lo, 0), n_hi] (the MMG's propeller model is for ahead revolutions: it cannot pull
+    astern, so a thrust below 0 is 0) and |delta| <= delta_max; sat_u / sat_r are 1 when a limit (or
+    a moment beyond the rudder's largest) cut the channel, else 0. With no flow past the rudder
+    (U_R = 0) delta is 0."""
+    n_m = -tau_r
+    U, vd, rd, beta = mmg_flow(q, b, u, -v, -r)
+    u_p = u * mmg_wake(q, b, beta, rd)
+    lo = max(n_lo, 0.0)
+    t0 = tau_u
+    n_p, delta_m, x_r, sat_u, sat_r = _allocate_at(q, b, U, beta, rd, u_p, lo, n_hi, delta_max, n_m, t0)
+    f0 = t0 - (tau_u - x_r)
+    tol = 1e-9 * (1.0 + abs(tau_u))
+    t1 = tau_u - x_r
+    for _ in range(ALLOCATION_ITERATIONS):
+        if abs(f0) <= tol:
+            break
+        n_p, delta_m, x_r, sat_u, sat_r = _allocate_at(q, b, U, beta, rd, u_p, lo, n_hi, delta_max, n_m, t1)
+        f1 = t1 - (tau_u - x_r)
+        if abs(f1) <= tol or f1 == f0:
+            break
+        t0, t1, f0 = t1, t1 - f1 * (t1 - t0) / (f1 - f0), f1
+    return n_p, -delta_m, sat_u, sat_r

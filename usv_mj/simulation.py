@@ -123,7 +123,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     dt = scenario.control_period
     n = int(round(duration / dt))
     quant_u, quant_r = parts.quantizers
-    actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario)
+    actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario, controller)
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
     from .compiled_loop import kernels_of
@@ -176,7 +176,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
                 break
             q_u = quant_u.step(tau_u)
             q_r = quant_r.step(tau_r)
-            f_u, f_r, s_u, s_r = actuators.apply(q_u, q_r)
+            f_u, f_r, s_u, s_r = actuators.apply(q_u, q_r, x)
             row = data[k - base]
             row[c_t] = t
             row[SL_STATE] = x

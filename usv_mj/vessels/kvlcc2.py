@@ -12,7 +12,9 @@ The vessel's actuators are its rudder and its propeller: the plants' two input c
 propeller revolutions n_P [1/s] ("tau_u") and the rudder angle delta [rad] ("tau_r", positive to
 port in usv_mj's frame, i.e. -delta of the MMG's starboard-positive one). The ``[actuators]`` of
 the vessel is a ``box``: |delta| <= ``max_rudder_deg`` and the rudder rate limited to
-``rudder_rate_deg_s`` per control period (usv_mj.actuators, exact per period); n_P unlimited.
+``rudder_rate_deg_s`` per control period (usv_mj.actuators, exact per period); n_P at most
+``max_propeller_rps``. A force controller's (tau_u, tau_r) is allocated to (n_P, delta) first
+(usv_mj.mmg.mmg_allocate; docs/vessels.md, Force controllers on KVLCC2).
 The forces are :func:`usv_mj.mmg.mmg_terms` on both plants (one kernel).
 """
 
@@ -60,6 +62,9 @@ class KVLCC2Options:
     x_R_dash: rudder position (x_R = x_R_dash L_pp). gamma_R_minus, gamma_R_plus: flow straightening
         for beta_R < 0 and > 0. l_R_dash: l'_R of beta_R.
     max_rudder_deg, rudder_rate_deg_s: the steering gear [deg, deg/s].
+    max_propeller_rps: the largest n_P a force controller's allocation commands [1/s] (the sources
+        state no engine limit: 2x the self-propulsion point at the service speed, a choice; the
+        allocation never reverses the propeller, whose MMG model is for ahead revolutions).
     service_speed: the approach speed of the manoeuvres [m/s] (U_0 = 1.179 m/s, Fn 0.142).
     propeller_rps: n_P near the self-propulsion point at it [1/s], where the manoeuvres' search for
         the n_P that holds the speed starts (these coefficients hold 1.179 m/s at 11.85 1/s; the
@@ -103,7 +108,7 @@ class KVLCC2Options:
     w_P0: float = 0.40
     x_P_dash: float = -0.690
     wake_model: str = "exponential"
-    C_1: float = 2.0          # yasukawa2015 wake only; not in the shipmmg set (docs/vessels.md: unverified)
+    C_1: float = 2.0          # yasukawa2015 wake only; not in the shipmmg set (docs/vessels.md: a restatement citing the paper)
     C_2_plus: float = 1.6     # idem
     C_2_minus: float = 1.1    # idem
     A_R: float = 0.0539
@@ -123,6 +128,7 @@ class KVLCC2Options:
     service_speed: float = 1.179
     propeller_rps: float = 11.85
     drift_point_x: float = 0.0
+    max_propeller_rps: float = 23.7
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
@@ -131,7 +137,8 @@ class KVLCC2Options:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"vessel.{name} must be a finite number, got {value!r}")
         for name in ("rho", "L_pp", "B", "d", "displacement", "gyration_ratio", "D_p", "A_R", "H_R", "f_alpha",
-                     "max_rudder_deg", "rudder_rate_deg_s", "service_speed", "propeller_rps", "epsilon"):
+                     "max_rudder_deg", "rudder_rate_deg_s", "service_speed", "propeller_rps", "epsilon",
+                     "max_propeller_rps"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"vessel.{name} must be > 0, got {getattr(self, name)!r}")
         for name in ("m_x_dash", "m_y_dash", "J_z_dash"):
@@ -202,8 +209,9 @@ def hull(o: KVLCC2Options) -> tuple[MMGShipParams, RigidBodySplit]:
 
 
 def actuators(o: KVLCC2Options) -> dict:
-    """The vessel's ``[actuators]``: the rudder's angle and rate limit on the delta channel (module docstring)."""
-    return {"kind": "box", "max_yaw_nm": math.radians(o.max_rudder_deg),
+    """The vessel's ``[actuators]``: the rudder's angle and rate limit on the delta channel, the largest
+    n_P on the n_P channel (module docstring)."""
+    return {"kind": "box", "max_surge_n": o.max_propeller_rps, "max_yaw_nm": math.radians(o.max_rudder_deg),
             "yaw_rate_nm_s": math.radians(o.rudder_rate_deg_s)}
 
 
