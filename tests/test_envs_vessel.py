@@ -215,3 +215,58 @@ def test_the_environments_picture_draws_the_vessels_hull():
     print(f"\nhull width in the chase view: paper {widths['paper']} px, otter {widths['otter']} px, "
           f"ratio {widths['otter'] / widths['paper']:.3f} (expected {expected:.3f})")
     assert widths["otter"] / widths["paper"] == pytest.approx(expected, rel=0.05)
+
+
+def test_gymnasium_ids_take_the_vessel():
+    import gymnasium
+
+    g = gymnasium.make("usv_mj/Track-v0", vessel="otter", duration=0.05)
+    try:
+        u = g.unwrapped
+        assert u.dm_env.task.scenario.vessel.kind == "otter"
+        assert u.physical_action(np.array([1.0, -1.0], np.float32)).tolist() == pytest.approx([2 * F, -S / 2 * (F + R)])
+    finally:
+        g.close()
+
+
+def test_a_physics_of_no_environment_draws_its_plants_hull():
+    """USVPhysics.render of a bare physics (no environment: a pose on calm water) draws the hull
+    its plant simulates: the same width in the chase view as the Otter environment's frame."""
+    from usv_mj.builder import make_plant
+    from usv_mj.scenario import load_scenario
+
+    env = envs.load("track", seed=0, vessel="otter", duration=0.5, start_offset=(0.0, 0.0, 0.0))
+    try:
+        env.reset()
+        in_env = _hull_columns(env.render_frame(width=320, height=240, camera="chase"))
+    finally:
+        env.close()
+    sc = load_scenario(preset="paper", overrides={"vessel": {"kind": "otter"}, "plant": {"substeps": 10},
+                                                  "control_period": DT})
+    bare = envs.USVPhysics.from_plant(make_plant(sc, "mujoco"))
+    try:
+        assert bare.owner is None
+        alone = _hull_columns(bare.render(240, 320, camera_id="chase"))
+    finally:
+        bare.close()
+    assert alone == in_env
+
+
+def test_ppc_keeps_its_lead_over_random_on_the_otter():
+    """The reward stays meaningful on a hull of another size and with thrust limits: the PPC
+    policy (the Otter's nominal model, its twin propellers' limits) earns several times what
+    uniform actions within those limits earn over 10 s."""
+    returns = {}
+    for name in ("ppc", "random"):
+        env = envs.load("track", seed=0, vessel="otter", duration=10.0)
+        try:
+            policy = envs.PPCPolicy(env) if name == "ppc" else envs.RandomPolicy(env, seed=0)
+            ts, total = env.reset(), 0.0
+            while not ts.last():
+                ts = env.step(policy(ts))
+                total += ts.reward
+            returns[name] = total
+        finally:
+            env.close()
+    print(f"\nOtter track, 10 s: ppc {returns['ppc']:.1f}, random {returns['random']:.1f} (of at most 1000)")
+    assert returns["ppc"] > 3.0 * returns["random"], returns
