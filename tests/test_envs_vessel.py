@@ -75,6 +75,9 @@ def test_the_twin_propellers_allocate_and_lag_as_worked_by_hand():
         assert not ts.last() or env.task.info["kind"] == "time_limit"
         assert env.task.last_thrust.tolist() == pytest.approx([F - R, S / 2 * (F + R)], rel=1e-6)
         assert env.task.last_saturated.tolist() == [1.0, 0.0]                            # surge was cut
+        record = envs.episode_record(env, env.history()[-2:])                           # the video's record
+        assert record["q_tau_u"][-1] == 2 * F and record["tau_u"][-1] == 2 * F
+        assert record["f_u"][-1] == env.task.last_thrust[0] and record["sat_u"][-1] == 1.0
     finally:
         env.close()
 

@@ -264,7 +264,8 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
     ``environment_kwargs`` (``time_limit`` [s] = the episode length, ``flat_observation``,
     ``legacy_step``) and ``flat_observation`` (one concatenated ``observations`` vector).
 
-    Raises ValueError for an unknown task or option.
+    Raises ValueError for an unknown task, option or vessel, and for a ruddered vessel
+    (:func:`refuse_ruddered`).
     """
     if task not in ALL_TASKS:
         raise ValueError(f"usv_mj.envs.load: unknown task {task!r}; tasks: {', '.join(ALL_TASKS)}")
@@ -341,12 +342,14 @@ def episode_record(env, steps, metadata=None):
 
     ``steps``: a list of (t, state (6), reference (7), action (2), thrust (2)[, command (2),
     saturated (2)]) rows, as collected by :func:`usv_mj.envs.cli.rollout` (without the last two,
-    the command is taken to be the thrust and nothing saturated: the paper's unlimited actuators). The record declares the funnel block
-    (:data:`usv_mj.controllers.base.FUNNEL_FIELDS`), filled from the task: e1, e2 = x - x_d, y - y_d
-    [m] (the hull origin, not the controller's offset point), e3 = wrap(psi - psi_d), rho1 = rho2 =
-    rho_xy(t), rho3 = rho_psi(t) and z_i = e_i / rho_i. ``tau`` is the clipped action, ``q_tau`` the
-    quantized command, ``f`` the actuators' force the plant got and ``sat`` their saturation flags. The metadata carry the episode's scenario (its sea and, in the
-    harbor, the layout's obstacles), so the video shows the water and the harbour.
+    the command is taken to be the thrust and nothing saturated: the paper's unlimited actuators).
+    The record declares the funnel block (:data:`usv_mj.controllers.base.FUNNEL_FIELDS`), filled
+    from the task: e1, e2 = x - x_d, y - y_d [m] (the hull origin, not the controller's offset
+    point), e3 = wrap(psi - psi_d), rho1 = rho2 = rho_xy(t), rho3 = rho_psi(t) and z_i = e_i /
+    rho_i. ``tau`` is the clipped action, ``q_tau`` the quantized command, ``f`` the actuators'
+    force the plant got and ``sat`` their saturation flags. The metadata carry the episode's
+    scenario (its sea and, in the harbor, the layout's obstacles, and its vessel), so the video
+    shows the water, the harbour and the vessel's hull.
     """
     from usv_mj.controllers.base import FUNNEL_FIELDS
     from usv_mj.record import CORE_COLUMNS, RunRecord
