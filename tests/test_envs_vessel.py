@@ -275,3 +275,17 @@ def test_ppc_keeps_its_lead_over_random_on_the_otter():
             env.close()
     print(f"\nOtter track, 10 s: ppc {returns['ppc']:.1f}, random {returns['random']:.1f} (of at most 1000)")
     assert returns["ppc"] > 3.0 * returns["random"], returns
+
+
+def test_a_users_vessel_data_file_is_a_vessel_too(tmp_path):
+    """vessel= takes a data file as --vessel does (usv_mj.vessels.datafile): a copy of the Otter's
+    file under another name gives the Otter's bounds and mass."""
+    src = Path(__file__).resolve().parents[1] / "usv_mj" / "vessels" / "data" / "otter.toml"
+    boat = tmp_path / "my_boat.toml"
+    boat.write_text(src.read_text())
+    env = envs.load("track", seed=0, vessel=str(boat), duration=0.05)
+    try:
+        assert env.action_spec().maximum.tolist() == pytest.approx([2 * F, S / 2 * (F + R)], rel=1e-15)
+        assert env.physics.model.body_mass[env.physics.model.body("hull").id] == OTTER["derivatives"]["m"]
+    finally:
+        env.close()
