@@ -314,7 +314,8 @@ _DESCRIPTIONS = {
              "results.parquet (--resume finishes); report.md is the leaderboard with 95 % intervals and\n"
              "figures. --compare A B tests A against B per metric (paired Wilcoxon). docs/metrics.md.",
     "env": "Roll out a policy (ppc: the paper's controller; random) in a dm_control task (track,\n"
-           "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode.",
+           "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode;\n"
+           "--vessel KIND runs it on another hull (as usv-mj run --vessel: plant, actuators, picture).",
     "kinds": "List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
              "disturbance): where it comes from (built-in, an entry point's distribution, module:Name,\n"
              "registered at runtime) and its options (name, type, default, unit). --json for one object.",

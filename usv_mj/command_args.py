@@ -59,13 +59,22 @@ def add_vessel_argument(p: argparse.ArgumentParser) -> None:
 
 def _with_vessel(args, overrides: dict) -> dict:
     """``overrides`` with --vessel's kind: shorthand for --set vessel.kind=X (docs/vessels.md)."""
-    if getattr(args, "vessel", None):
+    return with_vessel(getattr(args, "vessel", None), overrides)
+
+
+def with_vessel(kind, overrides: dict) -> dict:
+    """``overrides`` (a nested dict of scenario values) with ``[vessel] kind`` = ``kind`` (None or
+    "": unchanged), keeping the vessel's options given beside it: what --vessel does for every
+    command, and ``usv_mj.envs.load(vessel=...)`` for the environments. ScenarioError when
+    ``overrides`` make that impossible (a [vessel] that is not a table, the paper's [ship] options
+    with another kind)."""
+    if kind:
         if not isinstance(overrides.get("vessel", {}), dict):
             raise ScenarioError(f"--set vessel={overrides['vessel']!r}: [vessel] must be a table")
-        if isinstance(overrides.get("ship"), dict) and args.vessel != "paper":
-            raise ScenarioError(f"--vessel {args.vessel}: --set ship.* sets the paper vessel's parameters; "
+        if isinstance(overrides.get("ship"), dict) and kind != "paper":
+            raise ScenarioError(f"--vessel {kind}: --set ship.* sets the paper vessel's parameters; "
                                 f"give the vessel's own as --set vessel.KEY=VALUE")
-        overrides = {**overrides, "vessel": {**overrides.get("vessel", {}), "kind": args.vessel}}
+        overrides = {**overrides, "vessel": {**overrides.get("vessel", {}), "kind": kind}}
     return overrides
 
 

@@ -16,7 +16,7 @@ Tasks (:data:`ALL_TASKS`; the observation, action, reward and termination conven
 
 - ``track``: follow the paper's reference (docs/model.md §4) from a start drawn uniformly within
   +-(3 m, 3 m, 0.5 rad) of its pose at t = 0, at rest; 30 s episodes, control period 0.01 s
-  (10 RK4 steps of 1 ms), the paper preset's ship, disturbance, funnel and quantizer.
+  (10 RK4 steps of 1 ms), the paper preset's ship (or ``vessel``), disturbance, funnel and quantizer.
 - ``track_waves``: the same in the ``moderate`` sea (docs/sea.md §3: JONSWAP Hs 0.2 m, Tp 2 s, from
   the west) with a 0.3 m/s current (setting toward compass 060, 30 deg counter-clockwise from +x) and a
   5 m/s wind (from the south, blowing toward +y; gusts sigma 1 m/s).
@@ -27,6 +27,13 @@ Tasks (:data:`ALL_TASKS`; the observation, action, reward and termination conven
 
 Options of :func:`load` (keyword arguments): ``scenario`` (a :class:`usv_mj.scenario.Scenario`
 used as is), else ``preset`` ("paper") and ``overrides`` (a nested dict as in scenario files);
+``vessel`` (a vessel kind of :data:`usv_mj.registry.VESSELS`: "paper", "cybership2", "otter",
+"clarke83", a vessel data file or "module:Name"; what ``usv-mj run --vessel`` gives, its options
+in ``overrides={"vessel": {...}}``): the task runs that hull, its rigid body and hydrodynamics in
+the plant, its actuators between the action and the plant (the action bounds are their limits),
+its nominal model in :class:`PPCPolicy` and its hull in the pictures; the reference is the
+scenario's, as in a run. A ruddered vessel ("kvlcc2", ``Vessel.inputs == "rudder"``) is refused
+with a ValueError until an allocation from forces to (n_P, rudder angle) exists;
 ``control_period`` [s] (0.01), ``substeps`` (10), ``duration`` [s] (30 / 90), ``quantize`` (True),
 ``max_surge_force`` [N] and ``max_yaw_moment`` [N m] (1000: the action bounds of channels whose
 actuators are unlimited; ``scenario.actuators`` limits win where finite), ``preview_times`` [s],

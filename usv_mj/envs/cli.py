@@ -6,6 +6,11 @@ contact). Policies: ``ppc`` (the paper's adaptive PPC law on the environment's o
 ``random`` (uniform actions within the thrust bounds). Observations, rewards and termination:
 ``pydoc usv_mj.envs.tasks``.
 
+``--vessel KIND`` runs the task on another hull (as ``usv-mj run --vessel``: a registered vessel
+kind, a vessel data file or ``module:Name``; its options by ``--set vessel.KEY=VALUE``): its rigid
+body, hydrodynamics, actuators (the action bounds and the allocation) and drawn hull. A ruddered
+vessel (KVLCC2) is refused (exit 2) until an allocation from forces to a rudder exists.
+
 Exit codes: 0 done, 2 bad options, 1 other failures (a task the MuJoCo plant cannot run yet, say).
 """
 
@@ -29,6 +34,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
                         help="override one value of the task's scenario by dotted key, e.g. --set "
                         "controller.kind=my-pd or --set trajectory.kind=lawnmower")
+    from usv_mj.command_args import add_vessel_argument
+
+    add_vessel_argument(parser)   # the flag of usv-mj run: the hull the task runs (docs/vessels.md)
     parser.add_argument("--episodes", type=int, default=1, help="number of episodes (default 1)")
     parser.add_argument("--seed", type=int, default=0, help="environment (and random policy) seed (default 0)")
     parser.add_argument("--duration", type=float, default=None, help="episode length [s] (default 30, harbor 90)")
@@ -45,22 +53,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def rollout(env, policy):
-    """One episode: returns (return, steps, info, rows) with rows = (t, state, reference, action, thrust)."""
+    """One episode: returns (return, steps, info, rows) with rows = (t, state, reference, action, thrust,
+    command, saturated) (:meth:`usv_mj.envs.USVEnvironment.history`'s)."""
     ts = env.reset()
     task = env.task
     rows = []
 
-    def row(action, thrust):
+    def row():
         t = env.physics.time()
-        rows.append((t, env.physics.state.copy(), task.reference.evaluate(t).copy(), action, thrust))
+        rows.append((t, env.physics.state.copy(), task.reference.evaluate(t).copy(), task.last_action.copy(),
+                     task.last_thrust.copy(), task.last_command.copy(), task.last_saturated.copy()))
 
     total, n = 0.0, 0
-    row(task.last_action.copy(), task.last_thrust.copy())
+    row()
     while not ts.last():
         ts = env.step(policy(ts))
         total += ts.reward
         n += 1
-        row(task.last_action.copy(), task.last_thrust.copy())
+        row()
     return total, n, dict(task.info), rows
 
 
@@ -95,6 +105,8 @@ def run_command(args: argparse.Namespace) -> int:
             return 2
     if args.duration is not None:
         options["duration"] = args.duration
+    if getattr(args, "vessel", None):
+        options["vessel"] = args.vessel
     try:
         env = load(args.task, seed=args.seed, **options)
     except (ValueError, ScenarioError) as exc:

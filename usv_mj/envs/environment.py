@@ -155,11 +155,13 @@ class USVEnvironment(control.Environment):
         task, ph = self._task, self._physics
         t = ph.time()
         self._history.append((t, ph.state.copy(), task.reference_at(t).copy(), task.last_action.copy(),
-                              task.last_thrust.copy()))
+                              task.last_thrust.copy(), task.last_command.copy(), task.last_saturated.copy()))
 
     def history(self) -> list:
-        """The episode's last steps: (t [s], state (6), reference (7), action (2), thrust (2)) rows,
-        oldest first, as :func:`episode_record` takes them (empty before the first :meth:`reset`)."""
+        """The episode's last steps: (t [s], state (6), reference (7), action (2), thrust (2),
+        command (2), saturated (2)) rows, oldest first, as :func:`episode_record` takes them (empty
+        before the first :meth:`reset`): the thrust is the actuators' force the plant got, the
+        command the quantizer's output they were given."""
         return list(self._history)
 
     def render_frame(self, *, width: int = 320, height: int = 240, camera: str = "top",
@@ -204,15 +206,27 @@ class USVEnvironment(control.Environment):
 
 
 def _scenario(task: str, options: dict, duration: float) -> Scenario:
+    from usv_mj.command_args import with_vessel
+
     scenario = options.pop("scenario", None)
     preset = options.pop("preset", "paper")
     overrides = options.pop("overrides", None) or {}
+    vessel = options.pop("vessel", None)
     cp = options.pop("control_period", 0.01)
     sub = options.pop("substeps", 10)
+    if vessel is not None and not isinstance(vessel, str):
+        raise ValueError(f"usv_mj.envs.load({task!r}): vessel must be a vessel kind (a string: "
+                         f"`usv-mj kinds vessel`, a data file or 'module:Name'), got {vessel!r}")
     if scenario is not None:
         if not isinstance(scenario, Scenario):
             raise TypeError(f"usv_mj.envs.load: scenario must be a usv_mj.scenario.Scenario, got {type(scenario).__name__}")
+        if vessel is not None:
+            raise ValueError(f"usv_mj.envs.load({task!r}): vessel={vessel!r} with a ready scenario: give the "
+                             f"vessel in the scenario ([vessel] kind) or drop scenario")
         return scenario
+    if not isinstance(overrides, dict):
+        raise ValueError(f"usv_mj.envs.load({task!r}): overrides must be a dict of scenario tables, got {overrides!r}")
+    overrides = with_vessel(vessel, overrides)  # --vessel's own shorthand: [vessel] kind, its options kept
     base = {"control_period": cp, "plant": {"kind": "mujoco", "substeps": sub}, "duration": duration}
     if task in WAVE_TASKS:
         base["sea"] = WAVES_SEA
@@ -221,6 +235,19 @@ def _scenario(task: str, options: dict, duration: float) -> Scenario:
         base["trajectory"] = {"kind": "waypoints", "points": [[0.0, 0.0], [40.0, 0.0]], "speed": 0.6}
         base["initial"] = {"eta": [0.0, 0.0, 0.0]}
     return load_scenario(preset=preset, overrides=merge_tables(base, overrides))
+
+
+def refuse_ruddered(scenario: Scenario, where: str) -> None:
+    """ValueError (one line) for a ruddered vessel (``Vessel.inputs == "rudder"``, KVLCC2): its input
+    channels are the propeller's revolutions n_P [1/s] and the rudder angle [rad], while the
+    environments' action is a surge force and a yaw moment, and no allocation from forces to
+    (n_P, rudder angle) exists yet (usv_mj.builder.commands_error says the same of a controller)."""
+    model = getattr(scenario.vessel, "model", None)
+    if getattr(model, "inputs", "forces") == "rudder":
+        raise ValueError(f"{where}: the vessel {scenario.vessel.kind!r} is steered by a rudder (its inputs are "
+                         f"the propeller's n_P [1/s] and the rudder angle [rad]), and the environments' action is "
+                         f"a surge force and a yaw moment with no allocation to a rudder yet: use a force vessel "
+                         f"(paper, cybership2, otter, clarke83) or `usv-mj manoeuvre --vessel {scenario.vessel.kind}`")
 
 
 #: [m] the harbour tasks' goal_distance: past the piers (x = 10-21 m) and the buoys drawn at 0.55-0.9
@@ -237,7 +264,8 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
     ``environment_kwargs`` (``time_limit`` [s] = the episode length, ``flat_observation``,
     ``legacy_step``) and ``flat_observation`` (one concatenated ``observations`` vector).
 
-    Raises ValueError for an unknown task or option.
+    Raises ValueError for an unknown task, option or vessel, and for a ruddered vessel
+    (:func:`refuse_ruddered`).
     """
     if task not in ALL_TASKS:
         raise ValueError(f"usv_mj.envs.load: unknown task {task!r}; tasks: {', '.join(ALL_TASKS)}")
@@ -258,6 +286,7 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
         raise ValueError(f"usv_mj.envs.load: duration must be a finite number > 0 s, got {duration!r}")
     preview = tuple(options.get("preview_times", DEFAULT_PREVIEW))
     scenario = _scenario(task, options, duration + max(preview) + 1.0)
+    refuse_ruddered(scenario, f"usv_mj.envs.load({task!r})")
     if scenario.plant.kind != "mujoco":
         scenario = scenario.with_overrides({"plant": {"kind": "mujoco"}})
     task_kw = {k: options.pop(k) for k in ("quantize", "max_surge_force", "max_yaw_moment", "preview_times",
@@ -311,13 +340,16 @@ def gym_env(task: str, seed=None, render_mode=None, **options):
 def episode_record(env, steps, metadata=None):
     """A :class:`usv_mj.record.RunRecord` of an episode for the renderer (``usv_mj.render.render_run``).
 
-    ``steps``: a list of (t, state (6), reference (7), action (2), thrust (2)) rows, as collected by
-    :func:`usv_mj.envs.cli.rollout`. The record declares the funnel block
-    (:data:`usv_mj.controllers.base.FUNNEL_FIELDS`), filled from the task: e1, e2 = x - x_d, y - y_d
-    [m] (the hull origin, not the controller's offset point), e3 = wrap(psi - psi_d), rho1 = rho2 =
-    rho_xy(t), rho3 = rho_psi(t) and z_i = e_i / rho_i. ``tau`` is the clipped action, ``q_tau`` and
-    ``f`` the thrust the plant got. The metadata carry the episode's scenario (its sea and, in the
-    harbor, the layout's obstacles), so the video shows the water and the harbour.
+    ``steps``: a list of (t, state (6), reference (7), action (2), thrust (2)[, command (2),
+    saturated (2)]) rows, as collected by :func:`usv_mj.envs.cli.rollout` (without the last two,
+    the command is taken to be the thrust and nothing saturated: the paper's unlimited actuators).
+    The record declares the funnel block (:data:`usv_mj.controllers.base.FUNNEL_FIELDS`), filled
+    from the task: e1, e2 = x - x_d, y - y_d [m] (the hull origin, not the controller's offset
+    point), e3 = wrap(psi - psi_d), rho1 = rho2 = rho_xy(t), rho3 = rho_psi(t) and z_i = e_i /
+    rho_i. ``tau`` is the clipped action, ``q_tau`` the quantized command, ``f`` the actuators'
+    force the plant got and ``sat`` their saturation flags. The metadata carry the episode's
+    scenario (its sea and, in the harbor, the layout's obstacles, and its vessel), so the video
+    shows the water, the harbour and the vessel's hull.
     """
     from usv_mj.controllers.base import FUNNEL_FIELDS
     from usv_mj.record import CORE_COLUMNS, RunRecord
@@ -326,7 +358,8 @@ def episode_record(env, steps, metadata=None):
     task = env.task
     n = len(steps)
     cols = {name: np.full(n, np.nan) for name in CORE_COLUMNS + FUNNEL_FIELDS}
-    for i, (t, x, ref, a, q) in enumerate(steps):
+    for i, (t, x, ref, a, f, *more) in enumerate(steps):
+        q, sat = (more[0], more[1]) if len(more) >= 2 else (f, (0.0, 0.0))
         cols["t"][i] = t
         for j, name in enumerate(("x", "y", "psi", "u", "v", "r")):
             cols[name][i] = x[j]
@@ -334,8 +367,8 @@ def episode_record(env, steps, metadata=None):
             cols[name][i] = ref[j]
         cols["tau_u"][i], cols["tau_r"][i] = a
         cols["q_tau_u"][i], cols["q_tau_r"][i] = q
-        cols["f_u"][i], cols["f_r"][i] = q
-        cols["sat_u"][i] = cols["sat_r"][i] = 0.0
+        cols["f_u"][i], cols["f_r"][i] = f
+        cols["sat_u"][i], cols["sat_r"][i] = sat
         rxy, rpsi = float(task.funnel_xy(t)), float(task.funnel_psi(t))
         e = (x[0] - ref[0], x[1] - ref[1], wrap(x[2] - ref[2]))
         for j, rho in enumerate((rxy, rxy, rpsi)):

@@ -36,7 +36,8 @@ clipped to the bound in that last observation. :meth:`USVGymEnv.decode` gives th
 
 ``info``: ``kind`` (None while the episode runs; "diverged", "lost", "contact", "goal" or
 "time_limit" at its end), ``reason`` (a sentence), ``time`` [s], ``action`` (the clipped physical
-action [N, N m]) and ``thrust`` (what the plant got after the quantizer). ``terminated`` is the
+action [N, N m]), ``command`` (after the quantizer) and ``thrust`` (what the plant got: the vessel's
+actuators' force). ``terminated`` is the
 task's termination (discount 0), ``truncated`` the time limit.
 
 Rendering (``render_mode="rgb_array"``): the project's renderer (:mod:`usv_mj.render`, the one

@@ -5,8 +5,9 @@ reference evaluations, ``dm_control.utils.rewards.tolerance`` two or four times,
 numpy reductions over the clearances) as in the physics. Here that arithmetic runs compiled, a
 few calls per step:
 
-- :func:`act_kernel`: the action's clip, the hysteresis quantizer (Eq. 3) of both channels and
-  the writes into ``last_action``, ``last_thrust`` and ``data.ctrl``;
+- :func:`act_kernel`: the action's clip, the hysteresis quantizer (Eq. 3) of both channels, the
+  vessel's actuator model (:mod:`usv_mj.actuators`) and the writes into ``last_action``,
+  ``last_command``, ``last_thrust`` and ``data.ctrl``;
 - :func:`track_observe`: from the state and the reference rows (at t and at the preview times),
   the whole observation vector in :meth:`TrackTask.observation_shapes` order (harbor: with the
   goal), and the numbers the reward and the termination read;
@@ -32,6 +33,7 @@ import math
 import numpy as np
 from numba import njit
 
+from usv_mj.actuators import actuator_kernel
 from usv_mj.controllers.hysteresis_quantizer import quantize_step
 from usv_mj.controllers.performance_funnel import funnel_bound
 from usv_mj.limits import within_limits
@@ -50,10 +52,15 @@ N_PARAMS = 12
 
 
 @njit(cache=True)
-def act_kernel(a0, a1, p, quantize, k, last_action, last_thrust, ctrl):
-    """:meth:`TrackTask.before_step` after its checks: clip (``p`` = lo_u, hi_u, lo_r, hi_r,
-    delta_u, u_min_u, delta_r, u_min_r), quantize (levels ``k``, updated) and write the action,
-    the thrust and ``ctrl``; returns the thrust."""
+def act_kernel(a0, a1, p, quantize, k, last_action, last_command, unlimited, act_p, act_state, last_thrust,
+               last_saturated, ctrl):
+    """:meth:`TrackTask.before_step` after its checks, as the closed loop's controller -> quantizer
+    -> actuators (:func:`usv_mj.simulation.simulate`): clip (``p`` = lo_u, hi_u, lo_r, hi_r,
+    delta_u, u_min_u, delta_r, u_min_r), quantize (levels ``k``, updated), then the vessel's
+    actuator model (:func:`usv_mj.actuators.actuator_kernel` with ``unlimited``, its parameters
+    ``act_p`` and its state ``act_state``, updated: the twin allocation, the shaft-speed lag); write
+    the action, the quantized command, the force the plant gets, the actuators' saturation flags
+    and ``ctrl``; returns that force."""
     a0 = min(max(a0, p[0]), p[1])
     a1 = min(max(a1, p[2]), p[3])
     last_action[0] = a0
@@ -65,11 +72,16 @@ def act_kernel(a0, a1, p, quantize, k, last_action, last_thrust, ctrl):
         k[1] = k1
     else:
         q0, q1 = a0, a1
-    last_thrust[0] = q0
-    last_thrust[1] = q1
-    ctrl[0] = q0
-    ctrl[1] = q1
-    return q0, q1
+    last_command[0] = q0
+    last_command[1] = q1
+    f0, f1, s0, s1 = actuator_kernel(q0, q1, unlimited, act_p, act_state)
+    last_thrust[0] = f0
+    last_thrust[1] = f1
+    last_saturated[0] = s0
+    last_saturated[1] = s1
+    ctrl[0] = f0
+    ctrl[1] = f1
+    return f0, f1
 
 
 @njit(cache=True)

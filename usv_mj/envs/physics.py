@@ -162,13 +162,16 @@ class USVPhysics(dm_mujoco.Physics):
         env = self.owner() if self.owner is not None else None
         if env is not None and env.physics is self:
             return env.render_frame(width=width, height=height, camera=camera)
-        from .rendering import FrameSource, pose_record
+        from .rendering import FrameSource, hull_tuple, pose_record
 
         if self._closed:
             raise RuntimeError("USVPhysics.render: the physics is closed")
         if self._frames is None:
             self._frames = FrameSource()
-        return self._frames.frame(pose_record(self.state, self.time()), width=width, height=height, camera=camera)
+        d = getattr(self.plant, "dimensions", None)  # the hull the plant simulates (None: the model file's)
+        hull = None if d is None else hull_tuple(d)
+        return self._frames.frame(pose_record(self.state, self.time()), width=width, height=height, camera=camera,
+                                  hull=hull)
 
     def _camera_name(self, camera_id) -> str:
         if isinstance(camera_id, str):

@@ -26,14 +26,15 @@ HISTORY_ROWS = 3000
 class _Drawer:
     """One :class:`usv_mj.render.replay.FrameRenderer`, here or in one spawned worker (module docstring)."""
 
-    def __init__(self, width: int, height: int, camera: str):
+    def __init__(self, width: int, height: int, camera: str, hull=None):
         from usv_mj.render.gl_backend import in_process_backend, select_backend
         from usv_mj.render.video import check_camera
 
         self.backend = select_backend()
         check_camera(camera)          # a bad name is one ValueError here, not a failed worker
-        self.key = (int(width), int(height), camera)
-        self.kwargs = dict(width=int(width), height=int(height), camera=camera, model_path=None)
+        self.key = (int(width), int(height), camera, hull)
+        # hull: the vessel's (L, B, T) [m], the model file's hull scaled to it as the run's video does
+        self.kwargs = dict(width=int(width), height=int(height), camera=camera, model_path=None, hull=hull)
         here = in_process_backend()
         self.local = self.pool = None
         if here is None or here == self.backend:
@@ -80,14 +81,19 @@ class FrameSource:
     def __init__(self):
         self._drawer = None
 
-    def frame(self, record, *, width: int, height: int, camera: str = "top") -> np.ndarray:
-        """The (height, width, 3) uint8 frame of the last row of ``record``."""
+    def frame(self, record, *, width: int, height: int, camera: str = "top", hull="record") -> np.ndarray:
+        """The (height, width, 3) uint8 frame of the last row of ``record``. ``hull``: the drawn
+        hull's (L, B, T) [m]; "record" (default): the record's vessel's, as ``usv-mj run``'s video
+        draws it (:func:`usv_mj.render.world.hull_dimensions`); None: the model file's (the paper's)."""
         from usv_mj.render.planner import plan_frames
+        from usv_mj.render.world import hull_dimensions
 
         for name, v in (("width", width), ("height", height)):
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or not 16 <= v <= 8192:
                 raise ValueError(f"render: {name} = {v!r} must be a whole number of pixels in [16, 8192]")
-        key = (int(width), int(height), camera)
+        if isinstance(hull, str) and hull == "record":
+            hull = hull_dimensions(record)
+        key = (int(width), int(height), camera, None if hull is None else tuple(float(v) for v in hull))
         if self._drawer is None or self._drawer.key != key:
             self.close()
             self._drawer = _Drawer(*key)
@@ -102,7 +108,8 @@ class FrameSource:
 
 def pose_record(state, t: float = 0.0):
     """A one-row record of a pose (x, y, psi, u, v, r) at t [s], with no reference and no scenario
-    (calm water): what a physics that belongs to no environment can draw."""
+    (calm water): what a physics that belongs to no environment can draw (its hull: the plant's
+    dimensions, given to :meth:`FrameSource.frame` as ``hull``)."""
     from usv_mj.record import RunRecord
 
     x = np.asarray(state, dtype=float)
@@ -110,3 +117,13 @@ def pose_record(state, t: float = 0.0):
     for j, name in enumerate(("x", "y", "psi", "u", "v", "r")):
         cols[name] = x[j:j + 1].copy()
     return RunRecord.from_arrays(cols, metadata={"plant": "mujoco", "controller": "env"})
+
+
+def hull_tuple(dimensions):
+    """(L, B, T) [m] of a :class:`usv_mj.vessels.Dimensions` as the renderer takes it, None for the
+    model file's own hull (the paper's): :func:`usv_mj.render.world.hull_dimensions`'s rule."""
+    from types import SimpleNamespace
+
+    from usv_mj.render.world import hull_dimensions
+
+    return hull_dimensions(SimpleNamespace(vessel=SimpleNamespace(model=SimpleNamespace(dimensions=dimensions))))

@@ -6,9 +6,15 @@ Action: ``thrust`` = (tau_u [N], tau_r [N m]), a ``specs.BoundedArray`` whose bo
 scenario's actuator limits (``scenario.actuators.generalized_limits()``) where they are finite, else
 +-``max_surge_force`` / +-``max_yaw_moment`` (1000 N, 1000 N m: the paper's ship has no thrust
 limits); values outside are clipped, non-finite ones raise ValueError. With ``quantize=True`` the clipped action goes through the hysteresis quantizer of Eq. 3
-(docs/model.md §2; the scenario's delta and u_min per channel), exactly as in :func:`usv_mj.simulation.simulate`.
-The (quantized) thrust is held over the control period: ``n_sub_steps`` = ``plant.substeps`` RK4
-steps of the plant's time step.
+(docs/model.md §2; the scenario's delta and u_min per channel), then through the vessel's actuator
+model (:mod:`usv_mj.actuators`: the ``[actuators]`` table, the vessel's own where it has one, e.g.
+the Otter's twin propellers with their coupled limits and shaft-speed lag; the paper's are
+unlimited, the command itself), exactly as in :func:`usv_mj.simulation.simulate`. The actuators'
+force is held over the control period: ``n_sub_steps`` = ``plant.substeps`` RK4 steps of the
+plant's time step. The action bounds are each channel's own range; a twin hull cannot reach both
+ends at once (full surge leaves no yaw moment), and its allocation decides as in a run
+(``priority``). A ruddered vessel (``Vessel.inputs == "rudder"``, KVLCC2) is refused by
+:func:`usv_mj.envs.load` until an allocation from forces to (n_P, rudder angle) exists.
 
 Observations (an OrderedDict of float64 arrays; "body frame" = rotated by -psi, x forward):
 
@@ -70,7 +76,7 @@ with warnings.catch_warnings():
     from dm_control.suite import base
 from dm_env import specs
 
-from usv_mj.builder import make_quantizers
+from usv_mj.builder import make_actuators, make_quantizers
 from usv_mj.controllers.performance_funnel import funnels_of
 from usv_mj.simulation import make_reference, which_limit
 
@@ -234,8 +240,13 @@ class TrackTask(base.Task):
         self._qp = ((q_u.params.delta, q_u.params.u_min), (q_r.params.delta, q_r.params.u_min))
         self._act_p = np.array([*self._bounds_t, *self._qp[0], *self._qp[1]], dtype=np.float64)
         self._k = np.zeros(2, dtype=np.int64)  # the quantizers' signed level indices
+        # the vessel's actuator model (the Otter's twin propellers and their shaft-speed lag; the
+        # paper's: unlimited, the command itself), as the closed loop applies it after the quantizer
+        self.actuators = make_actuators(scenario)
         self.last_action = np.zeros(2)      # clipped action [N, N m]
-        self.last_thrust = np.zeros(2)      # after the quantizer: what the plant got
+        self.last_command = np.zeros(2)     # after the quantizer: the command the actuators get
+        self.last_thrust = np.zeros(2)      # after the actuators: the force the plant got [N, N m]
+        self.last_saturated = np.zeros(2)   # 1 where the actuators cut that channel's command (sat_u, sat_r)
         self.termination_reason: str | None = None
         self.termination_kind: str | None = None
         self.episode_scenario = scenario  # what the plant was built from (harbor: with the layout's obstacles)
@@ -263,11 +274,14 @@ class TrackTask(base.Task):
 
     def initialize_episode(self, physics):
         self._k[:] = 0
+        self.actuators.reset()
         self._ref_t = None
         self._ev = None
         self._fill_params(self._params)
         self.last_action[:] = 0.0
+        self.last_command[:] = 0.0
         self.last_thrust[:] = 0.0
+        self.last_saturated[:] = 0.0
         self.termination_reason = None
         self.termination_kind = None
         eta0, nu0 = self.start_pose()
@@ -280,8 +294,9 @@ class TrackTask(base.Task):
         self._act(action, physics)
 
     def _act(self, action, physics):
-        """Check the action, clip it, quantize it (Eq. 3) and write last_action, last_thrust and
-        ``ctrl`` (one native call); returns the thrust (q_u [N], q_r [N m])."""
+        """Check the action, clip it, quantize it (Eq. 3), pass it through the vessel's actuators
+        and write last_action, last_command, last_thrust, last_saturated and ``ctrl`` (one native
+        call); returns the force the plant gets (f_u [N], f_r [N m])."""
         a0, a1 = self._checked(action)
         self._ev = None  # the state is about to change
         return native.act_kernel(a0, a1, *self._act_args(physics))
@@ -300,7 +315,9 @@ class TrackTask(base.Task):
         """:func:`native.act_kernel`'s arguments after the action (``ctrl`` of this physics)."""
         of, args = self._act_of
         if of is not physics or args[1] != self.quantize:
-            args = (self._act_p, self.quantize, self._k, self.last_action, self.last_thrust, physics.plant.data.ctrl)
+            act = self.actuators
+            args = (self._act_p, self.quantize, self._k, self.last_action, self.last_command, bool(act.unlimited),
+                    act.params, act.state, self.last_thrust, self.last_saturated, physics.plant.data.ctrl)
             self._act_of = (physics, args)
         return args
 
@@ -433,9 +450,11 @@ class TrackTask(base.Task):
     @property
     def info(self) -> dict:
         """Why the episode ended (``kind``: None while it runs, else "diverged", "lost", "contact",
-        "goal" or "time_limit"; ``reason``: one sentence), the last action and the thrust the plant got."""
+        "goal" or "time_limit"; ``reason``: one sentence), the last action, the quantized command
+        and the force the plant got (after the vessel's actuators)."""
         return {"kind": self.termination_kind, "reason": self.termination_reason,
-                "action": self.last_action.copy(), "thrust": self.last_thrust.copy()}
+                "action": self.last_action.copy(), "command": self.last_command.copy(),
+                "thrust": self.last_thrust.copy()}
 
     # --- observations and reward ---------------------------------------------------------------
 
