@@ -154,11 +154,48 @@ def test_ppc_policy_takes_the_vessels_nominal_model_and_its_options():
         env.close()
 
 
-def test_a_ruddered_vessel_and_bad_vessels_are_refused_in_one_line():
-    with pytest.raises(ValueError) as info:
-        envs.load("track", vessel="kvlcc2")
-    text = str(info.value)
-    assert "\n" not in text and "'kvlcc2'" in text and "rudder" in text and "n_P" in text
+def test_a_kvlcc2_episode_is_the_runs_allocated_closed_loop_for_the_same_actions():
+    """On the ruddered KVLCC2 the action (a force and a moment) is allocated to n_P and the rudder
+    angle at the state, as a force controller's command in `usv-mj run --vessel kvlcc2`: the same
+    actions give the same states and plant inputs as simulate() on a fresh plant; the bounds are
+    the forward model's reach at 1.179 m/s (usv_mj.mmg.mmg_forces at n_P = 23.7 1/s: the rudder
+    amidships for surge, hard over for yaw)."""
+    from usv_mj.mmg import mmg_forces
+    from usv_mj.simulation import simulate
+    from usv_mj.vessels.kvlcc2 import KVLCC2Options, pack
+
+    q = np.array(pack(KVLCC2Options()))
+    ahead = mmg_forces(q, 0, 1.179, 0.0, 0.0, 23.7, 0.0)
+    hard = mmg_forces(q, 0, 1.179, 0.0, 0.0, 23.7, math.radians(35.0))
+    n = 120
+    rng = np.random.RandomState(5)
+    env = envs.load("track", seed=2, vessel="kvlcc2", duration=n * DT)
+    try:
+        spec = env.action_spec()
+        assert spec.minimum.tolist() == [0.0, pytest.approx(-abs(hard[6]))]
+        assert spec.maximum.tolist() == [pytest.approx(ahead[3] + ahead[4]), pytest.approx(abs(hard[6]))]
+        actions = np.column_stack([rng.uniform(0.0, spec.maximum[0], n), rng.uniform(spec.minimum[1], spec.maximum[1], n)])
+        env.reset()
+        states, inputs = [env.physics.state.copy()], []
+        for a in actions:
+            env.step(a)
+            states.append(env.physics.state.copy())
+            inputs.append(env.task.last_thrust.copy())
+        states, inputs = np.array(states), np.array(inputs)
+        sc = env.task.scenario.with_overrides({"initial": {"eta": [float(v) for v in states[0, :3]],
+                                                            "nu": [float(v) for v in states[0, 3:]]}})
+        record = simulate(sc, plant_kind="mujoco", controller=_Scripted(actions), duration=n * DT,
+                          reference=env.task.reference)
+    finally:
+        env.close()
+    run_in = np.column_stack([record["f_u"], record["f_r"]])[:n]
+    assert np.max(np.abs(run_in - inputs)) < 1e-9
+    assert 0.0 <= inputs[:, 0].min() and inputs[:, 0].max() <= 23.7            # n_P [1/s]
+    assert np.abs(inputs[:, 1]).max() <= math.radians(35.0) + 1e-12 and np.ptp(inputs[:, 1]) > 0.01   # delta [rad]
+    assert np.max(np.hypot(record["x"] - states[:, 0], record["y"] - states[:, 1])) < 1e-9
+
+
+def test_bad_vessels_are_refused_in_one_line():
     with pytest.raises(ValueError, match="unknown vessel kind 'nosuch'"):
         envs.load("track", vessel="nosuch")
     with pytest.raises(ValueError, match="vessel must be a vessel kind"):
@@ -176,7 +213,8 @@ def test_env_command_takes_the_vessel_flag_of_run(capsys, tmp_path, monkeypatch)
     assert main(["env", "track", "--vessel", "otter", "--duration", "0.2", "--video", "none",
                  "--set", "vessel.model_mismatch=1.1"]) == 0
     assert "episode 1: return" in capsys.readouterr().out
-    for argv, word in ((["--vessel", "nosuch"], "nosuch"), (["--vessel", "kvlcc2"], "rudder")):
+    for argv, word in ((["--vessel", "nosuch"], "nosuch"), (["--vessel", "kvlcc2", "--set", "vessel.max_propeller_rps=-1"],
+                                                            "vessel.max_propeller_rps must be > 0")):
         assert main(["env", "track", *argv, "--duration", "0.2", "--video", "none"]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and err.startswith("usv-mj env: error:") and word in err, err

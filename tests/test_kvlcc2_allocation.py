@@ -119,3 +119,25 @@ def test_ppc_and_pi_run_on_the_tanker_on_both_plants():
         assert a.metadata["status"] == m.metadata["status"] == "completed"
         assert max(np.abs(a[c] - m[c]).max() for c in ("x", "y")) < 1e-5, kind
         assert np.isfinite(a["f_u"]).all() and a["f_u"].min() >= 0.0
+
+
+def test_the_video_says_what_the_channels_hold(circle_runs):
+    """The record names what its columns carry (usv_mj.builder.channels_of): a force controller's
+    run on KVLCC2 is "allocated" (tau in N, f in 1/s and rad), so the HUD's force bars get no
+    rudder-angle ticks; the open-loop manoeuvre's is "rudder"; the paper hull's "forces"."""
+    from usv_mj.render.planner import plan_frames
+
+    s, runs = circle_runs
+    rec = runs["analytic"]
+    assert rec.metadata["channels"] == "allocated"
+    hud = plan_frames(rec, max_frames=2, width=320, height=180).frames[-1].hud
+    assert hud["channels"] == "allocated" and hud["tau_r_limits"] is None
+    assert hud["f_u"] == pytest.approx(rec["f_u"][hud_row(rec, hud["t"])])
+    opened = simulate(s.with_overrides({"duration": 1.0}), plant_kind="analytic", controller_kind="open_loop")
+    assert opened.metadata["channels"] == "rudder"
+    assert simulate(load_scenario(preset="paper", overrides={"duration": 0.01}), plant_kind="analytic"
+                    ).metadata["channels"] == "forces"
+
+
+def hud_row(record, t):
+    return int(np.argmin(np.abs(record["t"] - t)))

@@ -313,26 +313,26 @@ def unlimited_step(q_u, q_r):
 
 
 @njit(cache=True)
-def actuator_kernel(q_u, q_r, x, unlimited, p, state):
+def actuator_kernel(q_u, q_r, x, unlimited, p, state, mmg):
     """:meth:`Actuators.apply` (which calls it, or runs :func:`unlimited_step` as Python) and its
-    kernel for the compiled loop (usv_mj.kernels); ``x`` (the plant state) is not read."""
+    kernel for the compiled loop (usv_mj.kernels) and the environments' step (usv_mj.envs.native).
+
+    ``mmg``: empty, or the MMG block of a ruddered vessel driven by a force controller (module
+    docstring, Allocation): the command (surge force, yaw moment) then becomes (n_P, delta) at the
+    plant state ``x`` (:func:`usv_mj.mmg.mmg_allocate`, n_P within the surge channel's limits, delta
+    within the yaw channel's) and the vessel's own limits and rates act on those; ``x`` is not read
+    otherwise."""
+    if mmg.shape[0] > 0:
+        n_p, delta, a_u, a_r = mmg_allocate(mmg, 0, x[3], x[4], x[5], q_u, q_r, p[A_LO_U], p[A_HI_U], p[A_HI_R])
+        f_u, f_r, s_u, s_r = actuator_step(p, state, n_p, delta)
+        return f_u, f_r, max(a_u, s_u), max(a_r, s_r)
     if unlimited:
         return unlimited_step(q_u, q_r)
     return actuator_step(p, state, q_u, q_r)
 
 
-@njit(cache=True)
-def allocated_actuator_kernel(q_u, q_r, x, p, state, mmg):
-    """The actuators of a ruddered vessel driven by a force controller (module docstring,
-    Allocation): the command (surge force, yaw moment) becomes (n_P, delta) at the plant state
-    ``x`` (:func:`usv_mj.mmg.mmg_allocate` with the MMG block ``mmg``, n_P within the surge channel's
-    limits, delta within the yaw channel's), then the vessel's own limits and rates act on those."""
-    n_p, delta, a_u, a_r = mmg_allocate(mmg, 0, x[3], x[4], x[5], q_u, q_r, p[A_LO_U], p[A_HI_U], p[A_HI_R])
-    f_u, f_r, s_u, s_r = actuator_step(p, state, n_p, delta)
-    return f_u, f_r, max(a_u, s_u), max(a_r, s_r)
-
-
 _NO_STATE = np.zeros(6)
+NO_ALLOCATION = np.zeros(0)
 
 
 def pack(spec: ActuatorSpec, control_period: float) -> np.ndarray:
@@ -371,6 +371,7 @@ class Actuators:
         self.params = pack(spec, control_period)
         self.state = np.zeros(N_ACT_STATE)
         self.allocation = None if allocation is None else np.array(allocation, dtype=float)
+        self.mmg = NO_ALLOCATION if allocation is None else self.allocation   # the kernel's argument
         self.unlimited = spec.unlimited and self.allocation is None
         self.limits = spec.generalized_limits()
 
@@ -386,9 +387,7 @@ class Actuators:
         """(the kernel, its parameters and state) for the compiled loop."""
         from usv_mj.kernels import Kernel
 
-        if self.allocation is not None:
-            return Kernel(allocated_actuator_kernel, (self.params, self.state, self.allocation))
-        return Kernel(actuator_kernel, (bool(self.unlimited), self.params, self.state))
+        return Kernel(actuator_kernel, (bool(self.unlimited), self.params, self.state, self.mmg))
 
     def apply(self, q_u: float, q_r: float, x=None) -> tuple[float, float, float, float]:
         """(f_u, f_r, sat_u, sat_r) realized over the coming period from the command (f: [N], [N m],
@@ -396,8 +395,8 @@ class Actuators:
         if self.allocation is not None:
             if x is None:
                 raise ValueError("Actuators.apply: an allocated command needs the plant state x")
-            return allocated_actuator_kernel(float(q_u), float(q_r), np.asarray(x, dtype=float), self.params,
-                                             self.state, self.allocation)
+            return actuator_kernel(float(q_u), float(q_r), np.asarray(x, dtype=float), False, self.params,
+                                   self.state, self.mmg)
         if self.unlimited:  # the kernel's own branch, as plain Python (a native call costs more than it)
             return unlimited_step(q_u, q_r)
-        return actuator_kernel(float(q_u), float(q_r), _NO_STATE, False, self.params, self.state)
+        return actuator_kernel(float(q_u), float(q_r), _NO_STATE, False, self.params, self.state, self.mmg)

@@ -192,14 +192,45 @@ def make_quantizers(scenario: Scenario):
             HysteresisQuantizer(QuantizerParams(q.delta_r, q.u_min_r), q.enabled))
 
 
-def make_actuators(scenario: Scenario, controller=None):
+#: what a record's tau / q_tau and f columns hold (its metadata's ``channels``; :func:`channels_of`)
+CHANNELS = ("forces", "rudder", "allocated")
+
+
+def channels_of(scenario: Scenario, commands: str = "forces") -> str:
+    """What the run's channels carry: "forces" (tau, Q(tau) and f are a surge force [N] and a yaw
+    moment [N m]), "rudder" (all three are a ruddered vessel's n_P [1/s] and rudder angle [rad]:
+    the open-loop and zig-zag controllers there) or "allocated" (tau and Q(tau) are forces, f the
+    n_P and rudder angle they were allocated to) for a controller commanding ``commands``."""
+    if getattr(getattr(scenario.vessel, "model", None), "inputs", "forces") != "rudder":
+        return "forces"
+    return "allocated" if commands == "forces" and allocation_of(scenario) is not None else "rudder"
+
+
+def allocated_force_limits(scenario: Scenario):
+    """(tau_u_min, tau_u_max, tau_r_min, tau_r_max) [N, N m] a force command can reach through the
+    allocation of a ruddered vessel at its approach speed going straight (:func:`usv_mj.mmg.mmg_force_limits`;
+    0 the least surge force: the MMG's propeller does not pull astern), or None: no allocation."""
+    mmg = allocation_of(scenario)
+    if mmg is None:
+        return None
+    import numpy as np
+
+    from .mmg import mmg_force_limits
+
+    _, n_hi, _, delta_hi = scenario.actuators.generalized_limits()
+    speed = float((scenario.vessel.model.manoeuvre or {}).get("approach_speed", 1.0))
+    x_max, n_max = mmg_force_limits(np.asarray(mmg, dtype=float), 0, speed, n_hi, delta_hi)
+    return 0.0, float(x_max), -float(n_max), float(n_max)
+
+
+def make_actuators(scenario: Scenario, commands: str = "forces"):
     """The actuator model of ``[actuators]`` at the scenario's control period (:mod:`usv_mj.actuators`);
-    with the allocation of a force command to the rudder and the propeller when ``controller``
-    commands forces and the vessel is ruddered (:func:`allocation_of`)."""
+    with the allocation of a force command to the rudder and the propeller when the command is
+    ``"forces"`` (a controller's ``commands``; the environments' action) and the vessel is ruddered
+    (:func:`allocation_of`)."""
     from .actuators import Actuators
 
-    forces = controller is not None and getattr(controller, "commands", "forces") == "forces"
-    return Actuators.from_scenario(scenario, allocation_of(scenario) if forces else None)
+    return Actuators.from_scenario(scenario, allocation_of(scenario) if commands == "forces" else None)
 
 
 def check_start_clear(scenario: Scenario) -> None:
@@ -299,7 +330,7 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
             plant.close()
         raise
     return Parts(scenario, duration, plant, controller, reference, make_quantizers(scenario),
-                 make_actuators(scenario, controller), hooks, sinks, statics, metadata, own_plant)
+                 make_actuators(scenario, getattr(controller, "commands", "forces")), hooks, sinks, statics, metadata, own_plant)
 
 
 def _obstacle_parts(scenario, plant, plan, duration, statics, contact):

@@ -236,3 +236,13 @@ def mmg_allocate(q, b, u, v, r, tau_u, tau_r, n_lo, n_hi, delta_max):
             break
         t0, t1, f0 = t1, t1 - f1 * (t1 - t0) / (f1 - f0), f1
     return n_p, -delta_m, sat_u, sat_r
+
+
+def mmg_force_limits(q, b, u, n_max, delta_max):
+    """(tau_u_max [N], tau_r_max [N m]): the largest surge force X_P + X_R (the rudder amidships) and
+    yaw moment |N_R| (the rudder hard over) that the propeller at ``n_max`` [1/s] and the rudder at
+    ``delta_max`` [rad] give going straight ahead at ``u`` [m/s]: the reach of the allocation
+    (:func:`mmg_allocate`) at that speed, e.g. the environments' action bounds on a ruddered vessel."""
+    ahead = mmg_forces(q, b, u, 0.0, 0.0, n_max, 0.0)
+    hard_over = mmg_forces(q, b, u, 0.0, 0.0, n_max, delta_max)
+    return ahead[3] + ahead[4], abs(hard_over[6])

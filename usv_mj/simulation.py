@@ -22,7 +22,7 @@ from typing import Callable, Iterable, Protocol
 import numpy as np
 
 from .limits import within_limits
-from .builder import Parts, build, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
+from .builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from .record import COL, N_CORE, SL_REF, SL_STATE, Event, RunRecord
 from .scenario import Scenario
 from . import trajectories
@@ -123,7 +123,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     dt = scenario.control_period
     n = int(round(duration / dt))
     quant_u, quant_r = parts.quantizers
-    actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario, controller)
+    actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario, getattr(controller, "commands", "forces"))
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
     from .compiled_loop import kernels_of
@@ -136,6 +136,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
         "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata, **loop,
         "criterion": criterion_of(controller).to_dict(),  # how the outputs judge the run (usv_mj.criteria)
+        "channels": channels_of(scenario, getattr(controller, "commands", "forces")),  # what tau and f hold
     }, fields, getattr(controller, "diagnostic_events", None), stream_above)
     record.statics = parts.statics
     for sink in sinks:

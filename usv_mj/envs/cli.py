@@ -8,8 +8,8 @@ contact). Policies: ``ppc`` (the paper's adaptive PPC law on the environment's o
 
 ``--vessel KIND`` runs the task on another hull (as ``usv-mj run --vessel``: a registered vessel
 kind, a vessel data file or ``module:Name``; its options by ``--set vessel.KEY=VALUE``): its rigid
-body, hydrodynamics, actuators (the action bounds and the allocation) and drawn hull. A ruddered
-vessel (KVLCC2) is refused (exit 2) until an allocation from forces to a rudder exists.
+body, hydrodynamics, actuators (the action bounds and the allocation: on KVLCC2 to its propeller
+and rudder) and drawn hull.
 
 Exit codes: 0 done, 2 bad options, 1 other failures (a task the MuJoCo plant cannot run yet, say).
 """

@@ -17,7 +17,7 @@ with warnings.catch_warnings():
     from dm_control.rl import control
 from dm_env import specs
 
-from usv_mj.builder import make_environment, make_plant
+from usv_mj.builder import channels_of, make_environment, make_plant
 from usv_mj.scenario import Scenario, load_scenario, merge_tables
 
 from . import ALL_TASKS
@@ -237,19 +237,6 @@ def _scenario(task: str, options: dict, duration: float) -> Scenario:
     return load_scenario(preset=preset, overrides=merge_tables(base, overrides))
 
 
-def refuse_ruddered(scenario: Scenario, where: str) -> None:
-    """ValueError (one line) for a ruddered vessel (``Vessel.inputs == "rudder"``, KVLCC2): its input
-    channels are the propeller's revolutions n_P [1/s] and the rudder angle [rad], while the
-    environments' action is a surge force and a yaw moment, and no allocation from forces to
-    (n_P, rudder angle) exists yet (usv_mj.builder.commands_error says the same of a controller)."""
-    model = getattr(scenario.vessel, "model", None)
-    if getattr(model, "inputs", "forces") == "rudder":
-        raise ValueError(f"{where}: the vessel {scenario.vessel.kind!r} is steered by a rudder (its inputs are "
-                         f"the propeller's n_P [1/s] and the rudder angle [rad]), and the environments' action is "
-                         f"a surge force and a yaw moment with no allocation to a rudder yet: use a force vessel "
-                         f"(paper, cybership2, otter, clarke83) or `usv-mj manoeuvre --vessel {scenario.vessel.kind}`")
-
-
 #: [m] the harbour tasks' goal_distance: past the piers (x = 10-21 m) and the buoys drawn at 0.55-0.9
 #: of it; at most 500 m (each layout's plan is smoothed along the whole distance, 0.4 s per 100 m)
 GOAL_DISTANCE_RANGE = (30.0, 500.0)
@@ -264,8 +251,7 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
     ``environment_kwargs`` (``time_limit`` [s] = the episode length, ``flat_observation``,
     ``legacy_step``) and ``flat_observation`` (one concatenated ``observations`` vector).
 
-    Raises ValueError for an unknown task, option or vessel, and for a ruddered vessel
-    (:func:`refuse_ruddered`).
+    Raises ValueError for an unknown task, option or vessel.
     """
     if task not in ALL_TASKS:
         raise ValueError(f"usv_mj.envs.load: unknown task {task!r}; tasks: {', '.join(ALL_TASKS)}")
@@ -286,7 +272,6 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
         raise ValueError(f"usv_mj.envs.load: duration must be a finite number > 0 s, got {duration!r}")
     preview = tuple(options.get("preview_times", DEFAULT_PREVIEW))
     scenario = _scenario(task, options, duration + max(preview) + 1.0)
-    refuse_ruddered(scenario, f"usv_mj.envs.load({task!r})")
     if scenario.plant.kind != "mujoco":
         scenario = scenario.with_overrides({"plant": {"kind": "mujoco"}})
     task_kw = {k: options.pop(k) for k in ("quantize", "max_surge_force", "max_yaw_moment", "preview_times",
@@ -378,6 +363,6 @@ def episode_record(env, steps, metadata=None):
     scenario = getattr(task, "episode_scenario", None) or task.scenario
     meta = {"plant": "mujoco", "controller": "env", "control_period_s": env.control_timestep(),
             "duration_s": float(steps[-1][0]) if steps else 0.0, "scenario": scenario.to_dict(),
-            "diagnostic_fields": list(FUNNEL_FIELDS)}
+            "diagnostic_fields": list(FUNNEL_FIELDS), "channels": channels_of(scenario)}
     meta.update(metadata or {})
     return RunRecord.from_arrays(cols, metadata=meta, diagnostic_fields=FUNNEL_FIELDS)

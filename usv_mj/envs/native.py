@@ -52,13 +52,14 @@ N_PARAMS = 12
 
 
 @njit(cache=True)
-def act_kernel(a0, a1, p, quantize, k, last_action, last_command, unlimited, act_p, act_state, last_thrust,
+def act_kernel(a0, a1, x, p, quantize, k, last_action, last_command, unlimited, act_p, act_state, mmg, last_thrust,
                last_saturated, ctrl):
     """:meth:`TrackTask.before_step` after its checks, as the closed loop's controller -> quantizer
     -> actuators (:func:`usv_mj.simulation.simulate`): clip (``p`` = lo_u, hi_u, lo_r, hi_r,
     delta_u, u_min_u, delta_r, u_min_r), quantize (levels ``k``, updated), then the vessel's
     actuator model (:func:`usv_mj.actuators.actuator_kernel` with ``unlimited``, its parameters
-    ``act_p`` and its state ``act_state``, updated: the twin allocation, the shaft-speed lag); write
+    ``act_p``, its state ``act_state``, updated, and ``mmg``: the twin allocation, the shaft-speed
+    lag, a ruddered vessel's allocation to n_P and the rudder angle at the state ``x``); write
     the action, the quantized command, the force the plant gets, the actuators' saturation flags
     and ``ctrl``; returns that force."""
     a0 = min(max(a0, p[0]), p[1])
@@ -74,7 +75,7 @@ def act_kernel(a0, a1, p, quantize, k, last_action, last_command, unlimited, act
         q0, q1 = a0, a1
     last_command[0] = q0
     last_command[1] = q1
-    f0, f1, s0, s1 = actuator_kernel(q0, q1, unlimited, act_p, act_state)
+    f0, f1, s0, s1 = actuator_kernel(q0, q1, x, unlimited, act_p, act_state, mmg)
     last_thrust[0] = f0
     last_thrust[1] = f1
     last_saturated[0] = s0
@@ -242,14 +243,14 @@ def evaluate_harbor(x, t, preview, params, n_out, ref_a, sense_a):
 
 @njit(cache=True)
 def step_track(a0, a1, act_a, k, x, t, plant_a, preview, params, n_out, ref_a):
-    q0, q1 = act_kernel(a0, a1, *act_a)
+    q0, q1 = act_kernel(a0, a1, x, *act_a)
     x, failed = plant_fn(k, x, q0, q1, {plant_args})
     return (x, failed) + evaluate(x, t, preview, params, n_out, False, ref_a)
 
 
 @njit(cache=True)
 def step_harbor(a0, a1, act_a, k, x, t, plant_a, preview, params, n_out, ref_a, sense_a):
-    q0, q1 = act_kernel(a0, a1, *act_a)
+    q0, q1 = act_kernel(a0, a1, x, *act_a)
     x, failed = plant_fn(k, x, q0, q1, {plant_args})
     return (x, failed) + evaluate_harbor(x, t, preview, params, n_out, ref_a, sense_a)
 '''

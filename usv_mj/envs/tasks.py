@@ -13,8 +13,10 @@ unlimited, the command itself), exactly as in :func:`usv_mj.simulation.simulate`
 force is held over the control period: ``n_sub_steps`` = ``plant.substeps`` RK4 steps of the
 plant's time step. The action bounds are each channel's own range; a twin hull cannot reach both
 ends at once (full surge leaves no yaw moment), and its allocation decides as in a run
-(``priority``). A ruddered vessel (``Vessel.inputs == "rudder"``, KVLCC2) is refused by
-:func:`usv_mj.envs.load` until an allocation from forces to (n_P, rudder angle) exists.
+(``priority``). On a ruddered vessel (``Vessel.inputs == "rudder"``, KVLCC2) the actuators
+allocate the action to the propeller's n_P and the rudder angle at the state (usv_mj.mmg.mmg_allocate),
+as a force controller's command in a run; its bounds are that allocation's reach at the vessel's
+approach speed (:func:`action_bounds`).
 
 Observations (an OrderedDict of float64 arrays; "body frame" = rotated by -psi, x forward):
 
@@ -100,8 +102,12 @@ DEFAULT_FORCE = 1000.0  # N and N m: the action bound of a channel whose actuato
 def action_bounds(scenario, max_surge_force: float = DEFAULT_FORCE, max_yaw_moment: float = DEFAULT_FORCE):
     """(low, high) of the action [N, N m]: the actuators' generalized limits where finite, else
     -+``max_surge_force`` / -+``max_yaw_moment`` (one number each side, so the task and the plant's
-    ctrlrange come from the same figures)."""
-    u_lo, u_hi, r_lo, r_hi = scenario.actuators.generalized_limits()
+    ctrlrange come from the same figures). A ruddered vessel (KVLCC2), whose action is allocated to
+    its propeller and rudder, has the reach of that allocation at its approach speed
+    (:func:`usv_mj.builder.allocated_force_limits`)."""
+    from usv_mj.builder import allocated_force_limits
+
+    u_lo, u_hi, r_lo, r_hi = allocated_force_limits(scenario) or scenario.actuators.generalized_limits()
     low = np.array([u_lo if math.isfinite(u_lo) else -float(max_surge_force),
                     r_lo if math.isfinite(r_lo) else -float(max_yaw_moment)])
     high = np.array([u_hi if math.isfinite(u_hi) else float(max_surge_force),
@@ -299,7 +305,7 @@ class TrackTask(base.Task):
         call); returns the force the plant gets (f_u [N], f_r [N m])."""
         a0, a1 = self._checked(action)
         self._ev = None  # the state is about to change
-        return native.act_kernel(a0, a1, *self._act_args(physics))
+        return native.act_kernel(a0, a1, physics.state, *self._act_args(physics))
 
     def _checked(self, action) -> tuple[float, float]:
         a = np.asarray(action, dtype=np.float64)
@@ -317,7 +323,7 @@ class TrackTask(base.Task):
         if of is not physics or args[1] != self.quantize:
             act = self.actuators
             args = (self._act_p, self.quantize, self._k, self.last_action, self.last_command, bool(act.unlimited),
-                    act.params, act.state, self.last_thrust, self.last_saturated, physics.plant.data.ctrl)
+                    act.params, act.state, act.mmg, self.last_thrust, self.last_saturated, physics.plant.data.ctrl)
             self._act_of = (physics, args)
         return args
 

@@ -12,6 +12,10 @@ What it shows (values of one record row, see :mod:`usv_mj.record`):
   for surge tau_u [N] and yaw tau_r [N m], on a symmetric scale ``tau_*_scale`` fixed for the whole
   video (the planner's 99th percentile of |tau|, or 1.25 x the actuators' limit when they have one;
   a clipped bar ends in a triangle); the actuators' limits ``tau_*_limits`` are red ticks;
+  On a ruddered vessel (``values["channels"]``, usv_mj.builder.channels_of) the rows are the
+  propeller's n_P [1/s] and the rudder angle [deg]: "rudder" (the open-loop and zig-zag controllers:
+  every bar is n_P / delta) or "allocated" (a force controller: the bars are its force and moment,
+  the text the n_P and delta they were allocated to);
 - a legend of the 3-D layers (wake trail, reference path ahead, ghost hull, funnel box).
 
 A run without a funnel (``values["funnel"]`` False) shows its pose errors x - x_d, y - y_d and
@@ -204,20 +208,30 @@ def _draw_panel(frame, values, s):
         y += int(27 * s)
     y += int(4 * s)
     applied = values.get("f_u") is not None
-    d.text((m, y), "control: tau (outline), applied (filled), limit (red)" if applied else
+    channels = values.get("channels", "forces")
+    d.text((m, y), "control: tau (outline), applied (filled), limit (red)" if applied and channels != "allocated" else
+           "control: tau (outline), Q(tau) (filled); allocated to" if applied else
            "control: law tau (outline), Q(tau) (filled)", font=tiny, fill=DIM)
     y += int(20 * s)
-    for label, key, unit in (("tau_u", "u", "N"), ("tau_r", "r", "Nm")):
+    rows = (("tau_u", "u", "N", 1.0, "F"), ("tau_r", "r", "Nm", 1.0, "F"))
+    if channels == "rudder":
+        rows = (("n_P", "u", "1/s", 1.0, "n"), ("delta", "r", "deg", 180.0 / math.pi, "d"))
+    elif channels == "allocated":
+        rows = (("tau_u", "u", "1/s", 1.0, "n_P"), ("tau_r", "r", "deg", 180.0 / math.pi, "delta"))
+    for label, key, unit, k, tag in rows:
         tau, q, f = values.get(f"tau_{key}"), values.get(f"q_tau_{key}"), values.get(f"f_{key}")
         sat = bool(values.get(f"sat_{key}") or 0.0)
         d.text((m, y), label, font=small, fill=TEXT)
-        _tau_bar(d, m + label_w, y + int(2 * s), bar_w, bar_h, tau, q, values.get(f"tau_{key}_scale"), f,
+        # allocated: the bar is the force (the law's and the transmitted command), f is not a force
+        bar_f = None if channels == "allocated" else f
+        _tau_bar(d, m + label_w, y + int(2 * s), bar_w, bar_h, tau, q, values.get(f"tau_{key}_scale"), bar_f,
                  values.get(f"tau_{key}_limits"), sat)
         if f is None:
             d.text((m + label_w + bar_w + int(10 * s), y), f"Q {_fmt(q, '+8.3g')} {unit}", font=tiny, fill=QUANT)
         else:
-            d.text((m + label_w + bar_w + int(10 * s), y), f"F {_fmt(f, '+8.3g')} {unit}{' SAT' if sat else ''}",
-                   font=tiny, fill=BAD if sat else QUANT)
+            fv = None if f is None else float(f) * k
+            d.text((m + label_w + bar_w + int(10 * s), y),
+                   f"{tag} {_fmt(fv, '+8.3g')} {unit}{' SAT' if sat else ''}", font=tiny, fill=BAD if sat else QUANT)
         y += int(27 * s)
     frame[y0:y1, x0:x1] = np.asarray(img)
 

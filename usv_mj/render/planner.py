@@ -360,7 +360,9 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     trail_xy = np.stack([_take(record, "x", trail_rows), _take(record, "y", trail_rows)], axis=-1)
     path_xy = np.stack([_take(record, "x_d", path_rows), _take(record, "y_d", path_rows)], axis=-1)
     md = getattr(record, "metadata", {}) or {}
-    lim_u, lim_r = _actuator_limits(md)
+    channels = md.get("channels", "forces")   # usv_mj.builder.channels_of
+    # allocated: the actuators' limits are n_P's and the rudder's, not the force bars'
+    lim_u, lim_r = _actuator_limits(md) if channels != "allocated" else (None, None)
     scale_u = _bar_scale(lim_u, tau["tau_u"], tau["q_tau_u"])
     scale_r = _bar_scale(lim_r, tau["tau_r"], tau["q_tau_r"])
     title = " / ".join(str(md[k]) for k in ("preset", "controller", "plant") if md.get(k))
@@ -409,7 +411,7 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
                "tau_u_scale": scale_u, "tau_r_scale": scale_r,
                "f_u": float(tau["f_u"][k]), "f_r": float(tau["f_r"][k]),
                "sat_u": float(tau["sat_u"][k]), "sat_r": float(tau["sat_r"][k]),
-               "tau_u_limits": lim_u, "tau_r_limits": lim_r}
+               "tau_u_limits": lim_u, "tau_r_limits": lim_r, "channels": channels}
         frames.append(FrameSpec(j, float(t[k]), (float(x[k]), float(y[k]), float(psi[k])), ref, fc, fh, ok,
                                 trail, path, view, hud, world))
     return Plan(frames, rows, t0, t1, sp, played, float(fps), eps)
