@@ -116,10 +116,10 @@ def policy_episode(scenario, options: dict):
     policy = load_policy(spec, genv)
     rows = []
 
+    from ..envs.environment import step_row
+
     def row():
-        t = env.physics.time()
-        rows.append((t, env.physics.state.copy(), task.reference.evaluate(t).copy(), task.last_action.copy(),
-                     task.last_thrust.copy()))
+        rows.append(step_row(env))
 
     try:
         obs, _ = genv.reset(seed=0)
@@ -133,7 +133,7 @@ def policy_episode(scenario, options: dict):
         # the record's convention (usv_mj.bench.metrics): row k's input is the one held from t_k to
         # t_{k+1}; a row above holds the action of the step that ended at t_k, so shift them by one
         # (the last row's input, never applied, repeats the last action)
-        rows = [(t, x, ref, *rows[min(k + 1, len(rows) - 1)][3:]) for k, (t, x, ref, _, _) in enumerate(rows)]
+        rows = [(t, x, ref, *rows[min(k + 1, len(rows) - 1)][3:]) for k, (t, x, ref, *_) in enumerate(rows)]
         record = episode_record(env, rows, {"controller": f"policy {spec}",
                                             "criterion": criterion.to_dict(), "preset": scenario.preset})
     finally:

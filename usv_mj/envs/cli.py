@@ -59,10 +59,10 @@ def rollout(env, policy):
     task = env.task
     rows = []
 
+    from .environment import step_row
+
     def row():
-        t = env.physics.time()
-        rows.append((t, env.physics.state.copy(), task.reference.evaluate(t).copy(), task.last_action.copy(),
-                     task.last_thrust.copy(), task.last_command.copy(), task.last_saturated.copy()))
+        rows.append(step_row(env))
 
     total, n = 0.0, 0
     row()

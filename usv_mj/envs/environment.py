@@ -152,10 +152,7 @@ class USVEnvironment(control.Environment):
         return task.fused_result(ev, t, physics)
 
     def _remember(self) -> None:
-        task, ph = self._task, self._physics
-        t = ph.time()
-        self._history.append((t, ph.state.copy(), task.reference_at(t).copy(), task.last_action.copy(),
-                              task.last_thrust.copy(), task.last_command.copy(), task.last_saturated.copy()))
+        self._history.append(step_row(self))
 
     def history(self) -> list:
         """The episode's last steps: (t [s], state (6), reference (7), action (2), thrust (2),
@@ -320,6 +317,15 @@ def gym_env(task: str, seed=None, render_mode=None, **options):
     from .gymnasium_env import USVGymEnv
 
     return USVGymEnv(task, seed=seed, render_mode=render_mode, **options)
+
+
+def step_row(env) -> tuple:
+    """The row of the environment's present step, as :func:`episode_record` takes it: (t [s], state
+    (6), reference (7), action (2), thrust (2), command (2), saturated (2)), copies."""
+    task, ph = env.task, env.physics
+    t = ph.time()
+    return (t, ph.state.copy(), task.reference_at(t).copy(), task.last_action.copy(), task.last_thrust.copy(),
+            task.last_command.copy(), task.last_saturated.copy())
 
 
 def episode_record(env, steps, metadata=None):
