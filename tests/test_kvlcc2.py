@@ -212,12 +212,34 @@ def test_both_plants_accelerate_alike():
     np.testing.assert_allclose(a_mj, a_an, rtol=1e-9, atol=1e-12)
 
 
-def test_spiral_and_stopping_are_refused_on_the_ruddered_vessel(scenario):
+def test_spiral_steps_the_rudder_and_its_steady_turn_is_shipmmgs(scenario):
+    """Dieudonné's spiral on the ruddered vessel steps the rudder angle (10 deg to port, 0, 10 deg to
+    starboard and back): the first hold's steady yaw rate equals shipmmg's for the same rudder
+    ramped to 10 deg to port (MMG frame: -10 deg) at the same n_P, to 1 %."""
+    from usv_mj.manoeuvres import spiral
+
+    res = spiral(scenario, plant_kind="analytic", max_rudder_deg=10.0, steps=1, hold_s=120.0)
+    assert res["status"] == "completed" and res["rudder"].startswith("rudder angle")
+    first = res["measures"]["points"][0]
+    assert (first["command"], first["branch"]) == (10.0, "down")
+    o = KVLCC2Options()
+    basic, man = oracle_params(o)
+    t = np.arange(0.0, 120.0 + 1e-9, 0.01)
+    delta = -np.clip(math.radians(o.rudder_rate_deg_s) * t, 0.0, math.radians(10.0))
+    sol = simulate_mmg_3dof(basic, man, t, delta, np.full(len(t), res["measures"]["propeller_rps"]),
+                            u0=o.service_speed, ρ=o.rho, **TIGHT)
+    r_oracle = -np.mean(sol.sol(t[t >= 90.0])[2])     # mirrored: our r is to port
+    assert r_oracle > 0.02 and first["yaw_rate"] == pytest.approx(r_oracle, rel=0.01)
+
+
+def test_stopping_is_refused_on_the_ruddered_vessel(scenario):
     from usv_mj.errors import ScenarioError
     from usv_mj.manoeuvres.options import manoeuvre_from_table
 
-    with pytest.raises(ScenarioError, match="not available on the ruddered vessel"):
-        manoeuvre_from_table({"kind": "spiral"}, "<test>", scenario.vessel)
+    with pytest.raises(ScenarioError, match="not available on the ruddered vessel 'kvlcc2': the MMG standard "
+                                            "method models the propeller ahead only"):
+        manoeuvre_from_table({"kind": "stopping"}, "<test>", scenario.vessel)
+    assert manoeuvre_from_table({"kind": "spiral"}, "<test>", scenario.vessel).options.max_rudder_deg == 10.0
 
 
 def test_a_sea_is_refused_on_the_mmg_vessel():

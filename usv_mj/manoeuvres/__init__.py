@@ -103,10 +103,12 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
         m = zigzag_measures(t, record["heading_change"], record["tau_r"], o.angle_deg, record["x"], record["y"],
                             length)
         crit = imo.criteria("zigzag", m, length, o.approach_speed, switch_deg=o.angle_deg, scale=scale)
-    elif spec.kind == "spiral":
-        holds = [(i * o.hold_s, (i + 1) * o.hold_s, c, b) for i, (c, b) in enumerate(o.commands())]
+    elif spec.kind == "spiral":   # the commands in N m, or a ruddered vessel's rudder angles in deg
+        cmds = o.commands(o.max_rudder_deg if ruddered else None)
+        holds = [(i * o.hold_s, (i + 1) * o.hold_s, c, b) for i, (c, b) in enumerate(cmds)]
         m = spiral_measures(t, record["r"], holds, o.settle_fraction)
-        crit = imo.criteria("spiral", m, length, o.approach_speed)
+        m["command_unit"] = "deg" if ruddered else "N m"   # the points' and the loop's commands
+        crit = imo.criteria("spiral", m, length, o.approach_speed, scale=scale)
         crit["note"] += "; MSC.137(76) sets no criterion on the spiral"
     else:
         m = stopping_measures(t, record["x"], record["y"], record["psi"], record["u"], record["v"],
@@ -147,7 +149,8 @@ def report_section(result: dict) -> str:
             continue
         lines.append(f"| {key} | {_fmt(value)} |")
     if kind == "spiral":
-        lines += ["", "| command [N m] | branch | steady r [rad/s] | spread [rad/s] |", "|---|---|---|---|"]
+        lines += ["", f"| command [{m.get('command_unit', 'N m')}] | branch | steady r [rad/s] | spread [rad/s] |",
+                  "|---|---|---|---|"]
         lines += [f"| {p['command']:g} | {p['branch']} | {p['yaw_rate']:+.4f} | {p['spread']:.1e} |" for p in m["points"]]
     sat = result.get("saturated_fraction") or {}
     if any(v for k, v in sat.items() if k != "note") and "note" not in sat:

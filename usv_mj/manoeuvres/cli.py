@@ -182,10 +182,12 @@ def summary_lines(result: dict, out: Path, wall_s: float) -> str:
         if isinstance(value, float):
             lines.append(f"  {key:32s} {value:10.3f}")
     if result["kind"] == "spiral":
+        unit = m.get("command_unit", "N m")
+        name = "rudder" if unit == "deg" else "tau_r"
         for p in m.get("points", []):
-            lines.append(f"  tau_r {p['command']:+7.2f} N m ({p['branch']:>4}): r = {p['yaw_rate']:+.4f} rad/s")
+            lines.append(f"  {name} {p['command']:+7.2f} {unit} ({p['branch']:>4}): r = {p['yaw_rate']:+.4f} rad/s")
         lines.append(f"  hysteresis loop: {'yes' if m.get('hysteresis') else 'no'}, commands "
-                     f"{m.get('loop_commands')} N m")
+                     f"{m.get('loop_commands')} {unit}")
     sat = result.get("saturated_fraction") or {}
     if any(v for k, v in sat.items() if k != "note") and "note" not in sat:   # a rudder's rate limit: by design
         lines.append(f"  warning: the actuators cut the command in {100 * sat['u']:.1f} % (surge) / "

@@ -28,8 +28,16 @@ def _track(ax, rec, execute: float, k: int):
     ax.grid(alpha=0.3)
 
 
+def ruddered(measures: dict) -> bool:
+    """True when the manoeuvre's "rudder" is a rudder angle (a ruddered vessel, usv_mj.manoeuvres.measure)."""
+    return str(measures.get("rudder", "")).startswith("rudder angle")
+
+
 def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: float, label: str) -> list[Path]:
     """Write the manoeuvre's figures into ``out_dir`` and return their paths (module docstring)."""
+    # the tau_r channel: a yaw moment [N m], or a ruddered vessel's rudder angle [rad], drawn in deg
+    k_r, applied = (180.0 / math.pi, "rudder angle applied [deg]") if ruddered(measures) else \
+        (1.0, "yaw moment applied [N m]")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     m = measures["measures"]
@@ -75,13 +83,13 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
     psi0 = record.value("psi", 0)
     d = decimate(record, ("t", "psi", "r", "u", "v", "f_r"), derive=lambda c: {
         "t": c["t"], "dpsi": np.degrees(c["psi"] - psi0), "r": c["r"], "speed": np.hypot(c["u"], c["v"]),
-        "f_r": c["f_r"]})
+        "f_r": k_r * c["f_r"]})
     if kind == "zigzag":
         axes[0].plot(d["t"], d["dpsi"], "C0", label="heading change [deg]")
         sw = measures["options"]["angle_deg"]
         ax2 = axes[0].twinx()
-        ax2.plot(d["t"], d["f_r"], "C1", lw=1, label="yaw moment applied [N m]")
-        ax2.set_ylabel("yaw moment applied [N m]")
+        ax2.plot(d["t"], d["f_r"], "C1", lw=1, label=applied)
+        ax2.set_ylabel(applied)
         for level in (sw, -sw):
             axes[0].axhline(level, color="k", lw=0.6, ls=":")
         for te in m["executes_s"]:
@@ -96,8 +104,8 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
     handles = axes[1].get_lines()
     if kind != "zigzag":
         ax3 = axes[1].twinx()
-        handles = handles + ax3.plot(d["t"], d["f_r"], "C1", lw=1, label="yaw moment applied [N m]")
-        ax3.set_ylabel("yaw moment applied [N m]")
+        handles = handles + ax3.plot(d["t"], d["f_r"], "C1", lw=1, label=applied)
+        ax3.set_ylabel(applied)
     axes[1].set_xlabel("t [s]")
     axes[1].legend(handles=handles, fontsize=8, loc="center right", framealpha=0.9)
     axes[1].grid(alpha=0.3)
@@ -114,12 +122,14 @@ def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: 
                     label=f"command stepped {branch}")
         ax.axhline(0, color="k", lw=0.6)
         ax.axvline(0, color="k", lw=0.6)
-        ax.set_xlabel("commanded yaw moment tau_r [N m] (the \"rudder\"; > 0 to port)")
+        unit = "deg" if ruddered(measures) else "N m"
+        ax.set_xlabel("rudder angle delta [deg] (> 0 to port)" if ruddered(measures) else
+                      "commanded yaw moment tau_r [N m] (the \"rudder\"; > 0 to port)")
         ax.set_ylabel("steady yaw rate r [rad/s]")
         if m["hysteresis"]:
             upper = m.get("loop_width_upper")
             width = f"{m['loop_width']:g} to {upper:g}" if upper is not None else f">= {m['loop_width']:g}"
-            ax.set_title(f"Dieudonné spiral ({label}): hysteresis loop, width {width} N m")
+            ax.set_title(f"Dieudonné spiral ({label}): hysteresis loop, width {width} {unit}")
         else:
             ax.set_title(f"Dieudonné spiral ({label}): no hysteresis loop")
         ax.grid(alpha=0.3)

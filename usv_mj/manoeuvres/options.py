@@ -100,6 +100,7 @@ class SpiralOptions:
 
     approach_speed: float = 0.6      # m/s: the start (the surge force stays the approach's)
     max_yaw_moment: float = 10.0     # N m: the largest |tau_r| of the steps
+    max_rudder_deg: float = 20.0     # deg: a ruddered vessel's largest |rudder angle| (in place of max_yaw_moment)
     steps: int = 5                   # steps from 0 to the maximum (2 steps + 1 commands per branch)
     hold_s: float = 30.0             # s: each command held
     settle_fraction: float = 0.25    # the last part of each hold averaged for the steady yaw rate
@@ -107,7 +108,8 @@ class SpiralOptions:
     conditions: str = "calm"
 
     def __post_init__(self):
-        _check(self, positive=("approach_speed", "max_yaw_moment", "hold_s", "control_period", "settle_fraction"))
+        _check(self, positive=("approach_speed", "max_yaw_moment", "max_rudder_deg", "hold_s", "control_period",
+                               "settle_fraction"))
         if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 1:
             raise ScenarioError(f"manoeuvre.steps must be an integer >= 1, got {self.steps!r}")
         if not self.settle_fraction <= 1:
@@ -117,9 +119,11 @@ class SpiralOptions:
     def duration(self) -> float:
         return len(self.commands()) * self.hold_s
 
-    def commands(self) -> list[tuple[float, str]]:
-        """The held commands [N m] in order, each with its branch ("down" or "up")."""
-        levels = [self.max_yaw_moment * i / self.steps for i in range(self.steps, -self.steps - 1, -1)]
+    def commands(self, amplitude: float | None = None) -> list[tuple[float, str]]:
+        """The held commands in order, each with its branch ("down" or "up"): steps of ``amplitude``
+        (default ``max_yaw_moment`` [N m]; a ruddered vessel's ``max_rudder_deg``, in its unit)."""
+        amplitude = self.max_yaw_moment if amplitude is None else amplitude
+        levels = [amplitude * i / self.steps for i in range(self.steps, -self.steps - 1, -1)]
         return [(c, "down") for c in levels] + [(c, "up") for c in levels[::-1][1:]]
 
 
@@ -211,9 +215,11 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> Ma
         raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
     vessel_model = getattr(vessel_model, "model", vessel_model)   # a scenario's VesselSpec or its Vessel
     table = {**vessel_defaults(kind, vessel_model), **table}
-    if getattr(vessel_model, "inputs", "forces") == "rudder" and kind in ("spiral", "stopping"):
-        raise ScenarioError(f"{source}: manoeuvre {kind!r} is not available on the ruddered vessel "
-                            f"{vessel_model.kind!r} (turning and zigzag are; docs/manoeuvres.md)")
+    if getattr(vessel_model, "inputs", "forces") == "rudder" and kind == "stopping":
+        raise ScenarioError(f"{source}: manoeuvre 'stopping' is not available on the ruddered vessel "
+                            f"{vessel_model.kind!r}: the MMG standard method models the propeller ahead only (no "
+                            f"astern revolutions for the crash stop); turning, zigzag and spiral are "
+                            f"(docs/manoeuvres.md)")
     try:
         options = build_table(KINDS[kind], table, source, "manoeuvre", extra_known={"kind"})
     except ScenarioError as exc:
@@ -299,7 +305,7 @@ def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
                 "first_turn": o.first_turn}
         duration = o.duration
     elif spec.kind == "spiral":
-        cmds = o.commands()
+        cmds = o.commands(math.radians(o.max_rudder_deg) if ruddered else None)
         ctrl = {"kind": "open_loop", "times": [i * o.hold_s for i in range(len(cmds))], "tau_u": force,
                 "tau_r": [c for c, _ in cmds], "interpolation": "step"}
         duration = o.duration
@@ -309,6 +315,11 @@ def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
         duration = o.duration
     over["controller"] = ctrl
     over["duration"] = duration
+    # the reference (the original course) runs on at the approach speed while the vessel turns: a
+    # manoeuvre is not judged on it, so its distance limit must not end a long one (a spiral)
+    reach = 2.0 * o.approach_speed * duration + 100.0
+    if reach > scenario.limits.max_distance:
+        over["limits"] = {"max_distance": reach}
     return over
 
 

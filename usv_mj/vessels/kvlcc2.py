@@ -221,7 +221,9 @@ def kvlcc2_vessel(options, scenario=None) -> Vessel:
     o = options if options is not None else KVLCC2Options()
     ship, split = hull(o)
     manoeuvres = {"approach_speed": o.service_speed, "control_period": 0.01,
-                  "turning": {"duration": 200.0}, "zigzag": {"duration": 100.0}}
+                  "turning": {"duration": 200.0}, "zigzag": {"duration": 100.0},
+                  # 2 deg steps to +-10 deg, each held 300 s (51 L/U): the steady turn is reached
+                  "spiral": {"max_rudder_deg": 10.0, "steps": 5, "hold_s": 300.0}}
     return Vessel("kvlcc2", ship, split, Dimensions(o.L_pp, o.B, o.d), actuators(o),
                   "Yasukawa and Yoshimura (2015), J. Mar. Sci. Technol. 20, 37-52 (MMG standard method), KVLCC2 7 m "
                   "model; numbers as in shipmmg's KVLCC2 L7 test set",
