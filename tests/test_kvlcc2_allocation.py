@@ -141,3 +141,47 @@ def test_the_video_says_what_the_channels_hold(circle_runs):
 
 def hud_row(record, t):
     return int(np.argmin(np.abs(record["t"] - t)))
+
+
+def test_the_steering_gear_stays_when_a_scenario_changes_one_actuator_key():
+    """A scenario's [actuators] keys change KVLCC2's one by one: a slower rudder keeps the 35 deg
+    limit and the n_P cap (replacing the table would leave the rudder unlimited)."""
+    s = load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "actuators": {"yaw_rate_nm_s": 0.2}})
+    assert s.actuators.kind == "box" and s.actuators.yaw_rate_nm_s == 0.2
+    assert s.actuators.max_yaw_nm == pytest.approx(DELTA_MAX) and s.actuators.max_surge_n == N_MAX
+
+
+def test_bad_propeller_numbers_and_rudders_beyond_the_gear_are_refused():
+    from usv_mj.errors import ScenarioError
+    from usv_mj.manoeuvres import spiral
+
+    for key, value in (("k_0", 0.0), ("t_P", 1.0), ("w_P0", 1.0)):
+        with pytest.raises(ScenarioError, match=f"vessel.{key} must be"):
+            load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2", key: value}})
+    with pytest.raises(ScenarioError, match="manoeuvre.max_rudder_deg = 90.0 deg is beyond the rudder"):
+        spiral(load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}}), plant_kind="analytic",
+               max_rudder_deg=90.0)
+
+
+def test_non_finite_commands_are_flagged_not_passed_on():
+    n_p, delta, sat_u, sat_r = mmg_allocate(Q, 0, 1.0, 0.0, 0.0, math.inf, -math.inf, 0.0, N_MAX, DELTA_MAX)
+    assert (n_p, sat_u, sat_r) == (N_MAX, 1.0, 1.0) and delta == pytest.approx(-DELTA_MAX)
+    assert mmg_allocate(Q, 0, 1.0, 0.0, 0.0, math.nan, 0.0, 0.0, N_MAX, DELTA_MAX) == (0.0, 0.0, 1.0, 1.0)
+
+
+def test_the_gymnasium_view_takes_a_braking_force_as_no_thrust():
+    """KVLCC2's least surge force is 0: a negative one normalizes to 0 (no division by the 0 bound,
+    which made it full ahead), and the negative half of the action is 0 N."""
+    import warnings
+
+    from usv_mj.envs.gymnasium_env import USVGymEnv
+
+    env = USVGymEnv("track", seed=0, vessel="kvlcc2", duration=0.1)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            a = env.normalized_action([-5.0, 0.0])
+        assert a.tolist() == [0.0, 0.0] and env.physical_action([-0.7, 0.0]).tolist() == [0.0, 0.0]
+        assert env.physical_action([1.0, -1.0]).tolist() == pytest.approx([env._high[0], env._low[1]])
+    finally:
+        env.close()

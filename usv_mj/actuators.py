@@ -159,11 +159,17 @@ class ActuatorSpec:
         return (self.kind == "unlimited" and self.time_constant_s == 0.0 and self.shaft_time_constant_s == 0.0
                 and math.isinf(self.surge_rate_n_s) and math.isinf(self.yaw_rate_nm_s))
 
-    def describe(self) -> str:
-        """One line for reports: the kind and its limits."""
+    def describe(self, rudder: bool = False) -> str:
+        """One line for reports: the kind and its limits; ``rudder``: the channels are a ruddered
+        vessel's n_P [1/s] and rudder angle [rad] (usv_mj.builder.channels_of), not forces."""
         if self.unlimited:
             return "unlimited (the paper's reading: the plant receives the quantized command Q(tau))"
         lo_u, hi_u, lo_r, hi_r = self.generalized_limits()
+        if rudder:
+            parts = [f"{self.kind}: n_P [{lo_u:g}, {hi_u:g}] 1/s, rudder angle [{lo_r:g}, {hi_r:g}] rad"]
+            if math.isfinite(self.surge_rate_n_s) or math.isfinite(self.yaw_rate_nm_s):
+                parts.append(f"rate limits {self.surge_rate_n_s:g} 1/s^2, {self.yaw_rate_nm_s:g} rad/s")
+            return "; ".join(parts)
         parts = [f"{self.kind}: surge [{lo_u:g}, {hi_u:g}] N, yaw [{lo_r:g}, {hi_r:g}] N m"]
         if self.kind == "twin":
             parts.append(f"two thrusters {self.separation_m:g} m apart, each [-{self.thruster_reverse_n:g}, "

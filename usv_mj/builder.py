@@ -163,6 +163,10 @@ def commands_error(scenario: Scenario, controller, kind: str) -> str | None:
     commands = getattr(controller, "commands", "forces")
     if commands in ("any", inputs) or (commands == "forces" and allocation_of(scenario) is not None):
         return None
+    if commands == "forces":   # a ruddered vessel with no MMG block to allocate through (a plug-in's)
+        return (f"the {kind!r} controller commands a surge force and a yaw moment, but the vessel "
+                f"{scenario.vessel.kind!r} takes the propeller's n_P and a rudder angle and has no allocation "
+                f"from forces (only an MMG hull has one): use a controller that commands its rudder")
     return (f"the {kind!r} controller commands the propeller's n_P and a rudder angle, but the vessel "
             f"{scenario.vessel.kind!r} takes a surge force and a yaw moment")
 

@@ -629,8 +629,9 @@ def _plot_convergence(path: str, open_loop: dict, closed_loop: dict) -> None:
 
 
 def check_forces_vessel(scenario: Scenario) -> None:
-    """The comparison drives the hull with forces (random open-loop thrust, the PPC law): a
-    ruddered vessel, whose channels are n_P and a rudder angle, is refused in one line."""
+    """The comparison's open loop drives the hull with random forces held as they are (its check of
+    the two plants' integration): a ruddered vessel, whose channels are n_P and a rudder angle, is
+    refused in one line."""
     from .scenario import ScenarioError
 
     if getattr(getattr(scenario.vessel, "model", None), "inputs", "forces") == "rudder":

@@ -700,7 +700,9 @@ def _missing(out: Path, expected: list, log: bool, summary_written: bool = True)
 def one_screen_summary(result: JobResult, wall_s: float) -> str:
     """The lines ``usv-mj run`` prints at the end."""
     s = result.summary
-    lines = [f"usv-mj run: preset {s['preset']}, {s['plant']} plant, {s['controller']} controller: {s['status']}"]
+    vessel = "" if s.get("vessel", "paper") == "paper" else f", vessel {s['vessel']}"
+    lines = [f"usv-mj run: preset {s['preset']}{vessel}, {s['plant']} plant, {s['controller']} controller: "
+             f"{s['status']}"]
     if s["status"] != "completed":
         lines.append(f"  stopped: {s['stop_reason']}")
     lines.append(f"  simulated {s['simulated_s']:.1f} s in {s['wall_time_s']:.2f} s "

@@ -213,11 +213,18 @@ def mmg_allocate(q, b, u, v, r, tau_u, tau_r, n_lo, n_hi, delta_max):
       n_P: its larger root for X_P = T;
 
     and the rudder's drag X_R couples them: the propeller's share T solves T = tau_u - X_R(T) by the
-    secant method from T = tau_u (at most :data:`ALLOCATION_ITERATIONS` steps, to 1e-9 N). n_P stays
+    secant method from T = tau_u (at most :data:`ALLOCATION_ITERATIONS` steps, to 1e-9 N relative;
+    where it has not reached 1e-6 N relative, near the rudder's limit, sat_u is set). n_P stays
     in [max(n_lo, 0), n_hi] (the MMG's propeller model is for ahead revolutions: it cannot pull
     astern, so a thrust below 0 is 0) and |delta| <= delta_max; sat_u / sat_r are 1 when a limit (or
     a moment beyond the rudder's largest) cut the channel, else 0. With no flow past the rudder
-    (U_R = 0) delta is 0."""
+    (U_R = 0) delta is 0. An infinite command is the largest one (saturated); a NaN gives no
+    revolutions, the rudder amidships and both flags."""
+    if not (math.isfinite(tau_u) and math.isfinite(tau_r)):   # an infinite command is the largest, NaN none
+        if tau_u != tau_u or tau_r != tau_r:
+            return max(n_lo, 0.0), 0.0, 1.0, 1.0
+        tau_u = min(max(tau_u, -1e30), 1e30)
+        tau_r = min(max(tau_r, -1e30), 1e30)
     n_m = -tau_r
     U, vd, rd, beta = mmg_flow(q, b, u, -v, -r)
     u_p = u * mmg_wake(q, b, beta, rd)
@@ -227,14 +234,18 @@ def mmg_allocate(q, b, u, v, r, tau_u, tau_r, n_lo, n_hi, delta_max):
     f0 = t0 - (tau_u - x_r)
     tol = 1e-9 * (1.0 + abs(tau_u))
     t1 = tau_u - x_r
+    f1 = f0
     for _ in range(ALLOCATION_ITERATIONS):
         if abs(f0) <= tol:
+            f1 = f0
             break
         n_p, delta_m, x_r, sat_u, sat_r = _allocate_at(q, b, U, beta, rd, u_p, lo, n_hi, delta_max, n_m, t1)
         f1 = t1 - (tau_u - x_r)
         if abs(f1) <= tol or f1 == f0:
             break
         t0, t1, f0 = t1, t1 - f1 * (t1 - t0) / (f1 - f0), f1
+    if not abs(f1) <= 1e-6 * (1.0 + abs(tau_u)):   # not met (steep near the rudder's limit): say so
+        sat_u = 1.0
     return n_p, -delta_m, sat_u, sat_r
 
 

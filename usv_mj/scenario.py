@@ -405,7 +405,8 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
             base[section] = {k: v for k, v in base[section].items() if k in known}
     merged = merge_tables(base, {k: v for k, v in data.items() if k != "preset"})
     merged["preset"] = name
-    return _build_scenario(merged, source, own_actuators="actuators" in data)
+    return _build_scenario(merged, source, own_actuators="actuators" in data,
+                           own_table=data.get("actuators") if isinstance(data.get("actuators"), dict) else None)
 
 
 _SECTIONS = {
@@ -415,7 +416,7 @@ _SECTIONS = {
 }
 
 
-def _build_scenario(data: dict, source: str, own_actuators: bool = True) -> Scenario:
+def _build_scenario(data: dict, source: str, own_actuators: bool = True, own_table: dict | None = None) -> Scenario:
     top = {}
     known = {f.name for f in dataclasses.fields(Scenario)} - {"source", "raw"}
     for key in data:
@@ -424,8 +425,13 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True) -> Scen
     if "vessel" in data or "ship" in data:
         top["vessel"] = _build_vessel(data.get("vessel", {}), data.get("ship"), source)
         top["ship"] = top["vessel"].model.ship
-        if top["vessel"].model.actuators is not None and not own_actuators:
-            data["actuators"] = dict(top["vessel"].model.actuators)  # the vessel's, unless the scenario's own
+        own = top["vessel"].model.actuators
+        if own is not None and not own_actuators:
+            data["actuators"] = dict(own)  # the vessel's, unless the scenario's own
+        elif own is not None and top["vessel"].model.inputs == "rudder" and own_table is not None:
+            # a ruddered vessel's steering gear and n_P cap are its own: the scenario's keys change them
+            # one by one (--set actuators.yaw_rate_nm_s=...), they do not take them away
+            data["actuators"] = {**own, **own_table}
     for key in ("duration", "control_period"):
         if key in data:
             top[key] = _convert(source, key, data[key], 0.0)

@@ -61,15 +61,16 @@ def _episodes(record: RunRecord, name: str) -> tuple[int, int, int]:
     return total, episodes, longest
 
 
-def actuator_description(table) -> dict | None:
+def actuator_description(table, channels: str = "forces") -> dict | None:
     """The ``[actuators]`` of a run as the summary gives it: kind, the one-line description and the
-    generalized limits (None: open); None when the metadata has no scenario."""
+    generalized limits (None: open); None when the metadata has no scenario. ``channels``: the
+    record's (usv_mj.builder.channels_of): on a ruddered vessel the limits are n_P's and the rudder's."""
     if not table:
         return None
     from .actuators import ActuatorSpec
 
     spec = ActuatorSpec(**table)
-    return {"kind": spec.kind, "unlimited": spec.unlimited, "description": spec.describe(),
+    return {"kind": spec.kind, "unlimited": spec.unlimited, "description": spec.describe(channels != "forces"),
             "limits": dict(zip(("tau_u_min_n", "tau_u_max_n", "tau_r_min_nm", "tau_r_max_nm"),
                                (_finite(v) for v in spec.generalized_limits())))}
 
@@ -163,11 +164,12 @@ def summarize(record: RunRecord, criterion=None) -> dict:
         saturated[ch] = float(total / n) if n else 0.0
         episodes[ch] = count
         longest[ch] = float(rows * dt)
-    actuators = actuator_description((meta.get("scenario") or {}).get("actuators"))
+    actuators = actuator_description((meta.get("scenario") or {}).get("actuators"), meta.get("channels", "forces"))
     funnel = {"funnel_violations": judged["violations"], "first_violation_s": judged["first_violation_s"]} \
         if judged["kind"] == "funnel" else {}
     return {
         "preset": meta.get("preset"),
+        "vessel": ((meta.get("scenario") or {}).get("vessel") or {}).get("kind", "paper"),
         "plant": meta.get("plant"),
         "controller": meta.get("controller"),
         "status": record.status,

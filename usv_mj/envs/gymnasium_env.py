@@ -20,7 +20,8 @@ Action: ``Box(-1, 1, (2,), float32)``, the normalized (tau_u, tau_r): +1 is the 
 forward surge force / counter-clockwise yaw moment, -1 the largest astern / clockwise one (the
 bounds of the dm_env action spec, :func:`usv_mj.envs.tasks.action_bounds`), 0 is no thrust; each
 side is scaled on its own (a = tau / high for tau >= 0, tau / |low| below), so asymmetric
-actuator limits keep 0 at rest. Values outside [-1, 1] are clipped.
+actuator limits keep 0 at rest; a channel whose least value is 0 (KVLCC2's surge, whose propeller
+does not pull astern) gives 0 for the whole negative half. Values outside [-1, 1] are clipped.
 
 Observation (``flat=True``, the default): one float32 vector, the task's observations (in
 :meth:`usv_mj.envs.tasks.TrackTask.observation_shapes` order) each divided by its scale
@@ -189,7 +190,10 @@ class USVGymEnv(gymnasium.Env):
     def normalized_action(self, thrust) -> np.ndarray:
         """The normalized action of a thrust [N, N m] (the inverse of :meth:`physical_action`, clipped)."""
         f = np.asarray(thrust, dtype=np.float64).reshape(2)
-        a = np.where(f >= 0.0, f / self._high, -f / self._low)
+        # a channel whose least value is 0 (KVLCC2's surge: the propeller does not pull astern)
+        # takes a negative force as 0
+        below = np.divide(-f, self._low, out=np.zeros(2), where=self._low < 0.0)
+        a = np.where(f >= 0.0, f / self._high, below)
         return np.clip(a, -1.0, 1.0).astype(np.float32)
 
     # --- gymnasium.Env ---------------------------------------------------------------------------

@@ -104,7 +104,8 @@ def action_bounds(scenario, max_surge_force: float = DEFAULT_FORCE, max_yaw_mome
     -+``max_surge_force`` / -+``max_yaw_moment`` (one number each side, so the task and the plant's
     ctrlrange come from the same figures). A ruddered vessel (KVLCC2), whose action is allocated to
     its propeller and rudder, has the reach of that allocation at its approach speed
-    (:func:`usv_mj.builder.allocated_force_limits`)."""
+    (:func:`usv_mj.builder.allocated_force_limits`; the plant's ctrlrange is then n_P's and the
+    rudder's)."""
     from usv_mj.builder import allocated_force_limits
 
     u_lo, u_hi, r_lo, r_hi = allocated_force_limits(scenario) or scenario.actuators.generalized_limits()

@@ -138,6 +138,13 @@ def _fmt(v, unit=""):
     return f"{v}{unit}"
 
 
+def command_cut(result: dict) -> bool:
+    """True when an actuator limit cut the manoeuvre's command (its ``saturated_fraction``): either
+    channel, except a ruddered vessel's rudder, whose rate limit acts on every step by design."""
+    sat = result.get("saturated_fraction") or {}
+    return bool(sat.get("u")) or (bool(sat.get("r")) and "note" not in sat)
+
+
 def report_section(result: dict) -> str:
     """The manoeuvre's part of ``report.md``: the measures, the IMO rows, the figures."""
     m, kind = result["measures"], result["kind"]
@@ -153,7 +160,7 @@ def report_section(result: dict) -> str:
                   "|---|---|---|---|"]
         lines += [f"| {p['command']:g} | {p['branch']} | {p['yaw_rate']:+.4f} | {p['spread']:.1e} |" for p in m["points"]]
     sat = result.get("saturated_fraction") or {}
-    if any(v for k, v in sat.items() if k != "note") and "note" not in sat:
+    if command_cut(result):
         lines += ["", f"**The actuators cut the command** in {100 * sat['u']:.1f} % (surge) and "
                   f"{100 * sat['r']:.1f} % (yaw) of the steps: the manoeuvre is not the one its options ask for."]
     c = result["imo"]

@@ -189,7 +189,9 @@ def summary_lines(result: dict, out: Path, wall_s: float) -> str:
         lines.append(f"  hysteresis loop: {'yes' if m.get('hysteresis') else 'no'}, commands "
                      f"{m.get('loop_commands')} {unit}")
     sat = result.get("saturated_fraction") or {}
-    if any(v for k, v in sat.items() if k != "note") and "note" not in sat:   # a rudder's rate limit: by design
+    from . import command_cut
+
+    if command_cut(result):   # a rudder's rate limit is by design (command_cut)
         lines.append(f"  warning: the actuators cut the command in {100 * sat['u']:.1f} % (surge) / "
                      f"{100 * sat['r']:.1f} % (yaw) of the steps")
     c = result.get("imo")

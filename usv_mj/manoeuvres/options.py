@@ -293,6 +293,12 @@ def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
     # a ruddered vessel (usv_mj.mmg): the channels are (n_P [1/s], delta [rad]); its [actuators]
     # limit the rudder's angle and rate (docs/manoeuvres.md §2)
     ruddered = getattr(getattr(getattr(scenario, "vessel", None), "model", None), "inputs", "forces") == "rudder"
+    if ruddered:   # a rudder angle beyond the steering gear's would be held at its limit, measured as asked
+        key = {"turning": "rudder_deg", "zigzag": "angle_deg", "spiral": "max_rudder_deg"}.get(spec.kind)
+        limit = math.degrees(scenario.actuators.generalized_limits()[3])
+        if key is not None and getattr(o, key) > limit + 1e-9:
+            raise ScenarioError(f"{scenario.source}: manoeuvre.{key} = {getattr(o, key)!r} deg is beyond the rudder of "
+                                f"the vessel {scenario.vessel.kind!r}, {limit:g} deg")
     if spec.kind == "turning":
         sign = SIDES[o.side]
         rudder = math.radians(o.rudder_deg) if ruddered else o.yaw_moment

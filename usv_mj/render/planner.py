@@ -365,7 +365,9 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     lim_u, lim_r = _actuator_limits(md) if channels != "allocated" else (None, None)
     scale_u = _bar_scale(lim_u, tau["tau_u"], tau["q_tau_u"])
     scale_r = _bar_scale(lim_r, tau["tau_r"], tau["q_tau_r"])
-    title = " / ".join(str(md[k]) for k in ("preset", "controller", "plant") if md.get(k))
+    vessel = ((md.get("scenario") or {}).get("vessel") or {}).get("kind", "paper")
+    title = " / ".join([str(md[k]) for k in ("preset",) if md.get(k)] + ([str(vessel)] if vessel != "paper" else [])
+                       + [str(md[k]) for k in ("controller", "plant") if md.get(k)])
     aspect = width / height
     from .world import render_world
 

@@ -153,8 +153,10 @@ FIELD_DOC = {
     "tau_u": "surge force from the law [N]", "tau_r": "yaw moment from the law [N m]",
     "q_tau_u": "quantized surge force applied [N]", "q_tau_r": "quantized yaw moment applied [N m]",
     "k_u": "surge quantizer level index (signed)", "k_r": "yaw quantizer level index (signed)",
-    "f_u": "surge force the actuators realize, what the plant receives [N]",
-    "f_r": "yaw moment the actuators realize, what the plant receives [N m]",
+    "f_u": "surge force the actuators realize, what the plant receives [N] (a ruddered vessel's n_P [1/s]: "
+           "the metadata's channels)",
+    "f_r": "yaw moment the actuators realize, what the plant receives [N m] (a ruddered vessel's rudder "
+           "angle [rad]: the metadata's channels)",
     "sat_u": "1 where an actuator limit cut the surge command, else 0",
     "sat_r": "1 where an actuator limit cut the yaw command, else 0",
     "integral_u": "PI baseline: integral of u_c - u [m]", "integral_r": "PI baseline: integral of e3 [rad s]",

@@ -147,6 +147,11 @@ class KVLCC2Options:
         if self.wake_model not in WAKE_MODELS:
             raise ValueError(f"vessel.wake_model must be one of {', '.join(map(repr, WAKE_MODELS))}, "
                              f"got {self.wake_model!r}")
+        if not self.k_0 > 0:   # K_T at J = 0: a propeller that pushes at rest (the allocation divides by it)
+            raise ValueError(f"vessel.k_0 must be > 0, got {self.k_0!r}")
+        for name in ("t_P", "w_P0", "t_R"):
+            if not 0 <= getattr(self, name) < 1:
+                raise ValueError(f"vessel.{name} must be in [0, 1), got {getattr(self, name)!r}")
         if not self.max_rudder_deg < 90:
             raise ValueError(f"vessel.max_rudder_deg must be < 90, got {self.max_rudder_deg!r}")
 
@@ -210,7 +215,8 @@ def hull(o: KVLCC2Options) -> tuple[MMGShipParams, RigidBodySplit]:
 
 def actuators(o: KVLCC2Options) -> dict:
     """The vessel's ``[actuators]``: the rudder's angle and rate limit on the delta channel, the largest
-    n_P on the n_P channel (module docstring)."""
+    n_P on the n_P channel (module docstring); a scenario's ``[actuators]`` keys change them one by
+    one (usv_mj.scenario), they do not replace the steering gear."""
     return {"kind": "box", "max_surge_n": o.max_propeller_rps, "max_yaw_nm": math.radians(o.max_rudder_deg),
             "yaw_rate_nm_s": math.radians(o.rudder_rate_deg_s)}
 
