@@ -315,9 +315,12 @@ def test_a_force_controller_drives_the_ruddered_vessel_through_the_allocation():
         raise ScenarioError(commands_error(load_scenario(preset="paper"), rudder, "mine"))
 
 
-def test_the_command_line_checks_vessel_keys_against_the_vessel_flag_and_compare_refuses_a_rudder(tmp_path):
-    """--set vessel.KEY belongs to --vessel's kind (KVLCC2's rudder rate, not a paper-hull key), and
-    compare, which drives the hull with forces, refuses a ruddered vessel in one line, exit 2."""
+def test_the_command_line_checks_vessel_keys_and_compare_runs_the_rudder(tmp_path):
+    """--set vessel.KEY belongs to --vessel's kind (KVLCC2's rudder rate, not a paper-hull key); compare
+    drives the ruddered hull with n_P and rudder steps in open loop (the force signal mapped to its
+    channels, within 35 deg) and the PPC law through the allocation in closed loop: both plants agree
+    as the paper hull's do."""
+    import json
     import subprocess
     import sys
     from pathlib import Path
@@ -328,6 +331,18 @@ def test_the_command_line_checks_vessel_keys_against_the_vessel_flag_and_compare
     bad = run("manoeuvre", "turning", "--vessel", "kvlcc2", "--set", "vessel.rudder_rate_deg_s=-1",
               "--out", str(tmp_path / "m"), "-q")
     assert bad.returncode == 2 and "vessel.rudder_rate_deg_s must be > 0, got -1.0" in bad.stderr, bad.stderr
-    refused = run("compare", "--vessel", "kvlcc2", "--duration", "5", "--out", str(tmp_path / "c"), "-q")
-    assert refused.returncode == 2 and "takes the propeller's n_P and a rudder angle" in refused.stderr
-    assert len(refused.stderr.strip().splitlines()) == 1 and not (tmp_path / "c").exists()
+    done = run("compare", "--vessel", "kvlcc2", "--duration", "5", "--out", str(tmp_path / "c"), "-q")
+    assert done.returncode == 0, done.stderr
+    result = json.loads((tmp_path / "c" / "compare.json").read_text())
+    assert result["open_loop"]["max_position_m"] < 1e-9 and "rudder angle" in result["open_loop"]["inputs"]
+    assert result["closed_loop"]["max_position_m"] < 1e-9
+
+
+def test_the_open_loop_signal_of_a_ruddered_vessel_is_the_force_signal_in_its_channels():
+    from usv_mj.compare import open_loop_inputs, vessel_inputs
+
+    s = kvlcc2()
+    raw, ours = open_loop_inputs(20.0, 0.01), vessel_inputs(s, 20.0, 0.01)
+    np.testing.assert_allclose(ours[:, 0], 11.85 * (0.5 + (raw[:, 0] + 60.0) / 280.0), rtol=1e-12)
+    np.testing.assert_allclose(ours[:, 1], math.radians(30.0) * raw[:, 1] / 11.0, rtol=1e-12)
+    assert np.abs(ours[:, 1]).max() <= math.radians(30.0) + 1e-12 and ours[:, 0].min() >= 0.5 * 11.85 - 1e-9

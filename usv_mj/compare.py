@@ -125,6 +125,28 @@ def input_scale(scenario: Scenario) -> tuple[float, float]:
     return scenario.ship.m11 / paper.m11, scenario.ship.m33 / paper.m33
 
 
+#: the rudder signal of a ruddered vessel: the force signal mapped affinely (:func:`vessel_inputs`)
+RUDDER_SIGNAL_DEG = 30.0       # |yaw level| 11 N m (8 + the 3 N m square wave) -> 30 deg of rudder
+RUDDER_RPS_RANGE = (0.5, 1.5)  # surge -60..220 N -> n_P from 0.5 to 1.5 x the vessel's nominal_rps
+
+
+def vessel_inputs(scenario: Scenario, duration: float, dt: float, one_signed: bool = False) -> np.ndarray:
+    """The open-loop inputs of the scenario's vessel, in its own channels: :func:`open_loop_inputs`
+    scaled by :func:`input_scale` for a vessel that takes forces; for a ruddered vessel (its
+    channels n_P [1/s] and the rudder angle [rad], KVLCC2) the same signal mapped affinely, so its
+    switching times are the same: surge -60..220 N -> n_P over :data:`RUDDER_RPS_RANGE` x its
+    ``nominal_rps``, yaw level y [N m] -> delta = y / 11 x :data:`RUDDER_SIGNAL_DEG` (30 deg at
+    the largest level, within KVLCC2's 35 deg)."""
+    model = getattr(scenario.vessel, "model", None)
+    if getattr(model, "inputs", "forces") != "rudder":
+        return open_loop_inputs(duration, dt, one_signed=one_signed, scale=input_scale(scenario))
+    raw = open_loop_inputs(duration, dt, one_signed=one_signed)
+    lo, hi = RUDDER_RPS_RANGE
+    n_p = float(model.nominal_rps or 10.0) * (lo + (hi - lo) * (raw[:, 0] + 60.0) / 280.0)
+    delta = np.radians(RUDDER_SIGNAL_DEG) * raw[:, 1] / 11.0
+    return np.column_stack([n_p, delta])
+
+
 def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: bool = False,
                      scale: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
     """The open-loop input sequence [(tau_u [N], tau_r [N m]) per control step], shape (n, 2).
@@ -248,7 +270,8 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
     dt = scenario.control_period
     eta0, nu0 = scenario.initial.eta, scenario.initial.nu
     scale = input_scale(scenario)
-    inputs, saturated = realized_inputs(scenario, open_loop_inputs(scenario.duration, dt, scale=scale), dt)
+    ruddered = getattr(scenario.vessel.model, "inputs", "forces") == "rudder"
+    inputs, saturated = realized_inputs(scenario, vessel_inputs(scenario, scenario.duration, dt), dt)
     env = sea_environment(scenario)
     _say(progress, f"open loop, {scenario.duration:g} s at dt = {dt * 1e3:g} ms on both plants"
          + ("" if env is None else " in the scenario's sea"))
@@ -262,10 +285,14 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
     wall["mujoco"] = time.perf_counter() - t0
     result = {"duration_s": scenario.duration, "control_period_s": dt, **state_differences(xm, xa),
               "inputs": "open_loop_inputs(seed=2024): surge -60..220 N, yaw -8..8 N m (+-3 N m square wave), "
-                        "held 0.2-3 s on a 0.2 s grid" + ("" if scale == (1.0, 1.0) else
-                        f", surge and yaw scaled by {scale[0]:.4g} and {scale[1]:.4g} to the vessel "
-                        f"(m11, m33 against the paper's)"), "wall_time_s": wall,
-              "actuators": scenario.actuators.describe(), "saturated_fraction": saturated}
+                        "held 0.2-3 s on a 0.2 s grid" + (
+                            f", mapped to the vessel's n_P ({RUDDER_RPS_RANGE[0]:g}-{RUDDER_RPS_RANGE[1]:g} x "
+                            f"{scenario.vessel.model.nominal_rps:g} 1/s) and rudder angle (up to "
+                            f"{RUDDER_SIGNAL_DEG:g} deg), moved at its rudder rate" if ruddered else
+                            "" if scale == (1.0, 1.0) else
+                            f", surge and yaw scaled by {scale[0]:.4g} and {scale[1]:.4g} to the vessel "
+                            f"(m11, m33 against the paper's)"), "wall_time_s": wall,
+              "actuators": scenario.actuators.describe(ruddered), "saturated_fraction": saturated}
     if env is not None:
         _say(progress, f"open loop: the analytic plant from a start moved by {SENSITIVITY_OFFSET_M:g} m "
              "(the sea's sensitivity)")
@@ -374,13 +401,13 @@ def _open_convergence(scenario: Scenario, horizon: float, one_signed: bool, envi
     eta0, nu0 = scenario.initial.eta, scenario.initial.nu
     dt_ref = min(OPEN_CONVERGENCE_DTS) / OPEN_REFERENCE_DIVISOR
     ref = run_open_loop(_analytic_plant(scenario, dt_ref, environment),
-                        open_loop_inputs(horizon, dt_ref, one_signed=one_signed, scale=input_scale(scenario)),
+                        vessel_inputs(scenario, horizon, dt_ref, one_signed),
                         eta0, nu0)
     coarse = max(OPEN_CONVERGENCE_DTS)
     r = ref[::int(round(coarse / dt_ref))]
     rows = []
     for h in OPEN_CONVERGENCE_DTS:
-        u = open_loop_inputs(horizon, h, one_signed=one_signed, scale=input_scale(scenario))
+        u = vessel_inputs(scenario, horizon, h, one_signed)
         a = run_open_loop(_analytic_plant(scenario, h, environment), u, eta0, nu0)
         with _mujoco_plant(scenario, h, environment, substeps=1) as plant:
             m = run_open_loop(plant, u, eta0, nu0)
@@ -494,11 +521,12 @@ def compare_closed_loop_saturated(scenario: Scenario, progress: bool = True) -> 
     convergence study): the plants' difference, the saturated fraction of each run (must be > 0 for
     the case to mean anything) and the funnel check."""
     sat = saturated_scenario(scenario)
-    _say(progress, f"closed loop with saturating actuators ({sat.actuators.describe()}), {sat.duration:g} s")
+    rudder = getattr(sat.vessel.model, "inputs", "forces") == "rudder"
+    _say(progress, f"closed loop with saturating actuators ({sat.actuators.describe(rudder)}), {sat.duration:g} s")
     runs = _closed_loop_pair(sat)
     xa, xm = _record_states(runs["analytic"]), _record_states(runs["mujoco"])
     n = min(len(xa), len(xm))
-    result = {"duration_s": sat.duration, "actuators": sat.actuators.describe(), **state_differences(xm[:n], xa[:n])}
+    result = {"duration_s": sat.duration, "actuators": sat.actuators.describe(rudder), **state_differences(xm[:n], xa[:n])}
     result["status"] = {k: r.status for k, r in runs.items()}
     result["saturated_fraction"] = {k: {ch: float(np.mean(r[f"sat_{ch}"] > 0.5)) for ch in ("u", "r")}
                                     for k, r in runs.items()}
@@ -628,19 +656,6 @@ def _plot_convergence(path: str, open_loop: dict, closed_loop: dict) -> None:
 # --- entry points --------------------------------------------------------------------------------
 
 
-def check_forces_vessel(scenario: Scenario) -> None:
-    """The comparison's open loop drives the hull with random forces held as they are (its check of
-    the two plants' integration): a ruddered vessel, whose channels are n_P and a rudder angle, is
-    refused in one line."""
-    from .scenario import ScenarioError
-
-    if getattr(getattr(scenario.vessel, "model", None), "inputs", "forces") == "rudder":
-        raise ScenarioError(f"{scenario.source}: compare drives the hull with forces and the PPC law; the vessel "
-                            f"{scenario.vessel.kind!r} takes the propeller's n_P and a rudder angle (its two plants "
-                            f"are compared on rudder and propeller steps by tests/test_kvlcc2.py, and `usv-mj "
-                            f"manoeuvre ... --plant analytic|mujoco` runs either)")
-
-
 def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> dict:
     """Run the open- and closed-loop comparisons of ``scenario``; write compare.json and the plots.
 
@@ -650,7 +665,6 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
     """
     if not isinstance(scenario, Scenario):
         raise TypeError(f"compare_plants: scenario must be a usv_mj.scenario.Scenario, got {type(scenario).__name__}")
-    check_forces_vessel(scenario)
     os.makedirs(out_dir, exist_ok=True)
     wall0 = time.perf_counter()
     done: dict = {}
@@ -770,7 +784,6 @@ def run_command(args) -> int:
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise ScenarioError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
     scenario = scenario_from_args(args)
-    check_forces_vessel(scenario)
     name = os.path.splitext(os.path.basename(args.scenario))[0] if args.scenario else (args.preset or "paper")
     if getattr(args, "vessel", None):
         name += "-" + os.path.splitext(os.path.basename(args.vessel))[0]
