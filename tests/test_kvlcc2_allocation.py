@@ -149,6 +149,10 @@ def test_the_steering_gear_stays_when_a_scenario_changes_one_actuator_key():
     s = load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "actuators": {"yaw_rate_nm_s": 0.2}})
     assert s.actuators.kind == "box" and s.actuators.yaw_rate_nm_s == 0.2
     assert s.actuators.max_yaw_nm == pytest.approx(DELTA_MAX) and s.actuators.max_surge_n == N_MAX
+    from usv_mj.errors import ScenarioError
+
+    with pytest.raises(ScenarioError, match="actuators.max_yaw_nm = 3.0 is the rudder's angle limit"):
+        load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "actuators": {"max_yaw_nm": 3.0}})
 
 
 def test_bad_propeller_numbers_and_rudders_beyond_the_gear_are_refused():

@@ -432,6 +432,11 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True, own_tab
             # a ruddered vessel's steering gear and n_P cap are its own: the scenario's keys change them
             # one by one (--set actuators.yaw_rate_nm_s=...), they do not take them away
             data["actuators"] = {**own, **own_table}
+            angle = data["actuators"].get("max_yaw_nm", 0.0)
+            if isinstance(angle, (int, float)) and not angle < math.pi / 2:
+                raise ScenarioError(f"{source}: actuators.max_yaw_nm = {angle!r} is the rudder's angle limit on the vessel "
+                                    f"{top['vessel'].kind!r} [rad] and must be < pi/2 (its steering gear: "
+                                    f"vessel.max_rudder_deg)")
     for key in ("duration", "control_period"):
         if key in data:
             top[key] = _convert(source, key, data[key], 0.0)
