@@ -196,6 +196,9 @@ def test_a_kvlcc2_episode_is_the_runs_allocated_closed_loop_for_the_same_actions
 
 
 def test_bad_vessels_are_refused_in_one_line():
+    with pytest.raises(ValueError, match="runs in calm deep water only.*the task 'track_waves' is in a sea: the calm "
+                                         "tasks are track, harbor"):
+        envs.load("track_waves", vessel="kvlcc2")
     with pytest.raises(ValueError, match="unknown vessel kind 'nosuch'"):
         envs.load("track", vessel="nosuch")
     with pytest.raises(ValueError, match="vessel must be a vessel kind"):

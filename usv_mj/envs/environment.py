@@ -18,7 +18,7 @@ with warnings.catch_warnings():
 from dm_env import specs
 
 from usv_mj.builder import channels_of, make_environment, make_plant
-from usv_mj.scenario import Scenario, load_scenario, merge_tables
+from usv_mj.scenario import Scenario, ScenarioError, load_scenario, merge_tables
 
 from . import ALL_TASKS
 from .physics import USVPhysics
@@ -231,7 +231,13 @@ def _scenario(task: str, options: dict, duration: float) -> Scenario:
         base["funnel"] = HARBOUR_FUNNEL
         base["trajectory"] = {"kind": "waypoints", "points": [[0.0, 0.0], [40.0, 0.0]], "speed": 0.6}
         base["initial"] = {"eta": [0.0, 0.0, 0.0]}
-    return load_scenario(preset=preset, overrides=merge_tables(base, overrides))
+    try:
+        return load_scenario(preset=preset, overrides=merge_tables(base, overrides))
+    except ScenarioError as exc:
+        if task in WAVE_TASKS and "[sea]" in str(exc):   # the task's own sea: a user cannot remove it
+            raise type(exc)(f"{exc}; the task {task!r} is in a sea: the calm tasks are "
+                            f"{', '.join(t for t in ALL_TASKS if t not in WAVE_TASKS)}") from None
+        raise
 
 
 #: [m] the harbour tasks' goal_distance: past the piers (x = 10-21 m) and the buoys drawn at 0.55-0.9
