@@ -144,8 +144,14 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     dt = record.metadata.get("control_period_s") or 0.001
     n_zoom = min(len(record), int(round(ZOOM_S / dt)) + 1)   # rows with t <= 2 s
     zoom = decimate(_Rows(record, n_zoom), ("t", "tau_u", "q_tau_u", "tau_r", "q_tau_r"))
-    for col, qcol, unit, fname, num in (("tau_u", "q_tau_u", "N", "fig5_tau_u.png", 5),
-                                        ("tau_r", "q_tau_r", "N m", "fig6_tau_r.png", 6)):
+    # a ruddered vessel's own channels (the metadata's channels, usv_mj.builder.channels_of: "rudder")
+    # are its n_P and rudder angle; an allocated run's tau are forces, as the law gave them
+    rudder = record.metadata.get("channels") == "rudder"
+    units = (("1/s", "rad") if rudder else ("N", "N m"))
+    titles = {"fig5_tau_u.png": "Propeller revolutions n_P (tau_u) and Q(tau_u)",
+              "fig6_tau_r.png": "Rudder angle (tau_r) and Q(tau_r)"} if rudder else FIGURES
+    for col, qcol, unit, fname, num in (("tau_u", "q_tau_u", units[0], "fig5_tau_u.png", 5),
+                                        ("tau_r", "q_tau_r", units[1], "fig6_tau_r.png", 6)):
         fig, (ax, axz) = plt.subplots(1, 2, figsize=(11, 4), gridspec_kw={"width_ratios": [2, 1]})
         c = decimate(record, ("t", col))
         ax.plot(c["t"], c[col], "C0", lw=0.8, label=col)
@@ -159,7 +165,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         axz.step(zoom["t"], zoom[qcol], "C1", lw=1.0, where="post")
         axz.set_xlabel("t [s] (first 2 s)")
         axz.grid(alpha=0.3)
-        fig.suptitle(f"Fig. {num}: {FIGURES[fname]}")
+        fig.suptitle(f"Fig. {num}: {titles[fname]}")
         fig.tight_layout()
         paths.append(out / fname)
         save_figure(fig, paths[-1], note)
