@@ -376,10 +376,15 @@ class Actuators:
         self.control_period = float(control_period)
         self.params = pack(spec, control_period)
         self.state = np.zeros(N_ACT_STATE)
-        self.allocation = None if allocation is None else np.array(allocation, dtype=float)
-        self.mmg = NO_ALLOCATION if allocation is None else self.allocation   # the kernel's argument
-        self.unlimited = spec.unlimited and self.allocation is None
+        # the kernel's argument: the MMG block, or empty (no allocation)
+        self.mmg = NO_ALLOCATION if allocation is None else np.array(allocation, dtype=float)
+        self.unlimited = spec.unlimited and allocation is None
         self.limits = spec.generalized_limits()
+
+    @property
+    def allocation(self):
+        """The MMG block the command is allocated through, or None."""
+        return self.mmg if self.mmg.shape[0] else None
 
     @classmethod
     def from_scenario(cls, scenario, allocation=None) -> "Actuators":
@@ -398,11 +403,9 @@ class Actuators:
     def apply(self, q_u: float, q_r: float, x=None) -> tuple[float, float, float, float]:
         """(f_u, f_r, sat_u, sat_r) realized over the coming period from the command (f: [N], [N m],
         or (n_P [1/s], delta [rad]) with an allocation, which reads the plant state ``x``)."""
-        if self.allocation is not None:
-            if x is None:
-                raise ValueError("Actuators.apply: an allocated command needs the plant state x")
-            return actuator_kernel(float(q_u), float(q_r), np.asarray(x, dtype=float), False, self.params,
-                                   self.state, self.mmg)
+        if self.mmg.shape[0] and x is None:
+            raise ValueError("Actuators.apply: an allocated command needs the plant state x")
         if self.unlimited:  # the kernel's own branch, as plain Python (a native call costs more than it)
             return unlimited_step(q_u, q_r)
-        return actuator_kernel(float(q_u), float(q_r), _NO_STATE, False, self.params, self.state, self.mmg)
+        x = _NO_STATE if x is None else np.asarray(x, dtype=float)
+        return actuator_kernel(float(q_u), float(q_r), x, False, self.params, self.state, self.mmg)
