@@ -2,7 +2,7 @@
 
 ``packaging/usv_mj-gymnasium.pth`` must sit at the top of site-packages (Python reads ``.pth``
 files only there), outside the package, so ``build_py`` copies it into the build's root; the wheel
-lists it in its RECORD, so ``pip uninstall`` removes it. What it does and why: usv_mj/gymnasium_hook.py.
+lists it in its RECORD, so ``pip uninstall`` removes it. What it does and why: usv_mj/envs/gymnasium_hook.py.
 Editable installs skip it. Everything else about the build is in pyproject.toml.
 """
 

@@ -6,9 +6,9 @@ the same runs on the same engine (one 2-worker LocalCluster of the sweep's ``ope
 The same N runs (the paper preset on a line, the analytic plant, the start's lateral offset drawn
 uniformly) are run as
 
-- a sweep (:func:`usv_mj.sweep.runner.run_sweep` of a sweep table), and
+- a sweep (:func:`usv_mj.jobs.sweep.runner.run_sweep` of a sweep table), and
 - a benchmark suite of one task, one condition, one controller and N episodes
-  (:func:`usv_mj.bench.run_bench`: the same ``run_sweep`` with the metrics computed on the workers),
+  (:func:`usv_mj.jobs.bench.run_bench`: the same ``run_sweep`` with the metrics computed on the workers),
   its leaderboard (report.md, figures) timed apart.
 
 Each is timed from the first submission to the last result (``SweepResult.timing["runs_s"]``, the
@@ -36,11 +36,11 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=2)
     args = parser.parse_args()
 
-    from usv_mj.bench import run_bench
-    from usv_mj.bench.report import write_report
-    from usv_mj.bench.suite import plan_suite
-    from usv_mj.sweep import plan_sweep, run_sweep
-    from usv_mj.sweep.runner import open_client
+    from usv_mj.jobs.bench import run_bench
+    from usv_mj.jobs.bench.report import write_report
+    from usv_mj.jobs.bench.suite import plan_suite
+    from usv_mj.jobs.sweep import plan_sweep, run_sweep
+    from usv_mj.jobs.sweep.runner import open_client
 
     sets = {"trajectory.kind": "line", "initial.eta": [0.0, 0.0, 0.0], "baseline.enabled": False}
     sweep = plan_sweep({"base": "paper", "duration": args.duration, "plant": "analytic", "samples": args.episodes,

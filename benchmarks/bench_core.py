@@ -10,7 +10,7 @@ interleaved rounds:
 - ``MuJoCoPlant.step`` + ``.state`` (the hydrodynamic callback included), ``AnalyticPlant.step`` + ``.state``;
 - the PPC call, the reference, the quantizer (what the Python loop pays per part);
 - ``simulate`` of the paper preset (``--duration`` s, no baseline) on both plants with the Python
-  loop (``loop="python"``) and the compiled loop (usv_mj.compiled_loop), and the same in the
+  loop (``loop="python"``) and the compiled loop (usv_mj.loop.compiled), and the same in the
   ``moderate`` sea, with the realtime factor;
 - with ``--vessel KIND`` (repeatable; docs/vessels.md) the same ``simulate`` on that vessel, and its
   compiled loop's step against the paper hull's.
@@ -46,7 +46,7 @@ def main(argv=None):
     from usv_mj import load_scenario, simulate
     from usv_mj.plants.analytic import AnalyticPlant
     from usv_mj.plants.mujoco_plant import DEFAULT_MODEL, MuJoCoPlant
-    from usv_mj.simulation import make_controller, make_quantizers, make_reference
+    from usv_mj.loop.simulate import make_controller, make_quantizers, make_reference
 
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; mujoco {mujoco.__version__}")
     over = {"duration": args.duration, "baseline": {"enabled": False}}

@@ -26,7 +26,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from usv_mj.render.gl_backend import select_backend  # noqa: E402
+from usv_mj.outputs.render.gl_backend import select_backend  # noqa: E402
 
 SEA = {"preset": "moderate", "current": {"speed": 0.3, "direction_deg": 30.0},
        "wind": {"speed": 5.0, "direction_deg": 90.0, "gust_sigma": 1.0}}
@@ -44,12 +44,12 @@ def per_step(fn, n_rows, repeat=3):
 def encoding(duration_rows: int = 10000):
     import numpy as np
 
-    from usv_mj.record import COLUMNS
-    from usv_mj.runlog.extra_topics import environment_block, environment_layout, obstacle_block, obstacle_layout
-    from usv_mj.runlog.protobuf_rows import BinaryRows, FixedLayout, message_class
-    from usv_mj.runlog.topics import ROW_TOPICS, row_topic_schema
-    from usv_mj.scenario import load_scenario
-    from usv_mj.simulation import make_environment, simulate
+    from usv_mj.record.run_record import COLUMNS
+    from usv_mj.outputs.log.extra_topics import environment_block, environment_layout, obstacle_block, obstacle_layout
+    from usv_mj.outputs.log.protobuf_rows import BinaryRows, FixedLayout, message_class
+    from usv_mj.outputs.log.topics import ROW_TOPICS, row_topic_schema
+    from usv_mj.scenario.spec import load_scenario
+    from usv_mj.loop.simulate import make_environment, simulate
 
     sc = load_scenario(preset="paper", overrides={"duration": duration_rows * 1e-3, "sea": SEA,
                                                   "plant": {"kind": "analytic"}})
@@ -88,7 +88,7 @@ def encoding(duration_rows: int = 10000):
 
 
 def closed_loop(duration: float):
-    from usv_mj.scenario import load_scenario
+    from usv_mj.scenario.spec import load_scenario
 
     for name, over in (("calm water (no environment topic)", {}), ("the sea", {"sea": SEA})):
         sc = load_scenario(preset="paper", overrides={"duration": duration, "plant": {"kind": "analytic"}, **over})
@@ -96,8 +96,8 @@ def closed_loop(duration: float):
 
 
 def _closed_loop(sc, name):
-    from usv_mj.runlog import RunLogWriter
-    from usv_mj.simulation import simulate
+    from usv_mj.outputs.log import RunLogWriter
+    from usv_mj.loop.simulate import simulate
 
     duration = sc.duration
     simulate(sc, duration=1.0)
@@ -119,11 +119,11 @@ def _closed_loop(sc, name):
 def rendering(width: int, height: int, frames: int):
     import numpy as np
 
-    from usv_mj.record import RunRecord
-    from usv_mj.render.planner import plan_frames
-    from usv_mj.render.replay import FrameRenderer
-    from usv_mj.render.world import SEA_NODES
-    from usv_mj.scenario import load_scenario
+    from usv_mj.record.run_record import RunRecord
+    from usv_mj.outputs.render.planner import plan_frames
+    from usv_mj.outputs.render.replay import FrameRenderer
+    from usv_mj.outputs.render.world import SEA_NODES
+    from usv_mj.scenario.spec import load_scenario
 
     out = {}
     t = np.linspace(0.0, 30.0, frames)

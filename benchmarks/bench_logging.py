@@ -24,10 +24,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from usv_mj.record import COLUMNS  # noqa: E402
-from usv_mj.runlog import RunLogWriter, read_run  # noqa: E402
-from usv_mj.scenario import load_scenario  # noqa: E402
-from usv_mj.simulation import simulate  # noqa: E402
+from usv_mj.record.run_record import COLUMNS  # noqa: E402
+from usv_mj.outputs.log import RunLogWriter, read_run  # noqa: E402
+from usv_mj.scenario.spec import load_scenario  # noqa: E402
+from usv_mj.loop.simulate import simulate  # noqa: E402
 
 
 def bench(plant: str, duration: float, repeat: int, background: bool, out_dir: Path) -> dict:

@@ -61,8 +61,8 @@ def main(argv=None) -> int:
 
     from usv_mj.plants.analytic import AnalyticPlant
     from usv_mj.plants.mujoco_plant import DEFAULT_MODEL, MuJoCoPlant
-    from usv_mj.scenario import load_scenario
-    from usv_mj.simulation import make_controller, make_reference, simulate
+    from usv_mj.scenario.spec import load_scenario
+    from usv_mj.loop.simulate import make_controller, make_reference, simulate
 
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; mujoco {mujoco.__version__}")
     scenario = load_scenario(preset="paper")
@@ -157,11 +157,11 @@ def sea_section(args) -> int:
 
     from usv_mj.plants.analytic import AnalyticPlant
     from usv_mj.plants.mujoco_plant import DEFAULT_MODEL, MuJoCoPlant
-    from usv_mj.scenario import load_scenario
-    from usv_mj.sea import Environment, SeaSettings, load_sea_preset, sea_force
-    from usv_mj.sea import CurrentSettings, WindSettings
-    from usv_mj.ship import hydrodynamic_force
-    from usv_mj.simulation import simulate
+    from usv_mj.scenario.spec import load_scenario
+    from usv_mj.physics.sea import Environment, SeaSettings, load_sea_preset, sea_force
+    from usv_mj.physics.sea import CurrentSettings, WindSettings
+    from usv_mj.physics.ship import hydrodynamic_force
+    from usv_mj.loop.simulate import simulate
 
     print(f"\n--- sea --- load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     scenario = load_scenario(preset="paper")

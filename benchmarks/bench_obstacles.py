@@ -22,7 +22,7 @@ Then, for harbours of 10 / 100 / 300 / 1000 standing circles (:func:`harbour_tom
 170 m^2 about a 45 m line, guidance on; ``--harbours``), it prints the planning time (cold, and
 again from :func:`usv_mj.obstacles.make_plan`'s cache) and the closed loop's us per step on the
 MuJoCo and the analytic plant beside open water (the lower of two runs each) and the load average. ``--write-harbour N PATH`` writes the N-circle harbour as a scenario file
-(``python -m usv_mj.cli run --scenario PATH --no-video`` then runs it whole).
+(``python -m usv_mj.cli.main run --scenario PATH --no-video`` then runs it whole).
 
 The machine is shared: run it twice and take the lower figures.
 """
@@ -46,7 +46,7 @@ def per_call(fn, n):
 
 
 def obstacle_field(count, seed=0, tables_only=False):
-    from usv_mj.obstacle_tables import from_tables
+    from usv_mj.scenario.obstacles import from_tables
 
     rng = np.random.default_rng(seed)
     tables = []
@@ -92,8 +92,8 @@ def harbours(counts, loop_seconds: float) -> None:
 
     from usv_mj import build
     from usv_mj.obstacles import hooks
-    from usv_mj.scenario import load_scenario
-    from usv_mj.simulation import simulate
+    from usv_mj.scenario.spec import load_scenario
+    from usv_mj.loop.simulate import simulate
 
     def loop_us(scenario, plant):
         best = math.inf
@@ -152,11 +152,11 @@ def main():
         return
     n = args.steps
 
-    from usv_mj.obstacle_tables import from_tables
+    from usv_mj.scenario.obstacles import from_tables
     from usv_mj.obstacles import GeometricClearance, HarbourPlant, MuJoCoClearance
     from usv_mj.plants.analytic import AnalyticPlant
     from usv_mj.plants.mujoco_plant import MuJoCoPlant
-    from usv_mj.scenario import load_scenario
+    from usv_mj.scenario.spec import load_scenario
 
     sc = load_scenario(preset="paper")
     ship, dist = sc.ship, sc.disturbance
@@ -212,7 +212,7 @@ def main():
     # the whole closed loop (PPC, quantizers, recording): open water against the same scenario
     # with the obstacle field (the one build composes the harbour; guidance off)
     from usv_mj import build
-    from usv_mj.simulation import simulate
+    from usv_mj.loop.simulate import simulate
 
     loop = sc.with_overrides({"duration": args.loop_seconds, "plant": {"kind": "mujoco"},
                               "initial": {"eta": [0.0, 0.0, 0.0]},

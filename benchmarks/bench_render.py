@@ -49,7 +49,7 @@ def bare_renderer_fps(width: int, height: int, frames: int, ours: bool) -> float
     """Frames/s of mujoco.Renderer on models/scene.xml, the hull moving along x, nothing else drawn."""
     import mujoco
 
-    from usv_mj.render.replay import DEFAULT_SCENE
+    from usv_mj.outputs.render.replay import DEFAULT_SCENE
 
     spec = mujoco.MjSpec.from_file(str(DEFAULT_SCENE))
     spec.visual.global_.offwidth, spec.visual.global_.offheight = width, height
@@ -91,8 +91,8 @@ def main() -> int:
     args = ap.parse_args()
     width, height = (int(v) for v in args.size.lower().split("x"))
 
-    from usv_mj.render import check_gl, render_run
-    from usv_mj.render.gl_backend import renderer_name
+    from usv_mj.outputs.render import check_gl, render_run
+    from usv_mj.outputs.render.gl_backend import renderer_name
 
     backend = check_gl()
     print(f"GL backend {backend}: {renderer_name(backend)}; cores usable: {len(os.sched_getaffinity(0))}; "
@@ -127,7 +127,7 @@ def main() -> int:
 
 def pipeline(width, height, camera, keep) -> int:
     """The video part of the main job: workers warm up while the 300 s paper run is simulated, then render."""
-    from usv_mj.render import RenderWorkers, render_run
+    from usv_mj.outputs.render import RenderWorkers, render_run
 
     out_dir = keep or Path(tempfile.mkdtemp(prefix="bench_render_"))
     t0 = time.perf_counter()

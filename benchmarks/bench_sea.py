@@ -13,9 +13,9 @@ import numpy as np
 from numba import njit
 
 from usv_mj.plants.analytic import rk4_advance
-from usv_mj.sea import Environment, SeaSettings, environment_loads, load_sea_preset, sea_rk4_advance
-from usv_mj.sea.waves import wave_loads
-from usv_mj.ship import PaperDisturbance, ShipParams
+from usv_mj.physics.sea import Environment, SeaSettings, environment_loads, load_sea_preset, sea_rk4_advance
+from usv_mj.physics.sea.waves import wave_loads
+from usv_mj.physics.ship import PaperDisturbance, ShipParams
 
 REPEATS = 7
 
@@ -93,7 +93,7 @@ def main() -> None:
     calm_sea_step = best_of(lambda n: _rk4_sea_loop(p, dp, *calm.packed, n), 200_000)
     waves_step = best_of(lambda n: _rk4_sea_loop(p, dp, *waves_only.packed, n), 20_000)
     sea_step = best_of(lambda n: _rk4_sea_loop(p, dp, *sea.packed, n), 20_000)
-    print(f"analytic RK4 step (1 ms, 4 stages), usv_mj.ship  : {calm_step * 1e6:8.3f} us   "
+    print(f"analytic RK4 step (1 ms, 4 stages), usv_mj.physics.ship  : {calm_step * 1e6:8.3f} us   "
           f"({1e-3 / calm_step:8.0f} x real time)")
     print(f"analytic RK4 step, sea kernel, calm environment   : {calm_sea_step * 1e6:8.3f} us   "
           f"({1e-3 / calm_sea_step:8.0f} x real time)")

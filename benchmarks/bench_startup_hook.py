@@ -1,4 +1,4 @@
-"""What the wheel's start-up file (packaging/usv_mj-gymnasium.pth, usv_mj/gymnasium_hook.py) costs.
+"""What the wheel's start-up file (packaging/usv_mj-gymnasium.pth, usv_mj/envs/gymnasium_hook.py) costs.
 
     python benchmarks/bench_startup_hook.py [--runs 15]
 

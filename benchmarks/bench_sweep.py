@@ -10,9 +10,9 @@ same runs in every mode:
 - the bare RK4 ``mujoco.mj_step`` of models/usv.xml (the project's yardstick), measured here at the
   start and at the end (the load on the machine varies);
 - a plain loop in this process calling the sweep's own task function
-  (:func:`usv_mj.sweep.runner.run_one`) run after run;
-- :func:`usv_mj.sweep.runner.run_sweep` on a ``LocalCluster`` made by the sweep's own
-  :func:`~usv_mj.sweep.runner.open_client`, for each ``--workers``. The start-up is printed apart:
+  (:func:`usv_mj.jobs.sweep.runner.run_one`) run after run;
+- :func:`usv_mj.jobs.sweep.runner.run_sweep` on a ``LocalCluster`` made by the sweep's own
+  :func:`~usv_mj.jobs.sweep.runner.open_client`, for each ``--workers``. The start-up is printed apart:
   the cluster's start (worker processes, their imports), and the warm-up that ``run_sweep`` does
   before the first task (the first run's scenario for a few steps here, then on every worker: the
   imports and the compiled loop loaded, or compiled once into the disk cache). The runs per minute
@@ -71,8 +71,8 @@ def main() -> None:
 
     import tomllib
 
-    from usv_mj.sweep import plan_sweep
-    from usv_mj.sweep.runner import describe_startup, open_client, run_one, run_sweep, warm_up
+    from usv_mj.jobs.sweep import plan_sweep
+    from usv_mj.jobs.sweep.runner import describe_startup, open_client, run_one, run_sweep, warm_up
 
     path = Path(args.sweep)
     data = tomllib.loads(path.read_text())

@@ -4,7 +4,7 @@ Every controller follows :class:`usv_mj.controllers.base.Controller`; the quanti
 that the simulation loop applies to any controller's output.
 """
 
-from usv_mj.lazy_names import lazy_names
+from usv_mj.core.lazy_names import lazy_names
 
 # imported on first use, so that the record's field names (base) come without the laws' numba
 # kernels (a log writer or render worker starts in a fraction of the time)

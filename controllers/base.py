@@ -15,7 +15,7 @@ A controller is any object with
   violations; ``diagnostic_events`` (optional) maps a 0/1 field to the event kind its episodes
   are logged as (the PPC law's ``{"s2_clamped": "s2_clamp"}``);
 - ``from_scenario(gains, scenario)`` (a classmethod) when it is registered in
-  :data:`usv_mj.registry.CONTROLLERS` with its typed gains dataclass.
+  :data:`usv_mj.core.registry.CONTROLLERS` with its typed gains dataclass.
 
 The loop quantizes the outputs (the quantizer is the actuator channel, shared by every controller)
 and holds them over the control period. Controllers import no plant, no MuJoCo and not the loop.

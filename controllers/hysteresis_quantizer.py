@@ -74,7 +74,7 @@ def quantize_step(delta, u_min, k, tau):
 
 @njit(cache=True)
 def quantizer_kernel(tau, state, delta, u_min, enabled):
-    """:meth:`HysteresisQuantizer.step` natively (usv_mj.kernels); ``state`` = (k, output, switches)."""
+    """:meth:`HysteresisQuantizer.step` natively (usv_mj.core.kernels); ``state`` = (k, output, switches)."""
     if enabled:
         q, k = quantize_step(delta, u_min, np.int64(state[0]), tau)
         state[0] = k
@@ -157,7 +157,7 @@ class HysteresisQuantizer:
     def kernel(self):
         """(quantizer_kernel, its state and parameters) for the compiled loop (the state is this
         object's own: nothing to write back)."""
-        from usv_mj.kernels import Kernel
+        from usv_mj.core.kernels import Kernel
 
         return Kernel(quantizer_kernel, (self._state, self._delta, self._u_min, bool(self.enabled)))
 

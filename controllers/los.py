@@ -60,12 +60,12 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numba import njit
 
-from usv_mj.criteria import PathTolerance
-from usv_mj.errors import ScenarioError
-from usv_mj.registry import CONTROLLERS
-from usv_mj.ship import P_D33, P_M33, ShipParams, damping_coefficients, wrap_angle
+from usv_mj.record.criteria import PathTolerance
+from usv_mj.core.errors import ScenarioError
+from usv_mj.core.registry import CONTROLLERS
+from usv_mj.physics.ship import P_D33, P_M33, ShipParams, damping_coefficients, wrap_angle
 
-from .base import REF_PSI, REF_R, REF_X, REF_XDOT, REF_Y, REF_YDOT
+from usv_mj.controllers.base import REF_PSI, REF_R, REF_X, REF_XDOT, REF_Y, REF_YDOT
 
 # the internal state vector: integral LOS, reference model, integrators, started flag
 S_YINT, S_PSI_M, S_R_M, S_A_M, S_INT_PSI, S_INT_U, S_STARTED = range(7)
@@ -203,7 +203,7 @@ def los_law(t, x, ref, p, g, st, dt, diag):
 
 @njit(cache=True)
 def los_kernel(t, x, ref, p, g, st, dt, diag):
-    """The compiled loop's kernel of :class:`LOSController` (usv_mj.kernels): ``__call__`` natively."""
+    """The compiled loop's kernel of :class:`LOSController` (usv_mj.core.kernels): ``__call__`` natively."""
     tau_u, tau_r = los_law(t, x, ref, p, g, st, dt, diag)
     return tau_u, tau_r, diag
 
@@ -238,7 +238,7 @@ class LOSController:
 
     def kernel(self):
         """(los_kernel, its arrays) for the compiled loop."""
-        from usv_mj.kernels import Kernel
+        from usv_mj.core.kernels import Kernel
 
         return Kernel(los_kernel, (self._p, self._g, self._st, self.dt, self._diag))
 

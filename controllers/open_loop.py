@@ -31,9 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from usv_mj.criteria import NotJudged
-from usv_mj.errors import ScenarioError
-from usv_mj.registry import CONTROLLERS
+from usv_mj.record.criteria import NotJudged
+from usv_mj.core.errors import ScenarioError
+from usv_mj.core.registry import CONTROLLERS
 
 INTERPOLATIONS = ("step", "linear")
 
@@ -112,7 +112,7 @@ def table_value(times, values, t: float, interpolation: str) -> float:
 
 @njit(cache=True)
 def open_loop_kernel(t, x, ref, tu, vu, tr, vr, linear, diag):
-    """The compiled loop's kernel of :class:`OpenLoopController` (usv_mj.kernels): ``__call__`` natively."""
+    """The compiled loop's kernel of :class:`OpenLoopController` (usv_mj.core.kernels): ``__call__`` natively."""
     return table_at(tu, vu, t, linear), table_at(tr, vr, t, linear), diag
 
 
@@ -142,7 +142,7 @@ class OpenLoopController:
 
     def kernel(self):
         """(open_loop_kernel, its tables) for the compiled loop."""
-        from usv_mj.kernels import Kernel
+        from usv_mj.core.kernels import Kernel
 
         return Kernel(open_loop_kernel, (*self._u, *self._r, self._linear, self._diag))
 

@@ -23,13 +23,13 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from usv_mj.criteria import FunnelCriterion
-from usv_mj.registry import CONTROLLERS
-from usv_mj.ship import ShipParams
+from usv_mj.record.criteria import FunnelCriterion
+from usv_mj.core.registry import CONTROLLERS
+from usv_mj.physics.ship import ShipParams
 
-from .base import D_E3, REF_PSI, REF_R, REF_U, TRACKING_FIELDS
-from .performance_funnel import PerformanceFunnel, funnels_of
-from .tracking_errors import tracking_errors
+from usv_mj.controllers.base import D_E3, REF_PSI, REF_R, REF_U, TRACKING_FIELDS
+from usv_mj.controllers.performance_funnel import PerformanceFunnel, funnels_of
+from usv_mj.controllers.tracking_errors import tracking_errors
 
 
 N_TRACK = len(TRACKING_FIELDS)  # the PI law's own fields follow the tracking errors
@@ -102,7 +102,7 @@ def pi_law(t, x, ref, eps, g, funnel, integ, dt, diag):
 
 @njit(cache=True)
 def pi_kernel(t, x, ref, eps, g, funnel, integ, dt, diag):
-    """The compiled loop's kernel of :class:`PIController` (usv_mj.kernels): ``__call__`` natively."""
+    """The compiled loop's kernel of :class:`PIController` (usv_mj.core.kernels): ``__call__`` natively."""
     tau_u, tau_r = pi_law(t, x, ref, eps, g, funnel, integ, dt, diag)
     return tau_u, tau_r, diag
 
@@ -143,7 +143,7 @@ class PIController:
 
     def kernel(self):
         """(pi_kernel, its arrays) for the compiled loop."""
-        from usv_mj.kernels import Kernel
+        from usv_mj.core.kernels import Kernel
 
         return Kernel(pi_kernel, (self._eps, self._g, self._funnel, self._integ, self.dt, self._diag))
 

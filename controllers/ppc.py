@@ -20,7 +20,7 @@ One evaluation at time t (docs/model.md §3, steps 1-11):
     W_i_dot = Gamma_i (i_e S_i - theta_i W_i) (Eq. 37).
 
 The nominal ship model (phi_u, phi_v, phi_r of Eq. 28) is handed in at construction as a
-:class:`usv_mj.ship.ShipParams`; it may differ from the plant's truth (robustness studies).
+:class:`usv_mj.physics.ship.ShipParams`; it may differ from the plant's truth (robustness studies).
 """
 
 from __future__ import annotations
@@ -31,13 +31,13 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from usv_mj.registry import CONTROLLERS
-from usv_mj.ship import P_M11, P_M22, P_M23, P_M33, ShipParams, do_pan_offset, nominal_terms
+from usv_mj.core.registry import CONTROLLERS
+from usv_mj.physics.ship import P_M11, P_M22, P_M23, P_M33, ShipParams, do_pan_offset, nominal_terms
 
-from .base import D_ALPHA_R, D_ALPHA_U, D_ALPHA_V, D_E1S, D_E2S, D_E3S, D_R_E, D_S2, D_S2_CLAMPED, D_U_E, D_V_E, D_W_R_NORM, D_W_U_NORM, D_W_V_NORM, DIAG_FIELDS, N_DIAG, REF_PSI, REF_R
-from .performance_funnel import PerformanceFunnel, funnels_of
-from .rbf_network import node_centres, rbf_activations3
-from .tracking_errors import offset_point_velocity, tracking_errors
+from usv_mj.controllers.base import D_ALPHA_R, D_ALPHA_U, D_ALPHA_V, D_E1S, D_E2S, D_E3S, D_R_E, D_S2, D_S2_CLAMPED, D_U_E, D_V_E, D_W_R_NORM, D_W_U_NORM, D_W_V_NORM, DIAG_FIELDS, N_DIAG, REF_PSI, REF_R
+from usv_mj.controllers.performance_funnel import PerformanceFunnel, funnels_of
+from usv_mj.controllers.rbf_network import node_centres, rbf_activations3
+from usv_mj.controllers.tracking_errors import offset_point_velocity, tracking_errors
 
 ALPHA_R_MODES = ("printed", "analytic")
 
@@ -217,7 +217,7 @@ def ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
 
 @njit(cache=True)
 def ppc_kernel(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf):
-    """The compiled loop's kernel of :class:`PPCController` (usv_mj.kernels): ``__call__`` natively."""
+    """The compiled loop's kernel of :class:`PPCController` (usv_mj.core.kernels): ``__call__`` natively."""
     tau_u, tau_r = ppc_law(t, x, ref, p, g, funnel, centres, w, s2, dt, diag, s_buf, z_buf)
     return tau_u, tau_r, diag
 
@@ -280,7 +280,7 @@ class PPCController:
 
     def kernel(self):
         """(ppc_kernel, its arrays): the law and its adaptive states for the compiled loop."""
-        from usv_mj.kernels import Kernel
+        from usv_mj.core.kernels import Kernel
 
         return Kernel(ppc_kernel, (self._p, self._g, self._funnel, self._centres, self.weights, self._s2,
                                    self.dt, self._diag, self._s_buf, self._z_buf))

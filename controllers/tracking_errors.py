@@ -12,16 +12,16 @@ import math
 
 from numba import njit
 
-from usv_mj.ship import wrap_angle
+from usv_mj.physics.ship import wrap_angle
 
-from .base import D_E1, D_E1S, D_E2, D_E2S, D_E3, D_E3S, D_PSI_A, D_RHO1, D_RHO2, D_RHO3, D_Z1, D_Z2, D_Z3, REF_PSI, REF_R, REF_X, REF_XDOT, REF_Y, REF_YDOT
-from .performance_funnel import error_transform, funnel_bound
+from usv_mj.controllers.base import D_E1, D_E1S, D_E2, D_E2S, D_E3, D_E3S, D_PSI_A, D_RHO1, D_RHO2, D_RHO3, D_Z1, D_Z2, D_Z3, REF_PSI, REF_R, REF_X, REF_XDOT, REF_Y, REF_YDOT
+from usv_mj.controllers.performance_funnel import error_transform, funnel_bound
 
 # funnel parameter vector: rho_0, rho_inf, rate for e1 and e2, then for e3
 F_XY, F_PSI = 0, 3
 
 
-#: the angle wrap to [-pi, pi): usv_mj.ship.wrap_angle (this name kept for its importers)
+#: the angle wrap to [-pi, pi): usv_mj.physics.ship.wrap_angle (this name kept for its importers)
 wrap = wrap_angle
 
 

@@ -24,10 +24,10 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numba import njit
 
-from usv_mj.criteria import NotJudged
-from usv_mj.errors import ScenarioError
-from usv_mj.registry import CONTROLLERS
-from usv_mj.ship import wrap_angle
+from usv_mj.record.criteria import NotJudged
+from usv_mj.core.errors import ScenarioError
+from usv_mj.core.registry import CONTROLLERS
+from usv_mj.physics.ship import wrap_angle
 
 TURNS = {"starboard": -1.0, "port": 1.0}
 
@@ -64,7 +64,7 @@ S_STARTED, S_PSI_PREV, S_DPSI, S_TURN, S_SWITCHES = range(5)
 @njit(cache=True)
 def zigzag_kernel(t, x, ref, tau_u, amplitude, switch, st, diag):
     """The zig-zag's switching law (module docstring) on the state ``st``: ``__call__`` and the
-    compiled loop's kernel (usv_mj.kernels). Returns (tau_u, tau_r, diag)."""
+    compiled loop's kernel (usv_mj.core.kernels). Returns (tau_u, tau_r, diag)."""
     psi = x[2]
     if st[S_STARTED] == 0.0:
         st[S_STARTED] = 1.0
@@ -111,7 +111,7 @@ class ZigzagController:
 
     def kernel(self):
         """(zigzag_kernel, its gains and state) for the compiled loop."""
-        from usv_mj.kernels import Kernel
+        from usv_mj.core.kernels import Kernel
 
         return Kernel(zigzag_kernel, (float(self.gains.tau_u), float(self.gains.tau_r_amplitude), self._switch,
                                       self._st, self._diag))

@@ -1,4 +1,4 @@
-"""Writer CPU per row: today's hand-laid MCAP writer (usv_mj.runlog) against foxglove-sdk's MCAP writer.
+"""Writer CPU per row: today's hand-laid MCAP writer (usv_mj.outputs.log) against foxglove-sdk's MCAP writer.
 
     python scripts/foxglove_mcap_cost.py [SECONDS]      (default 30 s of the paper run, 1 ms steps)
 
@@ -20,7 +20,7 @@ import foxglove
 from mcap.reader import make_reader
 
 from usv_mj import load_scenario, simulate
-from usv_mj.runlog import RunLogWriter
+from usv_mj.outputs.log import RunLogWriter
 
 
 def main(seconds: float = 30.0) -> None:
@@ -59,7 +59,7 @@ def main(seconds: float = 30.0) -> None:
         mcap.close()
         best_sdk = min(best_sdk, time.process_time() - c0)
     print(f"{n} rows, {len(messages)} messages ({len(messages) / n:.2f} a row)")
-    print(f"usv_mj.runlog (encode + write): {best_ours / n * 1e6:.2f} us CPU a row, "
+    print(f"usv_mj.outputs.log (encode + write): {best_ours / n * 1e6:.2f} us CPU a row, "
           f"{(tmp / 'ours.mcap').stat().st_size / 1e6:.1f} MB")
     from importlib.metadata import version
 

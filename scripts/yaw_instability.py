@@ -3,7 +3,7 @@
     python scripts/yaw_instability.py [--out docs/images/yaw_instability.png]
 
 Prints the eigenvalues of the linearized sway-yaw dynamics A = -M_sy^-1 N(u0)
-(:func:`usv_mj.ship.sway_yaw_linearization`) over the surge speed, the speed where the straight run
+(:func:`usv_mj.physics.ship.sway_yaw_linearization`) over the surge speed, the speed where the straight run
 turns unstable, and the growth of a 1e-3 rad/s yaw rate with no yaw moment in the scenario
 ``examples/scenarios/yaw_instability.toml`` (the ``open_loop`` controller, both plants), then draws:
 (a) |r(t)| on a log axis against the linear prediction expm(A t) (v0, r0); (b) the track;
@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # this checkout's usv_mj, wherever the script is run from
 
 from usv_mj import load_scenario, simulate  # noqa: E402
-from usv_mj.ship import ShipParams, damping_coefficients, sway_yaw_linearization  # noqa: E402
+from usv_mj.physics.ship import ShipParams, damping_coefficients, sway_yaw_linearization  # noqa: E402
 
 SCENARIO = ROOT / "examples" / "scenarios" / "yaw_instability.toml"
 U0 = 0.6  # m/s: the straight run of the scenario

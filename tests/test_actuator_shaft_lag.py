@@ -14,7 +14,7 @@ import pytest
 from scipy.integrate import quad, solve_ivp
 
 from usv_mj import load_scenario
-from usv_mj.actuators import ActuatorSpec, Actuators, S_N_P, S_N_S
+from usv_mj.physics.actuators import ActuatorSpec, Actuators, S_N_P, S_N_S
 
 K_POS, K_NEG, TN, SEP = 0.02216 / 2, 0.01289 / 2, 0.1, 0.79
 
@@ -81,7 +81,7 @@ def test_a_reversal_through_zero_speed_and_a_turn_against_quadrature():
 
 
 def test_otter_has_it_and_both_plants_get_the_same_thrust():
-    from usv_mj.simulation import simulate
+    from usv_mj.loop.simulate import simulate
 
     sc = load_scenario(preset="paper", overrides={
         "vessel": {"kind": "otter"}, "duration": 2.0, "disturbance": {"scale": 0.0}, "quantizer": {"enabled": False},

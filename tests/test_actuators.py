@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario, simulate, summarize
-from usv_mj.actuators import ActuatorSpec, Actuators, actuator_step
+from usv_mj.physics.actuators import ActuatorSpec, Actuators, actuator_step
 from usv_mj.builder import make_plant
-from usv_mj.scenario import ScenarioError
+from usv_mj.scenario.spec import ScenarioError
 
-# the paper-limited preset: Fossen's Otter propellers (usv_mj/presets/paper-limited.toml)
+# the paper-limited preset: Fossen's Otter propellers (usv_mj/scenario/presets/paper-limited.toml)
 S, F, R = 0.79, 119.7, 66.7
 TWIN = ActuatorSpec(kind="twin", separation_m=S, thruster_forward_n=F, thruster_reverse_n=R)
 
@@ -225,7 +225,7 @@ def test_saturation_episodes_are_events_and_in_the_summary(limited_pair):
 
 
 def test_report_says_unlimited_for_paper_and_gives_episodes_when_limited(tmp_path, limited_pair):
-    from usv_mj.report import write_report
+    from usv_mj.outputs.report import write_report
 
     paper = summarize(simulate(load_scenario(preset="paper", overrides={"duration": 1.0, "plant": {"kind": "analytic"}})))
     text = write_report(tmp_path / "a.md", paper).read_text()
@@ -235,7 +235,7 @@ def test_report_says_unlimited_for_paper_and_gives_episodes_when_limited(tmp_pat
 
 
 def test_video_bars_draw_the_limits():
-    from usv_mj.render.overlay import BAD, draw_hud
+    from usv_mj.outputs.render.overlay import BAD, draw_hud
 
     values = {"t": 1.0, "t_end": 10.0, "speedup": 1.0, "e": (0.1, 0.1, 0.1), "rho": (1.0, 1.0, 1.0),
               "tau_u": 900.0, "q_tau_u": 900.0, "f_u": 239.4, "sat_u": 1.0, "tau_r": 5.0, "q_tau_r": 5.0,

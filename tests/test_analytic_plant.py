@@ -5,7 +5,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from usv_mj import ship
+from usv_mj.physics import ship
 from usv_mj.plants.analytic import AnalyticPlant
 
 CALM = ship.PaperDisturbance(scale=0.0)

@@ -11,8 +11,8 @@ import sys
 import pytest
 
 from usv_mj import load_scenario, run_job, simulate, summarize
-from usv_mj.errors import ArgumentTypeError, ScenarioError
-from usv_mj.runlog import read_run
+from usv_mj.core.errors import ArgumentTypeError, ScenarioError
+from usv_mj.outputs.log import read_run
 
 
 @pytest.mark.parametrize("value, got", [(None, "NoneType"), ({"duration": 5.0}, "dict"), (42, "int 42")])
@@ -107,12 +107,12 @@ def test_gymnasium_make_refuses_human_rendering_in_one_line():
 
 
 def test_run_job_refuses_an_unknown_render_option_before_the_simulation(tmp_path, monkeypatch):
-    import usv_mj.main_job
+    import usv_mj.jobs.run
 
     def never(*args, **kwargs):
         raise AssertionError("the simulation ran")
 
-    monkeypatch.setattr(usv_mj.main_job, "_simulate", never)
+    monkeypatch.setattr(usv_mj.jobs.run, "_simulate", never)
     sc = load_scenario(preset="paper", overrides={"duration": 1.0})
     with pytest.raises(ScenarioError, match=r"^render_options: unknown option\(s\) 'size'; known: width, height"):
         run_job(sc, tmp_path / "run", render_options={"size": (640, 360)})
@@ -122,7 +122,7 @@ def test_run_job_refuses_an_unknown_render_option_before_the_simulation(tmp_path
 def test_render_with_an_unknown_camera_says_so_before_any_progress_bar(tmp_path):
     sc = load_scenario(preset="paper", overrides={"duration": 0.5, "baseline": {"enabled": False}})
     run_job(sc, tmp_path / "run", video=False, progress=False, step_check=False)
-    done = subprocess.run([sys.executable, "-m", "usv_mj.cli", "render", str(tmp_path / "run"), "--camera", "nope",
+    done = subprocess.run([sys.executable, "-m", "usv_mj.cli.main", "render", str(tmp_path / "run"), "--camera", "nope",
                            "--out", str(tmp_path / "v.mp4")], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert done.stderr.strip() == ("usv-mj render: error: camera 'nope' is not in the render model; choose one of "

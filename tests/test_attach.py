@@ -18,7 +18,7 @@ from usv_mj.plants.mujoco_callback import N_USERDATA  # what the hydrodynamics n
 
 import usv_mj
 from usv_mj import build, load_scenario
-from usv_mj.cli import main
+from usv_mj.cli.main import main
 from usv_mj.plants import attach
 from usv_mj.plants import mujoco_callback as mcb
 from usv_mj.plants.attach import hull_body
@@ -180,7 +180,7 @@ def test_other_bodies_after_the_hull_keep_their_own_physics():
 def test_run_log_attaches_the_scene_the_plant_ran(tmp_path):
     """The log's scene/main.xml, loaded by MuJoCo with the attach call, replays the logged run."""
     from usv_mj import simulate
-    from usv_mj.runlog import RunLogWriter, read_run
+    from usv_mj.outputs.log import RunLogWriter, read_run
 
     scenario = load_scenario("examples/scenarios/harbour_gap.toml", overrides={"duration": 2.0})
     with RunLogWriter(tmp_path / "run.mcap", scenario, background=False) as writer:

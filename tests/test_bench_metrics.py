@@ -1,13 +1,13 @@
 """The benchmark's metrics against closed forms on constructed records, and the intervals' widths
-against their formulas (usv_mj.bench.metrics, docs/metrics.md)."""
+against their formulas (usv_mj.jobs.bench.metrics, docs/metrics.md)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from usv_mj.bench.metrics import bootstrap_ci, episode_metrics, estimate, wilson_ci
-from usv_mj.record import CORE_COLUMNS, RunRecord
+from usv_mj.jobs.bench.metrics import bootstrap_ci, episode_metrics, estimate, wilson_ci
+from usv_mj.record.run_record import CORE_COLUMNS, RunRecord
 
 DT = 0.01
 T = 40.0

@@ -1,6 +1,6 @@
 """A learned policy in the benchmark runs as it was trained (its own control period, zero-order
 hold) and is judged by the criterion of its training reward; the default suite covers every vessel
-that has landed (usv_mj.bench.policy, usv_mj.bench.suite)."""
+that has landed (usv_mj.jobs.bench.policy, usv_mj.jobs.bench.suite)."""
 
 import math
 import tomllib
@@ -8,7 +8,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from usv_mj.bench.suite import default_suite_path, load_suite, plan_suite
+from usv_mj.jobs.bench.suite import default_suite_path, load_suite, plan_suite
 
 PROBE = '''
 import numpy as np
@@ -40,9 +40,9 @@ def _probe_suite(tmp_path, monkeypatch, **entry):
 
 
 def test_a_policy_runs_at_its_training_period_with_its_action_held(tmp_path, monkeypatch):
-    from usv_mj.bench.policy import policy_episode
-    from usv_mj.bench.suite import _with_table
-    from usv_mj.simulation import simulate
+    from usv_mj.jobs.bench.policy import policy_episode
+    from usv_mj.jobs.bench.suite import _with_table
+    from usv_mj.loop.simulate import simulate
 
     run = _probe_suite(tmp_path, monkeypatch).plan.runs[0]
     # Track-v0's period, 0.01 s: 10 of the task's 1 ms integration steps (the paper preset's step)
@@ -71,8 +71,8 @@ def test_a_policy_runs_at_its_training_period_with_its_action_held(tmp_path, mon
 
 
 def test_a_policy_is_judged_by_its_training_reward_band_or_its_own_criterion(tmp_path, monkeypatch):
-    from usv_mj.bench.policy import policy_episode
-    from usv_mj.criteria import criterion_of_record
+    from usv_mj.jobs.bench.policy import policy_episode
+    from usv_mj.record.criteria import criterion_of_record
 
     run = _probe_suite(tmp_path, monkeypatch).plan.runs[0]
     # the track reward is full within 0.25 m and 0.1 rad (usv_mj.envs.tasks), after the task's settling time
@@ -86,7 +86,7 @@ def test_a_policy_is_judged_by_its_training_reward_band_or_its_own_criterion(tmp
     assert own.scenario.control_period == 0.005 and own.scenario.plant.substeps == 5
     record = policy_episode(own.scenario, own.options)
     assert len(record["t"]) == 101 and criterion_of_record(record).evaluate(record)["passed"] is True
-    from usv_mj.errors import SweepError
+    from usv_mj.core.errors import SweepError
 
     with pytest.raises(SweepError, match="control_period 0.0015 s is not a whole number"):
         _probe_suite(tmp_path, monkeypatch, control_period=0.0015)
@@ -139,7 +139,7 @@ def test_usv_mj_bench_prints_the_leaderboard_it_writes(tmp_path, monkeypatch):
                      'set = { "trajectory.kind" = "line", "initial.eta" = [0.0, 0.5, 0.0] }\n')
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), str(tmp_path)])}
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "usv_mj.cli", "bench", str(suite), "--out", str(out), "--workers", "1",
+    cmd = [sys.executable, "-m", "usv_mj.cli.main", "bench", str(suite), "--out", str(out), "--workers", "1",
            "--no-progress", "--no-figures"]
     done = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr

@@ -1,5 +1,5 @@
 """usv-mj bench on the sweep's engine: 1 vs 2 workers, interrupt and resume, a plug-in from a
-temporary folder, the paired comparison, the leaderboard, bad suites (usv_mj.bench)."""
+temporary folder, the paired comparison, the leaderboard, bad suites (usv_mj.jobs.bench)."""
 
 import math
 import os
@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from usv_mj.bench import compare, run_bench
-from usv_mj.bench.suite import load_suite, plan_suite
-from usv_mj.errors import SweepError
-from usv_mj.sweep.runner import TIMING_COLUMNS, read_results
+from usv_mj.jobs.bench import compare, run_bench
+from usv_mj.jobs.bench.suite import load_suite, plan_suite
+from usv_mj.core.errors import SweepError
+from usv_mj.jobs.sweep.runner import TIMING_COLUMNS, read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -161,7 +161,7 @@ def test_compare_is_the_exact_wilcoxon_test():
 
 
 def test_the_leaderboard_marks_the_best_and_ranks(tmp_path):
-    from usv_mj.bench.report import aggregate, ranking, task_table
+    from usv_mj.jobs.bench.report import aggregate, ranking, task_table
 
     rows = [_row("A", i, 1.0 + 0.1 * i) for i in range(4)] + [_row("B", i, 2.0 + 0.1 * i, passed=i < 2)
                                                               for i in range(4)]
@@ -192,7 +192,7 @@ def test_bad_suites_say_where(tmp_path):
 
 
 def test_cli_bad_suite_is_one_line_and_exit_2(tmp_path, capsys):
-    from usv_mj.cli import main
+    from usv_mj.cli.main import main
 
     bad = tmp_path / "bad.toml"
     bad.write_text('episodes = 0\n[[tasks]]\nname = "a"\n')
@@ -218,7 +218,7 @@ def test_the_default_suite_plans(tmp_path):
 
 
 def test_a_policy_on_the_gymnasium_observation_is_scored_like_a_controller(tmp_path, monkeypatch):
-    from usv_mj.sweep.runner import run_one
+    from usv_mj.jobs.sweep.runner import run_one
 
     (tmp_path / "zero_policy.py").write_text("import numpy as np\n\ndef zero(obs):\n    return np.zeros(2, np.float32)\n")
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -252,8 +252,8 @@ def test_a_stable_baselines3_zip_is_a_controller(tmp_path):
     import gymnasium
 
     import usv_mj.envs  # noqa: F401  (registers usv_mj/Track-v0)
-    from usv_mj.bench.policy import load_policy
-    from usv_mj.sweep.runner import run_one
+    from usv_mj.jobs.bench.policy import load_policy
+    from usv_mj.jobs.sweep.runner import run_one
 
     env = gymnasium.make("usv_mj/Track-v0")
     model = sb3.PPO("MlpPolicy", env, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")

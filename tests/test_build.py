@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from usv_mj import CONTROLLERS, build, load_scenario, simulate, summarize
-from usv_mj.errors import ScenarioError, UnknownKindError
+from usv_mj.core.errors import ScenarioError, UnknownKindError
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "examples" / "scenarios"
@@ -65,8 +65,8 @@ class ToyController:
 
 
 def test_a_registered_controller_runs_end_to_end(tmp_path):
-    from usv_mj.main_job import run_job
-    from usv_mj.runlog import read_run
+    from usv_mj.jobs.run import run_job
+    from usv_mj.outputs.log import read_run
 
     sc = load_scenario(preset="paper", overrides={
         "duration": 25.0, "plant": {"kind": "analytic"}, "controller": {"kind": "toy", "k_u": 120.0},
@@ -124,7 +124,7 @@ def _scenario(obstacles: str, sea: bool, duration: float = 3.0):
 @pytest.mark.parametrize("obstacles", list(OBSTACLES))
 @pytest.mark.parametrize("controller", ["ppc", "pi"])
 def test_every_feature_composes_with_every_other(plant, obstacles, controller):
-    from usv_mj.sea_figures import sea_summary
+    from usv_mj.outputs.sea_figures import sea_summary
 
     calm, sea = _scenario(obstacles, False), _scenario(obstacles, True)
     runs = {}
@@ -156,7 +156,7 @@ def test_compare_a_harbour_in_a_sea(tmp_path):
     plants (the open-loop thrust sequence runs in open water: it would ram the piers); every check ok."""
     import json
 
-    from usv_mj.cli import main
+    from usv_mj.cli.main import main
 
     out = tmp_path / "cmp"
     assert main(["compare", "--scenario", str(SCENARIOS / "harbour_gap.toml"), "--sea", "moderate",
@@ -166,8 +166,8 @@ def test_compare_a_harbour_in_a_sea(tmp_path):
 
 
 def test_sweep_of_the_current_in_a_harbour(tmp_path):
-    from usv_mj.sweep import load_sweep
-    from usv_mj.sweep.runner import run_sweep
+    from usv_mj.jobs.sweep import load_sweep
+    from usv_mj.jobs.sweep.runner import run_sweep
 
     path = tmp_path / "harbour_current.toml"
     path.write_text(f"""

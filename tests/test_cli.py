@@ -6,11 +6,11 @@ import sys
 
 import pytest
 
-from usv_mj.cli import main
+from usv_mj.cli.main import main
 
 
 def run_cli(args, tmp_path):
-    return subprocess.run([sys.executable, "-m", "usv_mj.cli", *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "usv_mj.cli.main", *args], capture_output=True, text=True,
                           cwd=tmp_path, timeout=600)
 
 
@@ -70,7 +70,7 @@ def test_set_override_and_presets_listing(tmp_path, capsys):
 def test_closed_pipe_ends_the_command_quietly():
     """`usv-mj presets paper | head -0`: the reader is gone before the first line; exit 141 as a
     Unix tool killed by SIGPIPE would, with no traceback."""
-    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "presets", "paper"], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", "presets", "paper"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)
     proc.stdout.close()                     # before the interpreter has even started writing
     err = proc.stderr.read().decode()
@@ -81,7 +81,7 @@ def test_closed_pipe_ends_the_command_quietly():
 def test_one_flag_name_per_concept_and_the_old_ones_still_work(capsys):
     """-q/--quiet, --size, --scenario in every command that has the concept; the old spellings
     (--no-progress, --video-size, --base) still parse, hidden from --help; bare usv-mj is a short usage."""
-    from usv_mj.cli import build_parser, main
+    from usv_mj.cli.main import build_parser, main
 
     assert main([]) == 2
     err = capsys.readouterr().err

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario, simulate, summarize
-from usv_mj.record import COLUMNS
+from usv_mj.record.run_record import COLUMNS
 
 
 @pytest.fixture(scope="module")

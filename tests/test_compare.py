@@ -9,8 +9,8 @@ import os
 import numpy as np
 import pytest
 
-from usv_mj import compare
-from usv_mj.scenario import ScenarioError, load_scenario
+from usv_mj.jobs import compare
+from usv_mj.scenario.spec import ScenarioError, load_scenario
 
 KEYS = ("max_position_m", "max_heading_rad", "max_velocity", "convergence")
 

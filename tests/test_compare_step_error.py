@@ -7,8 +7,9 @@ heavier (another model, not another step) must fall outside the bound.
 
 import pytest
 
-from usv_mj import compare, load_scenario
-from usv_mj.simulation import simulate
+from usv_mj import load_scenario
+from usv_mj.jobs import compare
+from usv_mj.loop.simulate import simulate
 
 
 def _cs2(duration=20.0, **vessel):

@@ -1,6 +1,6 @@
-"""The compiled loop (usv_mj.compiled_loop) against the Python loop: the same record bit for bit.
+"""The compiled loop (usv_mj.loop.compiled) against the Python loop: the same record bit for bit.
 
-The reference is the Python loop of usv_mj.simulation (``simulate(..., loop="python")``), run on
+The reference is the Python loop of usv_mj.loop.simulate (``simulate(..., loop="python")``), run on
 the same scenario: every column of every row, the events, the status and stop reason, the sinks'
 blocks and the progress counts must be equal, on the composition matrix of tests/test_build.py
 (sea x obstacles x plant x controller), with saturated actuators (``paper-limited``), on every

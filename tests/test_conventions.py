@@ -1,7 +1,7 @@
 """The README's Conventions: the paper's NED-style ship is the same ship in our ENU/FLU frame.
 
 The mirror S = diag(1, -1, -1) on (u, v, r) (and on the loads (X, Y, N)) leaves M, C(nu) and D(nu)
-of usv_mj/ship.py unchanged, m23 and the |v|, |r| damping terms included; the uncertainty Delta is
+of usv_mj/physics/ship.py unchanged, m23 and the |v|, |r| damping terms included; the uncertainty Delta is
 not mirror-symmetric (its even sway and yaw terms flip), which the README states.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from usv_mj.ship import ShipParams, coriolis_matrix, damping_matrix, kinematics, mass_matrix, uncertainty_force
+from usv_mj.physics.ship import ShipParams, coriolis_matrix, damping_matrix, kinematics, mass_matrix, uncertainty_force
 
 S = np.diag([1.0, -1.0, -1.0])
 P = ShipParams().as_array()
@@ -42,8 +42,8 @@ def test_a_current_toward_north_moves_the_hull_north_in_the_record_the_log_and_f
     (compass 0 deg) drifts along +y (north) in the record, in the log's /usv/state and in Foxglove's
     map -> base_link transform; x does not change."""
     from usv_mj import simulate
-    from usv_mj.runlog import RunLogWriter
-    from usv_mj.runlog.reader import load_topic
+    from usv_mj.outputs.log import RunLogWriter
+    from usv_mj.outputs.log.reader import load_topic
 
     sc = drift_scenario(20.0, 0.5, 0.0)
     path = tmp_path / "north.mcap"

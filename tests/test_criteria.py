@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usv_mj.criteria import (FunnelCriterion, NotJudged, PathTolerance, PoseTolerance, criterion_from_dict,
+from usv_mj.record.criteria import (FunnelCriterion, NotJudged, PathTolerance, PoseTolerance, criterion_from_dict,
                              criterion_of, criterion_of_record)
-from usv_mj.errors import ScenarioError
-from usv_mj.record import RunRecord
+from usv_mj.core.errors import ScenarioError
+from usv_mj.record.run_record import RunRecord
 
 DT = 0.125  # s: a binary fraction, so that t = k DT and t / 8 are exact
 PAPER_WORDS = re.compile(r"funnel|rbf|weight norm|network weight", re.IGNORECASE)
@@ -234,7 +234,7 @@ def _no_paper_words(text: str, where: str):
 
 def test_run_and_plot_speak_in_the_controllers_criterion(tmp_path, pd_kind, capsys):
     from usv_mj import load_scenario, simulate, summarize
-    from usv_mj.cli import main
+    from usv_mj.cli.main import main
 
     scen = tmp_path / "pd.toml"
     scen.write_text(SCENARIO)
@@ -271,8 +271,8 @@ def test_run_and_plot_speak_in_the_controllers_criterion(tmp_path, pd_kind, caps
 
 
 def test_sweep_and_capability_use_the_criterion(tmp_path, pd_kind, scheduler, capsys):
-    from usv_mj.cli import main
-    from usv_mj.sweep.runner import read_results
+    from usv_mj.cli.main import main
+    from usv_mj.jobs.sweep.runner import read_results
 
     scen = tmp_path / "pd.toml"
     scen.write_text(SCENARIO)
@@ -316,8 +316,8 @@ def test_sweep_and_capability_use_the_criterion(tmp_path, pd_kind, scheduler, ca
 
 def test_paper_words_stay_for_the_paper_controller():
     """The funnel controller's outputs keep the paper's wording (the check above is not vacuous)."""
-    from usv_mj.figures import FIGURES, figure_titles
-    from usv_mj.summary import criterion_line
+    from usv_mj.outputs.figures import FIGURES, figure_titles
+    from usv_mj.record.summary import criterion_line
 
     assert figure_titles("funnel", True) == FIGURES
     assert "funnel" in figure_titles("funnel", True)["fig2_error_x.png"]
@@ -332,9 +332,9 @@ def test_paper_words_stay_for_the_paper_controller():
 def test_path_and_not_judged_outputs(tmp_path, pd_kind, criterion, monkeypatch):
     """The other two criteria through the summary, figures, report and a sweep row (in-process)."""
     from usv_mj import load_scenario, simulate, summarize
-    from usv_mj.figures import draw_figures
-    from usv_mj.report import write_report
-    from usv_mj.sweep.runner import run_one
+    from usv_mj.outputs.figures import draw_figures
+    from usv_mj.outputs.report import write_report
+    from usv_mj.jobs.sweep.runner import run_one
 
     scen = tmp_path / "pd.toml"
     scen.write_text(SCENARIO)
@@ -368,8 +368,8 @@ def test_path_and_not_judged_outputs(tmp_path, pd_kind, criterion, monkeypatch):
 
 
 def test_capability_refuses_a_controller_whose_runs_are_not_judged(tmp_path, pd_kind, monkeypatch):
-    from usv_mj.sweep import SweepError
-    from usv_mj.sweep.capability import run_capability
+    from usv_mj.jobs.sweep import SweepError
+    from usv_mj.jobs.sweep.capability import run_capability
 
     scen = tmp_path / "pd.toml"
     scen.write_text(SCENARIO)
@@ -382,7 +382,7 @@ def test_compare_judges_the_closed_loop_by_the_controllers_criterion(tmp_path, p
     """compare's closed loop with the PD law: both plants pass its pose tolerance (their difference is
     far below it), and compare.json's keys say the criterion, not the funnel."""
     from usv_mj import load_scenario
-    from usv_mj.compare import compare_closed_loop
+    from usv_mj.jobs.compare import compare_closed_loop
 
     scen = tmp_path / "pd.toml"
     scen.write_text(SCENARIO)
@@ -396,8 +396,8 @@ def test_compare_judges_the_closed_loop_by_the_controllers_criterion(tmp_path, p
 def test_video_hud_of_a_run_without_a_funnel_shows_pose_errors_and_no_funnel(tmp_path, pd_kind):
     """The video's planner and overlay (no OpenGL needed): pose errors in the HUD, no funnel legend entry."""
     from usv_mj import load_scenario, simulate
-    from usv_mj.render.overlay import draw_hud
-    from usv_mj.render.planner import plan_frames
+    from usv_mj.outputs.render.overlay import draw_hud
+    from usv_mj.outputs.render.planner import plan_frames
 
     scen = tmp_path / "pd.toml"
     scen.write_text(SCENARIO)

@@ -15,11 +15,11 @@ import math
 import numpy as np
 import pytest
 
-from usv_mj.scenario import ScenarioError, load_scenario
-from usv_mj.sea import Environment, SeaSettings, SeaSettingsError, sea_rk4_advance
-from usv_mj.sea.settings import compass_deg, going_to_deg
-from usv_mj.ship import PaperDisturbance, ShipParams
-from usv_mj.sweep.spec import apply_values
+from usv_mj.scenario.spec import ScenarioError, load_scenario
+from usv_mj.physics.sea import Environment, SeaSettings, SeaSettingsError, sea_rk4_advance
+from usv_mj.physics.sea.settings import compass_deg, going_to_deg
+from usv_mj.physics.ship import PaperDisturbance, ShipParams
+from usv_mj.jobs.sweep.spec import apply_values
 
 BARE = ShipParams(uncertainty_scale=0.0).as_array()   # the hull alone: no Delta
 NO_DIST = PaperDisturbance(scale=0.0).as_array()       # and no d(t)
@@ -158,7 +158,7 @@ def test_a_sweep_path_replaces_the_base_direction_in_either_spelling():
 
 
 def test_presets_keep_their_old_directions():
-    from usv_mj.sea import load_sea_preset
+    from usv_mj.physics.sea import load_sea_preset
 
     assert load_sea_preset("moderate").waves.direction_deg == 0.0       # toward +x, as before
     assert load_sea_preset("breeze").wind.direction_deg == 90.0         # toward +y

@@ -22,10 +22,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 class Program:
-    """``python -m usv_mj.cli ARGS`` with its stderr read line by line as it comes."""
+    """``python -m usv_mj.cli.main ARGS`` with its stderr read line by line as it comes."""
 
     def __init__(self, args, cwd):
-        self.proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", *args], cwd=ROOT if cwd is None else cwd,
+        self.proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", *args], cwd=ROOT if cwd is None else cwd,
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                      env=dict(os.environ, PYTHONPATH=str(ROOT)))
         self.lines: queue.Queue = queue.Queue()
@@ -127,8 +127,8 @@ def test_a_burst_of_signals_still_leaves_the_summary_and_the_report(tmp_path, ga
 
 def test_max_runs_submits_only_the_runs_it_runs(tmp_path, monkeypatch):
     """Before: every run of the sweep was submitted (60,000 for --max-runs 10)."""
-    from usv_mj.sweep import runner
-    from usv_mj.sweep.spec import load_sweep
+    from usv_mj.jobs.sweep import runner
+    from usv_mj.jobs.sweep.spec import load_sweep
 
     path = tmp_path / "s.toml"
     path.write_text('base = "paper"\nduration = 0.2\nplant = "analytic"\nsamples = 20\nseed = 3\n'
@@ -181,7 +181,7 @@ def test_a_damaged_numba_cache_is_rebuilt_with_one_warning_line(tmp_path):
 def test_duration_flag_is_applied_before_the_step_count_is_checked(tmp_path):
     """``--duration 0.05 --set control_period=1e-6``: 50,000 steps. Before: refused, "over 5e7 steps",
     checked on the preset's 300 s."""
-    from usv_mj.cli import main
+    from usv_mj.cli.main import main
 
     out = tmp_path / "o"
     assert main(["run", "--plant", "analytic", "--no-video", "--no-baseline", "-q", "--duration", "0.05",

@@ -11,7 +11,7 @@ from dm_env import test_utils
 
 from usv_mj import envs
 from usv_mj.plants.mujoco_plant import MuJoCoPlant
-from usv_mj.simulation import simulate
+from usv_mj.loop.simulate import simulate
 
 SHORT = {"duration": 0.5}  # 50 control steps of 0.01 s: conformance tests end episodes too
 
@@ -614,7 +614,7 @@ def test_ppc_policy_on_the_gymnasium_view_matches_the_dm_env():
 def test_gymnasium_render_shows_the_water():
     """render() with the project's renderer and GL choice: an RGB frame of the sea (blue), not black."""
     pytest.importorskip("gymnasium")
-    from usv_mj.render.gl_backend import GLUnavailableError, select_backend
+    from usv_mj.outputs.render.gl_backend import GLUnavailableError, select_backend
 
     try:
         select_backend()
@@ -677,7 +677,7 @@ def test_physics_render_shows_the_water_headless_without_mujoco_gl(tmp_path):
     from pathlib import Path
 
     pytest.importorskip("shimmy")
-    from usv_mj.render.gl_backend import GLUnavailableError, select_backend
+    from usv_mj.outputs.render.gl_backend import GLUnavailableError, select_backend
 
     try:
         select_backend()
@@ -687,7 +687,7 @@ def test_physics_render_shows_the_water_headless_without_mujoco_gl(tmp_path):
     proc = subprocess.run([sys.executable, "-c", _PHYSICS_RENDER, str(tmp_path)], env=env, capture_output=True,
                           text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    from usv_mj.render.replay import SEA_RGBA
+    from usv_mj.outputs.render.replay import SEA_RGBA
 
     frame = np.load(tmp_path / "physics.npy")
     assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
@@ -743,7 +743,7 @@ def test_closing_rendering_environments_in_sequence_prints_nothing_at_exit():
     import sys
 
     pytest.importorskip("gymnasium")
-    from usv_mj.render.gl_backend import GLUnavailableError, select_backend
+    from usv_mj.outputs.render.gl_backend import GLUnavailableError, select_backend
 
     try:
         select_backend()
@@ -759,7 +759,7 @@ def test_closing_rendering_environments_in_sequence_prints_nothing_at_exit():
 
 def test_the_exit_hook_frees_every_renderer_even_when_one_fails():
     """The at-exit hook goes on past a renderer whose close fails (a GL context already gone)."""
-    from usv_mj.render import replay
+    from usv_mj.outputs.render import replay
 
     closed = []
 
@@ -784,7 +784,7 @@ def test_the_exit_hook_frees_every_renderer_even_when_one_fails():
 
 def test_env_command_skips_the_video_with_none(tmp_path, capsys, monkeypatch):
     """`usv-mj env ... --video none` (the skip value its --help names) runs the episode and writes nothing."""
-    from usv_mj.cli import main
+    from usv_mj.cli.main import main
 
     monkeypatch.chdir(tmp_path)
     assert main(["env", "track", "--policy", "ppc", "--duration", "0.5", "--video", "none"]) == 0
@@ -798,7 +798,7 @@ def test_a_missing_gymnasium_is_named_with_its_pip_command(monkeypatch):
     import importlib
     import sys
 
-    from usv_mj.errors import MissingExtra
+    from usv_mj.core.errors import MissingExtra
 
     monkeypatch.setitem(sys.modules, "gymnasium", None)          # as if not installed
     monkeypatch.delitem(sys.modules, "usv_mj.envs.gymnasium_env", raising=False)

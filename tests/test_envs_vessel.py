@@ -4,7 +4,7 @@ policy model and pictures are the vessel's, as ``usv-mj run --vessel`` has them.
 Independent numbers: the Otter's data file (usv_mj/vessels/data/otter.toml: mass, x_g, I_z, the
 propellers' bollard pulls and separation) and models/usv.xml's hull (1.98 m x 0.76 m), worked
 through by hand here (the twin allocation's corners, the shaft-speed lag's closed form from rest);
-the closed loop of ``usv-mj run`` (``usv_mj.simulation.simulate``) for the same actions."""
+the closed loop of ``usv-mj run`` (``usv_mj.loop.simulate.simulate``) for the same actions."""
 
 from __future__ import annotations
 
@@ -103,7 +103,7 @@ def test_an_otter_episode_is_the_runs_closed_loop_for_the_same_actions():
     same actions through the same quantizer, twin allocation and shaft lag give the same states
     and thrusts as simulate() on a fresh plant (actions within each channel's bounds, often outside
     the twin's coupled set, and switching sign so the shafts reverse)."""
-    from usv_mj.simulation import simulate
+    from usv_mj.loop.simulate import simulate
 
     n = 150
     rng = np.random.RandomState(3)
@@ -158,10 +158,10 @@ def test_a_kvlcc2_episode_is_the_runs_allocated_closed_loop_for_the_same_actions
     """On the ruddered KVLCC2 the action (a force and a moment) is allocated to n_P and the rudder
     angle at the state, as a force controller's command in `usv-mj run --vessel kvlcc2`: the same
     actions give the same states and plant inputs as simulate() on a fresh plant; the bounds are
-    the forward model's reach at 1.179 m/s (usv_mj.mmg.mmg_forces at n_P = 23.7 1/s: the rudder
+    the forward model's reach at 1.179 m/s (usv_mj.physics.mmg.mmg_forces at n_P = 23.7 1/s: the rudder
     amidships for surge, hard over for yaw)."""
-    from usv_mj.mmg import mmg_forces
-    from usv_mj.simulation import simulate
+    from usv_mj.physics.mmg import mmg_forces
+    from usv_mj.loop.simulate import simulate
     from usv_mj.vessels.kvlcc2 import KVLCC2Options, pack
 
     q = np.array(pack(KVLCC2Options()))
@@ -210,7 +210,7 @@ def test_bad_vessels_are_refused_in_one_line():
 def test_env_command_takes_the_vessel_flag_of_run(capsys, tmp_path, monkeypatch):
     import argparse
 
-    from usv_mj.cli import build_parser, main
+    from usv_mj.cli.main import build_parser, main
 
     monkeypatch.chdir(tmp_path)
     assert main(["env", "track", "--vessel", "otter", "--duration", "0.2", "--video", "none",
@@ -221,7 +221,7 @@ def test_env_command_takes_the_vessel_flag_of_run(capsys, tmp_path, monkeypatch)
         assert main(["env", "track", *argv, "--duration", "0.2", "--video", "none"]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and err.startswith("usv-mj env: error:") and word in err, err
-    # the same flag as usv-mj run's: one definition (usv_mj.command_args.add_vessel_argument)
+    # the same flag as usv-mj run's: one definition (usv_mj.cli.args.add_vessel_argument)
     parser = build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     helps = [next(a.help for a in sub.choices[c]._actions if "--vessel" in a.option_strings) for c in ("run", "env")]
@@ -279,7 +279,7 @@ def test_a_physics_of_no_environment_draws_its_plants_hull():
     """USVPhysics.render of a bare physics (no environment: a pose on calm water) draws the hull
     its plant simulates: the same width in the chase view as the Otter environment's frame."""
     from usv_mj.builder import make_plant
-    from usv_mj.scenario import load_scenario
+    from usv_mj.scenario.spec import load_scenario
 
     env = envs.load("track", seed=0, vessel="otter", duration=0.5, start_offset=(0.0, 0.0, 0.0))
     try:

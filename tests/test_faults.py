@@ -14,13 +14,13 @@ from pathlib import Path
 
 import pytest
 
-from usv_mj.cli import main
+from usv_mj.cli.main import main
 
 FAST = ["run", "--plant", "analytic", "--no-video", "--no-baseline", "-q"]
 
 
 def cli(args, cwd, timeout=120, **kw):
-    return subprocess.run([sys.executable, "-m", "usv_mj.cli", *args], capture_output=True, text=True, cwd=cwd,
+    return subprocess.run([sys.executable, "-m", "usv_mj.cli.main", *args], capture_output=True, text=True, cwd=cwd,
                           timeout=timeout, **kw)
 
 
@@ -68,8 +68,8 @@ def test_render_worker_that_cannot_start_fails_the_render(tmp_path):
     code = (
         "import sys\n"
         "from usv_mj import load_scenario, simulate\n"
-        "from usv_mj.render import RenderWorkers, GLUnavailableError\n"
-        "from usv_mj.render.video import render_run\n"
+        "from usv_mj.outputs.render import RenderWorkers, GLUnavailableError\n"
+        "from usv_mj.outputs.render.video import render_run\n"
         "if __name__ == '__main__':\n"
         "    rec = simulate(load_scenario(overrides={'duration': 0.2, 'plant': {'kind': 'analytic'}}))\n"
         "    try:\n"
@@ -171,7 +171,7 @@ def test_killed_runs_staging_is_cleaned_up_by_the_next_run(tmp_path):
 def _start(tmp_path, *extra):
     env = dict(os.environ, PYTHONWARNINGS="default")
     # long enough (600 s on the MuJoCo plant, 10 s or more of wall time) that the signal lands inside the loop
-    return subprocess.Popen([sys.executable, "-m", "usv_mj.cli", *FAST, "--plant", "mujoco", "--duration", "600", *extra,
+    return subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", *FAST, "--plant", "mujoco", "--duration", "600", *extra,
                              "--out", str(tmp_path / "out")], cwd=tmp_path, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
 
@@ -179,7 +179,7 @@ def _start(tmp_path, *extra):
 def _wait_for_staging(tmp_path, proc, seconds=300):
     """Until the loop is running: the staging folder's log holds a complete chunk of rows (the run
     reports it by writing it), not a fixed time."""
-    from usv_mj.runlog.reader import RunLogReadError, scan_summary
+    from usv_mj.outputs.log.reader import RunLogReadError, scan_summary
 
     t0 = time.perf_counter()
     while time.perf_counter() - t0 < seconds:
@@ -209,7 +209,7 @@ def test_signal_during_the_run_is_recorded_everywhere(tmp_path, sig, name):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["status"] == "interrupted" and name in summary["stop_reason"]
     assert name in (tmp_path / "out" / "report.md").read_text()
-    from usv_mj.runlog import read_run
+    from usv_mj.outputs.log import read_run
 
     log = read_run(tmp_path / "out" / "run.mcap")
     assert log.complete and log.record.status == "interrupted"
@@ -217,7 +217,7 @@ def test_signal_during_the_run_is_recorded_everywhere(tmp_path, sig, name):
 
 
 def test_ctrl_c_after_the_simulation_leaves_a_truthful_summary(tmp_path, monkeypatch):
-    import usv_mj.main_job as mj
+    import usv_mj.jobs.run as mj
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
@@ -229,13 +229,13 @@ def test_ctrl_c_after_the_simulation_leaves_a_truthful_summary(tmp_path, monkeyp
     assert s["status"] == "completed" and "while drawing the figures" in s["job_stopped"]
     assert s["missing_outputs"] == ["figures/"]
     assert "job stopped early" in (out / "report.md").read_text()
-    from usv_mj.runlog import read_run
+    from usv_mj.outputs.log import read_run
 
     assert read_run(out / "run.mcap").complete and leftovers(tmp_path) == []
 
 
 def test_second_ctrl_c_ends_at_once_with_a_readable_log(tmp_path, monkeypatch):
-    import usv_mj.main_job as mj
+    import usv_mj.jobs.run as mj
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
@@ -244,7 +244,7 @@ def test_second_ctrl_c_ends_at_once_with_a_readable_log(tmp_path, monkeypatch):
     monkeypatch.setattr(mj, "write_report", interrupted)      # the second Ctrl-C, while the report is written
     out = tmp_path / "out"
     assert main([*FAST, "--duration", "0.5", "--out", str(out)]) == 1
-    from usv_mj.runlog import read_run
+    from usv_mj.outputs.log import read_run
 
     assert read_run(out / "run.mcap").complete
     assert json.loads((out / "summary.json").read_text())["job_stopped"]
@@ -321,7 +321,7 @@ def test_plot_of_a_bad_log_is_one_line(tmp_path, capsys, content):
 
 def test_crash_in_the_loop_is_one_line_recorded_with_a_traceback_file(tmp_path, capsys, monkeypatch):
     from usv_mj.controllers.ppc import PPCController, PPCGains
-    from usv_mj.registry import CONTROLLERS
+    from usv_mj.core.registry import CONTROLLERS
 
     class Crashing(PPCController):  # a user's controller in Python: the loop runs its __call__
         name = "crashing"
@@ -343,7 +343,7 @@ def test_crash_in_the_loop_is_one_line_recorded_with_a_traceback_file(tmp_path, 
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "failed" and "boom" in s["stop_reason"]
     assert "boom" in (out / "report.md").read_text()
-    from usv_mj.runlog import read_run
+    from usv_mj.outputs.log import read_run
 
     log = read_run(out / "run.mcap")
     assert log.record.status == "failed" and len(log.record) > 100
@@ -356,7 +356,7 @@ def test_the_summary_line_of_a_baseline_that_did_not_run():
     from pathlib import Path
 
     from usv_mj import load_scenario, simulate, summarize
-    from usv_mj.main_job import JobResult, one_screen_summary
+    from usv_mj.jobs.run import JobResult, one_screen_summary
 
     rec = simulate(load_scenario(preset="paper", overrides={"duration": 0.2, "plant": {"kind": "analytic"}}))
     summary = summarize(rec)

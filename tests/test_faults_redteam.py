@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from usv_mj.cli import main
+from usv_mj.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ["run", "--plant", "analytic", "--no-video", "--no-baseline", "-q", "--duration", "1"]
@@ -61,7 +61,7 @@ def test_outputs_that_cannot_be_made_are_refused_up_front(tmp_path, capsys):
 def test_out_the_current_folder_or_the_root_is_refused(tmp_path):
     (tmp_path / "keep.txt").write_text("mine")
     for out in (".", "/"):
-        proc = subprocess.run([sys.executable, "-m", "usv_mj.cli", *FAST, "--out", out, "--overwrite"],
+        proc = subprocess.run([sys.executable, "-m", "usv_mj.cli.main", *FAST, "--out", out, "--overwrite"],
                               cwd=tmp_path, capture_output=True, text=True, timeout=120)
         assert proc.returncode == 2 and "current folder, the root or a mount point" in proc.stderr, proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt"]
@@ -101,7 +101,7 @@ def test_bad_values_hidden_by_flags_or_too_large_are_bad_input(tmp_path, capsys,
 
 
 def test_a_second_run_into_the_same_out_while_one_runs_is_refused(tmp_path, capsys):
-    from usv_mj.main_job import _OutLock
+    from usv_mj.jobs.run import _OutLock
 
     out = tmp_path / "o"
     with _OutLock(out):                        # another job holds the folder
@@ -120,10 +120,10 @@ def _catches(pid: int, sig: int) -> bool:
 
 
 def test_sigterm_while_starting_up_exits_1_not_killed(tmp_path):
-    """SIGTERM as soon as the program handles it (usv_mj.cli's first lines, before the imports and
+    """SIGTERM as soon as the program handles it (usv_mj.cli.main's first lines, before the imports and
     long before run_job's handlers): exit 1, one line, nothing left. The run is long (600 s), so
     the signal always lands before it ends: one outcome (before: a fixed 0.6 s wait, and exit 0 or 1)."""
-    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", *FAST[:-1], "600", "--out", str(tmp_path / "o")],
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", *FAST[:-1], "600", "--out", str(tmp_path / "o")],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     while not _catches(proc.pid, signal.SIGTERM):

@@ -1,4 +1,4 @@
-"""KVLCC2 by the MMG standard method (usv_mj.mmg, usv_mj.vessels.kvlcc2) beside the ``shipmmg`` package.
+"""KVLCC2 by the MMG standard method (usv_mj.physics.mmg, usv_mj.vessels.kvlcc2) beside the ``shipmmg`` package.
 
 The oracle is shipmmg's ``simulate_mmg_3dof`` (a test extra; scipy's RK45 at tight tolerances) with
 the same KVLCC2 7 m parameters, in SI units throughout (rho = 1025 kg/m^3 for the masses and the
@@ -26,10 +26,10 @@ from shipmmg.mmg_3dof import (Mmg3DofBasicParams, Mmg3DofManeuveringParams, get_
                               simulate_mmg_3dof)
 
 from usv_mj import load_scenario
-from usv_mj.manoeuvres import turning_circle, zigzag
-from usv_mj.manoeuvres.imo import criteria
-from usv_mj.manoeuvres.measures import turning_measures, zigzag_measures
-from usv_mj.mmg import mmg_forces, mmg_terms
+from usv_mj.jobs.manoeuvres import turning_circle, zigzag
+from usv_mj.jobs.manoeuvres.imo import criteria
+from usv_mj.jobs.manoeuvres.measures import turning_measures, zigzag_measures
+from usv_mj.physics.mmg import mmg_forces, mmg_terms
 from usv_mj.vessels.kvlcc2 import KVLCC2Options, pack
 
 TIGHT = {"rtol": 1e-9, "atol": 1e-11, "max_step": 0.05}
@@ -198,7 +198,7 @@ def test_both_plants_accelerate_alike():
     from usv_mj.builder import make_plant
 
     s = load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "disturbance": {"scale": 0.0}})
-    from usv_mj.ship import PaperDisturbance, body_acceleration
+    from usv_mj.physics.ship import PaperDisturbance, body_acceleration
 
     nu = np.array([0.9, 0.1, -0.05])
     mj = make_plant(s, "mujoco", environment=None)
@@ -216,7 +216,7 @@ def test_spiral_steps_the_rudder_and_its_steady_turn_is_shipmmgs(scenario):
     """Dieudonné's spiral on the ruddered vessel steps the rudder angle (10 deg to port, 0, 10 deg to
     starboard and back): the first hold's steady yaw rate equals shipmmg's for the same rudder
     ramped to 10 deg to port (MMG frame: -10 deg) at the same n_P, to 1 %."""
-    from usv_mj.manoeuvres import spiral
+    from usv_mj.jobs.manoeuvres import spiral
 
     res = spiral(scenario, plant_kind="analytic", max_rudder_deg=10.0, steps=1, hold_s=120.0)
     assert res["status"] == "completed" and res["rudder"].startswith("rudder angle")
@@ -233,8 +233,8 @@ def test_spiral_steps_the_rudder_and_its_steady_turn_is_shipmmgs(scenario):
 
 
 def test_stopping_is_refused_on_the_ruddered_vessel(scenario):
-    from usv_mj.errors import ScenarioError
-    from usv_mj.manoeuvres.options import manoeuvre_from_table
+    from usv_mj.core.errors import ScenarioError
+    from usv_mj.jobs.manoeuvres.options import manoeuvre_from_table
 
     with pytest.raises(ScenarioError, match="not available on the ruddered vessel 'kvlcc2': the MMG standard "
                                             "method models the propeller ahead only"):
@@ -243,7 +243,7 @@ def test_stopping_is_refused_on_the_ruddered_vessel(scenario):
 
 
 def test_a_sea_is_refused_on_the_mmg_vessel():
-    from usv_mj.errors import ScenarioError
+    from usv_mj.core.errors import ScenarioError
 
     with pytest.raises(ScenarioError, match="calm deep water only"):
         load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "sea": {"preset": "moderate"}})
@@ -279,8 +279,8 @@ def test_both_plants_agree_open_loop():
 @pytest.mark.parametrize("plant", ["analytic", "mujoco"])
 def test_compiled_and_python_loops_give_the_same_record(plant):
     """The zig-zag (the heading switch, the rudder's rate limit, the MMG kernel) bit for bit in both loops."""
-    from usv_mj.manoeuvres.options import ManoeuvreSpec, ZigzagOptions, manoeuvre_scenario
-    from usv_mj.simulation import simulate
+    from usv_mj.jobs.manoeuvres.options import ManoeuvreSpec, ZigzagOptions, manoeuvre_scenario
+    from usv_mj.loop.simulate import simulate
 
     s = kvlcc2()
     spec = ManoeuvreSpec("zigzag", ZigzagOptions(approach_speed=1.179, duration=15.0, control_period=0.01))
@@ -294,11 +294,11 @@ def test_compiled_and_python_loops_give_the_same_record(plant):
 
 
 def test_a_force_controller_drives_the_ruddered_vessel_through_the_allocation():
-    """PPC's, PI's and LOS's (tau_u, tau_r) are allocated to (n_P, delta) (usv_mj.mmg.mmg_allocate);
+    """PPC's, PI's and LOS's (tau_u, tau_r) are allocated to (n_P, delta) (usv_mj.physics.mmg.mmg_allocate);
     the open-loop controller, whose channels are the vessel's own, is not allocated; a controller that
     commands a rudder is refused on a hull that takes forces."""
     from usv_mj.builder import build, check_commands
-    from usv_mj.errors import ScenarioError
+    from usv_mj.core.errors import ScenarioError
 
     s = load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "duration": 1.0})
     for kind in ("ppc", "pi", "los"):
@@ -326,7 +326,7 @@ def test_the_command_line_checks_vessel_keys_and_compare_runs_the_rudder(tmp_pat
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    run = lambda *a: subprocess.run([sys.executable, "-m", "usv_mj.cli", *a], cwd=tmp_path, capture_output=True,
+    run = lambda *a: subprocess.run([sys.executable, "-m", "usv_mj.cli.main", *a], cwd=tmp_path, capture_output=True,
                                     text=True, timeout=300, env={**__import__("os").environ, "PYTHONPATH": str(root)})
     bad = run("manoeuvre", "turning", "--vessel", "kvlcc2", "--set", "vessel.rudder_rate_deg_s=-1",
               "--out", str(tmp_path / "m"), "-q")
@@ -339,7 +339,7 @@ def test_the_command_line_checks_vessel_keys_and_compare_runs_the_rudder(tmp_pat
 
 
 def test_the_open_loop_signal_of_a_ruddered_vessel_is_the_force_signal_in_its_channels():
-    from usv_mj.compare import open_loop_inputs, vessel_inputs
+    from usv_mj.jobs.compare import open_loop_inputs, vessel_inputs
 
     s = kvlcc2()
     raw, ours = open_loop_inputs(20.0, 0.01), vessel_inputs(s, 20.0, 0.01)

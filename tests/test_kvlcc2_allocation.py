@@ -1,7 +1,7 @@
 """A force controller on the ruddered KVLCC2: the allocation of (tau_u, tau_r) to (n_P, delta).
 
-usv_mj.mmg.mmg_allocate inverts the MMG's propeller and rudder forces (closed form per channel, a
-secant on the rudder's drag). It is checked against the forward model it inverts (usv_mj.mmg.mmg_forces,
+usv_mj.physics.mmg.mmg_allocate inverts the MMG's propeller and rudder forces (closed form per channel, a
+secant on the rudder's drag). It is checked against the forward model it inverts (usv_mj.physics.mmg.mmg_forces,
 evaluated here at the allocated inputs), against the limits it must respect, and in closed loop:
 the LOS controller of examples/scenarios/kvlcc2_los_circle.toml holds the 40 m circle, whose
 steady yaw rate is U/R (kinematics), on both plants alike, and the compiled and the Python loop
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario
-from usv_mj.mmg import mmg_allocate, mmg_forces
-from usv_mj.simulation import simulate
+from usv_mj.physics.mmg import mmg_allocate, mmg_forces
+from usv_mj.loop.simulate import simulate
 from usv_mj.vessels.kvlcc2 import KVLCC2Options, pack
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -125,7 +125,7 @@ def test_the_video_says_what_the_channels_hold(circle_runs):
     """The record names what its columns carry (usv_mj.builder.channels_of): a force controller's
     run on KVLCC2 is "allocated" (tau in N, f in 1/s and rad), so the HUD's force bars get no
     rudder-angle ticks; the open-loop manoeuvre's is "rudder"; the paper hull's "forces"."""
-    from usv_mj.render.planner import plan_frames
+    from usv_mj.outputs.render.planner import plan_frames
 
     s, runs = circle_runs
     rec = runs["analytic"]
@@ -149,15 +149,15 @@ def test_the_steering_gear_stays_when_a_scenario_changes_one_actuator_key():
     s = load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "actuators": {"yaw_rate_nm_s": 0.2}})
     assert s.actuators.kind == "box" and s.actuators.yaw_rate_nm_s == 0.2
     assert s.actuators.max_yaw_nm == pytest.approx(DELTA_MAX) and s.actuators.max_surge_n == N_MAX
-    from usv_mj.errors import ScenarioError
+    from usv_mj.core.errors import ScenarioError
 
     with pytest.raises(ScenarioError, match="actuators.max_yaw_nm = 3.0 is the rudder's angle limit"):
         load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "actuators": {"max_yaw_nm": 3.0}})
 
 
 def test_bad_propeller_numbers_and_rudders_beyond_the_gear_are_refused():
-    from usv_mj.errors import ScenarioError
-    from usv_mj.manoeuvres import spiral
+    from usv_mj.core.errors import ScenarioError
+    from usv_mj.jobs.manoeuvres import spiral
 
     for key, value in (("k_0", 0.0), ("t_P", 1.0), ("w_P0", 1.0)):
         with pytest.raises(ScenarioError, match=f"vessel.{key} must be"):

@@ -4,7 +4,7 @@ The client is the `websockets` package speaking the protocol itself (subprotocol
 serverInfo and advertise as JSON text, a subscribe op, binary Message Data frames of opcode 1,
 subscription id u32, timestamp u64, payload); protobuf payloads are decoded from the advertised
 FileDescriptorSet, JSON payloads as JSON, and the values compared with the run's own record (its
-run.mcap, read by usv_mj.runlog.read_run). Loopback only; every wait is for a condition, bounded.
+run.mcap, read by usv_mj.outputs.log.read_run). Loopback only; every wait is for a condition, bounded.
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ def _wait_for_url(proc, lines: list) -> int:
 
 def test_run_live_serves_the_record(tmp_path):
     out = tmp_path / "run"
-    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "run", "--live", "--live-port", "0", "--duration", "5",
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", "run", "--live", "--live-port", "0", "--duration", "5",
                              "--plant", "analytic", "--no-video", "--no-baseline", "-q", "--out", str(out)],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     lines: list = []
@@ -111,7 +111,7 @@ def test_run_live_serves_the_record(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
-    from usv_mj.runlog import read_run
+    from usv_mj.outputs.log import read_run
 
     record = read_run(out / "run.mcap").record
     t = record["t"]
@@ -146,7 +146,7 @@ def test_missing_sdk_is_one_line(tmp_path):
     stub.mkdir()
     (stub / "foxglove.py").write_text("raise ImportError('hidden for the test')\n")
     env = dict(os.environ, PYTHONPATH=f"{stub}{os.pathsep}{ROOT}")
-    res = subprocess.run([sys.executable, "-m", "usv_mj.cli", "run", "--live", "--duration", "1", "--no-video",
+    res = subprocess.run([sys.executable, "-m", "usv_mj.cli.main", "run", "--live", "--duration", "1", "--no-video",
                           "--out", str(tmp_path / "r")], cwd=ROOT, env=env, capture_output=True, text=True,
                          timeout=TIMEOUT_S)
     assert res.returncode == 2
@@ -159,12 +159,12 @@ def test_render_live_replays_a_log(tmp_path, speed):
     """`usv-mj render RUN.mcap --live`: the log's messages again, the same values; at --speed X
     the 2 s of the log take 2 / X s of wall time."""
     from usv_mj import load_scenario, simulate
-    from usv_mj.runlog import RunLogWriter
+    from usv_mj.outputs.log import RunLogWriter
 
     scenario = load_scenario(overrides={"duration": 2.0, "plant": {"kind": "analytic"}})
     with RunLogWriter(tmp_path / "run.mcap", scenario, background=False) as writer:
         record = simulate(scenario, sinks=[writer.sink("main")])
-    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "render", str(tmp_path / "run.mcap"), "--live",
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", "render", str(tmp_path / "run.mcap"), "--live",
                              "--live-port", "0"] + (["--speed", str(speed)] if speed else []), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     lines: list = []
     try:
@@ -183,7 +183,7 @@ def test_render_live_replays_a_log(tmp_path, speed):
 
 def test_env_live_serves_each_episode(tmp_path):
     """`usv-mj env track --live`: the episode's rows as the run log's topics, the frames consistent with them."""
-    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "env", "track", "--policy", "ppc", "--duration", "3",
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", "env", "track", "--policy", "ppc", "--duration", "3",
                              "--video", "none", "--live", "--live-port", "0"], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     lines: list = []

@@ -5,9 +5,9 @@ from __future__ import annotations
 import json
 import re
 
-from usv_mj.record import COLUMNS
-from usv_mj.runlog.live import layout_path
-from usv_mj.runlog.topics import frame_for, row_topics
+from usv_mj.record.run_record import COLUMNS
+from usv_mj.outputs.log.live import layout_path
+from usv_mj.outputs.log.topics import frame_for, row_topics
 
 
 def test_layout_paths_exist_in_the_log():

@@ -19,9 +19,10 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
-from usv_mj.runlog import RunLogReadError, RunLogWriter, add_inspect_arguments, inspect_command, read_run
-from usv_mj.scenario import load_scenario
-from usv_mj.simulation import simulate
+from usv_mj.outputs.log import RunLogReadError, RunLogWriter, read_run
+from usv_mj.cli.inspect import add_inspect_arguments, inspect_command
+from usv_mj.scenario.spec import load_scenario
+from usv_mj.loop.simulate import simulate
 
 DURATION = 3.0
 
@@ -168,7 +169,7 @@ def _cut_copy(folder, path, which: str, fraction: float = 0.5):
 @pytest.mark.parametrize("which", ["run.mcap", "baseline.mcap"])
 def test_plot_of_a_cut_log_says_so(logged, tmp_path, capsys, which):
     """Before: figures and a report that do not say the log (or only its baseline) is cut."""
-    from usv_mj import cli
+    from usv_mj.cli import main as cli
 
     path, main, base = logged
     run = _cut_copy(tmp_path / "c", path, which)
@@ -227,7 +228,7 @@ def test_fuzz_cuts_and_flips_give_a_flagged_correct_prefix_or_one_line_of_error(
 
 def test_render_reads_the_notice_of_a_cut_log(logged, tmp_path, capsys):
     """``usv-mj render`` prints the notice before drawing (its log is read by load_run_log)."""
-    from usv_mj.render.video import load_run_log, run_command
+    from usv_mj.outputs.render.video import load_run_log, run_command
 
     path, main, _ = logged
     run = _cut_copy(tmp_path / "c", path, "run.mcap")
@@ -235,7 +236,7 @@ def test_render_reads_the_notice_of_a_cut_log(logged, tmp_path, capsys):
     assert mcap == run and "run.mcap: cut short" in log.notice
     import argparse
 
-    from usv_mj.render import add_arguments
+    from usv_mj.outputs.render import add_arguments
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)

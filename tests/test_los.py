@@ -11,8 +11,8 @@ import pytest
 
 from usv_mj import load_scenario, simulate
 from usv_mj.builder import make_controller
-from usv_mj.cli import main
-from usv_mj.errors import ScenarioError
+from usv_mj.cli.main import main
+from usv_mj.core.errors import ScenarioError
 
 DELTA = 3.0
 

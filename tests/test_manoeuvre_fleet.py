@@ -12,12 +12,12 @@ import math
 import numpy as np
 import pytest
 
-from usv_mj.cli import main
+from usv_mj.cli.main import main
 
 
 def test_defaults_are_the_paper_test_froude_scaled_or_the_vessels_own():
     from usv_mj import load_scenario
-    from usv_mj.manoeuvres.options import KINDS, vessel_defaults
+    from usv_mj.jobs.manoeuvres.options import KINDS, vessel_defaults
 
     g, rho = 9.81, 1025.0
     paper = load_scenario(preset="paper")
@@ -76,7 +76,7 @@ def test_fleet_command_writes_every_vessel_and_the_combined_outputs(tmp_path, ca
 def test_course_frame_of_a_circle():
     """A circle of radius R turned to starboard from heading 30 deg: at 90 deg of heading change the
     course-frame position is (advance, transfer) = (R, R); at 180 deg (0, 2R)."""
-    from usv_mj.manoeuvres.fleet import course_frame
+    from usv_mj.jobs.manoeuvres.fleet import course_frame
 
     R, psi0 = 3.0, math.radians(30.0)
     a = np.linspace(0.0, math.pi, 181)                       # heading change, to starboard
@@ -90,7 +90,7 @@ def test_course_frame_of_a_circle():
 def test_vessel_length_from_a_records_metadata():
     """usv-mj plot reads L from a run's metadata: to_dict writes [ship] beside every vessel."""
     from usv_mj import load_scenario
-    from usv_mj.manoeuvres import vessel_length
+    from usv_mj.jobs.manoeuvres import vessel_length
 
     for kind, L in (("otter", 2.0), ("cybership2", 1.255), ("paper", 1.98)):
         assert vessel_length(load_scenario(preset="paper", overrides={"vessel": {"kind": kind}}).to_dict()) == L
@@ -103,8 +103,8 @@ def test_otter_turn_beside_the_references_own_simulation():
     2.433 m/s, 0.2880 rad/s; docs/vessels.md). The 3 DOF leave out heel, trim and heave; what they
     give stays within 2.5 % in diameter, 4 % in speed and 6 % in yaw rate of the reference."""
     from usv_mj import load_scenario
-    from usv_mj.manoeuvres.measures import fit_circle
-    from usv_mj.simulation import simulate
+    from usv_mj.jobs.manoeuvres.measures import fit_circle
+    from usv_mj.loop.simulate import simulate
 
     k = 0.02216 / 2
     t1, t2 = k * 80.0 ** 2, 0.5 * 24.4 * 9.81                  # the right shaft at n_max: bollard pull
@@ -124,7 +124,7 @@ def test_otter_turn_beside_the_references_own_simulation():
 
 
 def test_a_ruddered_vessels_rudder_is_its_angle_not_the_unused_moment():
-    from usv_mj.manoeuvres.fleet import rudder_label
+    from usv_mj.jobs.manoeuvres.fleet import rudder_label
 
     o = {"rudder_deg": 35.0, "angle_deg": 10.0, "yaw_moment": 10.0, "side": "starboard", "first_turn": "port"}
     assert rudder_label({"kind": "turning", "rudder": "rudder angle delta [rad] ...", "options": o}) == \

@@ -1,4 +1,4 @@
-"""The standard manoeuvres (usv_mj.manoeuvres): their measures against closed forms and high-accuracy
+"""The standard manoeuvres (usv_mj.jobs.manoeuvres): their measures against closed forms and high-accuracy
 integrations of independent models, the IMO limits as the resolution states them, and one short run
 per manoeuvre through `usv-mj manoeuvre` on the analytic plant."""
 
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from usv_mj.cli import main
-from usv_mj.errors import ScenarioError
-from usv_mj.manoeuvres import imo
-from usv_mj.manoeuvres.measures import spiral_measures, stopping_measures, turning_measures, zigzag_measures
+from usv_mj.cli.main import main
+from usv_mj.core.errors import ScenarioError
+from usv_mj.jobs.manoeuvres import imo
+from usv_mj.jobs.manoeuvres.measures import spiral_measures, stopping_measures, turning_measures, zigzag_measures
 
 
 # --- turning circle: an exact circular arc --------------------------------------------------------
@@ -207,7 +207,7 @@ def test_manoeuvre_table_is_validated():
 def test_approach_force_holds_the_approach_speed():
     """The paper's hull: d11(U) U (docs/model.md §1, the closed form), with Delta's 0.6 N when it is on."""
     from usv_mj import load_scenario
-    from usv_mj.manoeuvres.options import approach_force
+    from usv_mj.jobs.manoeuvres.options import approach_force
 
     U = 0.6
     d11 = 45.6 + 67.26 * U + 10.0 * U * U
@@ -255,7 +255,7 @@ def test_cli_manoeuvre_bad_input_is_one_line(tmp_path, capsys):
     assert main(["manoeuvre", "turning", "--set", "manoeuvre.side=left", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("usv-mj manoeuvre: error:") and "manoeuvre.side" in err and len(err.splitlines()) == 1
-    from usv_mj.scenario import Scenario
+    from usv_mj.scenario.spec import Scenario
 
     if "vessel" not in Scenario.__dataclass_fields__:
         assert main(["manoeuvre", "turning", "--vessel", "otter", "--out", str(tmp_path / "y")]) == 2
@@ -267,7 +267,7 @@ def test_turning_circle_from_the_api_agrees_on_both_plants():
     independent number): the measures within 1e-9 m (they differ by about 2e-11 m, as compare's open
     loop does), and the tactical diameter found at all."""
     from usv_mj import load_scenario
-    from usv_mj.manoeuvres import turning_circle
+    from usv_mj.jobs.manoeuvres import turning_circle
 
     scenario = load_scenario(preset="paper")
     a = turning_circle(scenario, plant_kind="analytic", duration=12.0)
@@ -285,7 +285,7 @@ def test_paper_hull_spiral_has_its_loop_above_0_2_m_s_only():
     with no yaw moment, in a steady turn of 0.376 rad/s. So its spiral at 0.6 m/s keeps that turn
     to the side it came from at zero command (the loop), and at 0.15 m/s it has no loop."""
     from usv_mj import load_scenario
-    from usv_mj.manoeuvres import spiral
+    from usv_mj.jobs.manoeuvres import spiral
 
     scenario = load_scenario(preset="paper")
     fast = spiral(scenario, plant_kind="analytic", approach_speed=0.6, steps=1, hold_s=30.0)["measures"]
@@ -301,7 +301,7 @@ def test_a_rudder_beyond_the_twin_thrusters_is_said():
     """paper-limited's twin thrusters give at most 0.395 m x (119.7 + 66.7) N = 73.6 N m of yaw: a
     "rudder" of 100 N m is cut from the execute on (15 of the 20 s), one of 50 N m is not."""
     from usv_mj import load_scenario
-    from usv_mj.manoeuvres import turning_circle
+    from usv_mj.jobs.manoeuvres import turning_circle
 
     limited = load_scenario(preset="paper-limited")
     cut = turning_circle(limited, plant_kind="analytic", duration=20.0, yaw_moment=100.0)["saturated_fraction"]
@@ -311,8 +311,8 @@ def test_a_rudder_beyond_the_twin_thrusters_is_said():
 
 
 def test_the_api_names_a_wrong_argument():
-    from usv_mj.errors import ArgumentTypeError
-    from usv_mj.manoeuvres import run_manoeuvre, turning_circle, zigzag
+    from usv_mj.core.errors import ArgumentTypeError
+    from usv_mj.jobs.manoeuvres import run_manoeuvre, turning_circle, zigzag
 
     with pytest.raises(ArgumentTypeError, match=r"^turning_circle: scenario must be a Scenario .* got NoneType$"):
         turning_circle(None)

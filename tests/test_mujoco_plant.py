@@ -1,6 +1,6 @@
 """The MuJoCo plant is the paper's ship (SPEC §1, issue 3).
 
-References: the analytic M^-1(tau + d + Delta - C nu - D nu) of usv_mj.ship (Eq. 2), closed-form
+References: the analytic M^-1(tau + d + Delta - C nu - D nu) of usv_mj.physics.ship (Eq. 2), closed-form
 initial accelerations from the printed masses, and the analytic RK4 plant driven with the same
 inputs.
 """
@@ -16,7 +16,7 @@ import pytest
 from usv_mj.plants import mujoco_callback as mcb
 from usv_mj.plants.analytic import AnalyticPlant
 from usv_mj.plants.mujoco_plant import MuJoCoPlant, installed_callback
-from usv_mj.ship import PaperDisturbance, RigidBodySplit, ShipParams, body_acceleration
+from usv_mj.physics.ship import PaperDisturbance, RigidBodySplit, ShipParams, body_acceleration
 
 SHIP = ShipParams()
 DIST = PaperDisturbance(scale=1e-3)  # ten times the paper preset: d(t) clearly matters

@@ -1,4 +1,4 @@
-"""The package's kernels are recompiled when any of its source files changes (usv_mj.numba_cache).
+"""The package's kernels are recompiled when any of its source files changes (usv_mj.support.numba_cache).
 
 numba keys a cached kernel on its own file only; a kernel that inlines another module's constants
 (the callback's offsets from ship.py's packed layout) would load stale from __pycache__ after a
@@ -12,7 +12,7 @@ import os
 from numba.core import caching
 
 import usv_mj  # noqa: F401  (installs the guard)
-from usv_mj import numba_cache
+from usv_mj.support import numba_cache
 
 
 def _stamp_of(fn):
@@ -23,7 +23,7 @@ def _stamp_of(fn):
 
 def test_a_package_kernel_is_stamped_with_every_source_file_of_the_package():
     from usv_mj.plants.mujoco_callback import mujoco_kernel  # noqa: F401  (a kernel that reads ship.py's layout)
-    from usv_mj.ship import hull_terms
+    from usv_mj.physics.ship import hull_terms
 
     stamp = _stamp_of(hull_terms)
     assert isinstance(stamp, tuple) and stamp[1] == numba_cache.package_stamp()

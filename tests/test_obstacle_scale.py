@@ -17,12 +17,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from usv_mj.obstacle_tables import from_tables
+from usv_mj.scenario.obstacles import from_tables
 from usv_mj.obstacles import clearance as clearance_mod
 from usv_mj.obstacles.broad_phase import StandingGrid, grid_candidates
 from usv_mj.obstacles.clearance import GeometricClearance, MuJoCoClearance
-from usv_mj.scenario import load_scenario
-from usv_mj.simulation import simulate
+from usv_mj.scenario.spec import load_scenario
+from usv_mj.loop.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -171,8 +171,8 @@ def test_a_run_with_the_broad_phase_keeps_the_minimum_its_obstacle_near_misses_a
         assert np.array_equal(b[measured], e[measured]) and (e[~measured] > REACH).all()
         assert rec.metadata["obstacles"]["beyond_reach_m"] == REACH
         assert np.isnan(b).any()                                             # some were beyond reach
-    from usv_mj.report import write_report
-    from usv_mj.summary import summarize
+    from usv_mj.outputs.report import write_report
+    from usv_mj.record.summary import summarize
 
     summary = summarize(runs["auto"])
     assert summary["beyond_reach_m"] == REACH and summarize(every)["beyond_reach_m"] is None
@@ -243,7 +243,7 @@ def test_the_obstacle_log_streams_with_the_record_and_its_memory_does_not_grow(l
 
 
 def _stored_run(tmp_path, rows=120_001, dt=0.01, name="rec"):
-    from usv_mj.record import RunRecord
+    from usv_mj.record.run_record import RunRecord
 
     t = np.arange(rows) * dt
     cols = {"t": t, "x": 0.5 * t, "y": np.sin(0.01 * t), "psi": 0.1 + 0.0 * t, "x_d": 0.5 * t + 1.0,
@@ -255,8 +255,8 @@ def _stored_run(tmp_path, rows=120_001, dt=0.01, name="rec"):
 
 
 def test_the_video_of_a_stored_run_reads_only_the_rows_it_draws(tmp_path, monkeypatch):
-    from usv_mj import record_store
-    from usv_mj.render.planner import plan_frames
+    from usv_mj.record import store as record_store
+    from usv_mj.outputs.render.planner import plan_frames
 
     mem, disk = _stored_run(tmp_path)
     reads = []
@@ -291,7 +291,7 @@ def test_the_video_of_a_stored_run_reads_only_the_rows_it_draws(tmp_path, monkey
 def test_a_streamed_obstacle_log_goes_to_the_run_log_as_an_in_memory_one_does(tmp_path):
     """The MCAP obstacle topic of a streamed run (its rows read from the log's window and files)
     is bit for bit the in-memory run's, NaN beyond reach included."""
-    from usv_mj.runlog import RunLogWriter, read_run
+    from usv_mj.outputs.log import RunLogWriter, read_run
 
     sc = _harbour(tmp_path, duration=2.0, plant={"kind": "analytic"})
     topics = []
@@ -338,8 +338,8 @@ def test_render_takes_a_long_runs_stored_record_lazily(tmp_path):
     """``usv-mj render RUN`` of a run directory that kept ``record/`` reads that record lazily (the
     MCAP would be read whole), and a streamed harbour run's record.json carries the obstacle summary
     the video's world needs."""
-    from usv_mj.record import RunRecord
-    from usv_mj.render.video import stored_record
+    from usv_mj.record.run_record import RunRecord
+    from usv_mj.outputs.render.video import stored_record
 
     _stored_run(tmp_path / "run", rows=1001, name="record")
     found = stored_record(tmp_path / "run")

@@ -3,8 +3,8 @@
 References: closed-form distances between the hull's collision shapes and circles/boxes; shapely's
 polygon distances (an independent geometry library) for the numba kernels and the planner;
 MuJoCo's own mj_geomDistance against the geometric kernels; static equilibrium (contact normal
-force = thrust + the hull's hydrodynamic force at rest from usv_mj.ship); the safety bound
-clearance >= dist(p_d, O) - G(t) of usv_mj.obstacles.planner checked row by row with MuJoCo's
+force = thrust + the hull's hydrodynamic force at rest from usv_mj.physics.ship); the safety bound
+clearance >= dist(p_d, O) - G(t) of usv_mj.references.planner checked row by row with MuJoCo's
 distances in closed loop.
 """
 
@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 import shapely
 
-from usv_mj.obstacle_tables import from_tables
+from usv_mj.scenario.obstacles import from_tables
 from usv_mj.obstacles import (HULL_RADIUS, GeometricClearance, HarbourPlant, MuJoCoClearance, PlanningError,
                               SafetyEnvelope, compose_scene, make_plan)
-from usv_mj.obstacles.planner import obstacle_distances
-from usv_mj.scenario import ScenarioError, load_scenario
-from usv_mj.ship import PaperDisturbance, ShipParams, hydrodynamic_force
+from usv_mj.references.planner import obstacle_distances
+from usv_mj.scenario.spec import ScenarioError, load_scenario
+from usv_mj.physics.ship import PaperDisturbance, ShipParams, hydrodynamic_force
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "examples" / "scenarios"
 SHIP = ShipParams()
@@ -34,7 +34,7 @@ def _run_through_build(scenario, **kwargs):
     """A run of an obstacle scenario through usv_mj.build / simulate: the record and its statics."""
     from types import SimpleNamespace
 
-    from usv_mj.simulation import simulate
+    from usv_mj.loop.simulate import simulate
 
     record = simulate(scenario, **kwargs)
     return SimpleNamespace(record=record, log=record.statics.obstacle_log, plan=record.statics.plan,
@@ -106,7 +106,7 @@ def test_composed_model_has_contacts_and_hull_collision_geoms_following_the_visu
 
 def test_contact_holds_the_hull_against_a_pier_in_static_equilibrium():
     """Constant thrust F into a pier: the hull stops at the face and the contact normal force equals
-    F plus the hull's hydrodynamic surge force at rest (usv_mj.ship), i.e. Newton at rest."""
+    F plus the hull's hydrodynamic surge force at rest (usv_mj.physics.ship), i.e. Newton at rest."""
     pier = from_tables([{"kind": "box", "center": [8, 0], "size": [2, 6]}])
     force = 100.0
     with HarbourPlant(SHIP, CALM, pier) as plant:
@@ -127,7 +127,7 @@ def test_contact_holds_the_hull_against_a_pier_in_static_equilibrium():
 
 def test_side_impact_impulse_changes_the_momentum_of_the_full_mass_including_added_mass():
     """A hull drifting sideways at 0.5 m/s into a wall: the contact impulse plus the hydrodynamic
-    impulse (usv_mj.ship) equals M (nu_1 - nu_0) with the paper's full M (m22 = 191.75 kg, of which
+    impulse (usv_mj.physics.ship) equals M (nu_1 - nu_0) with the paper's full M (m22 = 191.75 kg, of which
     the callback carries the added mass); a solver that saw only MuJoCo's rigid 141.85 kg would be
     26 % off."""
     wall = from_tables([{"kind": "box", "center": [0.0, 3.0], "size": [10.0, 2.0]}])   # face at y = 2
@@ -491,7 +491,7 @@ def test_head_on_boat_gets_a_starboard_detour_that_keeps_clear():
 
 @pytest.mark.parametrize("case", ["detour", "retiming"])
 def test_guided_kernel_is_evaluate_bit_for_bit_after_the_guidance_changed_the_reference(case):
-    """GuidedReference.kernel (its evaluate natively, usv_mj.kernels) on a reference the guidance
+    """GuidedReference.kernel (its evaluate natively, usv_mj.core.kernels) on a reference the guidance
     changed during the run (a head-on boat: a switched path; the crossing boat: a re-timed speed
     profile): the same 7 numbers as evaluate at every 0.01 s, before the start and past the path's
     end included; kernel_key says when a kernel's snapshot is stale."""

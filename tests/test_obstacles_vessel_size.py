@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario
-from usv_mj.obstacle_tables import from_tables
+from usv_mj.scenario.obstacles import from_tables
 from usv_mj.obstacles import GeometricClearance, HarbourPlant, MuJoCoClearance
-from usv_mj.obstacles.compose import HULL_RADIUS, vessel_collision_geoms, vessel_hull_radius
+from usv_mj.scene.compose import HULL_RADIUS, vessel_collision_geoms, vessel_hull_radius
 
 
 def test_scaled_hull_closed_forms_on_both_plants():
@@ -46,7 +46,7 @@ def test_scaled_hull_closed_forms_on_both_plants():
 
 
 def test_the_planner_keeps_the_vessels_own_distance():
-    from usv_mj.obstacles.planner import SafetyEnvelope
+    from usv_mj.references.planner import SafetyEnvelope
 
     for kind in ("paper", "otter", "cybership2"):
         s = load_scenario(preset="paper", overrides={"vessel": {"kind": kind}})

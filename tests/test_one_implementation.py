@@ -1,4 +1,4 @@
-"""One implementation per part (issue 24 item 3, usv_mj.kernels): a kernel runs only for its own class.
+"""One implementation per part (issue 24 item 3, usv_mj.core.kernels): a kernel runs only for its own class.
 
 For every built-in part with a kernel (every kind of every registry, built as a run builds it,
 and the quantizer, the actuators and the obstacles' hook of those runs), a subclass overriding one
@@ -20,9 +20,9 @@ import numpy as np
 import pytest
 
 from usv_mj import build, load_scenario, simulate
-from usv_mj.kernels import kernel_blocker, kernel_of
-from usv_mj.record import COL
-from usv_mj.registry import CONTROLLERS, PLANTS, TRAJECTORIES
+from usv_mj.core.kernels import kernel_blocker, kernel_of
+from usv_mj.record.run_record import COL
+from usv_mj.core.registry import CONTROLLERS, PLANTS, TRAJECTORIES
 
 from test_compiled_loop import assert_same_run
 
@@ -30,7 +30,7 @@ EPS = 1e-3
 DURATION = 0.25
 BLOCK = 97
 SCENARIOS = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
-#: the methods a subclass may define and keep the kernel (usv_mj.kernels): not overridden here
+#: the methods a subclass may define and keep the kernel (usv_mj.core.kernels): not overridden here
 NOT_OVERRIDDEN = {"kernel", "from_scenario", "from_spec", "__init__"}
 
 

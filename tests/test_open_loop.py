@@ -11,8 +11,8 @@ import pytest
 
 from usv_mj import load_scenario, simulate
 from usv_mj.builder import make_controller
-from usv_mj.errors import ScenarioError
-from usv_mj.ship import ShipParams, sway_yaw_linearization
+from usv_mj.core.errors import ScenarioError
+from usv_mj.physics.ship import ShipParams, sway_yaw_linearization
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -10,7 +10,7 @@ a run without a baseline has no baseline column and no placeholder.
 import json
 import re
 
-from usv_mj.cli import main
+from usv_mj.cli.main import main
 
 SEA = {"sea.waves.hs": 0.2, "sea.waves.tp": 2.0, "sea.waves.from_deg": 250.0, "sea.waves.components": 16,
        "sea.current.speed": 0.3, "sea.current.toward_deg": 60.0, "sea.wind.speed": 5.0, "sea.wind.from_deg": 200.0}

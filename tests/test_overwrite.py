@@ -1,4 +1,4 @@
-"""Issue 23: --overwrite replaces only what a usv_mj command wrote (usv_mj/outdir.py).
+"""Issue 23: --overwrite replaces only what a usv_mj command wrote (usv_mj/outputs/outdir.py).
 
 Every command with an output path and --overwrite (run, compare, plot, sweep, capability: a folder;
 render, env: a video file) is pointed at a folder of the user's own files (plain files, some with
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from usv_mj.cli import main
+from usv_mj.cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
 RUN = ["run", "--duration", "0.2", "--plant", "analytic", "--no-video", "--no-baseline", "-q"]

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 import shapely
 
-from usv_mj.obstacle_tables import from_tables
-from usv_mj.obstacles.planner import _merged_obstacles, visibility_path
+from usv_mj.scenario.obstacles import from_tables
+from usv_mj.references.planner import _merged_obstacles, visibility_path
 
 
 def _circles(count, seed, half, keep_out=((0.0, 0.0), (45.0, 0.0)), clear=8.0):
@@ -82,9 +82,9 @@ def test_a_path_through_300_circles_keeps_clear_of_every_grown_circle():
 
 
 def test_a_job_plans_once_and_the_half_step_check_runs_the_main_plan(monkeypatch, tmp_path):
-    from usv_mj.main_job import run_job
-    from usv_mj.obstacles import planner
-    from usv_mj.scenario import load_scenario
+    from usv_mj.jobs.run import run_job
+    from usv_mj.references import planner
+    from usv_mj.scenario.spec import load_scenario
 
     calls = []
     real = planner.plan_reference
@@ -111,7 +111,7 @@ def test_ctrl_c_stops_planning_at_once(tmp_path):
         import numpy as np
         sys.path.insert(0, "tests")
         from test_planning_scale import _circles
-        from usv_mj.obstacles.planner import _merged_obstacles, visibility_path
+        from usv_mj.references.planner import _merged_obstacles, visibility_path
         obstacles = _circles(1000, 2, 0.5 * math.sqrt(1000 * 60.0))
         polygons = _merged_obstacles(obstacles, np.full(len(obstacles), 2.0))
         visibility_path((0.0, 0.0), (45.0, 0.0), polygons)

@@ -3,10 +3,10 @@
 import hashlib
 
 from usv_mj import load_scenario
-from usv_mj.cli import main
-from usv_mj.figures import draw_figures
-from usv_mj.main_job import run_job
-from usv_mj.runlog import read_run
+from usv_mj.cli.main import main
+from usv_mj.outputs.figures import draw_figures
+from usv_mj.jobs.run import run_job
+from usv_mj.outputs.log import read_run
 
 
 def digest(path):

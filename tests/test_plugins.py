@@ -56,7 +56,7 @@ lane_spacing = {SPACING}
 
 def _cli(args, cwd, pythonpath, timeout=600):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(map(str, pythonpath))}
-    return subprocess.run([sys.executable, "-m", "usv_mj.cli", *args], cwd=cwd, env=env, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "usv_mj.cli.main", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=timeout)
 
 
@@ -86,7 +86,7 @@ def _assert_lawnmower(t, x_d, y_d, psi_d):
 
 
 def _read_record(path: Path):
-    from usv_mj.runlog import read_run
+    from usv_mj.outputs.log import read_run
 
     return read_run(path).record
 
@@ -185,7 +185,7 @@ def test_usv_mj_kinds_lists_the_installed_plugin_with_its_options(installed, tmp
     table = json.loads(done.stdout)
     assert set(table) == {"controller", "trajectory", "plant", "disturbance", "vessel"}
     rows = {r["kind"]: r for r in table["trajectory"]["kinds"]}
-    assert rows["lawnmower"]["source"] == "entry point usv_mj.trajectories (dist usv-mj-example-plugin 0.1.0)"
+    assert rows["lawnmower"]["source"] == "entry point usv_mj.references.trajectories (dist usv-mj-example-plugin 0.1.0)"
     options = {o["name"]: o for o in rows["lawnmower"]["options"]}
     assert options["lane_length"] == {"name": "lane_length", "type": "float", "default": 30.0, "unit": "m"}
     assert rows["paper"]["source"] == "built-in" and rows["circle"]["options"][2]["name"] == "radius"
@@ -207,7 +207,7 @@ def _one_line(text: str) -> str:
 
 
 def test_a_bad_module_path_or_a_failing_import_is_one_line_and_exit_2(tmp_path, capsys):
-    from usv_mj.cli import main
+    from usv_mj.cli.main import main
 
     (tmp_path / "broken_law.py").write_text("raise RuntimeError('the plug-in is broken')\n")
     sys.path.insert(0, str(tmp_path))
@@ -229,8 +229,8 @@ def test_a_bad_module_path_or_a_failing_import_is_one_line_and_exit_2(tmp_path, 
 
 
 def test_a_kind_s_own_keys_are_validated_with_did_you_mean(monkeypatch):
-    from usv_mj.errors import ScenarioError
-    from usv_mj.scenario import load_scenario
+    from usv_mj.core.errors import ScenarioError
+    from usv_mj.scenario.spec import load_scenario
 
     monkeypatch.syspath_prepend(str(PLUGIN))
     over = {"trajectory": {"kind": LAWNMOWER, "lane_spacing": 6.0}}
@@ -257,7 +257,7 @@ def test_a_kind_s_own_keys_are_validated_with_did_you_mean(monkeypatch):
 
 
 def test_registering_an_existing_kind_is_refused_unless_replace():
-    from usv_mj.registry import CONTROLLERS, TRAJECTORIES
+    from usv_mj.core.registry import CONTROLLERS, TRAJECTORIES
 
     class Impostor:
         @classmethod
@@ -291,8 +291,8 @@ def test_registering_an_existing_kind_is_refused_unless_replace():
 def test_a_new_registry_is_one_line_and_works_like_the_others():
     from dataclasses import dataclass
 
-    from usv_mj.errors import UnknownKindError
-    from usv_mj.registry import Registry
+    from usv_mj.core.errors import UnknownKindError
+    from usv_mj.core.registry import Registry
 
     vessels = Registry("vessel", {}, "usv_mj.vessels")
 
@@ -314,10 +314,10 @@ def test_a_kind_registered_only_in_main_is_refused_for_workers_and_an_importable
     """A sweep's worker is another process: a kind registered by a decorator in ``__main__`` does
     not exist there (SweepError before anything is submitted); one registered by an importable
     module's decorator is found by importing that module first."""
-    from usv_mj.errors import SweepError
-    from usv_mj.kinds import worker_imports
-    from usv_mj.registry import CONTROLLERS
-    from usv_mj.scenario import load_scenario
+    from usv_mj.core.errors import SweepError
+    from usv_mj.cli.kinds import worker_imports
+    from usv_mj.core.registry import CONTROLLERS
+    from usv_mj.scenario.spec import load_scenario
 
     def make(module):
         cls = types.new_class("Law", (), {}, lambda ns: ns.update(
@@ -346,10 +346,10 @@ def test_a_main_only_kind_runs_on_in_process_workers_and_is_refused_before_worke
     registry) it runs; on a cluster of worker processes it is refused in one line before any run."""
     from distributed import Client, LocalCluster
 
-    from usv_mj.errors import SweepError
-    from usv_mj.registry import CONTROLLERS
-    from usv_mj.sweep.runner import run_sweep
-    from usv_mj.sweep.spec import plan_sweep
+    from usv_mj.core.errors import SweepError
+    from usv_mj.core.registry import CONTROLLERS
+    from usv_mj.jobs.sweep.runner import run_sweep
+    from usv_mj.jobs.sweep.spec import plan_sweep
 
     def call(self, t, x, ref):
         return 0.0, 0.0, np.zeros(0)
@@ -383,12 +383,11 @@ def test_a_main_only_kind_runs_on_in_process_workers_and_is_refused_before_worke
 def test_the_registry_is_a_leaf_and_validating_a_scenario_imports_no_mujoco(tmp_path):
     import ast
 
-    tree = ast.parse((REPO / "usv_mj" / "registry.py").read_text())
-    relative = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.level}
-    absolute = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names} | \
-        {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and not n.level}
-    assert relative == {"errors"} and not any(m.startswith("usv_mj") for m in absolute)
-    code = ("import sys; from usv_mj.scenario import load_scenario; "
+    tree = ast.parse((REPO / "usv_mj" / "core" / "registry.py").read_text())
+    names = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names} | \
+        {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    assert {m for m in names if m.startswith("usv_mj")} == {"usv_mj.core.errors"}
+    code = ("import sys; from usv_mj.scenario.spec import load_scenario; "
             "sc = load_scenario(preset='paper', overrides={'plant': {'kind': 'mujoco', 'substeps': 2}, "
             "'trajectory': {'kind': 'circle', 'radius': 5.0}}); "
             "assert sc.plant.substeps == 2 and sc.trajectory.radius == 5.0; print('mujoco' in sys.modules)")
@@ -404,9 +403,9 @@ def test_a_plant_and_a_disturbance_register_like_a_controller():
 
     from usv_mj import simulate
     from usv_mj.plants.analytic import AnalyticPlant
-    from usv_mj.registry import DISTURBANCES, PLANTS
-    from usv_mj.scenario import load_scenario
-    from usv_mj.ship import PaperDisturbance
+    from usv_mj.core.registry import DISTURBANCES, PLANTS
+    from usv_mj.scenario.spec import load_scenario
+    from usv_mj.physics.ship import PaperDisturbance
 
     @dataclass(frozen=True)
     class TwinOptions:
@@ -442,13 +441,13 @@ def test_a_plant_and_a_disturbance_register_like_a_controller():
 
 
 def test_an_undecorated_class_named_by_module_name_brings_its_options_attribute(tmp_path, monkeypatch):
-    from usv_mj.registry import TRAJECTORIES
-    from usv_mj.scenario import load_scenario
-    from usv_mj.simulation import make_reference
+    from usv_mj.core.registry import TRAJECTORIES
+    from usv_mj.scenario.spec import load_scenario
+    from usv_mj.loop.simulate import make_reference
 
     (tmp_path / "my_paths.py").write_text(
         "from dataclasses import dataclass\n"
-        "from usv_mj.trajectories import Reference\n"
+        "from usv_mj.references.trajectories import Reference\n"
         "@dataclass(frozen=True)\n"
         "class StillOptions:\n"
         "    x: float = 1.0   # [m] where the reference stands\n"

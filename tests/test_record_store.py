@@ -1,4 +1,4 @@
-"""A record streamed to disk (usv_mj.record_store) against the same run in memory; RunRecord.open;
+"""A record streamed to disk (usv_mj.record.store) against the same run in memory; RunRecord.open;
 the drawing decimation keeps every extreme; the MCAP at a lower rate; a streamed run's memory."""
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario, simulate
-from usv_mj.decimate import decimate
-from usv_mj.errors import ScenarioError
-from usv_mj.record import RunRecord
-from usv_mj.summary import summarize
+from usv_mj.record.decimate import decimate
+from usv_mj.core.errors import ScenarioError
+from usv_mj.record.run_record import RunRecord
+from usv_mj.record.summary import summarize
 
 ROOT = Path(__file__).resolve().parents[1]
 # a box that cuts both channels often: saturation events begin and end across many blocks
@@ -54,7 +54,7 @@ def test_streamed_record_equals_the_in_memory_record_bit_for_bit(tmp_path, loop)
     assert len(mem.events_of("actuator_saturation")) > 10   # the events were exercised
     _same_record(mem, disk)
     assert _no_timing(summarize(mem)) == _no_timing(summarize(disk))
-    from usv_mj.sweep.runner import transient_errors
+    from usv_mj.jobs.sweep.runner import transient_errors
 
     after = mem["t"] > 5.0   # the sweep's reduction, chunked, against the whole columns at once
     ex, ey = mem["x"][after] - mem["x_d"][after], mem["y"][after] - mem["y_d"][after]
@@ -101,7 +101,7 @@ def test_a_killed_run_s_columns_open_as_the_rows_written(tmp_path):
 def test_auto_store_streams_a_big_record_into_a_folder_that_goes_with_it(monkeypatch):
     import gc
 
-    import usv_mj.simulation as simulation
+    import usv_mj.loop.simulate as simulation
 
     monkeypatch.setattr(simulation, "STREAM_BYTES", 1000 * 8 * 50)   # about 1000 rows
     sc = load_scenario(preset="paper", overrides={"duration": 3.0, "baseline": {"enabled": False}})
@@ -140,8 +140,8 @@ def test_decimation_keeps_every_extreme():
 
 
 def test_the_log_at_a_lower_rate_holds_every_nth_row(tmp_path):
-    from usv_mj.runlog import RunLogWriter, read_run
-    from usv_mj.runlog.writer import log_every
+    from usv_mj.outputs.log import RunLogWriter, read_run
+    from usv_mj.outputs.log.writer import log_every
 
     sc = load_scenario(preset="paper", overrides=LIMITED)
     n = log_every(10.0, sc.control_period)
@@ -161,8 +161,8 @@ def test_the_log_at_a_lower_rate_holds_every_nth_row(tmp_path):
 
 
 def test_run_job_streams_a_long_record_into_the_output_folder(tmp_path, monkeypatch):
-    import usv_mj.simulation as simulation
-    from usv_mj.main_job import run_job
+    import usv_mj.loop.simulate as simulation
+    from usv_mj.jobs.run import run_job
 
     monkeypatch.setattr(simulation, "STREAM_BYTES", 1000 * 8 * 50)
     sc = load_scenario(preset="paper", overrides={"duration": 21.0})
@@ -180,8 +180,8 @@ def test_run_job_streams_a_long_record_into_the_output_folder(tmp_path, monkeypa
 _PEAK = textwrap.dedent("""
     import resource, sys
     from usv_mj import load_scenario, simulate
-    from usv_mj.summary import summarize
-    from usv_mj.figures import draw_figures
+    from usv_mj.record.summary import summarize
+    from usv_mj.outputs.figures import draw_figures
     sc = load_scenario(preset="paper", overrides={"duration": 600.0, "baseline": {"enabled": False}})
     simulate(sc.with_overrides({"duration": 1.0}), plant_kind="analytic")   # imports, compiled loop
     draw_figures(simulate(sc.with_overrides({"duration": 1.0}), plant_kind="analytic"), sys.argv[1] + "/f0")
@@ -212,7 +212,7 @@ def test_a_streamed_run_s_memory_does_not_grow_with_its_length(tmp_path):
 
 def test_an_append_cut_by_ctrl_c_is_finished_by_the_next(tmp_path):
     """Ctrl-C inside a block's append (some columns written): the next append completes the others."""
-    from usv_mj.record_store import ColumnStore
+    from usv_mj.record.store import ColumnStore
 
     store = ColumnStore(tmp_path / "s", ("t", "a", "b"))
     rows = np.arange(30, dtype=float).reshape(10, 3)

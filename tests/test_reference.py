@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from usv_mj.trajectories import CircleReference, LineReference, PaperReference, WaypointReference
+from usv_mj.references.trajectories import CircleReference, LineReference, PaperReference, WaypointReference
 
 
 @pytest.mark.parametrize("t, expected", [(110, (66.000, 0.000, 0.0)), (200, (119.804, -3.582, -0.1805)),

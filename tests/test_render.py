@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from usv_mj.record import RunRecord
-from usv_mj.render import gl_backend
-from usv_mj.render.planner import TopView, default_speedup, do_pan_offset, frame_count, plan_frames
+from usv_mj.record.run_record import RunRecord
+from usv_mj.outputs.render import gl_backend
+from usv_mj.outputs.render.planner import TopView, default_speedup, do_pan_offset, frame_count, plan_frames
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -97,7 +97,7 @@ def test_bad_options_are_named():
         plan_frames(straight_run(), fps=0)
     with pytest.raises(ValueError, match="speedup"):
         plan_frames(straight_run(), speedup=float("nan"))
-    from usv_mj.render.video import check_size
+    from usv_mj.outputs.render.video import check_size
 
     with pytest.raises(ValueError, match="width = 161"):
         check_size(161, 120)
@@ -166,7 +166,7 @@ def pose_record(poses):
 
 def test_a_rendered_frame_is_not_blank():
     _gl_or_skip()
-    from usv_mj.render import render_frames
+    from usv_mj.outputs.render import render_frames
 
     (frame,) = render_frames(straight_run(), rows=[20], width=160, height=120)
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
@@ -176,7 +176,7 @@ def test_a_rendered_frame_is_not_blank():
 
 def test_hull_pixel_position_moves_with_the_recorded_state():
     _gl_or_skip()
-    from usv_mj.render import render_frames
+    from usv_mj.outputs.render import render_frames
 
     w, h = 320, 240
     view = TopView(0.0, 0.0, 10.0)
@@ -206,8 +206,8 @@ def test_hull_pixel_position_moves_with_the_recorded_state():
 
 def test_the_funnel_box_and_the_overlay_are_drawn():
     _gl_or_skip()
-    from usv_mj.render import render_frames
-    from usv_mj.render.planner import FUNNEL_OK_RGBA
+    from usv_mj.outputs.render import render_frames
+    from usv_mj.outputs.render.planner import FUNNEL_OK_RGBA
 
     rec = straight_run()
     bare, full = render_frames(rec, rows=[10, 10], width=320, height=240, layers=(), views=None)[0], \
@@ -228,7 +228,7 @@ def test_mp4_decodes_with_the_expected_frame_count_and_size(tmp_path, workers):
     import imageio.v3 as iio
     from PIL import Image
 
-    from usv_mj.render import render_run
+    from usv_mj.outputs.render import render_run
 
     rec = straight_run(duration=4.0)
     out = tmp_path / "clip.mp4"
@@ -249,7 +249,7 @@ def test_mp4_decodes_with_the_expected_frame_count_and_size(tmp_path, workers):
 def test_render_command_reports_a_missing_run(tmp_path, capsys):
     import argparse
 
-    from usv_mj.render import add_arguments, run_command
+    from usv_mj.outputs.render import add_arguments, run_command
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)
@@ -269,9 +269,9 @@ def test_render_command_replays_an_mcap_run(tmp_path, capsys):
     import imageio.v3 as iio
 
     from usv_mj import load_scenario, simulate
-    from usv_mj.render import add_arguments, run_command
+    from usv_mj.outputs.render import add_arguments, run_command
 
-    runlog = pytest.importorskip("usv_mj.runlog")
+    runlog = pytest.importorskip("usv_mj.outputs.log")
     scenario = load_scenario(preset="paper", overrides={"duration": 2.0, "plant": {"kind": "analytic"}})
     with runlog.RunLogWriter(tmp_path / "run.mcap", scenario) as writer:
         simulate(scenario, sinks=[writer.sink("main")])
@@ -290,7 +290,7 @@ def test_workers_started_ahead_render_two_videos(tmp_path):
     _gl_or_skip()
     import imageio.v3 as iio
 
-    from usv_mj.render import RenderWorkers, render_run
+    from usv_mj.outputs.render import RenderWorkers, render_run
 
     with RenderWorkers(width=160, height=120, workers=2) as pool:
         for duration, expected in ((2.0, 10), (3.0, 15)):

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from tests.test_render import _gl_or_skip, pose_record
-from usv_mj.render.planner import TopView
-from usv_mj.render.replay import build_replay_model
-from usv_mj.render.world import hull_dimensions
+from usv_mj.outputs.render.planner import TopView
+from usv_mj.outputs.render.replay import build_replay_model
+from usv_mj.outputs.render.world import hull_dimensions
 
 
 def _hull_box(model, names=("hull_mid", "hull_bow")):
@@ -42,7 +42,7 @@ def test_the_drawn_hull_has_the_vessels_length_and_beam():
 
 def test_a_record_of_another_vessel_is_drawn_at_its_size():
     _gl_or_skip()
-    from usv_mj.render import render_frames
+    from usv_mj.outputs.render import render_frames
 
     w, h = 320, 240
     view = TopView(0.0, 0.0, 10.0)
@@ -58,7 +58,7 @@ def test_a_record_of_another_vessel_is_drawn_at_its_size():
 
 def test_the_closest_zoom_keeps_a_long_hull_in_the_picture():
     from usv_mj import load_scenario
-    from usv_mj.render.planner import MIN_HALF_HEIGHT, plan_frames
+    from usv_mj.outputs.render.planner import MIN_HALF_HEIGHT, plan_frames
 
     rec = pose_record([(0.0, 0.0, 0.0), (0.5, 0.0, 0.0)])              # a hull alone: the closest zoom
     paper = plan_frames(rec, rows=[0], width=320, height=240).frames[0].view.half_height

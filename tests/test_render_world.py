@@ -1,6 +1,6 @@
-"""The sea and the obstacles in the video (issues 7 and 8; usv_mj.render.world, FrameRenderer.update_sea).
+"""The sea and the obstacles in the video (issues 7 and 8; usv_mj.outputs.render.world, FrameRenderer.update_sea).
 
-References: the plant's own Environment (``usv_mj.simulation.make_environment`` of the scenario,
+References: the plant's own Environment (``usv_mj.loop.simulate.make_environment`` of the scenario,
 built independently of the renderer's copy) evaluated at the hfield node, and MuJoCo's own ray cast
 (``mj_ray``) onto the hfield geom, which reads the geometry as MuJoCo holds it; the obstacles'
 constant velocity (centre = center + velocity t) for the mocap bodies.
@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario
-from usv_mj.record import RunRecord
-from usv_mj.render import gl_backend
-from usv_mj.render.planner import TopView, plan_frames
-from usv_mj.simulation import make_environment
+from usv_mj.record.run_record import RunRecord
+from usv_mj.outputs.render import gl_backend
+from usv_mj.outputs.render.planner import TopView, plan_frames
+from usv_mj.loop.simulate import make_environment
 
 ROOT = Path(__file__).resolve().parents[1]
 SEA = {"preset": "moderate", "current": {"speed": 0.3, "direction_deg": 30.0},
@@ -58,14 +58,14 @@ def _record(scenario, poses, times):
 def test_hfield_node_under_the_hull_is_the_plants_elevation():
     out = _in_fresh_process("""
         import json
-        from usv_mj.render.gl_backend import select_backend
+        from usv_mj.outputs.render.gl_backend import select_backend
         select_backend(None)
         import mujoco, numpy as np
         from usv_mj import load_scenario
-        from usv_mj.record import RunRecord
-        from usv_mj.render.planner import plan_frames
-        from usv_mj.render.replay import FrameRenderer
-        from usv_mj.render.world import SEA_NODES
+        from usv_mj.record.run_record import RunRecord
+        from usv_mj.outputs.render.planner import plan_frames
+        from usv_mj.outputs.render.replay import FrameRenderer
+        from usv_mj.outputs.render.world import SEA_NODES
         sea = %r
         sc = load_scenario(preset="paper", overrides={"duration": 20.0, "sea": sea})
         rec = RunRecord.from_arrays({"t": np.array([7.3, 12.05]), "x": np.array([3.13, -7.91]),
@@ -104,7 +104,7 @@ def test_hfield_node_under_the_hull_is_the_plants_elevation():
 
 def test_a_sea_frame_shows_moving_waves_and_differs_from_calm_water():
     _gl_or_skip()
-    from usv_mj.render import render_frames
+    from usv_mj.outputs.render import render_frames
 
     sea = load_scenario(preset="paper", overrides={"duration": 20.0, "sea": SEA})
     calm = load_scenario(preset="paper", overrides={"duration": 20.0})
@@ -135,14 +135,14 @@ def test_moving_obstacles_follow_their_velocity_in_the_video():
         assert abs(6.0 - v.cx) + 0.8 < v.half_height * 320 / 240 and abs(3.0 - v.cy) + 0.8 < v.half_height
     out = _in_fresh_process("""
         import json
-        from usv_mj.render.gl_backend import select_backend
+        from usv_mj.outputs.render.gl_backend import select_backend
         select_backend(None)
         import numpy as np
         from usv_mj import load_scenario
-        from usv_mj.record import RunRecord
-        from usv_mj.obstacles.compose import compose_scene, export_scene, obstacle_geom_name
-        from usv_mj.render.planner import plan_frames
-        from usv_mj.render.replay import FrameRenderer
+        from usv_mj.record.run_record import RunRecord
+        from usv_mj.scene.compose import compose_scene, export_scene, obstacle_geom_name
+        from usv_mj.outputs.render.planner import plan_frames
+        from usv_mj.outputs.render.replay import FrameRenderer
         sc = load_scenario(preset="paper", overrides={"duration": 20.0, "obstacles": %r})
         rec = RunRecord.from_arrays({"t": np.array([0.0, 4.0]), "x": np.array([0.0, 1.0]), "y": np.zeros(2),
                                      "psi": np.zeros(2)}, metadata={"scenario": sc.to_dict()})
@@ -170,8 +170,8 @@ def test_figure_and_scene_take_obstacles_without_a_boundary():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from usv_mj.obstacles.display import draw_obstacles, scene_entities
-    from usv_mj.obstacle_tables import ObstacleSpec
+    from usv_mj.scene.display import draw_obstacles, scene_entities
+    from usv_mj.scenario.obstacles import ObstacleSpec
 
     obstacles = (ObstacleSpec("circle", (6.0, 3.0), 0.8, name="buoy"),
                  ObstacleSpec("box", (2.0, -6.0), 0.0, (3.0, 1.2), 0.0, (0.5, 0.25), name="boat"))

@@ -21,13 +21,13 @@ from mcap.reader import make_reader
 from mcap.records import Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
 
-from usv_mj.record import COL, COLUMNS, Event, RunRecord
-from usv_mj.runlog import (RunLogReadError, RunLogWriter, add_inspect_arguments, inspect_command, load_topic,
-                           read_run)
-from usv_mj.runlog.topics import ROW_TOPICS, row_topics
-from usv_mj.scenario import load_scenario
-from usv_mj.simulation import make_controller, simulate
-from usv_mj.summary import summarize
+from usv_mj.record.run_record import COL, COLUMNS, Event, RunRecord
+from usv_mj.outputs.log import RunLogReadError, RunLogWriter, load_topic, read_run
+from usv_mj.cli.inspect import add_inspect_arguments, inspect_command
+from usv_mj.outputs.log.topics import ROW_TOPICS, row_topics
+from usv_mj.scenario.spec import load_scenario
+from usv_mj.loop.simulate import make_controller, simulate
+from usv_mj.record.summary import summarize
 
 ROOT = Path(__file__).resolve().parents[1]
 DURATION = 8.0
@@ -36,7 +36,7 @@ PER_STEP_SCHEMAS = {"usv_mj.State", "usv_mj.Reference", "usv_mj.Control", "usv_m
 
 def _decoded(path, topics=None):
     """(channel, message, decoded protobuf message) of the per-step topics, by the mcap project's
-    own protobuf decoder: nothing of usv_mj.runlog's reader is involved."""
+    own protobuf decoder: nothing of usv_mj.outputs.log's reader is involved."""
     from mcap_protobuf.decoder import DecoderFactory
 
     with open(path, "rb") as f:
@@ -518,7 +518,7 @@ def test_killed_writer_leaves_a_readable_prefix_and_close_reports_it(tmp_path, s
     import signal
     import time
 
-    from usv_mj.runlog import RunLogError
+    from usv_mj.outputs.log import RunLogError
 
     rec = _handmade_record(6000, seed=5)
     path = tmp_path / "killed.mcap"
@@ -556,9 +556,9 @@ def test_writer_never_closed_is_closed_at_interpreter_exit(tmp_path):
 
     path = tmp_path / "noclose.mcap"
     script = (
-        "from usv_mj.scenario import load_scenario\n"
-        "from usv_mj.simulation import simulate\n"
-        "from usv_mj.runlog import RunLogWriter\n"
+        "from usv_mj.scenario.spec import load_scenario\n"
+        "from usv_mj.loop.simulate import simulate\n"
+        "from usv_mj.outputs.log import RunLogWriter\n"
         "if __name__ == '__main__':\n"
         "    sc = load_scenario(preset='paper', overrides={'duration': 1.0, 'plant': {'kind': 'analytic'}})\n"
         f"    w = RunLogWriter({str(path)!r}, sc)\n"
@@ -576,7 +576,7 @@ def test_writer_never_closed_is_closed_at_interpreter_exit(tmp_path):
 def test_template_time_stamps_are_the_log_time_in_integer_seconds_and_nanoseconds():
     """The bulk layout writes a Foxglove time {sec, nsec} from each message's log time: every digit
     count, the second boundary and the largest u64-safe stamps, parsed back by the json module."""
-    from usv_mj.runlog.mcap_file import MESSAGE_HEADER, template_layout
+    from usv_mj.outputs.log.mcap_file import MESSAGE_HEADER, template_layout
 
     layout = template_layout(3, {"stamp": {"sec": "$sec", "nsec": "$nsec"}, "v": "$v"}, ("$sec", "$nsec", "$v"))
     ns = np.array([0, 1, 9, 10, 999_999_999, 1_000_000_000, 1_999_999_999, 12_345_678_901, 2**62 + 12345],
@@ -681,7 +681,7 @@ def _log_times_in_file_order(path) -> np.ndarray:
 
 
 def test_main_job_logs_one_file_per_run_each_in_log_time_order(tmp_path, scenario):
-    from usv_mj.main_job import run_job
+    from usv_mj.jobs.run import run_job
 
     job = run_job(scenario.with_overrides({"duration": 6.0}), tmp_path / "job", video=False, progress=False,
                   step_check=False)
@@ -739,7 +739,7 @@ def test_events_are_logged_in_the_chunk_of_their_time(tmp_path, scenario):
 # --- Foxglove and ROS conventions -------------------------------------------------------------------
 
 
-SCHEMA_DIR = ROOT / "usv_mj" / "runlog" / "schemas"
+SCHEMA_DIR = ROOT / "usv_mj" / "outputs" / "log" / "schemas"
 
 
 def test_foxglove_schemas_are_embedded_as_published(logged):

@@ -1,4 +1,4 @@
-"""The run log's per-step obstacle and environment topics (issues 7 and 8; usv_mj.runlog.extra_topics).
+"""The run log's per-step obstacle and environment topics (issues 7 and 8; usv_mj.outputs.log.extra_topics).
 
 References: the ObstacleLog's own arrays (what the loop measured) and the obstacles' constant
 velocity (centre = center + velocity t); direct ``Environment.loads`` / ``elevation`` /
@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario
-from usv_mj.record import COL
-from usv_mj.runlog import RunLogWriter, read_run
-from usv_mj.runlog.reader import load_topic
-from usv_mj.simulation import make_environment, simulate
+from usv_mj.record.run_record import COL
+from usv_mj.outputs.log import RunLogWriter, read_run
+from usv_mj.outputs.log.reader import load_topic
+from usv_mj.loop.simulate import make_environment, simulate
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "examples" / "scenarios"
 
@@ -27,7 +27,7 @@ def _run_through_build(scenario, **kwargs):
     """A run of an obstacle scenario through usv_mj.build / simulate: the record and its statics."""
     from types import SimpleNamespace
 
-    from usv_mj.simulation import simulate
+    from usv_mj.loop.simulate import simulate
 
     record = simulate(scenario, **kwargs)
     return SimpleNamespace(record=record, log=record.statics.obstacle_log, plan=record.statics.plan,

@@ -1,4 +1,4 @@
-"""The per-step topics' protobuf encoding (usv_mj.runlog.protobuf_rows) against the protobuf library itself,
+"""The per-step topics' protobuf encoding (usv_mj.outputs.log.protobuf_rows) against the protobuf library itself,
 and files written by other writers: the mcap project's protobuf writer (standard serialization, which
 leaves default fields out) and a JSON-rows log of schema version 2 written with the mcap library's Writer.
 """
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from mcap.writer import Writer
 
-from usv_mj.runlog import load_topic, read_run
-from usv_mj.runlog.extra_topics import (ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME, OBSTACLES_SCHEMA,
+from usv_mj.outputs.log import load_topic, read_run
+from usv_mj.outputs.log.extra_topics import (ENVIRONMENT_SCHEMA, ENVIRONMENT_SCHEMA_NAME, OBSTACLES_SCHEMA,
                                         OBSTACLES_SCHEMA_NAME, environment_layout, obstacle_layout)
-from usv_mj.runlog.protobuf_rows import BinaryRows, FixedLayout, decode_payloads, message_class
-from usv_mj.runlog.topics import ROW_TOPICS, row_topic_schema
+from usv_mj.outputs.log.protobuf_rows import BinaryRows, FixedLayout, decode_payloads, message_class
+from usv_mj.outputs.log.topics import ROW_TOPICS, row_topic_schema
 
 
 def _values(n, seed=3):
@@ -131,10 +131,10 @@ def test_a_version_2_log_with_json_rows_still_reads(tmp_path):
 def test_columns_that_are_not_protobuf_names_round_trip(tmp_path):
     """A controller may name its fields "speed gap" or "2nd-try": the protobuf fields are renamed
     (field_names) and the reader gives the record back under the declared names."""
-    from usv_mj.record import RunRecord
-    from usv_mj.runlog import RunLogWriter
-    from usv_mj.runlog.protobuf_rows import field_names
-    from usv_mj.scenario import load_scenario
+    from usv_mj.record.run_record import RunRecord
+    from usv_mj.outputs.log import RunLogWriter
+    from usv_mj.outputs.log.protobuf_rows import field_names
+    from usv_mj.scenario.spec import load_scenario
 
     assert field_names(["t", "speed gap", "2nd-try", "speed_gap", "ψ"]) == ["t", "speed_gap", "_2nd_try",
                                                                             "speed_gap_2", "_"]
@@ -194,7 +194,7 @@ def test_message_class_takes_a_descriptor_set_in_any_file_order():
 
 
 def test_chunk_index_is_in_time_order_whatever_order_the_rows_came_in():
-    from usv_mj.runlog.mcap_file import ChunkBuffer
+    from usv_mj.outputs.log.mcap_file import ChunkBuffer
 
     name, title, fields = ROW_TOPICS[0]
     layout = FixedLayout(message_class(row_topic_schema(title, fields), title))

@@ -1,6 +1,6 @@
 """Sea state (SEA.md): the checks of §7 that need no MuJoCo plant, against independent numbers.
 
-Checks 10 and 13 run on the analytic RK4 of :func:`usv_mj.sea.dynamics.sea_rk4_advance`; check 1 is
+Checks 10 and 13 run on the analytic RK4 of :func:`usv_mj.physics.sea.dynamics.sea_rk4_advance`; check 1 is
 the analytic half (bit-identical calm dynamics). Long records are ``slow``-marked but vectorised.
 """
 
@@ -13,13 +13,13 @@ import pytest
 from scipy import integrate, signal, special
 
 from usv_mj.plants.analytic import rk4_advance
-from usv_mj.sea import (CurrentSettings, Environment, HullGeometry, SeaSettings, SeaSettingsError,
+from usv_mj.physics.sea import (CurrentSettings, Environment, HullGeometry, SeaSettings, SeaSettingsError,
                         WaveComponents, WaveSettings, WindSettings, jonswap_spectrum, load_sea_preset,
                         sea_preset_names, sea_rk4_advance, sea_rk4_trajectory, sea_state_derivative)
-from usv_mj.sea import layout as lay
-from usv_mj.sea.waves import fast_sincos, thin_barrier_reflection
-from usv_mj.sea.wind import wind_load
-from usv_mj.ship import PaperDisturbance, ShipParams, state_derivative
+from usv_mj.physics.sea import layout as lay
+from usv_mj.physics.sea.waves import fast_sincos, thin_barrier_reflection
+from usv_mj.physics.sea.wind import wind_load
+from usv_mj.physics.ship import PaperDisturbance, ShipParams, state_derivative
 
 RHO, G = 1025.0, 9.81
 SHIP = ShipParams()
@@ -144,8 +144,8 @@ def test_sea_force_is_callable_from_a_native_cfunc():
 
     from numba import carray, cfunc, types
 
-    from usv_mj.sea import sea_force
-    from usv_mj.ship import N_DIST_PARAMS, N_SHIP_PARAMS
+    from usv_mj.physics.sea import sea_force
+    from usv_mj.physics.ship import N_DIST_PARAMS, N_SHIP_PARAMS
 
     f64p = types.CPointer(types.float64)
     sig = types.void(f64p, f64p, f64p, types.int64, f64p, types.int64, f64p, types.int64, f64p,

@@ -1,4 +1,4 @@
-"""Both plants in a sea (SEA.md §6-7, issue 7): the MuJoCo plant realises the sea of usv_mj.sea.
+"""Both plants in a sea (SEA.md §6-7, issue 7): the MuJoCo plant realises the sea of usv_mj.physics.sea.
 
 References: the analytic sea kernels (sea_body_acceleration, the analytic RK4 plant with the same
 Environment), the closed form of a hull carried by a uniform current (position x0 + t v_c), and the
@@ -12,13 +12,13 @@ import math
 import numpy as np
 import pytest
 
-from usv_mj.compare import open_loop_inputs
+from usv_mj.jobs.compare import open_loop_inputs
 from usv_mj.plants import mujoco_callback as mcb
 from usv_mj.plants.analytic import AnalyticPlant
 from usv_mj.plants.mujoco_plant import MuJoCoPlant
-from usv_mj.sea import (CurrentSettings, Environment, SeaSettings, WindSettings, load_sea_preset,
+from usv_mj.physics.sea import (CurrentSettings, Environment, SeaSettings, WindSettings, load_sea_preset,
                         sea_body_acceleration)
-from usv_mj.ship import PaperDisturbance, ShipParams
+from usv_mj.physics.ship import PaperDisturbance, ShipParams
 
 SHIP = ShipParams()
 DIST = PaperDisturbance()
@@ -130,10 +130,10 @@ def test_parity_all_loads_300_s():
     plant from a start moved by 1e-12 m departs from itself by metres within 300 s, so two distinct
     integrators cannot stay within 1e-6 m for 300 s. Checked: over the whole linear regime (the
     nudged twin within 1e-3 m, about 200 s here) the plants differ by no more than 10 x what a
-    1e-12 m nudge of the start produces (usv_mj.compare.sea_sensitivity; measured ratio 1.2).
+    1e-12 m nudge of the start produces (usv_mj.jobs.compare.sea_sensitivity; measured ratio 1.2).
     usv-mj compare with this sea makes the same check."""
-    from usv_mj.compare import run_open_loop, sea_environment, sea_sensitivity
-    from usv_mj.scenario import load_scenario
+    from usv_mj.jobs.compare import run_open_loop, sea_environment, sea_sensitivity
+    from usv_mj.scenario.spec import load_scenario
 
     scenario = load_scenario(preset="paper", overrides={"sea": ALL_LOADS_TABLE, "duration": 300.0})
     env = sea_environment(scenario)
@@ -156,8 +156,8 @@ def test_parity_all_loads_adrift_300_s_at_the_calm_tolerance():
     in the moderate sea + varying current + gusty wind, 300 s at 1 ms: the plants stay within 1e-6 m.
     It is a real excursion (tens of metres drifted, yawing) and, unlike the driven hull above, not
     sensitive to its start (a 1e-12 m nudge stays below 1e-9 m), so the tolerance means something."""
-    from usv_mj.compare import compare_adrift, sea_environment
-    from usv_mj.scenario import load_scenario
+    from usv_mj.jobs.compare import compare_adrift, sea_environment
+    from usv_mj.scenario.spec import load_scenario
 
     scenario = load_scenario(preset="paper", overrides={"sea": ALL_LOADS_TABLE, "duration": 300.0})
     res = compare_adrift(scenario, sea_environment(scenario))
@@ -228,7 +228,7 @@ def test_relative_velocity_decays_from_rest_with_yaw_rate():
 
 
 def test_make_plant_builds_a_mujoco_plant_in_the_scenario_sea():
-    from usv_mj.scenario import load_scenario
+    from usv_mj.scenario.spec import load_scenario
     from usv_mj.builder import make_plant
 
     scenario = load_scenario(preset="paper", overrides={"sea": {"waves": {"hs": 0.2},
@@ -248,15 +248,15 @@ def test_make_plant_builds_a_mujoco_plant_in_the_scenario_sea():
 
 
 def test_bad_environment_is_rejected_with_its_type():
-    with pytest.raises(TypeError, match="environment must be a usv_mj.sea.Environment.*dict"):
+    with pytest.raises(TypeError, match="environment must be a usv_mj.physics.sea.Environment.*dict"):
         MuJoCoPlant(SHIP, DIST, environment={"hs": 0.2})
 
 
-# --- usv_mj.sea_figures -----------------------------------------------------------------------------
+# --- usv_mj.outputs.sea_figures -----------------------------------------------------------------------------
 
 
 def _fixed_hull_record(duration: float, dt: float, x: float = 3.0, y: float = -4.0):
-    from usv_mj.record import RunRecord
+    from usv_mj.record.run_record import RunRecord
 
     t = np.arange(int(round(duration / dt)) + 1) * dt
     zero = np.zeros_like(t)
@@ -267,7 +267,7 @@ def _fixed_hull_record(duration: float, dt: float, x: float = 3.0, y: float = -4
 def test_sea_summary_gives_hs_at_the_hull_and_the_settings():
     """SEA.md §7 check 3 through the summary: a hull held at one point for 1800 s (0.05 s rows) sees
     4 std(zeta) within 5 % of the preset's Hs = 0.2 m; calm water and no environment give 0."""
-    from usv_mj.sea_figures import sea_summary
+    from usv_mj.outputs.sea_figures import sea_summary
 
     settings = all_loads()
     env = Environment(settings, t_max=2000.0)
@@ -277,14 +277,14 @@ def test_sea_summary_gives_hs_at_the_hull_and_the_settings():
     short = _fixed_hull_record(10.0, 0.05)
     assert sea_summary(short, Environment()) == {"sea": SeaSettings().to_dict(), "hs_at_hull_m": 0.0}
     assert sea_summary(short, None) == {"sea": None, "hs_at_hull_m": 0.0}
-    with pytest.raises(TypeError, match="sea_summary: env must be a usv_mj.sea.Environment"):
+    with pytest.raises(TypeError, match="sea_summary: env must be a usv_mj.physics.sea.Environment"):
         sea_summary(short, {"hs": 0.2})
 
 
 def test_sea_figures_are_written(tmp_path):
     import matplotlib.image as mpimg
 
-    from usv_mj.sea_figures import LOADS_FIGURE, SPECTRUM_FIGURE, draw_sea_figures
+    from usv_mj.outputs.sea_figures import LOADS_FIGURE, SPECTRUM_FIGURE, draw_sea_figures
 
     env = Environment(all_loads(current_sigma=0.05), t_max=100.0)
     paths = draw_sea_figures(_fixed_hull_record(60.0, 0.01), env, tmp_path)

@@ -18,8 +18,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PROGRAM = """\
 import numpy as np
 from usv_mj import envs, load_scenario, simulate
-from usv_mj.render import render_run
-from usv_mj.runlog import RunLogWriter, read_run
+from usv_mj.outputs.render import render_run
+from usv_mj.outputs.log import RunLogWriter, read_run
 
 env = envs.load("track")
 env.reset()
@@ -54,7 +54,7 @@ def test_workers_start_from_an_unguarded_script_and_from_stdin(tmp_path, how):
 LATER = """\
 import threading, time
 import multiprocessing
-from usv_mj.spawning import spawn_context
+from usv_mj.support.spawning import spawn_context
 
 def start(ctx, out):
     p = ctx.Process(target=time.sleep, args=(0,))

@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario, simulate, summarize
-from usv_mj.sweep import SweepError, add_arguments, load_sweep, parse_path, plan_sweep, run_command
-from usv_mj.sweep.capability import run_capability, search_capability
-from usv_mj.sweep.report import wilson_interval
-from usv_mj.sweep.runner import TIMING_COLUMNS, read_results, run_sweep
-from usv_mj.sweep.spec import TEST_HOOKS_ENV
+from usv_mj.jobs.sweep import SweepError, add_arguments, load_sweep, parse_path, plan_sweep, run_command
+from usv_mj.jobs.sweep.capability import run_capability, search_capability
+from usv_mj.jobs.sweep.report import wilson_interval
+from usv_mj.jobs.sweep.runner import TIMING_COLUMNS, read_results, run_sweep
+from usv_mj.jobs.sweep.spec import TEST_HOOKS_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -311,7 +311,7 @@ def test_interrupt_and_resume_give_the_uninterrupted_table(tmp_path, client):
     assert _comparable(a) == _comparable(b)
     assert whole.ran == 6
     # a failed row (a worker lost to memory, say) is run again with retry_failed, and only it
-    from usv_mj.sweep.runner import failed_row, write_results
+    from usv_mj.jobs.sweep.runner import failed_row, write_results
 
     b[3] = failed_row(3, plan.runs[3].values, "worker died: test")
     write_results(tmp_path / "part" / "results.parquet", b, plan.paths, fingerprint)
@@ -325,7 +325,7 @@ def test_interrupt_and_resume_give_the_uninterrupted_table(tmp_path, client):
 
 
 def test_keep_logs_writes_one_mcap_per_run_with_the_same_run(tmp_path, client):
-    runlog = pytest.importorskip("usv_mj.runlog")
+    runlog = pytest.importorskip("usv_mj.outputs.log")
     text = SMALL.replace("samples = 3", "samples = 1")
     plan = load_sweep(_write(tmp_path, text))
     run_sweep(plan, tmp_path / "out", client=client, keep_logs=True, progress=False, echo=None)
@@ -339,7 +339,7 @@ def test_keep_logs_writes_one_mcap_per_run_with_the_same_run(tmp_path, client):
 
 @pytest.mark.slow
 def test_ctrl_c_keeps_the_finished_runs_and_resume_completes(tmp_path, client, monkeypatch):
-    """The real thing: SIGINT to `python -m usv_mj.sweep`, exit 1 (stopped early) with the rows so far, then resume.
+    """The real thing: SIGINT to `python -m usv_mj.jobs.sweep`, exit 1 (stopped early) with the rows so far, then resume.
 
     Runs 6-11 are held (test hook ``hold``: each says it started, then waits for a file), so the
     interrupt lands while the sweep is certainly unfinished, on a fast machine as on a slow one; it is
@@ -351,7 +351,7 @@ def test_ctrl_c_keeps_the_finished_runs_and_resume_completes(tmp_path, client, m
     release = tmp_path / "release"
     monkeypatch.setenv("USV_MJ_SWEEP_TEST_HOOKS", "1")     # the sweep file's test_hooks table is read
     env = dict(os.environ, USV_MJ_SWEEP_TEST_RELEASE=str(release))
-    cmd = [sys.executable, "-m", "usv_mj.sweep", str(path), "--out", str(out), "--workers", "1", "--no-progress"]
+    cmd = [sys.executable, "-m", "usv_mj.jobs.sweep", str(path), "--out", str(out), "--workers", "1", "--no-progress"]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     started = tmp_path / "release.started-6"
     deadline = time.monotonic() + 600
@@ -400,7 +400,7 @@ def test_capability_disturbance_bracket_checked_by_direct_runs(tmp_path, client)
 def test_capability_sea_loads_exit_2_until_the_scenario_has_them(tmp_path, capsys):
     import argparse
 
-    from usv_mj.sweep import add_capability_arguments, capability_command
+    from usv_mj.jobs.sweep import add_capability_arguments, capability_command
 
     parser = argparse.ArgumentParser()
     add_capability_arguments(parser)
@@ -432,9 +432,9 @@ def test_capability_current_per_direction_checked_by_direct_runs(tmp_path, clien
 
 def test_capability_stops_on_a_failed_run_instead_of_calling_it_a_limit(monkeypatch):
     """A failed run (raised, worker died) is no answer about the funnel: the search stops with its reason."""
-    from usv_mj.sweep import runner
-    from usv_mj.sweep.capability import LOADS, _Evaluator
-    from usv_mj.sweep.runner import failed_row
+    from usv_mj.jobs.sweep import runner
+    from usv_mj.jobs.sweep.capability import LOADS, _Evaluator
+    from usv_mj.jobs.sweep.runner import failed_row
 
     def fake_gather(client, jobs, on_row, key_prefix=""):
         for run, _ in jobs:
@@ -500,7 +500,7 @@ def test_jobqueue_errors_exit_2_with_the_batch_systems_message(tmp_path, capsys)
 def test_directional_search_runs_on_dask_and_zero_load_runs_once(tmp_path, client):
     """The directional machinery (used by current / wind / waves) on a key the scenario has today:
     the line path's heading stands in for the load's direction, the disturbance scale for its size."""
-    from usv_mj.sweep.capability import LoadKind, _Evaluator, _write_outputs
+    from usv_mj.jobs.sweep.capability import LoadKind, _Evaluator, _write_outputs
 
     load = LoadKind("test", "disturbance.scale", "trajectory.heading_deg", "", "linear", 0.0, 1.0, "s")
     base = load_scenario(preset="paper", overrides={"duration": 5.0, "plant": {"kind": "analytic"},
@@ -522,7 +522,7 @@ def test_directional_search_runs_on_dask_and_zero_load_runs_once(tmp_path, clien
 
 
 def test_usv_mj_cli_runs_the_sweep_command_with_exit_2_on_a_bad_file(tmp_path, capsys):
-    from usv_mj.cli import main
+    from usv_mj.cli.main import main
 
     path = _write(tmp_path, 'base = "paper"\n[vary]\n"initial.eta[3]" = [0.0]\n')
     assert main(["sweep", str(path), "--out", str(tmp_path / "o")]) == 2
@@ -536,7 +536,7 @@ def test_the_local_clusters_scheduler_says_nothing_at_info_when_the_root_logger_
     the in-process scheduler's INFO start-up lines must not reach the console then."""
     import logging
 
-    from usv_mj.sweep.runner import open_client
+    from usv_mj.jobs.sweep.runner import open_client
 
     import distributed  # noqa: F401  (its import sets its logger's level, which open_client restores)
 

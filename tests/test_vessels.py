@@ -18,9 +18,9 @@ import pytest
 
 from usv_mj import load_scenario, simulate
 from usv_mj.builder import make_plant
-from usv_mj.compare import input_scale, open_loop_inputs, realized_inputs, run_open_loop, state_differences
-from usv_mj.registry import VESSELS
-from usv_mj.ship import (RigidBodySplit, ShipParams, coriolis_damping_terms, coriolis_matrix, damping_matrix,
+from usv_mj.jobs.compare import input_scale, open_loop_inputs, realized_inputs, run_open_loop, state_differences
+from usv_mj.core.registry import VESSELS
+from usv_mj.physics.ship import (RigidBodySplit, ShipParams, coriolis_damping_terms, coriolis_matrix, damping_matrix,
                          mass_matrix)
 
 STATES = [(0.5, 0.1, 0.05), (1.2, -0.3, 0.2), (-0.4, 0.25, -0.35), (2.0, 0.0, -0.1), (0.0, -0.6, 0.6)]

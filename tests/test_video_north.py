@@ -25,7 +25,7 @@ DURATION = 6.0
 
 
 def _gl_or_skip():
-    from usv_mj.render import gl_backend
+    from usv_mj.outputs.render import gl_backend
 
     try:
         return gl_backend.select_backend()
@@ -66,7 +66,7 @@ def test_a_current_moves_the_hull_the_same_way_on_the_screen_as_on_the_chart(tmp
     _gl_or_skip()
     import imageio.v3 as iio
 
-    from usv_mj.render import render_run
+    from usv_mj.outputs.render import render_run
 
     rec = _drift(drift_scenario, toward_deg)
     info = render_run(rec, tmp_path / "drift.mp4", width=WIDTH, height=HEIGHT, fps=5, speedup=2.0, camera="chart",

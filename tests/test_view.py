@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from usv_mj import build, load_scenario, simulate
-from usv_mj.view import KEY_DOWN, KEY_LEFT, KEY_SPACE, KEY_UP, SURGE_STEP_N, YAW_STEP_NM, ManualController
+from usv_mj.cli.view import KEY_DOWN, KEY_LEFT, KEY_SPACE, KEY_UP, SURGE_STEP_N, YAW_STEP_NM, ManualController
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def _view(env, *extra):
-    return subprocess.run([sys.executable, "-m", "usv_mj.view", "--duration", "1", *extra], cwd=ROOT, env=env,
+    return subprocess.run([sys.executable, "-m", "usv_mj.cli.view", "--duration", "1", *extra], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=300)
 
 
@@ -64,7 +64,7 @@ def test_manual_keys_drive_the_loop():
 @pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed (apt-get install xvfb)")
 def test_viewer_runs_under_xvfb():
     env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "WAYLAND_DISPLAY", "DISPLAY")}
-    res = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", sys.executable, "-m", "usv_mj.view",
+    res = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", sys.executable, "-m", "usv_mj.cli.view",
                           "--duration", "2", "--speed", "4", "--manual"], cwd=ROOT, env=env, capture_output=True,
                          text=True, timeout=300)
     assert res.returncode == 0, res.stderr

@@ -66,12 +66,12 @@ def test_the_wheel_carries_the_models_and_no_generic_top_level_name(installed):
 
 def test_the_installed_wheel_runs_mujoco_with_video_and_an_env(installed):
     _, py, outside, env = installed
-    where = subprocess.run([str(py), "-c", "import usv_mj, usv_mj.assets as a; print(usv_mj.__file__); "
+    where = subprocess.run([str(py), "-c", "import usv_mj, usv_mj.support.assets as a; print(usv_mj.__file__); "
                             "print(a.model_path())"], cwd=outside, env=env, capture_output=True, text=True,
                            timeout=120, check=True).stdout.split()
     assert all(str(ROOT) not in w for w in where), where  # not the checkout
     out = outside / "run"
-    proc = subprocess.run([str(py), "-m", "usv_mj.cli", "run", "--plant", "mujoco", "--duration", "2",
+    proc = subprocess.run([str(py), "-m", "usv_mj.cli.main", "run", "--plant", "mujoco", "--duration", "2",
                            "--no-baseline", "--size", "160x96", "--out", str(out), "-q"],
                           cwd=outside, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
@@ -92,20 +92,20 @@ def test_the_wheel_finds_the_examples_by_name_and_registers_the_gymnasium_ids(in
     expected = sorted(f"usv_mj/examples/{p.relative_to(ROOT / 'examples').as_posix()}"
                       for kind in ("scenarios", "sweeps") for p in (ROOT / "examples" / kind).glob("*.toml"))
     assert shipped == expected                               # the .toml files only: no plug-in package as data
-    proc = subprocess.run([str(py), "-m", "usv_mj.cli", "examples"], cwd=outside, env=env, capture_output=True,
+    proc = subprocess.run([str(py), "-m", "usv_mj.cli.main", "examples"], cwd=outside, env=env, capture_output=True,
                           text=True, timeout=120)
     assert proc.returncode == 0 and "harbour_gap" in proc.stdout and "quick" in proc.stdout, proc.stderr
     assert str(ROOT) not in proc.stdout                      # the wheel's copies, not the checkout's
-    proc = subprocess.run([str(py), "-m", "usv_mj.cli", "run", "--scenario", "harbour_gap", "--plant", "analytic",
+    proc = subprocess.run([str(py), "-m", "usv_mj.cli.main", "run", "--scenario", "harbour_gap", "--plant", "analytic",
                            "--duration", "0.2", "--no-video", "-q", "--out", str(outside / "harbour")],
                           cwd=outside, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert json.loads((outside / "harbour" / "summary.json").read_text())["min_clearance_m"] is not None
     # gymnasium first, nothing of usv_mj imported: the wheel's start-up file registers the ids (Gymnasium
-    # 1.x reads no entry points; usv_mj/gymnasium_hook.py), then a bare gymnasium.make makes one
+    # 1.x reads no entry points; usv_mj/envs/gymnasium_hook.py), then a bare gymnasium.make makes one
     code = ("import sys; before = sorted(m for m in sys.modules if m.startswith('usv_mj')); "
             "import gymnasium; hooked = 'usv_mj/Track-v0' in gymnasium.registry; "
-            "from usv_mj.sweep import load_sweep; import importlib.metadata as md; "
+            "from usv_mj.jobs.sweep import load_sweep; import importlib.metadata as md; "
             "p = load_sweep('quick'); print(len(p.runs), p.source); "
             "ep = [e for e in md.entry_points(group='gymnasium.envs') if e.name == 'usv_mj']; ep[0].load()(); "
             "print('usv_mj/Track-v0' in gymnasium.registry); "
@@ -137,9 +137,9 @@ def test_the_gymnasium_start_up_file_is_installed_and_can_be_turned_off(installe
 def test_the_wheel_carries_the_default_benchmark_suite(installed):
     wheel, py, outside, env = installed
     names = zipfile.ZipFile(wheel).namelist()
-    assert "usv_mj/bench/suites/default.toml" in names   # its harbour task names the shipped example harbour_gap
-    assert "usv_mj/bench/suites/ppo_track.zip" in names   # the default suite's PPO policy, beside it
-    proc = subprocess.run([str(py), "-c", "from usv_mj.bench import load_suite; s = load_suite(); "
+    assert "usv_mj/jobs/bench/suites/default.toml" in names   # its harbour task names the shipped example harbour_gap
+    assert "usv_mj/jobs/bench/suites/ppo_track.zip" in names   # the default suite's PPO policy, beside it
+    proc = subprocess.run([str(py), "-c", "from usv_mj.jobs.bench import load_suite; s = load_suite(); "
                            "print(len(s.plan.runs), s.source)"], cwd=outside, env=env, capture_output=True,
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]

@@ -7,7 +7,7 @@ Python API (see the README)::
     record = simulate(scenario)
     print(summarize(record)["errors_at"])
 
-The names below are imported on first use, so that ``usv_mj.ship`` (the physics, which the
+The names below are imported on first use, so that ``usv_mj.physics.ship`` (the physics, which the
 controllers use) can be imported without the rest of the package.
 """
 
@@ -15,10 +15,12 @@ import sys
 from importlib.machinery import PathFinder
 from pathlib import Path
 
-from .lazy_names import lazy_names
-from .numba_cache import install_when_imported
+from usv_mj.core import moved
+from usv_mj.core.lazy_names import lazy_names
+from usv_mj.support.numba_cache import install_when_imported
 
 install_when_imported()     # a damaged numba cache file is compiled again, not EOFError for ever
+moved.install()             # a plug-in's old module names (usv_mj.registry, usv_mj.ship, ...) still import
 
 __version__ = "0.1.0"
 
@@ -49,19 +51,19 @@ if not (Path(__file__).resolve().parent / "controllers").is_dir() and (_ROOT / "
     sys.meta_path.insert(0, _CheckoutFinder(_ROOT))
 
 _API = {
-    "RunRecord": "usv_mj.record",
-    "Scenario": "usv_mj.scenario",
-    "ScenarioError": "usv_mj.errors",
+    "RunRecord": "usv_mj.record.run_record",
+    "Scenario": "usv_mj.scenario.spec",
+    "ScenarioError": "usv_mj.core.errors",
     "build": "usv_mj.builder",
     "Parts": "usv_mj.builder",
-    "CONTROLLERS": "usv_mj.registry",
-    "PLANTS": "usv_mj.registry",
-    "TRAJECTORIES": "usv_mj.registry",
-    "DISTURBANCES": "usv_mj.registry",
-    "load_scenario": "usv_mj.scenario",
-    "simulate": "usv_mj.simulation",
-    "summarize": "usv_mj.summary",
-    "run_job": "usv_mj.main_job",
+    "CONTROLLERS": "usv_mj.core.registry",
+    "PLANTS": "usv_mj.core.registry",
+    "TRAJECTORIES": "usv_mj.core.registry",
+    "DISTURBANCES": "usv_mj.core.registry",
+    "load_scenario": "usv_mj.scenario.spec",
+    "simulate": "usv_mj.loop.simulate",
+    "summarize": "usv_mj.record.summary",
+    "run_job": "usv_mj.jobs.run",
     "attach_hydrodynamics": "usv_mj.plants.attach",
 }
 __getattr__, __dir__, _ = lazy_names(__name__, _API)

@@ -6,17 +6,17 @@
     parts = build(load_scenario("examples/scenarios/harbour_gap.toml", overrides={"sea": {"preset": "moderate"}}))
     record = simulate(parts)          # the plant is closed when the run ends
 
-:func:`build` turns a :class:`~usv_mj.scenario.Scenario` into :class:`Parts`:
+:func:`build` turns a :class:`~usv_mj.scenario.spec.Scenario` into :class:`Parts`:
 
-- the **plant**, by ``[plant] kind`` from :data:`usv_mj.registry.PLANTS`: the analytic plant, or
+- the **plant**, by ``[plant] kind`` from :data:`usv_mj.core.registry.PLANTS`: the analytic plant, or
   the MuJoCo plant on ``models/usv.xml`` alone or composed with the scenario's obstacles (with the
   contact model); both take the scenario's sea as their environment and its d(t) and Delta;
-- the **controller**, by kind from :data:`usv_mj.registry.CONTROLLERS` with its own gains
+- the **controller**, by kind from :data:`usv_mj.core.registry.CONTROLLERS` with its own gains
   (``[controller]``, or ``[baseline]`` for the baseline's kind);
-- the **reference**, by ``[trajectory] kind`` from :data:`usv_mj.registry.TRAJECTORIES`, or
+- the **reference**, by ``[trajectory] kind`` from :data:`usv_mj.core.registry.TRAJECTORIES`, or
   planned around the obstacles when ``[guidance] avoid``;
 - the **quantizers** (the actuator channel, one per input) and the **actuators**
-  (:class:`usv_mj.actuators.Actuators` from ``[actuators]``: what the thrusters realize of the
+  (:class:`usv_mj.physics.actuators.Actuators` from ``[actuators]``: what the thrusters realize of the
   quantized command, the same on both plants);
 - the **hooks** the loop calls before every step (clearance, contacts, online guidance) and the
   **sinks** that collect their results (the obstacle log);
@@ -36,10 +36,10 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ScenarioError
-from .registry import CONTROLLERS, PLANTS
-from .scenario import Scenario
-from .trajectories import make_reference
+from usv_mj.core.errors import ScenarioError
+from usv_mj.core.registry import CONTROLLERS, PLANTS
+from usv_mj.scenario.spec import Scenario
+from usv_mj.references.trajectories import make_reference
 
 REFERENCE_MARGIN_S = 1.0  # the sea and the reference are made a little past the run's end
 
@@ -50,9 +50,9 @@ class Statics:
 
     Attributes
     ----------
-    environment: the :class:`usv_mj.sea.Environment` the plant saw (None in calm water).
-    obstacles: the scenario's :class:`~usv_mj.obstacle_tables.ObstacleSpec` tuple.
-    plan: the guidance's :class:`~usv_mj.obstacles.planner.Plan` (None without ``avoid``).
+    environment: the :class:`usv_mj.physics.sea.Environment` the plant saw (None in calm water).
+    obstacles: the scenario's :class:`~usv_mj.scenario.obstacles.ObstacleSpec` tuple.
+    plan: the guidance's :class:`~usv_mj.references.planner.Plan` (None without ``avoid``).
     obstacle_log: the :class:`~usv_mj.obstacles.sink.ObstacleLog` (clearance per step), or None.
     guidance: the online guidance of moving obstacles, or None.
     reference: the reference the run tracked (a pure function of t; sampled for drawn paths).
@@ -100,7 +100,7 @@ def make_environment(scenario: Scenario, duration: float | None = None):
     """The scenario's sea (waves, current, wind; docs/sea.md), or None when it is calm."""
     if scenario.sea.calm:
         return None
-    from .sea import Environment
+    from usv_mj.physics.sea import Environment
 
     return Environment(scenario.sea, ship=scenario.ship,
                        t_max=(scenario.duration if duration is None else duration) + REFERENCE_MARGIN_S)
@@ -108,7 +108,7 @@ def make_environment(scenario: Scenario, duration: float | None = None):
 
 def make_plant(scenario: Scenario, kind: str | None = None, environment="scenario", *, control_period: float | None = None,
                substeps: int | None = None, contact=None, safety_radii=None, rangefinders=()):
-    """The plant ``kind`` (default ``[plant] kind``) of ``scenario`` from :data:`usv_mj.registry.PLANTS`,
+    """The plant ``kind`` (default ``[plant] kind``) of ``scenario`` from :data:`usv_mj.core.registry.PLANTS`,
     in the scenario's sea (or ``environment``: an Environment, or None for calm water), with the
     scenario's obstacles in its scene; ``control_period`` [s] / ``substeps`` override the scenario's
     (the convergence studies of ``usv-mj compare``); ``rangefinders``: body-frame angles [rad] of
@@ -180,7 +180,7 @@ def check_commands(scenario: Scenario, kind: str, note: str = "") -> None:
 
 def allocation_of(scenario: Scenario):
     """The packed MMG block a force command is allocated through on the scenario's vessel
-    (usv_mj.actuators, Allocation), or None: a vessel whose inputs are forces needs none."""
+    (usv_mj.physics.actuators, Allocation), or None: a vessel whose inputs are forces needs none."""
     model = getattr(scenario.vessel, "model", None)
     if getattr(model, "inputs", "forces") != "rudder":
         return None
@@ -189,7 +189,7 @@ def allocation_of(scenario: Scenario):
 
 def make_quantizers(scenario: Scenario):
     """The hysteresis quantizers of the surge and yaw channels (Eq. 3), from ``[quantizer]``."""
-    from .controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
+    from usv_mj.controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
 
     q = scenario.quantizer
     return (HysteresisQuantizer(QuantizerParams(q.delta_u, q.u_min_u), q.enabled),
@@ -212,14 +212,14 @@ def channels_of(scenario: Scenario, commands: str = "forces") -> str:
 
 def allocated_force_limits(scenario: Scenario):
     """(tau_u_min, tau_u_max, tau_r_min, tau_r_max) [N, N m] a force command can reach through the
-    allocation of a ruddered vessel at its approach speed going straight (:func:`usv_mj.mmg.mmg_force_limits`;
+    allocation of a ruddered vessel at its approach speed going straight (:func:`usv_mj.physics.mmg.mmg_force_limits`;
     0 the least surge force: the MMG's propeller does not pull astern), or None: no allocation."""
     mmg = allocation_of(scenario)
     if mmg is None:
         return None
     import numpy as np
 
-    from .mmg import mmg_force_limits
+    from usv_mj.physics.mmg import mmg_force_limits
 
     _, n_hi, _, delta_hi = scenario.actuators.generalized_limits()
     speed = float((scenario.vessel.model.manoeuvre or {}).get("approach_speed", 1.0))
@@ -228,11 +228,11 @@ def allocated_force_limits(scenario: Scenario):
 
 
 def make_actuators(scenario: Scenario, commands: str = "forces"):
-    """The actuator model of ``[actuators]`` at the scenario's control period (:mod:`usv_mj.actuators`);
+    """The actuator model of ``[actuators]`` at the scenario's control period (:mod:`usv_mj.physics.actuators`);
     with the allocation of a force command to the rudder and the propeller when the command is
     ``"forces"`` (a controller's ``commands``; the environments' action) and the vessel is ruddered
     (:func:`allocation_of`)."""
-    from .actuators import Actuators
+    from usv_mj.physics.actuators import Actuators
 
     return Actuators.from_scenario(scenario, allocation_of(scenario) if commands == "forces" else None)
 
@@ -241,7 +241,7 @@ def check_start_clear(scenario: Scenario) -> None:
     """ScenarioError if the start pose puts the hull inside an obstacle (checked before anything runs)."""
     if not scenario.obstacles:
         return
-    from .obstacles.clearance import GeometricClearance
+    from usv_mj.obstacles.clearance import GeometricClearance
 
     clearance = GeometricClearance(scenario.obstacles, exact_within=math.inf,
                                    dimensions=scenario.vessel.model.dimensions).update(
@@ -253,11 +253,11 @@ def check_start_clear(scenario: Scenario) -> None:
 
 def as_scenario(scenario, where: str) -> Scenario:
     """``scenario`` as a :class:`Scenario`: a preset name ("paper") is loaded; anything else but a
-    Scenario is an :class:`usv_mj.errors.ArgumentTypeError` naming ``where``."""
-    from .errors import expected
+    Scenario is an :class:`usv_mj.core.errors.ArgumentTypeError` naming ``where``."""
+    from usv_mj.core.errors import expected
 
     if isinstance(scenario, str):
-        from .scenario import load_scenario
+        from usv_mj.scenario.spec import load_scenario
 
         return load_scenario(preset=scenario)
     if not isinstance(scenario, Scenario):
@@ -273,8 +273,8 @@ CONTROLLER_ATTRIBUTES = ("name", "reset", "__call__")
 
 
 def check_part(part, where: str, name: str, attributes) -> None:
-    """An :class:`usv_mj.errors.ArgumentTypeError` unless ``part`` has every one of ``attributes``."""
-    from .errors import expected
+    """An :class:`usv_mj.core.errors.ArgumentTypeError` unless ``part`` has every one of ``attributes``."""
+    from usv_mj.core.errors import expected
 
     missing = [a for a in attributes if not hasattr(part, a)]
     if missing:
@@ -290,8 +290,8 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     baseline run, the other plant of a comparison); ``duration`` [s] another horizon. ``plant``,
     ``controller`` and ``reference`` hand in ready-made parts instead (a plant handed in is not
     closed by :meth:`Parts.close`). ``environment`` overrides the scenario's sea (None: calm).
-    ``contact`` is the MuJoCo contact model (:class:`usv_mj.obstacles.compose.ContactParams`).
-    ``plan``: the :class:`usv_mj.obstacles.planner.Plan` of an earlier build of this scenario (the
+    ``contact`` is the MuJoCo contact model (:class:`usv_mj.scene.compose.ContactParams`).
+    ``plan``: the :class:`usv_mj.references.planner.Plan` of an earlier build of this scenario (the
     half-step check runs the main run's plan); by default :func:`usv_mj.obstacles.make_plan`'s.
     """
     scenario = as_scenario(scenario, "build")
@@ -307,7 +307,7 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     metadata: dict = {}
     given, plan = plan, None
     if scenario.obstacles and scenario.guidance.avoid and reference is None:
-        from .obstacles.hooks import make_plan
+        from usv_mj.obstacles.hooks import make_plan
 
         plan = given.fresh() if given is not None else make_plan(scenario, duration)
         statics.plan = plan
@@ -339,11 +339,11 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
 
 def _obstacle_parts(scenario, plant, plan, duration, statics, contact):
     """The clearance monitor, the obstacle log and the online guidance as one loop hook and a sink."""
-    from .obstacles.clearance import make_clearance_monitor
-    from .obstacles.compose import ContactParams, vessel_hull_radius
-    from .obstacles.hooks import ObstacleHook
-    from .obstacles.planner import Guidance
-    from .obstacles.sink import ObstacleLog
+    from usv_mj.obstacles.clearance import make_clearance_monitor
+    from usv_mj.scene.compose import ContactParams, vessel_hull_radius
+    from usv_mj.obstacles.hooks import ObstacleHook
+    from usv_mj.references.planner import Guidance
+    from usv_mj.obstacles.sink import ObstacleLog
 
     obstacles = statics.obstacles
     dims = scenario.vessel.model.dimensions          # the vessel's hull (the paper's: the constants)

@@ -3,7 +3,7 @@
     python examples/rl/train_ppo.py --steps 5000000 --checkpoint 500000 --out /tmp/ppo/ppo_track.zip
     python examples/rl/train_ppo.py --steps 4096 --out /tmp/ppo_smoke.zip           # a smoke test
 
-The shipped policy, ``usv_mj/bench/suites/ppo_track.zip`` (the default suite's ``ppo``), is the
+The shipped policy, ``usv_mj/jobs/bench/suites/ppo_track.zip`` (the default suite's ``ppo``), is the
 first command's checkpoint at 3,000,320 steps (``ppo_track-3000320.zip``; the run was stopped
 there, after 43.8 min at 1141 steps/s on a shared 2-core machine; README, Benchmark).
 
@@ -34,7 +34,7 @@ Score it beside the controllers with a suite that names it (relative paths: to t
     controllers = ["ppc", "pi", "los", { name = "ppo", policy = "ppo_track.zip" }]
 
 A policy runs each benchmark episode through the same environment (the MuJoCo plant) at its training
-control period (0.01 s, zero-order hold), from the task's start pose (:mod:`usv_mj.bench.policy`);
+control period (0.01 s, zero-order hold), from the task's start pose (:mod:`usv_mj.jobs.bench.policy`);
 the track observation has no view of obstacles, so a policy is not scored on the harbour task.
 """
 

@@ -25,15 +25,15 @@ Tasks (:data:`ALL_TASKS`; the observation, action, reward and termination conven
   guidance plan; 16 rangefinders fan around the hull; 90 s episodes.
 - ``harbor_waves``: the harbour in the sea of ``track_waves``.
 
-Options of :func:`load` (keyword arguments): ``scenario`` (a :class:`usv_mj.scenario.Scenario`
+Options of :func:`load` (keyword arguments): ``scenario`` (a :class:`usv_mj.scenario.spec.Scenario`
 used as is), else ``preset`` ("paper") and ``overrides`` (a nested dict as in scenario files);
-``vessel`` (a vessel kind of :data:`usv_mj.registry.VESSELS`: "paper", "cybership2", "otter",
+``vessel`` (a vessel kind of :data:`usv_mj.core.registry.VESSELS`: "paper", "cybership2", "otter",
 "clarke83", a vessel data file or "module:Name"; what ``usv-mj run --vessel`` gives, its options
 in ``overrides={"vessel": {...}}``): the task runs that hull, its rigid body and hydrodynamics in
 the plant, its actuators between the action and the plant (the action bounds are their limits),
 its nominal model in :class:`PPCPolicy` and its hull in the pictures; the reference is the
 scenario's, as in a run; on a ruddered vessel ("kvlcc2", ``Vessel.inputs == "rudder"``) the action
-is allocated to the propeller and the rudder (usv_mj.mmg.mmg_allocate), as a force controller's in a run;
+is allocated to the propeller and the rudder (usv_mj.physics.mmg.mmg_allocate), as a force controller's in a run;
 ``control_period`` [s] (0.01), ``substeps`` (10), ``duration`` [s] (30 / 90), ``quantize`` (True),
 ``max_surge_force`` [N] and ``max_yaw_moment`` [N m] (1000: the action bounds of channels whose
 actuators are unlimited; ``scenario.actuators`` limits win where finite), ``preview_times`` [s],
@@ -55,13 +55,13 @@ the water.
 A Gymnasium view: :func:`gym_env`, and the ids of :data:`GYM_IDS` (``usv_mj/Track-v0``,
 ``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``, ``usv_mj/HarborWaves-v0``), registered when this
 package is imported (if gymnasium is installed), for ``gymnasium.make`` (an installed wheel imports it
-when gymnasium is imported: :mod:`usv_mj.gymnasium_hook`); flat scaled observations
+when gymnasium is imported: :mod:`usv_mj.envs.gymnasium_hook`); flat scaled observations
 and normalized actions: :mod:`usv_mj.envs.gymnasium_env`.
 """
 
 from __future__ import annotations
 
-from usv_mj.lazy_names import lazy_names
+from usv_mj.core.lazy_names import lazy_names
 
 ALL_TASKS = ("track", "track_waves", "harbor", "harbor_waves")
 #: Gymnasium id -> task (as usv_mj.envs.gymnasium_env.GYM_IDS, without importing gymnasium here)
@@ -82,7 +82,7 @@ def register_gymnasium() -> None:
     """Register :data:`GYM_IDS` with Gymnasium's registry when gymnasium is installed (it imports
     neither dm_control nor mujoco: the entry point is resolved by ``gymnasium.make``). Called on
     import of this module, which the wheel's start-up hook does once gymnasium is imported
-    (:mod:`usv_mj.gymnasium_hook`: Gymnasium 1.x reads no entry points) and
+    (:mod:`usv_mj.envs.gymnasium_hook`: Gymnasium 1.x reads no entry points) and
     ``gymnasium.make("usv_mj.envs:usv_mj/Track-v0")`` does first; also the ``gymnasium.envs``
     entry point of the package (pyproject.toml), which only Gymnasium before 1.0 loaded."""
     try:

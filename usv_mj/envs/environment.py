@@ -13,16 +13,16 @@ import dm_env
 import numpy as np
 
 with warnings.catch_warnings():
-    warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.obstacles.compose)
+    warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.scene.compose)
     from dm_control.rl import control
 from dm_env import specs
 
 from usv_mj.builder import channels_of, make_environment, make_plant
-from usv_mj.scenario import Scenario, ScenarioError, load_scenario, merge_tables
+from usv_mj.scenario.spec import Scenario, ScenarioError, load_scenario, merge_tables
 
-from . import ALL_TASKS
-from .physics import USVPhysics
-from .tasks import DEFAULT_PREVIEW, HarbourTask, TrackTask
+from usv_mj.envs import ALL_TASKS
+from usv_mj.envs.physics import USVPhysics
+from usv_mj.envs.tasks import DEFAULT_PREVIEW, HarbourTask, TrackTask
 
 WAVES_SEA = {"preset": "moderate",
              # compass directions (docs/sea.md): current setting toward 060, wind from the south (180)
@@ -50,7 +50,7 @@ class USVEnvironment(control.Environment):
 
     def __init__(self, physics, task, *, time_limit, n_sub_steps, rebuild=None, flat_observation=False,
                  legacy_step=True):
-        from .rendering import HISTORY_ROWS
+        from usv_mj.envs.rendering import HISTORY_ROWS
 
         super().__init__(physics, task, time_limit=time_limit, n_sub_steps=n_sub_steps,
                          flat_observation=flat_observation, legacy_step=legacy_step)
@@ -169,7 +169,7 @@ class USVEnvironment(control.Environment):
         hull from above, north up) or a camera of models/scene.xml ("chase", "overview", "chart").
         Before the first :meth:`reset` it shows the hull where the physics has it. ``metadata``:
         extra record metadata (e.g. ``{"task": name}``)."""
-        from .rendering import FrameSource
+        from usv_mj.envs.rendering import FrameSource
 
         if self._closed:
             raise RuntimeError("USVEnvironment: the environment is closed")
@@ -203,7 +203,7 @@ class USVEnvironment(control.Environment):
 
 
 def _scenario(task: str, options: dict, duration: float) -> Scenario:
-    from usv_mj.command_args import with_vessel
+    from usv_mj.cli.args import with_vessel
 
     scenario = options.pop("scenario", None)
     preset = options.pop("preset", "paper")
@@ -216,7 +216,7 @@ def _scenario(task: str, options: dict, duration: float) -> Scenario:
                          f"`usv-mj kinds vessel`, a data file or 'module:Name'), got {vessel!r}")
     if scenario is not None:
         if not isinstance(scenario, Scenario):
-            raise TypeError(f"usv_mj.envs.load: scenario must be a usv_mj.scenario.Scenario, got {type(scenario).__name__}")
+            raise TypeError(f"usv_mj.envs.load: scenario must be a usv_mj.scenario.spec.Scenario, got {type(scenario).__name__}")
         if vessel is not None:
             raise ValueError(f"usv_mj.envs.load({task!r}): vessel={vessel!r} with a ready scenario: give the "
                              f"vessel in the scenario ([vessel] kind) or drop scenario")
@@ -304,7 +304,7 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
     def build():
         from usv_mj.obstacles.clearance import MuJoCoClearance
 
-        from .layout import harbour_layout
+        from usv_mj.envs.layout import harbour_layout
 
         layout = harbour_layout(tsk.random, scenario, scenario.guidance, duration, goal_distance)
         episode = dataclasses.replace(scenario, obstacles=tuple(layout.obstacles))
@@ -320,7 +320,7 @@ def gym_env(task: str, seed=None, render_mode=None, **options):
     scaled float32 observation and a normalized Box(-1, 1) action by default; see that module).
     The same environments are registered as ``usv_mj/Track-v0`` ... for ``gymnasium.make``
     (:data:`usv_mj.envs.GYM_IDS`). Raises ImportError if gymnasium is not installed."""
-    from .gymnasium_env import USVGymEnv
+    from usv_mj.envs.gymnasium_env import USVGymEnv
 
     return USVGymEnv(task, seed=seed, render_mode=render_mode, **options)
 
@@ -335,10 +335,10 @@ def step_row(env) -> tuple:
 
 
 def episode_record(env, steps, metadata=None):
-    """A :class:`usv_mj.record.RunRecord` of an episode for the renderer (``usv_mj.render.render_run``).
+    """A :class:`usv_mj.record.run_record.RunRecord` of an episode for the renderer (``usv_mj.outputs.render.render_run``).
 
     ``steps``: a list of (t, state (6), reference (7), action (2), thrust (2)[, command (2),
-    saturated (2)]) rows, as collected by :func:`usv_mj.envs.cli.rollout` (without the last two,
+    saturated (2)]) rows, as collected by :func:`usv_mj.cli.env.rollout` (without the last two,
     the command is taken to be the thrust and nothing saturated: the paper's unlimited actuators).
     The record declares the funnel block (:data:`usv_mj.controllers.base.FUNNEL_FIELDS`), filled
     from the task: e1, e2 = x - x_d, y - y_d [m] (the hull origin, not the controller's offset
@@ -349,8 +349,8 @@ def episode_record(env, steps, metadata=None):
     shows the water, the harbour and the vessel's hull.
     """
     from usv_mj.controllers.base import FUNNEL_FIELDS
-    from usv_mj.record import CORE_COLUMNS, RunRecord
-    from usv_mj.ship import wrap_angle as wrap
+    from usv_mj.record.run_record import CORE_COLUMNS, RunRecord
+    from usv_mj.physics.ship import wrap_angle as wrap
 
     task = env.task
     n = len(steps)

@@ -4,7 +4,7 @@
 
     import gymnasium
     env = gymnasium.make("usv_mj.envs:usv_mj/Track-v0") # Gymnasium imports usv_mj.envs, which registers the ids
-    env = gymnasium.make("usv_mj/Track-v0")             # the same from a wheel (usv_mj.gymnasium_hook), or once
+    env = gymnasium.make("usv_mj/Track-v0")             # the same from a wheel (usv_mj.envs.gymnasium_hook), or once
                                                         # usv_mj.envs is imported; or gym_env("track")
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
@@ -41,8 +41,8 @@ action [N, N m]), ``command`` (after the quantizer) and ``thrust`` (what the pla
 actuators' force). ``terminated`` is the
 task's termination (discount 0), ``truncated`` the time limit.
 
-Rendering (``render_mode="rgb_array"``): the project's renderer (:mod:`usv_mj.render`, the one
-``usv-mj run`` uses, with the same OpenGL choice, :func:`usv_mj.render.gl_backend.select_backend`):
+Rendering (``render_mode="rgb_array"``): the project's renderer (:mod:`usv_mj.outputs.render`, the one
+``usv-mj run`` uses, with the same OpenGL choice, :func:`usv_mj.outputs.render.gl_backend.select_backend`):
 the top view of the hull on the water (the sea's waves in the wave tasks), its wake, the path
 ahead, the funnel and the harbour's obstacles: the frame of
 :meth:`usv_mj.envs.USVEnvironment.render_frame`, which the dm_env's ``physics.render()`` draws
@@ -62,11 +62,11 @@ try:
     import gymnasium
     from gymnasium import spaces
 except ImportError:  # pragma: no cover - optional dependency
-    from ..errors import missing_extra
+    from usv_mj.core.errors import missing_extra
 
     raise missing_extra("gymnasium", "usv_mj's Gymnasium view (usv_mj.envs.gym_env, gymnasium.make)") from None
 
-from . import GYM_IDS  # noqa: F401 (API: id -> task)
+from usv_mj.envs import GYM_IDS  # noqa: F401 (API: id -> task)
 
 LENGTH_SCALE = 10.0      # m
 SPEED_SCALE = 2.0        # m/s
@@ -101,7 +101,7 @@ class USVGymEnv(gymnasium.Env):
 
     def __init__(self, task: str = "track", seed=None, render_mode=None, flat: bool = True,
                  render_size=(640, 360), **options):
-        from .environment import load
+        from usv_mj.envs.environment import load
 
         self._metadata = {"render_modes": list(self.RENDER_MODES), "render_fps": 30}
         if render_mode is not None and render_mode not in self.RENDER_MODES:

@@ -5,9 +5,9 @@ goal ``goal_distance`` m ahead (y offset within +-``goal_spread``); two piers (b
 wide) leaving a gap of ``gap`` m (8-11 m) whose centre is within +-3 m of the straight line, at
 x in [10, 16] m; then 3-5 buoys (circles of radius 0.4-0.8 m) in x in [0.55, 0.9] goal_distance,
 |y| < 6 m, not within 4 m of the goal or of each other. The guidance is
-:func:`usv_mj.obstacles.planner.plan_reference` (visibility graph + smoothing, verified against the
+:func:`usv_mj.references.planner.plan_reference` (visibility graph + smoothing, verified against the
 funnel and ``margin_m``); a layout whose plan fails (no path, not verified) is drawn again (at most
-50 times; then :class:`usv_mj.obstacles.planner.PlanningError` propagates).
+50 times; then :class:`usv_mj.references.planner.PlanningError` propagates).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ class HarbourLayout:
 
 
 def draw_obstacles(rng: np.random.RandomState, goal_distance: float):
-    from usv_mj.obstacle_tables import ObstacleSpec
+    from usv_mj.scenario.obstacles import ObstacleSpec
 
     out = []
     gx = rng.uniform(10.0, 16.0)
@@ -65,9 +65,9 @@ def harbour_layout(rng: np.random.RandomState, scenario, guidance, duration: flo
     """Draw layouts from ``rng`` until the guidance plans a verified reference (module docstring).
 
     ``scenario`` gives the funnel, eps and speed (``trajectory.speed``); ``guidance`` a
-    :class:`usv_mj.obstacle_tables.GuidanceSpec`; ``duration`` [s] the verification horizon.
+    :class:`usv_mj.scenario.obstacles.GuidanceSpec`; ``duration`` [s] the verification horizon.
     """
-    from usv_mj.obstacles.planner import PlanningError, SafetyEnvelope, plan_reference
+    from usv_mj.references.planner import PlanningError, SafetyEnvelope, plan_reference
 
     envelope = SafetyEnvelope.from_scenario(scenario, guidance.margin_m)
     speed = scenario.trajectory.speed

@@ -6,7 +6,7 @@ numpy reductions over the clearances) as in the physics. Here that arithmetic ru
 few calls per step:
 
 - :func:`act_kernel`: the action's clip, the hysteresis quantizer (Eq. 3) of both channels, the
-  vessel's actuator model (:mod:`usv_mj.actuators`) and the writes into ``last_action``,
+  vessel's actuator model (:mod:`usv_mj.physics.actuators`) and the writes into ``last_action``,
   ``last_command``, ``last_thrust`` and ``data.ctrl``;
 - :func:`track_observe`: from the state and the reference rows (at t and at the preview times),
   the whole observation vector in :meth:`TrackTask.observation_shapes` order (harbor: with the
@@ -14,7 +14,7 @@ few calls per step:
 - :func:`harbor_sense`: the harbor's clearance monitor update (MuJoCo's distance queries) and
   rangefinders (``mj_sensorPos``) into the same vector;
 - :class:`StepEvaluator`: the reference rows, :func:`track_observe` (and :func:`harbor_sense`)
-  in one call when the reference hands a kernel (:mod:`usv_mj.kernels`): a small function generated per reference
+  in one call when the reference hands a kernel (:mod:`usv_mj.core.kernels`): a small function generated per reference
   kernel and cached on disk as the compiled loop's are; else ``reference.evaluate`` from Python;
 - :func:`clearance_summary`: contact, nearest obstacle and minimum of a clearance update.
 
@@ -33,13 +33,13 @@ import math
 import numpy as np
 from numba import njit
 
-from usv_mj.actuators import actuator_kernel
+from usv_mj.physics.actuators import actuator_kernel
 from usv_mj.controllers.hysteresis_quantizer import quantize_step
 from usv_mj.controllers.performance_funnel import funnel_bound
-from usv_mj.limits import within_limits
+from usv_mj.physics.limits import within_limits
 from usv_mj.obstacles.clearance import mujoco_clearance_kernel
 from usv_mj.plants.mujoco_callback import call_model_data
-from usv_mj.ship import wrap_angle
+from usv_mj.physics.ship import wrap_angle
 
 #: entries of the observation vector before the preview (position_error 2, heading_error 1,
 #: heading 2, velocity 3, velocity_error 3) and after it (funnel 2, time 1)
@@ -55,9 +55,9 @@ N_PARAMS = 12
 def act_kernel(a0, a1, x, p, quantize, k, last_action, last_command, unlimited, act_p, act_state, mmg, last_thrust,
                last_saturated, ctrl):
     """:meth:`TrackTask.before_step` after its checks, as the closed loop's controller -> quantizer
-    -> actuators (:func:`usv_mj.simulation.simulate`): clip (``p`` = lo_u, hi_u, lo_r, hi_r,
+    -> actuators (:func:`usv_mj.loop.simulate.simulate`): clip (``p`` = lo_u, hi_u, lo_r, hi_r,
     delta_u, u_min_u, delta_r, u_min_r), quantize (levels ``k``, updated), then the vessel's
-    actuator model (:func:`usv_mj.actuators.actuator_kernel` with ``unlimited``, its parameters
+    actuator model (:func:`usv_mj.physics.actuators.actuator_kernel` with ``unlimited``, its parameters
     ``act_p``, its state ``act_state``, updated, and ``mmg``: the twin allocation, the shaft-speed
     lag, a ruddered vessel's allocation to n_P and the rudder angle at the state ``x``); write
     the action, the quantized command, the force the plant gets, the actuators' saturation flags
@@ -92,7 +92,7 @@ def track_observe(x, t, refs, params, n_out, goal):
     k + 1 at t + preview k), and (e_x, e_y, e_psi, diverged, g_x, g_y) for the reward and
     termination: e_x, e_y = the position error of the state with non-finite entries read as 0 (as
     the observation), e_psi = wrap(psi - psi_d), diverged = the raw state left the limits
-    (:func:`usv_mj.limits.within_limits`) or is not finite; ``goal``: also fill the
+    (:func:`usv_mj.physics.limits.within_limits`) or is not finite; ``goal``: also fill the
     harbor's goal entries (after the time), and g_x, g_y = that state minus the goal (else 0)."""
     x0, x1, x2, x3, x4, x5 = x[0], x[1], x[2], x[3], x[4], x[5]
     finite = (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)
@@ -263,7 +263,7 @@ def _generated(ref_fn, n_ref: int, plant_fn, n_plant: int):
     observation; ``step_track``, ``step_harbor``: the action, the plant's step and that) for these
     kernels, written to the compiled loop's cache directory under a name that carries the
     package's source fingerprint, as there (compiled once, then loaded from disk)."""
-    from usv_mj.compiled_loop import kernel_name, load_generated
+    from usv_mj.loop.compiled import kernel_name, load_generated
 
     key = (ref_fn, n_ref, plant_fn, n_plant)
     found = _GENERATED.get(key)
@@ -293,7 +293,7 @@ class StepEvaluator:
     """
 
     def __init__(self, reference, preview: np.ndarray):
-        from usv_mj.kernels import kernel_of
+        from usv_mj.core.kernels import kernel_of
 
         self.reference = reference
         self.preview = np.ascontiguousarray(preview, dtype=np.float64)

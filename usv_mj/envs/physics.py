@@ -9,14 +9,14 @@ structs), so the environment integrates exactly what ``usv-mj run --plant mujoco
   behind the marker, so any number of environments coexist in one process);
 - :meth:`USVPhysics.step` advances through :meth:`MuJoCoPlant.step` (zero-order hold of
   ``data.ctrl`` = (tau_u [N], tau_r [N m]) over ``plant.substeps`` RK4 steps of ``opt.timestep``),
-  so the time is the plant's step count times the control period, as in :func:`usv_mj.simulation.simulate`;
+  so the time is the plant's step count times the control period, as in :func:`usv_mj.loop.simulate.simulate`;
 - :meth:`USVPhysics.reset` goes through :meth:`MuJoCoPlant.reset`, which writes the callback's
   parameters again after ``mj_resetData`` (a bare ``mj_resetData`` would zero ``userdata`` and
   silently turn the hydrodynamics off).
 
 The plant comes from :func:`usv_mj.build.make_plant` (the one constructor of plants): in the
 harbor tasks it is the composed harbour scene with the ``rangefinders`` option (a fan of MuJoCo
-``rangefinder`` sensors on the hull, :func:`usv_mj.obstacles.compose.compose_scene`).
+``rangefinder`` sensors on the hull, :func:`usv_mj.scene.compose.compose_scene`).
 
 :meth:`USVPhysics.render` (what dm_control's tools and shimmy's ``DmControlCompatibilityV0`` call)
 draws with the project's renderer, not dm_control's: the water and the sea are the renderer's
@@ -31,7 +31,7 @@ import numpy as np
 
 with warnings.catch_warnings():
     # dm_control probes GLFW at import when MUJOCO_GL is unset and warns that there is no DISPLAY
-    # (as in usv_mj.obstacles.compose); nothing here needs GL until physics.render is called
+    # (as in usv_mj.scene.compose); nothing here needs GL until physics.render is called
     warnings.simplefilter("ignore")
     from dm_control import mujoco as dm_mujoco
     from dm_control.mujoco import wrapper
@@ -162,7 +162,7 @@ class USVPhysics(dm_mujoco.Physics):
         env = self.owner() if self.owner is not None else None
         if env is not None and env.physics is self:
             return env.render_frame(width=width, height=height, camera=camera)
-        from .rendering import FrameSource, hull_tuple, pose_record
+        from usv_mj.envs.rendering import FrameSource, hull_tuple, pose_record
 
         if self._closed:
             raise RuntimeError("USVPhysics.render: the physics is closed")

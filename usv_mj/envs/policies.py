@@ -42,14 +42,14 @@ class PPCPolicy:
     plant's own state: about 1e-15 m in float64, 1e-6 m through the float32 Gymnasium view).
 
     The output is the unquantized law; the environment's quantizer (``quantize=True``) plays the
-    actuator's role as in :func:`usv_mj.simulation.simulate`. The first step of an episode (a FIRST
+    actuator's role as in :func:`usv_mj.loop.simulate.simulate`. The first step of an episode (a FIRST
     time step; on the Gymnasium view, t = 0) resets the adaptive states (W = 0, s2 = 0).
     """
 
     def __init__(self, env, controller=None):
         self.env, self.gym = _views(env)
         if not hasattr(self.env, "task") or not hasattr(self.env.task, "reference_at"):
-            from usv_mj.errors import expected
+            from usv_mj.core.errors import expected
 
             raise expected("PPCPolicy", "env", "a usv_mj environment (usv_mj.envs.load) or its Gymnasium view "
                            "(usv_mj.envs.gym_env, gymnasium.make('usv_mj/Track-v0'))", env)

@@ -3,11 +3,11 @@
 dm_control tools and shimmy's ``DmControlCompatibilityV0`` call) and the Gymnasium view
 (``USVGymEnv.render``) draw a picture.
 
-A frame is the last row of a :class:`~usv_mj.record.RunRecord` of the episode so far
+A frame is the last row of a :class:`~usv_mj.record.run_record.RunRecord` of the episode so far
 (:func:`usv_mj.envs.episode_record`: its metadata carry the episode's scenario, so the frame has the
-sea and the harbour), planned by :func:`usv_mj.render.planner.plan_frames` and drawn by a
-:class:`usv_mj.render.replay.FrameRenderer`, the renderer of ``usv-mj run``, with the same OpenGL
-choice (:func:`usv_mj.render.gl_backend.select_backend`: ``MUJOCO_GL`` if set, else EGL, else
+sea and the harbour), planned by :func:`usv_mj.outputs.render.planner.plan_frames` and drawn by a
+:class:`usv_mj.outputs.render.replay.FrameRenderer`, the renderer of ``usv-mj run``, with the same OpenGL
+choice (:func:`usv_mj.outputs.render.gl_backend.select_backend`: ``MUJOCO_GL`` if set, else EGL, else
 OSMesa). mujoco binds its GL platform when it is first imported, and dm_control imports it before
 anyone chose: when the platform it was bound to is not the chosen one (``MUJOCO_GL`` was unset,
 say), the frames are drawn by one spawned worker process that imports mujoco with the right one.
@@ -24,11 +24,11 @@ HISTORY_ROWS = 3000
 
 
 class _Drawer:
-    """One :class:`usv_mj.render.replay.FrameRenderer`, here or in one spawned worker (module docstring)."""
+    """One :class:`usv_mj.outputs.render.replay.FrameRenderer`, here or in one spawned worker (module docstring)."""
 
     def __init__(self, width: int, height: int, camera: str, hull=None):
-        from usv_mj.render.gl_backend import in_process_backend, select_backend
-        from usv_mj.render.video import check_camera
+        from usv_mj.outputs.render.gl_backend import in_process_backend, select_backend
+        from usv_mj.outputs.render.video import check_camera
 
         self.backend = select_backend()
         check_camera(camera)          # a bad name is one ValueError here, not a failed worker
@@ -38,14 +38,14 @@ class _Drawer:
         here = in_process_backend()
         self.local = self.pool = None
         if here is None or here == self.backend:
-            from usv_mj.render.replay import FrameRenderer
+            from usv_mj.outputs.render.replay import FrameRenderer
 
             self.local = FrameRenderer(**self.kwargs)
         else:
-            from usv_mj.render.gl_backend import backend_environment
-            from usv_mj.render.video import worker_init
+            from usv_mj.outputs.render.gl_backend import backend_environment
+            from usv_mj.outputs.render.video import worker_init
 
-            from usv_mj.spawning import spawn_context
+            from usv_mj.support.spawning import spawn_context
 
             self.pool = spawn_context().Pool(
                 1, initializer=worker_init, initargs=(backend_environment(self.backend), self.kwargs))
@@ -55,7 +55,7 @@ class _Drawer:
     def frame(self, spec) -> np.ndarray:
         if self.local is not None:
             return np.array(self.local.render(spec), dtype=np.uint8)
-        from usv_mj.render.video import worker_render
+        from usv_mj.outputs.render.video import worker_render
 
         return np.array(self.pool.apply(worker_render, (spec,)), dtype=np.uint8)
 
@@ -63,7 +63,7 @@ class _Drawer:
         if self.local is not None:
             self.local.close()
         if self.pool is not None:
-            from usv_mj.render.video import worker_close
+            from usv_mj.outputs.render.video import worker_close
 
             try:
                 self.pool.apply(worker_close)     # the worker frees its GL context before it is stopped
@@ -84,9 +84,9 @@ class FrameSource:
     def frame(self, record, *, width: int, height: int, camera: str = "top", hull="record") -> np.ndarray:
         """The (height, width, 3) uint8 frame of the last row of ``record``. ``hull``: the drawn
         hull's (L, B, T) [m]; "record" (default): the record's vessel's, as ``usv-mj run``'s video
-        draws it (:func:`usv_mj.render.world.hull_dimensions`); None: the model file's (the paper's)."""
-        from usv_mj.render.planner import plan_frames
-        from usv_mj.render.world import hull_dimensions
+        draws it (:func:`usv_mj.outputs.render.world.hull_dimensions`); None: the model file's (the paper's)."""
+        from usv_mj.outputs.render.planner import plan_frames
+        from usv_mj.outputs.render.world import hull_dimensions
 
         for name, v in (("width", width), ("height", height)):
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or not 16 <= v <= 8192:
@@ -110,7 +110,7 @@ def pose_record(state, t: float = 0.0):
     """A one-row record of a pose (x, y, psi, u, v, r) at t [s], with no reference and no scenario
     (calm water): what a physics that belongs to no environment can draw (its hull: the plant's
     dimensions, given to :meth:`FrameSource.frame` as ``hull``)."""
-    from usv_mj.record import RunRecord
+    from usv_mj.record.run_record import RunRecord
 
     x = np.asarray(state, dtype=float)
     cols = {"t": np.array([float(t)])}
@@ -121,9 +121,9 @@ def pose_record(state, t: float = 0.0):
 
 def hull_tuple(dimensions):
     """(L, B, T) [m] of a :class:`usv_mj.vessels.Dimensions` as the renderer takes it, None for the
-    model file's own hull (the paper's): :func:`usv_mj.render.world.hull_dimensions`'s rule."""
+    model file's own hull (the paper's): :func:`usv_mj.outputs.render.world.hull_dimensions`'s rule."""
     from types import SimpleNamespace
 
-    from usv_mj.render.world import hull_dimensions
+    from usv_mj.outputs.render.world import hull_dimensions
 
     return hull_dimensions(SimpleNamespace(vessel=SimpleNamespace(model=SimpleNamespace(dimensions=dimensions))))

@@ -7,14 +7,14 @@ scenario's actuator limits (``scenario.actuators.generalized_limits()``) where t
 +-``max_surge_force`` / +-``max_yaw_moment`` (1000 N, 1000 N m: the paper's ship has no thrust
 limits); values outside are clipped, non-finite ones raise ValueError. With ``quantize=True`` the clipped action goes through the hysteresis quantizer of Eq. 3
 (docs/model.md §2; the scenario's delta and u_min per channel), then through the vessel's actuator
-model (:mod:`usv_mj.actuators`: the ``[actuators]`` table, the vessel's own where it has one, e.g.
+model (:mod:`usv_mj.physics.actuators`: the ``[actuators]`` table, the vessel's own where it has one, e.g.
 the Otter's twin propellers with their coupled limits and shaft-speed lag; the paper's are
-unlimited, the command itself), exactly as in :func:`usv_mj.simulation.simulate`. The actuators'
+unlimited, the command itself), exactly as in :func:`usv_mj.loop.simulate.simulate`. The actuators'
 force is held over the control period: ``n_sub_steps`` = ``plant.substeps`` RK4 steps of the
 plant's time step. The action bounds are each channel's own range; a twin hull cannot reach both
 ends at once (full surge leaves no yaw moment), and its allocation decides as in a run
 (``priority``). On a ruddered vessel (``Vessel.inputs == "rudder"``, KVLCC2) the actuators
-allocate the action to the propeller's n_P and the rudder angle at the state (usv_mj.mmg.mmg_allocate),
+allocate the action to the propeller's n_P and the rudder angle at the state (usv_mj.physics.mmg.mmg_allocate),
 as a force controller's command in a run; its bounds are that allocation's reach at the vessel's
 approach speed (:func:`action_bounds`).
 
@@ -50,7 +50,7 @@ Gymnasium view, :mod:`usv_mj.envs.gymnasium_env`, bounds them through the termin
 
 Termination (``get_termination`` -> discount 0, reason in ``task.termination_reason`` and
 ``task.info``): ``diverged`` (the hydrodynamic callback failed, or the state left
-``scenario.limits``: :func:`usv_mj.simulation.state_limit_exceeded`, the loop's own check), ``lost``
+``scenario.limits``: :func:`usv_mj.loop.simulate.state_limit_exceeded`, the loop's own check), ``lost``
 (distance to the reference >= ``max_distance``); in harbor also ``contact`` with an obstacle
 (MuJoCo contact or clearance <= 0) and ``goal`` (|p - p_goal| < goal_radius). The time limit ends
 the episode with discount 1 and kind ``time_limit``.
@@ -74,16 +74,16 @@ from typing import NamedTuple
 import numpy as np
 
 with warnings.catch_warnings():
-    warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.obstacles.compose)
+    warnings.simplefilter("ignore")  # dm_control's GLFW probe (see usv_mj.scene.compose)
     from dm_control.suite import base
 from dm_env import specs
 
 from usv_mj.builder import make_actuators, make_quantizers
 from usv_mj.controllers.performance_funnel import funnels_of
-from usv_mj.simulation import make_reference, which_limit
+from usv_mj.loop.simulate import make_reference, which_limit
 
-from . import native
-from .physics import USVPhysics
+from usv_mj.envs import native
+from usv_mj.envs.physics import USVPhysics
 
 _PHYSICS_STEP = USVPhysics.step
 FUSED_HORIZON = 60.0  # s: the fused step asks the plant for its kernel this far ahead (the sea's grids)
@@ -92,7 +92,7 @@ DEFAULT_PREVIEW = (0.5, 1.0, 2.0, 4.0)
 
 
 #: the track reward's full-reward band (the ``tolerance`` bounds' upper ends; the Rewards section above):
-#: |p - p_d| [m] and |wrap(psi - psi_d)| [rad]; a learned policy's benchmark criterion (usv_mj.bench.policy)
+#: |p - p_d| [m] and |wrap(psi - psi_d)| [rad]; a learned policy's benchmark criterion (usv_mj.jobs.bench.policy)
 TRACK_REWARD_POSITION_M = 0.25
 TRACK_REWARD_HEADING_RAD = 0.1
 
@@ -210,7 +210,7 @@ class TrackTask(base.Task):
     ``start_offset`` = (dx [m], dy [m], dpsi [rad]), at rest. See the module docstring for the
     action, observations, reward and termination.
 
-    Parameters: ``scenario`` (:class:`usv_mj.scenario.Scenario`), ``quantize`` (bool),
+    Parameters: ``scenario`` (:class:`usv_mj.scenario.spec.Scenario`), ``quantize`` (bool),
     ``max_surge_force`` [N], ``max_yaw_moment`` [N m], ``preview_times`` [s], ``start_offset``,
     ``max_distance`` [m], ``random`` (seed or RandomState).
     """
@@ -340,7 +340,7 @@ class TrackTask(base.Task):
             return
         if ev is None:
             ev = self._evaluate(physics)
-        if ev.diverged:  # usv_mj.simulation.state_limit_exceeded, or not finite
+        if ev.diverged:  # usv_mj.loop.simulate.state_limit_exceeded, or not finite
             x, ref = physics.state, ev.refs[0]
             ex, ey = x[0] - ref[0], x[1] - ref[1]
             lim = self.scenario.limits
@@ -595,7 +595,7 @@ class HarbourTask(TrackTask):
     """Reach a goal through a randomised harbour (piers with a gap, then a buoy field) without contact.
 
     Each episode draws a layout (:func:`usv_mj.envs.layout.harbour_layout`), plans the guidance
-    reference around it (:func:`usv_mj.obstacles.planner.plan_reference`; the reference observed is
+    reference around it (:func:`usv_mj.references.planner.plan_reference`; the reference observed is
     that plan) and builds the harbour physics with rangefinders (the environment rebuilds the model
     when the layout changes: see :class:`usv_mj.envs.USVEnvironment`). Observations add ``goal`` and
     ``rangefinder``; the reward adds the goal distance and the clearance; contact ends the episode

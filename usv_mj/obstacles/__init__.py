@@ -1,6 +1,6 @@
 """Obstacles with real contact physics and guidance that keeps clear.
 
-- the ``[[obstacles]]`` / ``[guidance]`` tables are the scenario's (:mod:`usv_mj.obstacle_tables`).
+- the ``[[obstacles]]`` / ``[guidance]`` tables are the scenario's (:mod:`usv_mj.scenario.obstacles`).
 - :mod:`.compose`: the harbour model composed with dm_control.mjcf, :class:`HarbourPlant`.
 - :mod:`.clearance`: per-step signed distances and contacts (:class:`MuJoCoClearance`,
   :class:`GeometricClearance`).
@@ -16,16 +16,16 @@ MuJoCo, dm_control, shapely or networkx.
 
 from __future__ import annotations
 
-from usv_mj.lazy_names import lazy_names
+from usv_mj.core.lazy_names import lazy_names
 
 __getattr__, __dir__, _ = lazy_names(__name__, {
     "GeometricClearance": ".clearance", "MuJoCoClearance": ".clearance", "make_clearance_monitor": ".clearance",
-    "HULL_RADIUS": ".compose", "ContactParams": ".compose", "HarbourPlant": ".compose", "compose_scene": ".compose",
-    "export_scene": ".compose", "hull_footprint": ".compose", "place_moving_obstacles": ".compose",
-    "Guidance": ".planner", "GuidedReference": ".guided", "Plan": ".planner", "PlanningError": ".planner",
-    "SafetyEnvelope": ".planner", "plan_reference": ".planner",
+    "HULL_RADIUS": "usv_mj.scene.compose", "ContactParams": "usv_mj.scene.compose", "HarbourPlant": "usv_mj.scene.compose", "compose_scene": "usv_mj.scene.compose",
+    "export_scene": "usv_mj.scene.compose", "hull_footprint": "usv_mj.scene.compose", "place_moving_obstacles": "usv_mj.scene.compose",
+    "Guidance": "usv_mj.references.planner", "GuidedReference": "usv_mj.references.guided", "Plan": "usv_mj.references.planner", "PlanningError": "usv_mj.references.planner",
+    "SafetyEnvelope": "usv_mj.references.planner", "plan_reference": "usv_mj.references.planner",
     "ObstacleHook": ".hooks", "make_plan": ".hooks",
     "ObstacleLog": ".sink",
-    "draw_obstacles": ".display", "scene_entities": ".display", "obstacles_message": ".display",
+    "draw_obstacles": "usv_mj.scene.display", "scene_entities": "usv_mj.scene.display", "obstacles_message": "usv_mj.scene.display",
 })
 __all__ = sorted(_)

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .broad_phase import grid_candidates
+from usv_mj.obstacles.broad_phase import grid_candidates
 
 
 @njit(cache=True)

@@ -13,12 +13,12 @@ from collections import OrderedDict
 
 import numpy as np
 
-from .planner import Guidance, Plan, SafetyEnvelope, plan_reference
-from .sink import ObstacleLog
+from usv_mj.references.planner import Guidance, Plan, SafetyEnvelope, plan_reference
+from usv_mj.obstacles.sink import ObstacleLog
 
 
 class ObstacleHook:
-    """The obstacle work of one control step, as a :func:`usv_mj.simulation.simulate` hook: move
+    """The obstacle work of one control step, as a :func:`usv_mj.loop.simulate.simulate` hook: move
     the moving obstacles to time t, measure clearance and contacts, log them, and let the guidance
     re-time or shift the reference before the loop evaluates it."""
 
@@ -30,10 +30,10 @@ class ObstacleHook:
     def kernel(self):
         """The step as a kernel of the compiled loop (:mod:`usv_mj.obstacles.native_step`), when
         the obstacles stand still and no guidance runs; None otherwise (the Python loop)."""
-        from usv_mj.kernels import Kernel
+        from usv_mj.core.kernels import Kernel
 
-        from . import native_step
-        from .clearance import GeometricClearance, MuJoCoClearance
+        from usv_mj.obstacles import native_step
+        from usv_mj.obstacles.clearance import GeometricClearance, MuJoCoClearance
 
         log, monitor = self.log, self.monitor
         if self._move is not None or self.guidance is not None or any(o.moving for o in log.obstacles):

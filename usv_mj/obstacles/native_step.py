@@ -1,4 +1,4 @@
-"""The obstacle hook's step as a kernel of the compiled loop (:mod:`usv_mj.compiled_loop`, role "hook").
+"""The obstacle hook's step as a kernel of the compiled loop (:mod:`usv_mj.loop.compiled`, role "hook").
 
 :class:`usv_mj.obstacles.hooks.ObstacleHook` hands one of these when its obstacles stand still and
 no guidance re-times the reference (moving obstacles and guidance stay Python). A kernel measures
@@ -15,15 +15,15 @@ measures again (the same numbers: the state has not changed) and does the bookke
 - the row is outside the log's window (past its end; a streamed log slides its window then).
 
 So records, obstacle logs and events are bit for bit those of the Python loop (tests/test_compiled_loop.py).
-Signature (usv_mj.kernels, hook): ``fn(k, t, x, *args) -> python``.
+Signature (usv_mj.core.kernels, hook): ``fn(k, t, x, *args) -> python``.
 """
 
 from __future__ import annotations
 
 from numba import njit
 
-from .clearance import mujoco_clearance_kernel
-from .footprint_kernels import footprint_clearances, footprint_clearances_broad, scatter_clearances
+from usv_mj.obstacles.clearance import mujoco_clearance_kernel
+from usv_mj.obstacles.footprint_kernels import footprint_clearances, footprint_clearances_broad, scatter_clearances
 
 #: [m] on the MuJoCo plant, a step whose least clearance is under this goes to Python (contacts)
 CONTACT_WATCH = 0.05

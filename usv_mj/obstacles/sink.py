@@ -1,6 +1,6 @@
 """The obstacle log: clearance and contact force per control step, and the obstacle events.
 
-:class:`ObstacleLog` is a :class:`usv_mj.simulation.RunSink` (``start``/``rows``/``finish``) that is
+:class:`ObstacleLog` is a :class:`usv_mj.loop.simulate.RunSink` (``start``/``rows``/``finish``) that is
 also fed once per control step by :class:`usv_mj.obstacles.hooks.ObstacleHook` with
 :meth:`ObstacleLog.record_step` (or, in the compiled loop, by its kernel in
 :mod:`usv_mj.obstacles.native_step`). It keeps, per step k (the record's row k):
@@ -11,7 +11,7 @@ also fed once per control step by :class:`usv_mj.obstacles.hooks.ObstacleHook` w
 - ``normal_force[k, i]``: summed normal contact force [N] between the hull and obstacle i;
 - ``obstacle_xy[k, i]``: obstacle i's centre [m] (moving obstacles move);
 
-and appends :class:`usv_mj.record.Event` s to the record as they happen:
+and appends :class:`usv_mj.record.run_record.Event` s to the record as they happen:
 
 - ``near_miss``: clearance to an obstacle fell under ``margin`` (start of an episode; values:
   obstacle, clearance);
@@ -19,10 +19,10 @@ and appends :class:`usv_mj.record.Event` s to the record as they happen:
   first step); ``contact_end`` closes the episode with its peak force and duration;
 - ``collision``: plants without contact physics, clearance reached zero (the note of the monitor
   says once that the hull passes through);
-- ``replan`` (from :class:`usv_mj.obstacles.planner.Guidance`, via :meth:`add_event`).
+- ``replan`` (from :class:`usv_mj.references.planner.Guidance`, via :meth:`add_event`).
 
 Memory: with an in-memory record the arrays hold every row; with a streamed record (one on disk,
-:mod:`usv_mj.record_store`) only a window of rows is in memory and the rows go to
+:mod:`usv_mj.record.store`) only a window of rows is in memory and the rows go to
 ``<record folder>/obstacles/`` as sparse entries (:class:`SparseRows`), so a long run's memory does
 not depend on its duration; ``clearance`` etc. are then :class:`LazyRows` (``[lo:hi]`` reads those
 rows), and :class:`StoredObstacleLog` reads such a folder back lazily.
@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from usv_mj.record import Event
+from usv_mj.record.run_record import Event
 
 #: what a run's log holds for an obstacle out of the monitor's reach (its broad phase:
 #: :mod:`usv_mj.obstacles.clearance`)
@@ -393,7 +393,7 @@ class ObstacleLog:
 
 OBSTACLE_FOLDER = "obstacles"
 #: an obstacle log bigger than this (rows x obstacles x 16 bytes) streams to disk even when the record
-#: stays in memory (the record's own threshold: usv_mj.simulation.STREAM_BYTES)
+#: stays in memory (the record's own threshold: usv_mj.loop.simulate.STREAM_BYTES)
 LOG_STREAM_BYTES = 256 * 2 ** 20
 #: rows of a streamed log's window when the record has none (an in-memory record)
 WINDOW_ROWS = 4002
@@ -446,12 +446,12 @@ class SparseRows:
     """One (rows, m) float64 array of a streamed obstacle log, on disk as its entries that are not
     ``fill`` (NaN: the clearance's beyond-reach entries, 0: no contact force): three ``.npy``
     files ``<name>.row`` (int64), ``<name>.index`` (int32) and ``<name>.value`` (float64), in row
-    order (:class:`usv_mj.record_store.AppendFile`). So the files grow with what was measured
+    order (:class:`usv_mj.record.store.AppendFile`). So the files grow with what was measured
     (the obstacles within reach, the contacts), not with rows x obstacles; rows [lo, hi) are read
     by a binary search in the row file (a few pages) and the entries between."""
 
     def __init__(self, folder, name: str, m: int, fill: float, mode: str = "write"):
-        from usv_mj.record_store import AppendFile
+        from usv_mj.record.store import AppendFile
 
         self.m, self.fill = m, fill
         self.row = AppendFile(Path(folder) / f"{name}.row.npy", "<i8", mode)

@@ -1,6 +1,6 @@
 """Plants: the ship integrated analytically (RK4) or by MuJoCo, behind one interface (:mod:`.base`)."""
 
-from .analytic import AnalyticPlant
-from .base import Plant
+from usv_mj.plants.analytic import AnalyticPlant
+from usv_mj.plants.base import Plant
 
 __all__ = ["AnalyticPlant", "Plant"]

@@ -3,8 +3,8 @@
 The thrust is held over each control period (zero-order hold); ``substeps`` RK4 steps of
 control_period/substeps each advance one period, with d(t) evaluated at the stage times.
 
-The RK4 step is :func:`usv_mj.sea.sea_rk4_advance`, the package's only one; calm water is its case
-with the sea's terms off (:func:`rk4_advance`, bit-identical to RK4 of usv_mj.ship.state_derivative).
+The RK4 step is :func:`usv_mj.physics.sea.sea_rk4_advance`, the package's only one; calm water is its case
+with the sea's terms off (:func:`rk4_advance`, bit-identical to RK4 of usv_mj.physics.ship.state_derivative).
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ import numpy as np
 
 from numba import njit
 
-from usv_mj.registry import PLANTS
-from usv_mj.sea.dynamics import calm_rk4_advance, sea_rk4_advance
-from usv_mj.ship import PaperDisturbance, ShipParams, is_mmg
+from usv_mj.core.registry import PLANTS
+from usv_mj.physics.sea.dynamics import calm_rk4_advance, sea_rk4_advance
+from usv_mj.physics.ship import PaperDisturbance, ShipParams, is_mmg
 
-from .base import PlantBase
+from usv_mj.plants.base import PlantBase
 
 #: ``rk4_advance(p, dp, t, x, tau_u, tau_r, h, n)``: ``n`` classic RK4 steps of size ``h`` from
 #: (t, x) under constant thrust in calm water; returns the new x.
@@ -33,7 +33,7 @@ def _step_start(k, t0, dt):
 @njit(cache=True)
 def analytic_kernel(k, x, f_u, f_r, p, dp, t0, dt, h, n):
     """:meth:`AnalyticPlant.step` in calm water (step() calls it; the compiled loop's kernel,
-    usv_mj.kernels): the k-th step, from t0 + k dt."""
+    usv_mj.core.kernels): the k-th step, from t0 + k dt."""
     return rk4_advance(p, dp, _step_start(k, t0, dt), x, f_u, f_r, h, n), False
 
 
@@ -50,13 +50,13 @@ class AnalyticPlant(PlantBase):
     Parameters
     ----------
     ship, disturbance:
-        The physics (:mod:`usv_mj.ship`).
+        The physics (:mod:`usv_mj.physics.ship`).
     control_period:
         Hold time of the input [s].
     substeps:
         RK4 steps per control period (>= 1).
     environment:
-        A :class:`usv_mj.sea.Environment` (waves, current, wind; docs/sea.md §1) or None for calm water.
+        A :class:`usv_mj.physics.sea.Environment` (waves, current, wind; docs/sea.md §1) or None for calm water.
         Calm water takes the exact same kernels as before the sea existed (bit-identical runs).
     """
 
@@ -110,7 +110,7 @@ class AnalyticPlant(PlantBase):
     def kernel(self, t_end: float):
         """(analytic_kernel or analytic_sea_kernel, its arrays) for steps up to ``t_end`` [s] (the
         sea's grids cover them); :meth:`step` is the same kernel, one step at a time."""
-        from usv_mj.kernels import Kernel
+        from usv_mj.core.kernels import Kernel
 
         def sync(k, x):
             self._x, self._k = x, k

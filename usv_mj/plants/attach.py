@@ -38,7 +38,7 @@ Requirements on the model (checked, one clear line if not met):
   "yaw" on the site "thruster").
 
 What the call changes: the body's inertial becomes the rigid part of the scenario's ship
-(:class:`usv_mj.ship.RigidBodySplit`: mass m11, COM x_g = m23/m11 ahead of the origin, yaw inertia
+(:class:`usv_mj.physics.ship.RigidBodySplit`: mass m11, COM x_g = m23/m11 ahead of the origin, yaw inertia
 m33 about the origin) and ``d.userdata`` holds the ship, the disturbance and the sea; the process's
 ``mjcb_passive`` is set to the native callback while any attachment or plant lives (a model
 without the marker in ``d.userdata`` is left alone by it). qpos, qvel, ctrl and time are kept.
@@ -55,7 +55,7 @@ import weakref
 import mujoco
 import numpy as np
 
-from . import mujoco_callback as mcb
+from usv_mj.plants import mujoco_callback as mcb
 
 N_USERDATA = mcb.N_USERDATA
 SEA_HORIZON_S = 3600.0  # default: the sea's OU grids of an attachment are made this far ahead [s]
@@ -188,7 +188,7 @@ def write_parameters(ud: np.ndarray, ship, disturbance, split, packed_sea=None) 
     ud[mcb.U_MA:mcb.U_MA + 9] = split.added_mass(ship).ravel()
     p = ship.as_array()
     ud[mcb.U_P:mcb.U_P + mcb.N_SHIP_PARAMS] = p[:mcb.N_SHIP_PARAMS]
-    if len(p) > mcb.N_SHIP_PARAMS:  # an MMG hull's constants (usv_mj.mmg) after the layout
+    if len(p) > mcb.N_SHIP_PARAMS:  # an MMG hull's constants (usv_mj.physics.mmg) after the layout
         if len(ud) < mcb.N_USERDATA_MMG:
             raise ValueError(f"usv_mj hydrodynamics: an MMG hull needs nuserdata >= {mcb.N_USERDATA_MMG}, "
                              f"got {len(ud)}")
@@ -226,7 +226,7 @@ def write_sea(ud: np.ndarray, packed) -> None:
 
 
 def _release(handle_id, data_address, userdata):
-    from .mujoco_plant import REGISTRY
+    from usv_mj.plants.mujoco_plant import REGISTRY
 
     userdata[mcb.U_MAGIC] = 0.0
     REGISTRY.remove(handle_id, data_address)
@@ -238,14 +238,14 @@ class Hydrodynamics:
 
     Attributes: ``model``, ``data``, ``body`` (the hull's body id), ``free`` (True: a free joint
     held to the plane), ``environment`` (the
-    :class:`usv_mj.sea.Environment`, None in calm water), ``horizon`` (plant time [s] up to which
+    :class:`usv_mj.physics.sea.Environment`, None in calm water), ``horizon`` (plant time [s] up to which
     the sea is made; :meth:`extend` makes more).
     """
 
     callback = "native"  # what the callback registry of the MuJoCo plant reads
 
     def __init__(self, model, data, body: int, ship, disturbance, split, environment, horizon: float):
-        from usv_mj.ship import is_mmg
+        from usv_mj.physics.ship import is_mmg
 
         if is_mmg(ship):  # its inputs are ctrl = (n_P, delta) on gearless motors: the MuJoCo plant's build
             raise ValueError("attach_hydrodynamics: an MMG hull (KVLCC2) runs on usv_mj's MuJoCo plant only")
@@ -268,7 +268,7 @@ class Hydrodynamics:
             data.userdata[mcb.U_LAYOUT] = mcb.LAYOUT_FREE
         if self.environment is not None:
             self.extend(horizon)
-        from .mujoco_plant import REGISTRY
+        from usv_mj.plants.mujoco_plant import REGISTRY
 
         REGISTRY.add(self)
         self._finalizer = weakref.finalize(self, _release, id(self), data._address, data.userdata)
@@ -300,7 +300,7 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
     body:
         Name of the hull's body (default "hull", as in ``models/usv.xml``).
     scenario:
-        A :class:`usv_mj.scenario.Scenario`, a preset name or a scenario TOML path (None: the paper
+        A :class:`usv_mj.scenario.spec.Scenario`, a preset name or a scenario TOML path (None: the paper
         preset): its ``[ship]``, ``[disturbance]`` and ``[sea]`` are used (through
         :func:`usv_mj.builder.make_environment`, the build's own sea).
     horizon:
@@ -311,8 +311,8 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
     Returns the :class:`Hydrodynamics` handle; keep it while stepping (``handle.detach()`` ends it).
     """
     from usv_mj.builder import make_environment
-    from usv_mj.scenario import Scenario, load_scenario, preset_names
-    from usv_mj.ship import RigidBodySplit
+    from usv_mj.scenario.spec import Scenario, load_scenario, preset_names
+    from usv_mj.physics.ship import RigidBodySplit
 
     if scenario is None or isinstance(scenario, str):
         if scenario is None or scenario in preset_names():

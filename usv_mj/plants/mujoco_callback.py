@@ -1,13 +1,13 @@
 """The hydrodynamic passive-force callback of the MuJoCo plant (docs/model.md §1), native and Python.
 
-MuJoCo carries the rigid body of :class:`usv_mj.ship.RigidBodySplit` (mass m, COM offset x_g, yaw
+MuJoCo carries the rigid body of :class:`usv_mj.physics.ship.RigidBodySplit` (mass m, COM offset x_g, yaw
 inertia about the origin). This callback adds everything else of Eq. 2, so that the total is the
 paper's ship:
 
     M_RB nu_dot + C_RB(nu) nu = tau + f_h,
     f_h = -M_A nu_dot - C_A(nu) nu - D(nu) nu + Delta(eta, nu) + d(t)           (body frame)
 
-with C_A = C - C_RB (C of docs/model.md §1 from :mod:`usv_mj.ship`, C_RB of the rigid body with COM offset
+with C_A = C - C_RB (C of docs/model.md §1 from :mod:`usv_mj.physics.ship`, C_RB of the rigid body with COM offset
 x_g: C_RB nu = [-m (v + x_g r) r, m u r, m x_g u r]).
 
 Added mass is exact (no lag). With q = (x, y, psi) the joint coordinates, qvel = J(psi) nu and
@@ -21,15 +21,15 @@ matrix ``d.M`` and re-factors it (``mj_factorM``); the second joins the generali
 
     qfrc_passive += J(psi) (f_h' + M_A r [-v, u, 0]),   f_h' = d(t) + Delta - C nu - D nu + C_RB nu,
 
-where ``d + Delta - C nu - D nu`` is :func:`usv_mj.ship.hull_terms` (never re-written here).
-In a sea (docs/sea.md §6; ``d.userdata[U_SEA_ON]`` = 1) that term is :func:`usv_mj.sea.dynamics.sea_terms`,
+where ``d + Delta - C nu - D nu`` is :func:`usv_mj.physics.ship.hull_terms` (never re-written here).
+In a sea (docs/sea.md §6; ``d.userdata[U_SEA_ON]`` = 1) that term is :func:`usv_mj.physics.sea.dynamics.sea_terms`,
 ``M nu_c_dot + tau_env + Delta + d - C(nu_r) nu_r - D(nu_r) nu_r``, on the four arrays of
 ``Environment.packed`` whose addresses and sizes the plant writes into ``d.userdata[U_SEA_*]`` (the
 plant keeps the arrays alive and rewrites the addresses whenever the environment's grids grow). The
 C_RB nu and exact added-mass terms are unchanged. The environment is a pure function of
 (t, eta, nu), so every RK4 stage sees the sea at its own stage time and pose.
-An MMG hull (KVLCC2, :mod:`usv_mj.mmg`; ``ud[U_P + P_MODEL]`` = MODEL_MMG) adds the MMG's hull,
-propeller and rudder force :func:`usv_mj.mmg.mmg_terms` of the inputs ``d.ctrl`` = (n_P, delta) (its
+An MMG hull (KVLCC2, :mod:`usv_mj.physics.mmg`; ``ud[U_P + P_MODEL]`` = MODEL_MMG) adds the MMG's hull,
+propeller and rudder force :func:`usv_mj.physics.mmg.mmg_terms` of the inputs ``d.ctrl`` = (n_P, delta) (its
 motors have zero gear) on the constants at ``U_MMG``, after the layout (``N_USERDATA_MMG`` words).
 MuJoCo calls the passive callback once per RK4 stage after building ``d.M`` for that stage's pose
 and with ``d.time`` at the stage time, so d(t) is evaluated exactly where the analytic plant
@@ -65,12 +65,12 @@ from llvmlite import ir as llvmlite_ir
 from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
-from usv_mj.sea.dynamics import sea_terms
-from usv_mj.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
-from usv_mj.mmg import N_MMG_PARAMS, mmg_terms
-from usv_mj.ship import MODEL_MMG, N_DIST_PARAMS, N_SHIP_PARAMS, P_MODEL, hull_terms
+from usv_mj.physics.sea.dynamics import sea_terms
+from usv_mj.physics.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
+from usv_mj.physics.mmg import N_MMG_PARAMS, mmg_terms
+from usv_mj.physics.ship import MODEL_MMG, N_DIST_PARAMS, N_SHIP_PARAMS, P_MODEL, hull_terms
 
-from usv_mj.assets import models_dir
+from usv_mj.support.assets import models_dir
 
 MODELS_DIR = str(models_dir())  # the installed usv_mj.models (the checkout's models/)
 
@@ -86,7 +86,7 @@ U_P = U_MA + 9      # ShipParams.as_array() (N_SHIP_PARAMS)
 U_DP = U_P + N_SHIP_PARAMS  # PaperDisturbance.as_array() (N_DIST_PARAMS)
 U_CALLS = U_DP + N_DIST_PARAMS  # number of callback evaluations (diagnostic)
 U_SCRATCH = U_CALLS + 1  # 15 doubles of scratch space (eta, nu, qfrc, mass_add): no allocation per call
-# the sea (docs/sea.md §6): addresses and sizes of the four arrays of usv_mj.sea.Environment.packed,
+# the sea (docs/sea.md §6): addresses and sizes of the four arrays of usv_mj.physics.sea.Environment.packed,
 # stored as doubles (addresses < 2^53 are exact); U_SEA_ON = 0 takes the calm path of today
 U_SEA_ON = U_SCRATCH + 15   # 1.0: call sea_terms instead of hull_terms
 U_SEA_EP = U_SEA_ON + 1     # address of ep (N_ENV_PARAMS doubles)
@@ -104,7 +104,7 @@ U_FREE_SCRATCH = U_HOLD + 10  # 6 doubles: the planar (x, y, psi) and (x_dot, y_
 N_USERDATA = U_FREE_SCRATCH + 6
 LAYOUT_PLANAR = 0.0
 LAYOUT_FREE = 1.0
-# an MMG hull (usv_mj.mmg; ud[U_P + P_MODEL] = MODEL_MMG) has its N_MMG_PARAMS constants after the
+# an MMG hull (usv_mj.physics.mmg; ud[U_P + P_MODEL] = MODEL_MMG) has its N_MMG_PARAMS constants after the
 # layout: a plant of such a hull has nuserdata >= N_USERDATA_MMG (the others keep N_USERDATA)
 U_MMG = N_USERDATA
 N_USERDATA_MMG = U_MMG + N_MMG_PARAMS
@@ -183,7 +183,7 @@ def passive_terms(ud, t, qpos, qvel, ctrl, qfrc, mass_add):
     ctrl:
         ``d.ctrl``: read only for an MMG hull (``ud[U_P + P_MODEL]`` = MODEL_MMG), whose motors have
         no gear and whose inputs are ctrl = (n_P [1/s], delta [rad]): the MMG's hull, propeller and
-        rudder force :func:`usv_mj.mmg.mmg_terms` (the analytic plant's, from the same kernel) is
+        rudder force :func:`usv_mj.physics.mmg.mmg_terms` (the analytic plant's, from the same kernel) is
         added to the hull force.
     qfrc:
         Output, 3: J(psi) (f_h' + M_A r [-v, u, 0]) [N, N, N m] (to add to ``qfrc_passive``).
@@ -537,7 +537,7 @@ def plant_state(qpos, qvel):
 @njit(cache=True)
 def mujoco_kernel(k, x, f_u, f_r, m_addr, d_addr, t0, dt, nsub, o_time, o_qpos, o_qvel, o_ctrl, o_ud, n_words,
                   mj_step_address):
-    """:meth:`MuJoCoPlant.step` natively (usv_mj.kernels): the k-th step, from t0 + k dt.
+    """:meth:`MuJoCoPlant.step` natively (usv_mj.core.kernels): the k-th step, from t0 + k dt.
 
     Writes the thrust into ``ctrl``, sets ``d.time``, calls ``mj_step`` ``nsub`` times (at
     ``mj_step_address``) and returns the new state (x, y, psi, u, v, r) and whether the callback

@@ -1,7 +1,7 @@
 """The MuJoCo plant: the paper's ship on MuJoCo's rigid-body engine plus a hydrodynamic callback.
 
 MuJoCo integrates the hull of ``models/usv.xml`` (joints x, y, yaw; RK4) with the rigid-body part
-of :class:`usv_mj.ship.RigidBodySplit`; the passive-force callback of
+of :class:`usv_mj.physics.ship.RigidBodySplit`; the passive-force callback of
 :mod:`usv_mj.plants.mujoco_callback` adds the added mass (exactly, through the mass matrix), the
 Coriolis of the added mass, damping, the uncertainty Delta and the disturbance d(t) (docs/model.md §1). The
 thrust enters through the two body-frame motors "surge" [N] and "yaw" [N m] and is held over each
@@ -14,8 +14,8 @@ so any number of plants with different ships coexist; the Python callback (``cal
 a reference and fallback) looks plants up by their mjData address and hands mjData it does not
 know to the native callback.
 
-Sea state (docs/sea.md §6): with a non-calm :class:`usv_mj.sea.Environment` the callback's hydrodynamic
-term becomes :func:`usv_mj.sea.sea_force` (current through nu_r in C and D, wave, drift and wind
+Sea state (docs/sea.md §6): with a non-calm :class:`usv_mj.physics.sea.Environment` the callback's hydrodynamic
+term becomes :func:`usv_mj.physics.sea.sea_force` (current through nu_r in C and D, wave, drift and wind
 loads, M nu_c_dot); the C_RB nu and exact added-mass terms are as in calm water. Calm (None or a
 calm environment) takes exactly the path of before the sea existed (bit-identical runs).
 """
@@ -31,12 +31,12 @@ import weakref
 import mujoco
 import numpy as np
 
-from usv_mj.registry import PLANTS
-from usv_mj.ship import PaperDisturbance, RigidBodySplit, ShipParams, is_mmg
+from usv_mj.core.registry import PLANTS
+from usv_mj.physics.ship import PaperDisturbance, RigidBodySplit, ShipParams, is_mmg
 
-from . import attach
-from . import mujoco_callback as mcb
-from .base import PlantBase
+from usv_mj.plants import attach
+from usv_mj.plants import mujoco_callback as mcb
+from usv_mj.plants.base import PlantBase
 
 DEFAULT_MODEL = os.path.join(mcb.MODELS_DIR, "usv.xml")
 
@@ -128,7 +128,7 @@ class MuJoCoPlant(PlantBase):
     Parameters
     ----------
     ship, disturbance:
-        The physics (:mod:`usv_mj.ship`); the model's inertial is overwritten from ``ship`` and
+        The physics (:mod:`usv_mj.physics.ship`); the model's inertial is overwritten from ``ship`` and
         ``split`` at load, so ``models/usv.xml`` holds only defaults.
     control_period:
         Hold time of the input [s].
@@ -150,14 +150,14 @@ class MuJoCoPlant(PlantBase):
         called from compiled code, state computed there; the compiled loop's kernel of this plant)
         instead of the Python bindings; the result is identical, only faster.
     environment:
-        A :class:`usv_mj.sea.Environment` (waves, current, wind; docs/sea.md §1, §6) or None for calm
+        A :class:`usv_mj.physics.sea.Environment` (waves, current, wind; docs/sea.md §1, §6) or None for calm
         water. The plant keeps it and its packed arrays alive, extends its OU grids ahead of the
         plant time (:data:`SEA_HORIZON_AHEAD_S`) and re-writes the arrays' addresses into
         ``d.userdata`` when they grow. A calm environment is treated as None.
     actuator_limits:
         (tau_u_min, tau_u_max, tau_r_min, tau_r_max) [N, N, N m, N m] written into the motors'
         ``ctrlrange`` (``ctrllimited``) at load, or None (the file's, unlimited); ``from_scenario``
-        passes ``[actuators]``'s :meth:`~usv_mj.actuators.ActuatorSpec.generalized_limits`.
+        passes ``[actuators]``'s :meth:`~usv_mj.physics.actuators.ActuatorSpec.generalized_limits`.
     dimensions:
         The vessel's main dimensions (:class:`usv_mj.vessels.Dimensions`): the geoms, sites and
         cameras of body "hull" are scaled from the model file's hull
@@ -165,9 +165,9 @@ class MuJoCoPlant(PlantBase):
         the paper's: the file as it is. ``from_scenario`` passes the scenario's vessel's, and its
         rigid body as ``split``.
 
-    An MMG hull (``usv_mj.ship.is_mmg(ship)``: KVLCC2) loads with the motors' gear set to zero and
+    An MMG hull (``usv_mj.physics.ship.is_mmg(ship)``: KVLCC2) loads with the motors' gear set to zero and
     ``nuserdata`` >= ``N_USERDATA_MMG``: ``ctrl`` = (n_P [1/s], delta [rad]) is then the actuator
-    input and the callback makes the propeller's and the rudder's force from it (usv_mj.mmg).
+    input and the callback makes the propeller's and the rudder's force from it (usv_mj.physics.mmg).
 
     Attributes
     ----------
@@ -198,7 +198,7 @@ class MuJoCoPlant(PlantBase):
         self.substeps = int(substeps)
         self.callback = callback
         if environment is not None and not hasattr(environment, "packed"):
-            raise TypeError(f"MuJoCoPlant: environment must be a usv_mj.sea.Environment or None, "
+            raise TypeError(f"MuJoCoPlant: environment must be a usv_mj.physics.sea.Environment or None, "
                             f"got {type(environment).__name__}")
         self.environment = environment if environment is not None and not environment.calm else None
         if self.environment is not None and is_mmg(ship):
@@ -292,7 +292,7 @@ class MuJoCoPlant(PlantBase):
 
     def _set_ctrlrange(self, spec) -> None:
         """The motors' ``ctrlrange`` from the scenario's actuator limits (ctrllimited where a side is
-        finite; an open side is +-CTRL_OPEN). The loop's actuator model (usv_mj.actuators) has
+        finite; an open side is +-CTRL_OPEN). The loop's actuator model (usv_mj.physics.actuators) has
         already limited the command, so MuJoCo's clamp does not change it: the model file shows the
         same vessel to a MuJoCo user (``spec.to_xml()``, ``model.actuator_ctrlrange``)."""
         if self.actuator_limits is None:
@@ -390,7 +390,7 @@ class MuJoCoPlant(PlantBase):
     def kernel(self, t_end: float):
         """(mujoco_kernel, the model and data) for the compiled loop, steps up to ``t_end`` [s] (the
         sea's grids extended past it first); None with the Python callback."""
-        from usv_mj.kernels import Kernel
+        from usv_mj.core.kernels import Kernel
 
         if self.callback != "native":
             return None
@@ -471,7 +471,7 @@ class MuJoCoPlant(PlantBase):
         limits = scenario.actuators.generalized_limits()
         vessel = scenario.vessel.model  # its rigid body and dimensions (scenario.ship: its packed hull)
         if len(obstacles) or len(rangefinders):
-            from usv_mj.obstacles.compose import ContactParams, HarbourPlant
+            from usv_mj.scene.compose import ContactParams, HarbourPlant
 
             return HarbourPlant(scenario.ship, scenario.disturbance, obstacles, scenario.control_period,
                                 scenario.plant.substeps, contact or ContactParams(), safety_radii,

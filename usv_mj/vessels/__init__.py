@@ -1,26 +1,26 @@
 """Vessels: a hull written once, as the packed parameters every plant and controller kernel reads.
 
-A scenario names its hull by ``[vessel] kind`` (:data:`usv_mj.registry.VESSELS`; docs/vessels.md):
+A scenario names its hull by ``[vessel] kind`` (:data:`usv_mj.core.registry.VESSELS`; docs/vessels.md):
 
 - ``paper``: the paper's ship (:mod:`usv_mj.vessels.paper`), whose options are the keys of
-  :class:`usv_mj.ship.ShipParams` (``[ship]`` is the same table under its old name);
+  :class:`usv_mj.physics.ship.ShipParams` (``[ship]`` is the same table under its old name);
 - ``cybership2``, ``otter``: data files of ``usv_mj/vessels/data/`` (:mod:`usv_mj.vessels.datafile`),
   the hydrodynamic derivatives of their sources in Fossen's notation;
 - ``clarke83``: a ship from its main dimensions (:mod:`usv_mj.vessels.clarke83`);
 - ``kvlcc2``: the KVLCC2 7 m model by the MMG standard method, rudder and propeller as its inputs
-  (:mod:`usv_mj.vessels.kvlcc2`, :mod:`usv_mj.mmg`);
+  (:mod:`usv_mj.vessels.kvlcc2`, :mod:`usv_mj.physics.mmg`);
 - a data file of the user's (``kind = "path/to/boat.toml"``) or a module (``"pkg.mod:Name"``, an
   entry point of the group ``usv_mj.vessels``).
 
-A vessel kind's factory returns a :class:`Vessel`: the packed hull (:class:`~usv_mj.ship.ShipParams`:
+A vessel kind's factory returns a :class:`Vessel`: the packed hull (:class:`~usv_mj.physics.ship.ShipParams`:
 total mass M, damping D(nu), the masses of C(nu), cross-flow drag), the rigid body MuJoCo carries
-(:class:`~usv_mj.ship.RigidBodySplit`), the main dimensions (the MJCF hull is sized from them) and
+(:class:`~usv_mj.physics.ship.RigidBodySplit`), the main dimensions (the MJCF hull is sized from them) and
 optionally the vessel's own ``[actuators]`` table. :func:`from_derivatives` is the one map from
 Fossen's derivatives to that layout.
 
 Conventions: SI units; body x forward, y to port, z up (README, Conventions). The sources write the
 marine NED frame (y to starboard); M, C(nu) nu and D(nu) nu of a port/starboard-symmetric hull are
-unchanged by the mirror y -> -y (usv_mj.ship), so their derivatives are used as printed.
+unchanged by the mirror y -> -y (usv_mj.physics.ship), so their derivatives are used as printed.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from usv_mj.ship import RigidBodySplit, ShipParams
+from usv_mj.physics.ship import RigidBodySplit, ShipParams
 
 __all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS", "register_file", "of_table"]
 
@@ -68,11 +68,11 @@ class Vessel:
     ship: the packed hull (total M, D(nu), C(nu)'s masses, cross-flow) every kernel reads.
     split: the rigid body MuJoCo carries (m, x_g, I_z); the callback adds M - M_RB.
     dimensions: L, B, T [m].
-    actuators: an ``[actuators]`` table (usv_mj.actuators.ActuatorSpec keys) or None (the scenario's).
+    actuators: an ``[actuators]`` table (usv_mj.physics.actuators.ActuatorSpec keys) or None (the scenario's).
     source: where its numbers come from (one line; docs/vessels.md has the full citation).
     notes: what its model leaves out or approximates (one line each).
     inputs: "forces" (the input channels are the surge force tau_u [N] and yaw moment tau_r [N m])
-        or "rudder" (a ruddered ship, usv_mj.mmg: propeller revolutions n_P [1/s] and rudder angle
+        or "rudder" (a ruddered ship, usv_mj.physics.mmg: propeller revolutions n_P [1/s] and rudder angle
         delta [rad], positive to port).
     scale: the model's scale 1:scale of a full-scale ship (IMO's criteria then apply to that ship), or None.
     nominal_rps: a ruddered vessel's propeller revolutions near its service speed [1/s] (where the
@@ -80,7 +80,7 @@ class Vessel:
     manoeuvre: the vessel's own defaults of the standard manoeuvres' options ({key: value}, e.g.
         approach_speed, yaw_moment; a data file's ``[manoeuvre]`` table), each applied to every manoeuvre
         that has the option, and {manoeuvre kind: {key: value}} for one kind only (these win), or None: the paper hull's
-        Froude-scaled to its length (usv_mj.manoeuvres.options.vessel_defaults).
+        Froude-scaled to its length (usv_mj.jobs.manoeuvres.options.vessel_defaults).
     """
 
     kind: str
@@ -119,7 +119,7 @@ def from_derivatives(m, x_g, I_z, X_udot, Y_vdot, Y_rdot, N_vdot, N_rdot,
     X = X_u u + X_uu |u| u + X_uuu u^3, Y = (Y_v + Y_vv |v| + Y_rv |r|) v + (Y_r + Y_vr |v| + Y_rr |r|) r,
     N likewise with N_* (Fossen's Y_|v|v is Y_vv here, Y_|r|v is Y_rv, Y_|v|r is Y_vr, Y_|r|r is Y_rr).
 
-    Mapped onto usv_mj.ship's layout: m11 = m - X_udot, m22 = m - Y_vdot, m23 = m x_g - Y_rdot
+    Mapped onto usv_mj.physics.ship's layout: m11 = m - X_udot, m22 = m - Y_vdot, m23 = m x_g - Y_rdot
     (= m x_g - N_vdot: the layout's M is symmetric; a source with Y_rdot != N_vdot is given its
     symmetric part by the caller, see clarke83), m33 = I_z - N_rdot; d11 = -(X_u, X_uu, X_uuu),
     d22 = -(Y_v, Y_vv, Y_rv), d23 = -(Y_r, Y_vr, Y_rr), d32 = -(N_v, N_vv, N_rv), d33 = -(N_r, N_vr, N_rr),
@@ -152,7 +152,7 @@ def of_table(table) -> Vessel | None:
     the packed hull under ``ship`` beside every vessel); None when the table names no vessel."""
     if not isinstance(table, dict) or not isinstance(table.get("vessel"), dict):
         return None
-    from usv_mj.scenario import from_dict
+    from usv_mj.scenario.spec import from_dict
 
     kinds = ("vessel", "ship") if table["vessel"].get("kind", "paper") == "paper" else ("vessel",)
     return from_dict({k: table[k] for k in kinds if k in table}, source="<metadata>").vessel.model
@@ -160,6 +160,6 @@ def of_table(table) -> Vessel | None:
 
 def register_file(path) -> str:
     """Register the vessel data file ``path`` (docs/vessels.md) under its path as given; returns the kind."""
-    from .datafile import register_file as _register
+    from usv_mj.vessels.datafile import register_file as _register
 
     return _register(path)

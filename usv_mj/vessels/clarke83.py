@@ -36,9 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from usv_mj.registry import VESSELS
+from usv_mj.core.registry import VESSELS
 
-from . import Dimensions, Vessel, from_derivatives
+from usv_mj.vessels import Dimensions, Vessel, from_derivatives
 
 RHO = 1025.0  # kg/m^3, as the reference
 

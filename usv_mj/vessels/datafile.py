@@ -19,11 +19,11 @@ or by naming it in a scenario: ``[vessel] kind = "path/to/boat.toml"``. A file::
     L = 1.255                    # m (and B, T)
     [crossflow]                  # optional: Fossen's strip-theory cross-flow drag
     cd = 1.0                     # 2-D drag coefficient; rho [kg/m^3] and strips (20) optional
-    [actuators]                  # optional: the vessel's own [actuators] table (usv_mj.actuators)
+    [actuators]                  # optional: the vessel's own [actuators] table (usv_mj.physics.actuators)
     kind = "twin"
     [manoeuvre]                  # optional: its own defaults of the manoeuvres' options
     approach_speed = 2.34        # m/s (otherwise the paper hull's test Froude-scaled to L:
-    yaw_moment = 15.8            # N m  usv_mj.manoeuvres.options.vessel_defaults)
+    yaw_moment = 15.8            # N m  usv_mj.jobs.manoeuvres.options.vessel_defaults)
 
 Every number of ``[derivatives]``, ``[dimensions]`` and ``[crossflow]`` is an option of the kind,
 so a scenario may change one (``[vessel] kind = "otter"``, ``m = 90.0``); the options dataclass of
@@ -38,11 +38,11 @@ import os
 from importlib import resources
 from typing import Any
 
-from usv_mj.errors import ScenarioError
-from usv_mj.registry import VESSELS
-from usv_mj.toml_values import read_toml
+from usv_mj.core.errors import ScenarioError
+from usv_mj.core.registry import VESSELS
+from usv_mj.support.toml_values import read_toml
 
-from . import CORIOLIS, Dimensions, Vessel, from_derivatives
+from usv_mj.vessels import CORIOLIS, Dimensions, Vessel, from_derivatives
 
 DERIVATIVES = ("m", "x_g", "I_z", "X_udot", "Y_vdot", "Y_rdot", "N_vdot", "N_rdot",
                "X_u", "X_uu", "X_uuu", "Y_v", "Y_vv", "Y_rv", "Y_r", "Y_vr", "Y_rr",
@@ -131,7 +131,7 @@ def read_file(path) -> dict:
     if manoeuvre is not None:
         if not isinstance(manoeuvre, dict):
             raise ScenarioError(f"{path}: [manoeuvre] must be a table, got {manoeuvre!r}")
-        from usv_mj.manoeuvres.options import KINDS
+        from usv_mj.jobs.manoeuvres.options import KINDS
 
         known = {f.name for cls in KINDS.values() for f in dataclasses.fields(cls)}
         items = [(k, v) for k, v in manoeuvre.items() if not (k in KINDS and isinstance(v, dict))]
@@ -200,7 +200,7 @@ def register_file(path, kind: str | None = None, replace: bool = False) -> str:
 
 
 def _source(kind: str) -> str:
-    from usv_mj.registry import BUILT_IN
+    from usv_mj.core.registry import BUILT_IN
 
     return BUILT_IN if VESSELS._builtins.get(kind) == __name__ else f"data file {kind}"
 

@@ -12,10 +12,10 @@ The vessel's actuators are its rudder and its propeller: the plants' two input c
 propeller revolutions n_P [1/s] ("tau_u") and the rudder angle delta [rad] ("tau_r", positive to
 port in usv_mj's frame, i.e. -delta of the MMG's starboard-positive one). The ``[actuators]`` of
 the vessel is a ``box``: |delta| <= ``max_rudder_deg`` and the rudder rate limited to
-``rudder_rate_deg_s`` per control period (usv_mj.actuators, exact per period); n_P at most
+``rudder_rate_deg_s`` per control period (usv_mj.physics.actuators, exact per period); n_P at most
 ``max_propeller_rps``. A force controller's (tau_u, tau_r) is allocated to (n_P, delta) first
-(usv_mj.mmg.mmg_allocate; docs/vessels.md, Force controllers on KVLCC2).
-The forces are :func:`usv_mj.mmg.mmg_terms` on both plants (one kernel).
+(usv_mj.physics.mmg.mmg_allocate; docs/vessels.md, Force controllers on KVLCC2).
+The forces are :func:`usv_mj.physics.mmg.mmg_terms` on both plants (one kernel).
 """
 
 from __future__ import annotations
@@ -23,15 +23,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from usv_mj.mmg import (N_MMG_PARAMS, Q_AH, Q_C1, Q_C2M, Q_C2P, Q_DP, Q_EPS, Q_ETA, Q_GRM, Q_GRP, Q_HULL_N,
+from usv_mj.physics.mmg import (N_MMG_PARAMS, Q_AH, Q_C1, Q_C2M, Q_C2P, Q_DP, Q_EPS, Q_ETA, Q_GRM, Q_GRP, Q_HULL_N,
                         Q_HULL_X, Q_K0, Q_K1, Q_K2, Q_KAPPA, Q_L, Q_LR, Q_MMX, Q_MMY, Q_MXG, Q_NR, Q_NRRR, Q_NV,
                         Q_NVRR, Q_NVVR, Q_NVVV, Q_R0, Q_RHO, Q_RUDDER, Q_TP, Q_TR, Q_WAKE, Q_WP0, Q_XP, Q_XRAH,
                         Q_XB, Q_XRR, Q_XVR, Q_XVV, Q_XVVVV, Q_YR, Q_YRRR, Q_YV, Q_YVRR, Q_YVVR, Q_YVVV,
                         WAKE_EXPONENTIAL, WAKE_YASUKAWA)
-from usv_mj.registry import VESSELS
-from usv_mj.ship import MMGShipParams, RigidBodySplit
+from usv_mj.core.registry import VESSELS
+from usv_mj.physics.ship import MMGShipParams, RigidBodySplit
 
-from . import Dimensions, Vessel
+from usv_mj.vessels import Dimensions, Vessel
 
 WAKE_MODELS = {"exponential": WAKE_EXPONENTIAL, "yasukawa2015": WAKE_YASUKAWA}
 SCALE = 45.714          # the 7 m model of the 320 m ship (SIMMAN 2008's KVLCC2 model, L_pp 7.0 m)
@@ -70,7 +70,7 @@ class KVLCC2Options:
         the n_P that holds the speed starts (these coefficients hold 1.179 m/s at 11.85 1/s; the
         17.95 1/s of shipmmg's KVLCC2 tests drives this model faster: docs/vessels.md).
     drift_point_x: x_b [m] ahead of midship of the point whose lateral velocity sets U and beta
-        (usv_mj.mmg; 0: the MMG standard's midship; -x_G: shipmmg 0.0.11's v - x_G r).
+        (usv_mj.physics.mmg; 0: the MMG standard's midship; -x_G: shipmmg 0.0.11's v - x_G r).
     """
 
     rho: float = 1025.0
@@ -174,7 +174,7 @@ class KVLCC2Options:
 
 
 def pack(o: KVLCC2Options) -> tuple:
-    """The packed MMG block (usv_mj.mmg.Q_*) of ``o``."""
+    """The packed MMG block (usv_mj.physics.mmg.Q_*) of ``o``."""
     q = [0.0] * N_MMG_PARAMS
     m = o.mass
     m_x, m_y, _ = o.added_masses()
@@ -216,7 +216,7 @@ def hull(o: KVLCC2Options) -> tuple[MMGShipParams, RigidBodySplit]:
 def actuators(o: KVLCC2Options) -> dict:
     """The vessel's ``[actuators]``: the rudder's angle and rate limit on the delta channel, the largest
     n_P on the n_P channel (module docstring); a scenario's ``[actuators]`` keys change them one by
-    one (usv_mj.scenario), they do not replace the steering gear."""
+    one (usv_mj.scenario.spec), they do not replace the steering gear."""
     return {"kind": "box", "max_surge_n": o.max_propeller_rps, "max_yaw_nm": math.radians(o.max_rudder_deg),
             "yaw_rate_nm_s": math.radians(o.rudder_rate_deg_s)}
 

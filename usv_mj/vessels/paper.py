@@ -1,17 +1,17 @@
-"""The paper's ship as a vessel: kind ``paper``, options :class:`usv_mj.ship.ShipParams`.
+"""The paper's ship as a vessel: kind ``paper``, options :class:`usv_mj.physics.ship.ShipParams`.
 
 Its options are the ``[ship]`` keys (total mass m11, m22, m23, m33 and the polynomial damping of
 docs/model.md §1); ``[ship]`` stays their name in scenarios, presets and records. The rigid body is
-the default :class:`~usv_mj.ship.RigidBodySplit` (m = m11, x_g = m23/m11, I_z = m33) and the hull
+the default :class:`~usv_mj.physics.ship.RigidBodySplit` (m = m11, x_g = m23/m11, I_z = m33) and the hull
 is models/usv.xml as drawn, so a paper run is what it was before vessels existed, bit for bit.
 """
 
 from __future__ import annotations
 
-from usv_mj.registry import VESSELS
-from usv_mj.ship import RigidBodySplit, ShipParams
+from usv_mj.core.registry import VESSELS
+from usv_mj.physics.ship import RigidBodySplit, ShipParams
 
-from . import PAPER_DIMENSIONS, Vessel
+from usv_mj.vessels import PAPER_DIMENSIONS, Vessel
 
 
 @VESSELS.register("paper", options=ShipParams)

@@ -9,8 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from usv_mj.registry import TRAJECTORIES
-from usv_mj.trajectories import Reference
+from usv_mj.core.registry import TRAJECTORIES
+from usv_mj.references.trajectories import Reference
 
 
 @dataclass(frozen=True)

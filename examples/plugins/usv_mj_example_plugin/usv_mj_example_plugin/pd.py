@@ -8,7 +8,7 @@ With the body-frame position error (e_x along the hull, e_y to port) of the refe
     tau_r = kp_yaw e_psi + kd_yaw (r_d - r)                                        [N m]
 
 (d11(u) = c0 + c1 |u| + c2 u^2, the nominal ship's surge damping: the force that holds u_d). The
-run is judged by a pose tolerance after a settling time (:class:`usv_mj.criteria.PoseTolerance`),
+run is judged by a pose tolerance after a settling time (:class:`usv_mj.record.criteria.PoseTolerance`),
 not by the paper's funnel.
 """
 
@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from usv_mj.criteria import PoseTolerance
-from usv_mj.registry import CONTROLLERS
+from usv_mj.record.criteria import PoseTolerance
+from usv_mj.core.registry import CONTROLLERS
 
 
 @dataclass(frozen=True)

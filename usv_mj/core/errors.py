@@ -1,0 +1,72 @@
+"""The error family of usv_mj (a leaf module: imports nothing of the package).
+
+Every bad input (a scenario file, a sea table, an obstacle, a sweep file, a command-line value)
+raises a :class:`ScenarioError`, whose message is one line that starts with the file or flag and
+names the key: ``my.toml: quantizer.delta_u must be in (0, 1), got 1.5``. The command line turns
+it into exit code 2 with no output written. Subclasses say which part of the input was wrong, so a
+caller may catch the family or one member.
+"""
+
+from __future__ import annotations
+
+
+class UsvMjError(Exception):
+    """Base of every error that usv_mj raises on purpose (never a bug)."""
+
+
+class ScenarioError(UsvMjError, ValueError):
+    """A scenario value, key or file is wrong; the message names the key and the source."""
+
+
+class TooManyStepsError(ScenarioError):
+    """duration / control_period is over the step cap (usv_mj.scenario.spec.Scenario); its own type so
+    that a command whose --duration replaces the file's checks the count on the duration that runs."""
+
+
+class SeaSettingsError(ScenarioError):
+    """A ``[sea]`` value is wrong (waves, current, wind)."""
+
+
+class SweepError(ScenarioError):
+    """A sweep file (its base scenario, a varied path, a distribution) is wrong."""
+
+
+class UnknownKindError(ScenarioError):
+    """A ``kind`` names no registered plant, controller, trajectory or disturbance."""
+
+
+class PluginImportError(UnknownKindError):
+    """A ``"package.module:Name"`` kind or an entry point could not be imported (the message names
+    the kind, where it was named, and the import's own error)."""
+
+
+class ArgumentTypeError(UsvMjError, TypeError):
+    """A public function was handed the wrong kind of object; the message names the function, the
+    argument, what it takes and what it got: ``simulate: scenario must be ..., got NoneType``."""
+
+
+def expected(where: str, name: str, what: str, value) -> ArgumentTypeError:
+    """The :class:`ArgumentTypeError` of ``where``'s argument ``name`` that should be ``what``."""
+    shown = repr(value) if isinstance(value, (str, bytes, int, float)) and len(repr(value)) <= 40 else None
+    got = type(value).__name__ + (f" {shown}" if shown else "")
+    return ArgumentTypeError(f"{where}: {name} must be {what}, got {got}")
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised like Ctrl-C's KeyboardInterrupt (its text: the signal's name), so
+    that every ending by a signal is recorded as an interruption."""
+
+
+#: The optional dependencies (pyproject.toml's extras): import name -> (pip name, extra).
+EXTRAS = {"gymnasium": ("gymnasium", "gym"), "shimmy": ("shimmy", "gym"), "dask_jobqueue": ("dask-jobqueue", "hpc"),
+          "bokeh": ("bokeh", "hpc"), "stable_baselines3": ("stable-baselines3", "rl")}
+
+
+class MissingExtra(UsvMjError, ImportError):
+    """An optional dependency is not installed; the message names it and the pip command."""
+
+
+def missing_extra(module: str, what: str) -> MissingExtra:
+    """The one-line error for ``what`` needing the optional ``module``: ``pip install "usv_mj[gym]"``."""
+    package, extra = EXTRAS[module]
+    return MissingExtra(f"{what} needs {package}, which is not installed: pip install \"usv_mj[{extra}]\"")

@@ -1,0 +1,108 @@
+"""Native kernels behind the parts' interfaces (the compiled loop of :mod:`usv_mj.loop.compiled`).
+
+A part that can run natively has, beside its Python interface (which stays as it is), a method
+``kernel()`` (plants: ``kernel(t_end)``, the time [s] the coming block of steps reaches) returning a
+:class:`Kernel`: a numba ``njit`` function defined at module level (so that the loop that calls it
+can be generated, compiled and cached on disk) and the tuple of arguments (arrays and scalars,
+its parameters and its state) that follow the loop's own arguments. The signatures:
+
+- reference: ``fn(t, *args) -> ref`` (the 7-vector of usv_mj.controllers.base.REF_FIELDS);
+- controller: ``fn(t, x, ref, *args) -> (tau_u, tau_r, diag)`` (``diag`` laid out as its
+  ``diagnostic_fields``), like ``__call__``;
+- quantizer: ``fn(tau, *args) -> (q, k)`` (the quantized value and the signed level index);
+- actuators: ``fn(q_u, q_r, *args) -> (f_u, f_r, sat_u, sat_r)``, like ``apply``;
+- plant: ``fn(k, x, f_u, f_r, *args) -> (x_new, failed)``: the plant's ``k``-th step (from t0 + k dt)
+  from state ``x`` with the force held; ``failed`` when the step failed (the plant raises the error
+  through ``Kernel.fail(k)``);
+- hook: ``fn(k, t, x, *args) -> python``: the hook's work at row ``k`` (time ``t``, state ``x``),
+  before the reference; True when Python must do it instead (the loop then calls the hook's
+  ``__call__`` for that row and goes on): :mod:`usv_mj.obstacles.native_step`.
+
+``sync`` (optional) writes the kernel's results back into the Python object after a block (a
+plant's ``sync(k, x)``: its step count and state; the obstacle hook's rows), so that the object is
+where the Python loop would have left it (parts whose state is the kernel's own arrays, such as the
+quantizer's (k, output, switches), need none).
+
+One implementation: a built-in part's Python method calls the same njit functions as its kernel
+(e.g. ``LineReference.pose`` is :func:`usv_mj.references.trajectories.line_pose`, which ``line_kernel``
+composes with the vector's assembly), so the two loops cannot drift apart.
+
+When a kernel is used (:func:`kernel_blocker`, the one rule, for the compiled loop and the tasks'
+native step): only for the class that defines ``kernel``. A subclass (or a mixin, or an instance
+attribute) that adds or overrides any method, property or other descriptor below that class runs
+in the Python loop, unless it defines a ``kernel`` of its own (then it answers for that kernel
+standing for all its methods); the reason names the class and the
+methods (``record.metadata["loop_reason"]``, e.g. "LineReference subclass WavyLine overrides
+pose"). Allowed below the kernel's class, because the kernel is made from the object they built:
+plain data attributes (``kind = "wavy"``; a class, such as an options dataclass, under a new
+name), the constructors ``__init__``, ``from_spec``, ``from_scenario``, and the names a class lists in its own ``KERNEL_NEUTRAL`` (a frozenset): methods
+the kernel does not stand in for, which both loops call alike or neither calls (not the methods
+the kernel replaces, nor anything they call; e.g. :class:`usv_mj.scene.compose.HarbourPlant`'s
+``rangefinders``, ``move_obstacles``, called by the Python hook in both loops, and ``close``). A
+declaration holds for that name in every class below too.
+"""
+
+from __future__ import annotations
+
+import types
+from typing import Any, Callable, NamedTuple
+
+
+class Kernel(NamedTuple):
+    fn: Any
+    args: tuple
+    sync: Callable | None = None
+    fail: Callable | None = None
+
+
+#: names a class below the kernel's may define (the class's bookkeeping and the constructors:
+#: the kernel is made from the object they built, after them)
+SAFE_NAMES = frozenset({
+    "__module__", "__qualname__", "__doc__", "__dict__", "__weakref__", "__annotations__", "__firstlineno__",
+    "__static_attributes__", "__orig_bases__", "__parameters__", "__slots__", "_abc_impl", "__abstractmethods__",
+    "__dataclass_fields__", "__dataclass_params__", "__match_args__",
+    "__init__", "from_spec", "from_scenario",
+})
+
+
+def _behaviour(name, value, k_owner) -> bool:
+    """True for what can change what the part computes: functions, class/static methods, properties
+    and every other descriptor (anything with ``__get__``), and callables; a class as attribute (an
+    options dataclass a registry attaches) only when it takes the place of a name of the kernel's class."""
+    if isinstance(value, (staticmethod, classmethod, property, types.FunctionType)):
+        return True
+    if isinstance(value, type):
+        return any(name in c.__dict__ for c in k_owner.__mro__)
+    return callable(value) or hasattr(type(value), "__get__")
+
+
+def kernel_blocker(part) -> str | None:
+    """Why ``part``'s kernel must not run (module docstring), or None when it may (or it has none:
+    then :func:`kernel_of` says None)."""
+    cls = type(part)
+    mro = cls.__mro__
+    k_owner = next((c for c in mro if "kernel" in c.__dict__), None)
+    if k_owner is None:
+        return None
+    below = [c for c in mro if c not in k_owner.__mro__]
+    neutral = SAFE_NAMES.union(*(c.__dict__.get("KERNEL_NEUTRAL", ()) for c in mro))
+    for c in below:
+        names = sorted(n for n, v in c.__dict__.items() if n not in neutral and _behaviour(n, v, k_owner))
+        if names:
+            how = "subclass" if issubclass(c, k_owner) else "mixin"
+            return f"{k_owner.__name__} {how} {c.__name__} overrides {', '.join(names)} (and has no kernel of its own)"
+    shadowed = sorted(n for n, v in getattr(part, "__dict__", {}).items()
+                      if callable(v) and any(n in c.__dict__ for c in mro))
+    if shadowed:
+        return f"{cls.__name__} object has its own {', '.join(shadowed)} (instance attribute)"
+    return None
+
+
+def kernel_of(part, method: str | None = None):
+    """The bound ``kernel`` method of ``part`` when its kernel may run (:func:`kernel_blocker`), else
+    None. ``method`` (the Python method the kernel stands for) is not needed by the rule: kept for
+    callers that name it."""
+    if kernel_blocker(part) is not None:
+        return None
+    fn = getattr(part, "kernel", None)
+    return fn if callable(fn) else None

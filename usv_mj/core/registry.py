@@ -1,0 +1,356 @@
+"""Registries of the parts a scenario names by ``kind``: plants, controllers, trajectories, disturbances, vessels.
+
+As in dm_control's suite, a part registers itself where it is defined::
+
+    from usv_mj.core.registry import CONTROLLERS
+
+    @CONTROLLERS.register("my-law", options=MyGains)
+    class MyController:
+        name = "my-law"
+        diagnostic_fields = ("e1", "e2", "e3", "rho1", "rho2", "rho3", "z1", "z2", "z3", "s")
+        @classmethod
+        def from_scenario(cls, gains, scenario): ...
+        def reset(self): ...
+        def __call__(self, t, state, reference): return tau_u, tau_r, diagnostics
+
+and ``[controller] kind = "my-law"`` in a scenario finds it; its table's keys are validated
+against ``MyGains``. Every registry works the same way:
+
+- ``register(kind, options=OptionsDataclass, replace=False, **info)``: a decorator. ``options`` is
+  the kind's typed options dataclass (the keys of its scenario table besides ``kind``; None: the
+  kind takes none); controllers may say ``gains=`` (the same thing). A kind that exists is refused
+  unless ``replace=True``.
+- The factory: the registered object's ``from_scenario(options, scenario, **context)`` classmethod,
+  or the object itself when it is a plain callable of that signature. ``context`` is the
+  registry's own: trajectories get ``duration=`` [s] (the horizon the reference must cover);
+  plants get ``environment=``, ``obstacles=``, ``contact=``, ``safety_radii=`` (and
+  ``rangefinders=`` when asked); controllers and vessels get nothing (a vessel's factory is called
+  while the scenario is built, with ``scenario=None``, and returns a :class:`usv_mj.vessels.Vessel`). A disturbance's options dataclass is the
+  disturbance itself (its ``as_array()`` feeds the plants' kernels), so it registers only that.
+
+Where a kind is found, in this order (:meth:`Registry.get`):
+
+1. registered in this process (a decorator, or a built-in whose module was imported);
+2. a **built-in**, declared below by module name (imported only when its kind is looked up, so
+   validating a scenario does not import MuJoCo; a checkout works without installation). The
+   built-ins are not also declared as entry points in pyproject.toml: this table is their one
+   source (an uninstalled checkout has no entry points, and two lists would drift apart);
+3. ``"package.module:Name"`` (as Gymnasium's ``entry_point``): the module is imported and ``Name``
+   taken; it is registered under that very string;
+4. a Python **entry point** named ``kind`` in the registry's group (``usv_mj.controllers``,
+   ``usv_mj.references.trajectories``, ``usv_mj.plants``, ``usv_mj.physics.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
+
+For 3 and 4 the object named is either registered by its own module's decorator, or registered
+here with the options dataclass it declares as its class attribute ``options`` (none if it has no
+such attribute). Routes 2-4 work in any process (a sweep's Dask worker resolves them by import); a
+kind registered only by a decorator in a script's ``__main__`` exists only in that process
+(:meth:`Registry.portable` says so). A leaf module: it imports nothing of the package but
+:mod:`usv_mj.core.errors`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import importlib
+import re
+import sys
+from dataclasses import dataclass, field
+from typing import Any
+
+from usv_mj.core.errors import PluginImportError, UnknownKindError
+
+BUILT_IN = "built-in"
+_MODULE_NAME = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One registered part: its ``kind``, the object (a class or a factory), what it declares
+    (``info``: ``options``, the same as ``gains``, and any other registration keyword) and where it
+    comes from (``source``: "built-in", "entry point usv_mj.controllers (dist NAME 1.0)",
+    "module:Name", or "registered at runtime (module M)")."""
+
+    kind: str
+    obj: Any
+    info: dict = field(default_factory=dict)
+    source: str = "registered at runtime"
+
+    def __getattr__(self, name):  # entry.gains, entry.options, entry.doc, ... from the registration's keywords
+        if name.startswith("__"):
+            raise AttributeError(name)
+        try:
+            return self.info[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    @property
+    def options_class(self):
+        """The kind's options dataclass, or None when it takes no options."""
+        return self.info.get("options")
+
+    @property
+    def module(self) -> str:
+        """The module that defines the object ("" if it has none)."""
+        return getattr(self.obj, "__module__", "") or ""
+
+    def make(self, options, scenario, **context):
+        """The part: ``obj.from_scenario(options, scenario, **context)``, or ``obj(options,
+        scenario, **context)`` for a plain factory; a kind whose object *is* its options class (a
+        disturbance) gives ``options`` itself."""
+        factory = getattr(self.obj, "from_scenario", None)
+        if factory is not None:
+            return factory(options, scenario, **context)
+        if self.obj is self.options_class:
+            return options
+        return self.obj(options, scenario, **context)
+
+
+class Registry:
+    """Parts of one sort by ``kind``: ``register`` (a decorator), ``get``, ``kinds``, ``entries``.
+
+    ``what``: the part's name in messages ("controller"); ``builtins``: kind -> the module that
+    registers it on import; ``group``: the entry-point group searched for kinds not found.
+    """
+
+    def __init__(self, what: str, builtins: dict[str, str], group: str):
+        self.what = what
+        self.group = group
+        self._builtins = dict(builtins)  # kind -> module that registers it on import
+        self._entries: dict[str, Entry] = {}
+        self._entry_points = None        # name -> importlib.metadata.EntryPoint, read once
+
+    # --- registering ----------------------------------------------------------------------------
+
+    def register(self, kind: str, *, replace: bool = False, options=None, gains=None, **info):
+        """Decorator: register ``obj`` under ``kind`` (module docstring). Refused with ValueError
+        when ``kind`` exists, unless ``replace=True`` (a re-import of the same definition, same
+        module and qualified name, replaces it quietly)."""
+        if not isinstance(kind, str) or not kind:
+            raise ValueError(f"a {self.what} kind must be a non-empty string, got {kind!r}")
+        if gains is not None and options is not None and gains is not options:
+            raise ValueError(f"{self.what} {kind!r}: options= and gains= name the same thing; give one")
+        options = options if options is not None else gains
+        if options is not None and not (isinstance(options, type) and dataclasses.is_dataclass(options)):
+            raise ValueError(f"{self.what} {kind!r}: options must be a dataclass type, got {options!r}")
+        caller = sys._getframe(1).f_globals.get("__name__", "")
+        source = BUILT_IN if self._builtins.get(kind) == caller else f"registered at runtime (module {caller})"
+        return self._decorator(kind, options, info, source, replace)
+
+    def _decorator(self, kind, options, info, source, replace):
+        def deco(obj):
+            if not (callable(obj) or hasattr(obj, "from_scenario")):
+                raise ValueError(f"{self.what} {kind!r}: the registered object must be callable or have "
+                                 f"from_scenario, got {obj!r}")
+            if source != BUILT_IN and kind in self._builtins and kind not in self._entries \
+                    and self._builtins[kind] not in sys.modules:
+                importlib.import_module(self._builtins[kind])  # the built-in first: it is what "exists"
+            old = self._entries.get(kind)
+            if old is not None and not replace and not _same_definition(old.obj, obj):
+                raise ValueError(f"{self.what} kind {kind!r} is already registered ({old.source}: "
+                                 f"{_name_of(old.obj)}); pass replace=True to replace it, or choose another kind")
+            full = dict(info)
+            if options is not None:
+                full["options"] = options
+                full["gains"] = options  # the controllers' historical name
+            self._entries[kind] = Entry(kind, obj, full, source)
+            return obj
+
+        return deco
+
+    def unregister(self, kind: str) -> None:
+        """Forget a registered kind (for tests that register their own part); a built-in comes back
+        on its next lookup only by importing its module again, so tests unregister only their own."""
+        self._entries.pop(kind, None)
+
+    # --- looking up -----------------------------------------------------------------------------
+
+    def builtin_kinds(self) -> tuple[str, ...]:
+        return tuple(sorted(self._builtins))
+
+    def entry_point_names(self) -> tuple[str, ...]:
+        return tuple(sorted(self._eps()))
+
+    def kinds(self) -> tuple[str, ...]:
+        """Every kind a scenario may name by a plain name: the built-in ones, those registered
+        since, and the entry points of the group (``module:Name`` kinds are open-ended)."""
+        return tuple(sorted(set(self._builtins) | set(self._entries) | set(self._eps())))
+
+    def __contains__(self, kind) -> bool:
+        if not isinstance(kind, str):
+            return False
+        if kind in self._entries or kind in self._builtins or kind in self._eps():
+            return True
+        if ":" in kind:
+            try:
+                self.get(kind)
+            except UnknownKindError:
+                return False
+            return True
+        return False
+
+    def get(self, kind: str, where: str = "") -> Entry:
+        """The entry of ``kind`` (module docstring for the order searched). :class:`UnknownKindError`
+        names ``where`` and lists the kinds; :class:`PluginImportError` (a subclass) says why a
+        ``module:Name`` or an entry point could not be imported."""
+        if not isinstance(kind, str) or not kind:
+            raise UnknownKindError(f"{where + ': ' if where else ''}a {self.what} kind must be a non-empty "
+                                   f"string, got {kind!r}")
+        if kind in self._entries:
+            return self._entries[kind]
+        if kind in self._builtins:
+            importlib.import_module(self._builtins[kind])
+        elif ":" in kind:
+            self._load_module_name(kind, where)
+        elif kind in self._eps():
+            self._load_entry_point(kind, where)
+        if kind not in self._entries:
+            known = self.kinds()
+            hint = difflib.get_close_matches(str(kind), known, n=1)
+            raise UnknownKindError(
+                f"{where + ': ' if where else ''}unknown {self.what} kind {kind!r}"
+                + (f" (did you mean {hint[0]!r}?)" if hint else "") + f"; {self.what} kinds: {', '.join(known)}"
+                + " (or 'package.module:Name', or an entry point of the group " + self.group + ")")
+        return self._entries[kind]
+
+    def entries(self, load: bool = True) -> list[Entry]:
+        """Every entry, sorted by kind: the built-ins and entry points loaded when ``load`` (a
+        kind that cannot be loaded is skipped; ``get`` says why), those registered at runtime."""
+        if load:
+            for kind in self.kinds():
+                try:
+                    self.get(kind)
+                except UnknownKindError:
+                    pass
+        return [self._entries[k] for k in sorted(self._entries)]
+
+    def portable(self, kind: str) -> str | None:
+        """None when a fresh process (a sweep's worker) finds ``kind`` by itself; else one line
+        saying why not (a kind registered only by a decorator in ``__main__``). An entry
+        registered at runtime in an importable module is found by importing that module
+        (:meth:`module_to_import`)."""
+        entry = self._entries.get(kind)
+        if entry is None or entry.source == BUILT_IN or entry.source.startswith("entry point") or ":" in kind:
+            return None
+        if entry.module in ("", "__main__", "__mp_main__") or not _importable(entry.module):
+            return (f"{self.what} kind {kind!r} is registered only in this process (by {_name_of(entry.obj)} "
+                    f"in {entry.module or 'no module'}): other processes cannot find it; name it as "
+                    f"'package.module:Name' with its folder on PYTHONPATH, or declare an entry point "
+                    f"in the group {self.group}")
+        return None
+
+    def module_to_import(self, kind: str) -> str | None:
+        """The module a fresh process must import to find ``kind`` when it was registered at
+        runtime by an importable module's decorator (None for the other routes)."""
+        entry = self._entries.get(kind)
+        if entry is None or not entry.source.startswith("registered at runtime") or ":" in kind:
+            return None
+        return entry.module if entry.module not in ("", "__main__", "__mp_main__") else None
+
+    # --- the routes ---------------------------------------------------------------------------
+
+    def _eps(self) -> dict:
+        if self._entry_points is None:
+            from importlib.metadata import entry_points
+
+            found = {}
+            for ep in entry_points(group=self.group):
+                found.setdefault(ep.name, ep)  # the first distribution on sys.path wins, as for imports
+            self._entry_points = found
+        return self._entry_points
+
+    def _load_module_name(self, kind: str, where: str) -> None:
+        module_name, _, attr = kind.partition(":")
+        head = f"{where + ': ' if where else ''}{self.what} kind {kind!r}"
+        if not _MODULE_NAME.match(module_name) or not re.match(r"^[A-Za-z_][\w.]*$", attr):
+            raise UnknownKindError(f"{head}: expected 'package.module:Name' (a module path, a colon, an "
+                                   f"attribute)")
+        try:
+            module = importlib.import_module(module_name)
+        except Exception as exc:
+            raise PluginImportError(f"{head}: cannot import module {module_name!r} "
+                                    f"({type(exc).__name__}: {_one_line(exc)})") from None
+        obj = module
+        for part in attr.split("."):
+            if not hasattr(obj, part):
+                raise PluginImportError(f"{head}: module {module_name!r} has no attribute {attr!r}")
+            obj = getattr(obj, part)
+        self._adopt(kind, obj, "module:Name", head)
+
+    def _load_entry_point(self, kind: str, where: str) -> None:
+        ep = self._eps()[kind]
+        dist = getattr(ep, "dist", None)
+        dist_name = f"{dist.name} {dist.version}" if dist is not None else "unknown distribution"
+        head = f"{where + ': ' if where else ''}{self.what} kind {kind!r} (entry point {ep.value!r} of {dist_name})"
+        try:
+            obj = ep.load()
+        except Exception as exc:
+            raise PluginImportError(f"{head}: cannot be loaded ({type(exc).__name__}: {_one_line(exc)})") from None
+        self._adopt(kind, obj, f"entry point {self.group} (dist {dist_name})", head)
+
+    def _adopt(self, kind: str, obj, source: str, head: str) -> None:
+        """``obj`` (what a module:Name or an entry point named) under ``kind``: its own
+        registration (the module's decorator) if it has one, else registered here."""
+        if kind in self._entries:  # the module registered the kind itself on import
+            old = self._entries[kind]
+            self._entries[kind] = dataclasses.replace(old, source=source)
+            return
+        if isinstance(obj, type(sys)):  # an entry point naming a module that registers other kinds
+            raise UnknownKindError(f"{head}: the module {obj.__name__!r} registers no {self.what} kind {kind!r}")
+        own = next((e for e in self._entries.values() if e.obj is obj), None)
+        if own is not None:
+            self._entries[kind] = Entry(kind, obj, dict(own.info), source)
+            return
+        options = getattr(obj, "options", None) if isinstance(obj, type) else None
+        if options is not None and not (isinstance(options, type) and dataclasses.is_dataclass(options)):
+            options = None
+        try:
+            self._decorator(kind, options, {}, source, False)(obj)
+        except ValueError as exc:
+            raise UnknownKindError(f"{head}: {exc}") from None
+
+
+def _same_definition(a, b) -> bool:
+    """The same object, or the same definition imported again (module and qualified name)."""
+    if a is b:
+        return True
+    name_a = (getattr(a, "__module__", None), getattr(a, "__qualname__", None))
+    return None not in name_a and name_a == (getattr(b, "__module__", None), getattr(b, "__qualname__", None)) \
+        and name_a[1] != "<lambda>"
+
+
+def _name_of(obj) -> str:
+    return f"{getattr(obj, '__module__', '?')}.{getattr(obj, '__qualname__', repr(obj))}"
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _importable(module: str) -> bool:
+    from importlib.util import find_spec
+
+    try:
+        return find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+PLANTS = Registry("plant", {"analytic": "usv_mj.plants.analytic", "mujoco": "usv_mj.plants.mujoco_plant"},
+                  "usv_mj.plants")
+CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "usv_mj.controllers.pi_baseline",
+                                      "los": "usv_mj.controllers.los", "open_loop": "usv_mj.controllers.open_loop",
+                                      "zigzag": "usv_mj.controllers.zigzag"},
+                       "usv_mj.controllers")
+TRAJECTORIES = Registry("trajectory", {k: "usv_mj.references.trajectories" for k in ("paper", "line", "circle", "waypoints")},
+                        "usv_mj.references.trajectories")
+DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"}, "usv_mj.physics.disturbances")
+#: the hulls (docs/vessels.md): a module, or a data file of usv_mj/vessels/data/ read by
+#: usv_mj.vessels.datafile (its kinds are named here, so that looking one up imports no physics)
+VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_mj.vessels.clarke83",
+                              "kvlcc2": "usv_mj.vessels.kvlcc2",
+                              "cybership2": "usv_mj.vessels.datafile", "otter": "usv_mj.vessels.datafile"},
+                   "usv_mj.vessels")
+#: every registry by its scenario section (``usv-mj kinds`` lists them)
+REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES,
+              "vessel": VESSELS}

@@ -1,0 +1,1 @@
+"""Jobs: run, compare, manoeuvres, sweeps and the benchmark: build -> loop -> outputs."""

@@ -1,0 +1,280 @@
+"""The leaderboard of a benchmark: ``report.md``, ``leaderboard.json`` and ``figures/``.
+
+- One table per task and condition (and vessel, when the suite names vessels): controllers as rows,
+  the metrics of :data:`usv_mj.jobs.bench.metrics.METRICS` that the task measured as columns, each cell
+  the mean over episodes with its 95 % interval (:func:`usv_mj.jobs.bench.metrics.estimate`); the best
+  mean of each column in bold (the metric's direction: lower or higher is better).
+- The summary ranking: in every table and every ranked metric (:data:`RANKED`) the controllers are
+  ranked 1..n by their means (ties share the lower rank); a controller's score is its mean rank over
+  all of them, and its wins the number of (table, metric) it is best in.
+- Figures: ``heatmap.png`` (controller x task/condition, the mean normalised score over the ranked
+  metrics, 1 = the best of the table, 0 = the worst), ``bars-<task>.png`` (each condition, four key
+  metrics, bars with the intervals), ``worst-episodes.png`` (each controller's worst episode, the one
+  with the largest mean |e_ct| = IAE / duration over the suite, run again here and drawn against
+  its reference).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from usv_mj.jobs.bench.episode import PREFIX
+from usv_mj.jobs.bench.metrics import BY_COLUMN, METRICS, estimate
+
+RANKED = ("iae_cross_track", "iae_heading", "max_cross_track_after_settle", "settling_time_cross_track",
+          "energy", "switches_per_s_u", "passed", "min_clearance_m", "contact", "goal_reached", "time_to_goal_s")
+"""The metrics of the summary ranking and the heat map (one of each kind of quality)."""
+TABLE = ("iae_cross_track", "ise_cross_track", "iae_heading", "max_cross_track_after_settle",
+         "max_heading_after_settle", "settling_time_cross_track", "effort_u", "effort_r", "energy",
+         "switches_per_s_u", "switches_per_s_r", "total_variation_u", "saturation_fraction", "passed",
+         "min_clearance_m", "contact", "goal_reached", "time_to_goal_s")
+"""The columns of a task's table (those the task measured); every metric is in leaderboard.json."""
+BARS = ("iae_cross_track", "iae_heading", "energy", "passed")
+
+
+def group_key(row: dict) -> tuple:
+    return (row["vary.task"], row["vary.condition"], row.get("vary.vessel") or "default")
+
+
+def table_name(key: tuple, vessels: bool) -> str:
+    return f"{key[0]} / {key[1]}" + (f" / {key[2]}" if vessels else "")
+
+
+def aggregate(rows: list[dict]) -> dict:
+    """``{(task, condition, vessel): {controller: {metric: Estimate, "_ok": (ok, n)}}}`` in row order."""
+    out: dict = {}
+    for row in rows:
+        out.setdefault(group_key(row), {}).setdefault(row["vary.controller"], []).append(row)
+    agg = {}
+    for key, by_ctrl in out.items():
+        agg[key] = {}
+        for ctrl, rs in by_ctrl.items():
+            cell = {m.column: estimate(m.column, [r.get(PREFIX + m.column) for r in rs]) for m in METRICS}
+            cell["_ok"] = (sum(r["status"] == "ok" for r in rs), len(rs))
+            agg[key][ctrl] = cell
+    return agg
+
+
+def _best(cells: dict, column: str):
+    """The controllers with the best mean of ``column`` (none when fewer than two measured it)."""
+    means = {c: v[column].mean for c, v in cells.items() if v[column].n and math.isfinite(v[column].mean)}
+    if len(means) < 2 or len(set(means.values())) < 2:
+        return set(), means
+    pick = min if BY_COLUMN[column].better == "lower" else max
+    best = pick(means.values())
+    return {c for c, m in means.items() if m == best}, means
+
+
+def ranking(agg: dict) -> dict:
+    """``{controller: {"mean_rank", "wins", "ranked"}}`` over every table and ranked metric."""
+    ranks: dict = {}
+    wins: dict = {}
+    for cells in agg.values():
+        for column in RANKED:
+            best, means = _best(cells, column)
+            if not best:
+                continue
+            sign = 1.0 if BY_COLUMN[column].better == "lower" else -1.0
+            ordered = sorted(means.values(), key=lambda v: sign * v)
+            for c, m in means.items():
+                ranks.setdefault(c, []).append(1 + ordered.index(m))
+                wins[c] = wins.get(c, 0) + (c in best)
+    return {c: {"mean_rank": float(np.mean(r)), "wins": wins.get(c, 0), "ranked": len(r)} for c, r in ranks.items()}
+
+
+def ranking_by(agg: dict, index: int) -> dict:
+    """``{value: ranking(...)}``: the summary ranking over the tables whose key[index] (0 task, 1
+    condition, 2 vessel) is each value, in first-seen order."""
+    values = list(dict.fromkeys(k[index] for k in agg))
+    return {v: ranking({k: c for k, c in agg.items() if k[index] == v}) for v in values}
+
+
+def by_table(by: dict, controllers: list, what: str) -> list[str]:
+    """The mean rank of each controller (columns) per task or vessel (rows), the best in bold."""
+    ctrls = [c for c in controllers if any(c in r for r in by.values())]
+    lines = [f"| {what} | " + " | ".join(f"`{c}`" for c in ctrls) + " |", "| --- |" + " --- |" * len(ctrls)]
+    for value, rank in by.items():
+        best = min((r["mean_rank"] for r in rank.values()), default=None)
+        cells = []
+        for c in ctrls:
+            if c not in rank:
+                cells.append("-")
+                continue
+            text = f"{rank[c]['mean_rank']:.2f}"
+            cells.append(f"**{text}**" if rank[c]["mean_rank"] == best else text)
+        lines.append(f"| {value} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def printed_leaderboard(agg: dict, controllers: list, vessels: bool) -> list[str]:
+    """What ``usv-mj bench`` prints at the end (and report.md opens with): the summary ranking,
+    then the mean rank per task and, with vessels, per vessel (markdown)."""
+    lines = summary_table(ranking(agg))
+    lines += ["", "Mean rank per task (over its conditions" + (" and vessels" if vessels else "")
+              + "; lower is better, the best in bold):", ""] + by_table(ranking_by(agg, 0), controllers, "task")
+    if vessels:
+        lines += ["", "Mean rank per vessel (over the tasks and conditions):", ""] \
+            + by_table(ranking_by(agg, 2), controllers, "vessel")
+    return lines
+
+
+def normalised_scores(agg: dict) -> dict:
+    """``{key: {controller: score}}``: per table, the mean over the ranked metrics of
+    (worst - value) / (worst - best) (1 = the table's best, 0 = its worst)."""
+    out = {}
+    for key, cells in agg.items():
+        scores: dict = {c: [] for c in cells}
+        for column in RANKED:
+            best, means = _best(cells, column)
+            if not best:
+                continue
+            lo, hi = min(means.values()), max(means.values())
+            for c, m in means.items():
+                s = (hi - m) / (hi - lo) if BY_COLUMN[column].better == "lower" else (m - lo) / (hi - lo)
+                scores[c].append(s)
+        out[key] = {c: (float(np.mean(s)) if s else math.nan) for c, s in scores.items()}
+    return out
+
+
+def _fmt(v: float) -> str:
+    if not math.isfinite(v):
+        return "-"
+    a = abs(v)
+    if a == 0:
+        return "0"
+    if a >= 1000 or a < 0.01:
+        return f"{v:.3g}"
+    return f"{v:.3g}" if a < 100 else f"{v:.0f}"
+
+
+def cell_text(e, rate: bool) -> str:
+    if not e.n:
+        return "-"
+    if rate:
+        return f"{100 * e.mean:.0f} % [{100 * e.lo:.0f}, {100 * e.hi:.0f}]"
+    return f"{_fmt(e.mean)} [{_fmt(e.lo)}, {_fmt(e.hi)}]"
+
+
+def task_table(cells: dict, controllers: list) -> list[str]:
+    """The markdown lines of one task's table (the columns it measured)."""
+    columns = [c for c in TABLE if any(cells[k][c].n for k in cells)]
+    head = ["controller", "ok"] + [f"{BY_COLUMN[c].label}" + (f" [{BY_COLUMN[c].unit}]" if BY_COLUMN[c].unit else "")
+                                   + (" ↓" if BY_COLUMN[c].better == "lower" else " ↑") for c in columns]
+    lines = ["| " + " | ".join(head) + " |", "| " + " | ".join(["---"] * len(head)) + " |"]
+    best = {c: _best(cells, c)[0] for c in columns}
+    for ctrl in controllers:
+        if ctrl not in cells:
+            continue
+        v = cells[ctrl]
+        ok, n = v["_ok"]
+        row = [f"`{ctrl}`", f"{ok}/{n}"]
+        for c in columns:
+            text = cell_text(v[c], BY_COLUMN[c].rate)
+            row.append(f"**{text}**" if ctrl in best[c] else text)
+        lines.append("| " + " | ".join(row) + " |")
+    return lines
+
+
+def summary_table(rank: dict) -> list[str]:
+    lines = ["| rank | controller | mean rank | wins | ranked (table, metric) pairs |", "| --- | --- | --- | --- | --- |"]
+    for i, (c, r) in enumerate(sorted(rank.items(), key=lambda kv: (kv[1]["mean_rank"], -kv[1]["wins"]))):
+        lines.append(f"| {i + 1} | `{c}` | {r['mean_rank']:.2f} | {r['wins']} | {r['ranked']} |")
+    return lines
+
+
+def glance_table(agg: dict, scores: dict, controllers: list, vessels: bool) -> list[str]:
+    """Tables as rows, controllers as columns: the normalised score (the heat map's, best in bold),
+    the mean IAE of the cross-track error and the share of episodes that passed the criterion."""
+    ctrls = [c for c in controllers if any(c in cells for cells in agg.values())]
+    lines = ["| task / condition | " + " | ".join(f"`{c}`" for c in ctrls) + " |",
+             "| --- |" + " --- |" * len(ctrls)]
+    for key, cells in agg.items():
+        sc = {c: v for c, v in scores[key].items() if math.isfinite(v)}
+        top = max(sc.values()) if sc else None
+        row = [table_name(key, vessels)]
+        for c in ctrls:
+            if c not in cells:
+                row.append("-")
+                continue
+            v = cells[c]
+            score = f"{scores[key][c]:.2f}" if math.isfinite(scores[key].get(c, math.nan)) else "-"
+            if top is not None and c in sc and sc[c] == top:
+                score = f"**{score}**"
+            passed = "-" if not v["passed"].n else f"{100 * v['passed'].mean:.0f} %"
+            row.append(f"{score} (IAE {_fmt(v['iae_cross_track'].mean)}, {passed})")
+        lines.append("| " + " | ".join(row) + " |")
+    return lines
+
+
+def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) -> Path:
+    """``out/report.md``, ``out/leaderboard.json`` and the figures of ``out/figures/``; returns report.md."""
+    out = Path(out)
+    figures = out / "figures"
+    figures.mkdir(parents=True, exist_ok=True)
+    controllers = [c.name for c in suite.controllers]
+    vessels = suite.vessels != [""]
+    agg = aggregate(rows)
+    rank = ranking(agg)
+    scores = normalised_scores(agg)
+    n_ep = sorted(set(suite.episodes.values()))
+    failed = [r for r in rows if r["status"] != "ok"]
+    lines = [f"# Benchmark `{suite.name}`", "",
+             f"Suite `{suite.source}`: {len(suite.tasks)} tasks x {len(suite.conditions)} conditions"
+             + (f" x {len(suite.vessels)} vessels" if vessels else "") + f" x {len(controllers)} controllers, "
+             f"{'/'.join(map(str, n_ep))} episodes each: {len(rows)} episodes, {len(failed)} not ok "
+             f"(diverged or failed). Each cell: the mean over the episodes, [its 95 % interval] (percentile "
+             f"bootstrap; Wilson for the rates); the best of each column in bold; ↓ lower is better, ↑ higher. "
+             f"Metrics: docs/metrics.md.", "", "## Summary ranking", "",
+             f"Mean rank of each controller over every table and the ranked metrics ({', '.join(RANKED)}); "
+             f"wins: the (table, metric) pairs it is best in.", ""]
+    lines += printed_leaderboard(agg, controllers, vessels)
+    if getattr(suite, "skipped", None):
+        lines += ["", "Not scored: " + "; ".join(f"`{c}` on `{t}` ({why})" for t, c, why in suite.skipped) + "."]
+    lines += ["", "### At a glance", "", "Each cell: the normalised score of the heat map (1 = the best of the "
+              "table on every ranked metric, 0 = the worst; the best in bold), (the mean IAE of the cross-track "
+              "error [m s], the share of episodes that passed the controller's own criterion).", ""]
+    lines += glance_table(agg, scores, controllers, vessels)
+    lines += ["", "![normalised scores](figures/heatmap.png)", ""]
+    tasks_seen = []
+    for key, cells in agg.items():
+        if key[0] not in tasks_seen:
+            tasks_seen.append(key[0])
+            lines += [f"## Task `{key[0]}`", "", f"![bars](figures/bars-{key[0]}.png)", ""]
+        lines += [f"### {table_name(key, vessels)}", ""] + task_table(cells, controllers) + [""]
+    if draw:
+        lines += ["## Worst episodes", "", "Each controller's episode with the largest mean cross-track error "
+                  "(IAE / duration), run again and drawn against its reference.", "",
+                  "![worst episodes](figures/worst-episodes.png)", ""]
+    if failed:
+        lines += ["## Episodes not ok", "", "| run | task | condition | controller | episode | status | reason |",
+                  "| --- | --- | --- | --- | --- | --- | --- |"]
+        for r in failed[:50]:
+            lines.append(f"| {r['run_id']} | {r['vary.task']} | {r['vary.condition']} | {r['vary.controller']} | "
+                         f"{r['vary.episode']} | {r['status']} | {(r.get('reason') or '').replace('|', '/')[:160]} |")
+        lines.append("")
+    (out / "report.md").write_text("\n".join(lines))
+    (out / "leaderboard.json").write_text(json.dumps({
+        "suite": suite.source, "name": suite.name, "ranking": rank,
+        "tables": [{"task": k[0], "condition": k[1], "vessel": k[2],
+                    "controllers": {c: {**{m: {"mean": _j(e.mean), "lo": _j(e.lo), "hi": _j(e.hi), "n": e.n}
+                                           for m, e in v.items() if m != "_ok"}, "ok": v["_ok"][0], "episodes": v["_ok"][1]}
+                                    for c, v in cells.items()},
+                    "normalised_score": {c: _j(s) for c, s in scores[k].items()}} for k, cells in agg.items()],
+    }, indent=1))
+    if draw:
+        from usv_mj.jobs.bench.figures import draw_bars, draw_heatmap, draw_worst
+
+        draw_heatmap(scores, controllers, vessels, figures / "heatmap.png")
+        for task in tasks_seen:
+            draw_bars({k: v for k, v in agg.items() if k[0] == task}, controllers, BARS, vessels,
+                      figures / f"bars-{task}.png", task)
+        draw_worst(rows, suite, figures / "worst-episodes.png")
+    return out / "report.md"
+
+
+def _j(v):
+    return v if isinstance(v, (int, float)) and math.isfinite(v) else None

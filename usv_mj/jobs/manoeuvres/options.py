@@ -1,0 +1,357 @@
+"""The options of the standard manoeuvres (``[manoeuvre] kind = ...``) and the scenario each one runs.
+
+A manoeuvre is an ordinary run of the scenario with its controller replaced by an open-loop or a
+heading-switching input (``controllers/open_loop.py``, ``controllers/zigzag.py``), started on a
+straight course at the approach speed. The vessel's "rudder" is its commanded yaw moment tau_r [N m]
+(the paper's hull has no rudder; a vessel with twin propellers realizes it as differential thrust
+through its ``[actuators]``); positive tau_r turns to port (README, Conventions).
+
+::
+
+    [manoeuvre]
+    kind = "turning"           # "turning" | "zigzag" | "spiral" | "stopping"
+    approach_speed = 0.6       # m/s, the straight run before the execute
+    yaw_moment = 10.0          # N m, the "rudder"
+    side = "starboard"
+
+The approach is held by the constant surge force that balances the hull's drag at the approach
+speed (:func:`approach_force`, found on the scenario's analytic plant: any vessel it integrates).
+
+``conditions = "calm"`` (the default) runs the test as trials are run: calm water, no d(t), no
+Delta (its side force 0.2 u^2 would turn the hull by itself), no quantizer (so that the commanded
+forces are the applied ones); ``"scenario"`` keeps the scenario's sea, disturbance, Delta and
+quantizer.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, fields
+
+from usv_mj.core.errors import ScenarioError
+
+SIDES = {"starboard": -1.0, "port": 1.0}
+CONDITIONS = ("calm", "scenario")
+
+
+def _check(obj, positive=(), nonnegative=(), section="manoeuvre"):
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        if isinstance(v, str):
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ScenarioError(f"{section}.{f.name} must be a finite number, got {v!r}")
+    for name in positive:
+        if not getattr(obj, name) > 0:
+            raise ScenarioError(f"{section}.{name} must be > 0, got {getattr(obj, name)!r}")
+    for name in nonnegative:
+        if not getattr(obj, name) >= 0:
+            raise ScenarioError(f"{section}.{name} must be >= 0, got {getattr(obj, name)!r}")
+    for name, allowed in (("side", SIDES), ("first_turn", SIDES), ("conditions", CONDITIONS)):
+        if hasattr(obj, name) and getattr(obj, name) not in allowed:
+            raise ScenarioError(f"{section}.{name} must be one of {', '.join(map(repr, allowed))}, "
+                                f"got {getattr(obj, name)!r}")
+
+
+@dataclass(frozen=True)
+class TurningOptions:
+    """The turning circle: a straight approach, then the "rudder" held."""
+
+    approach_speed: float = 0.6      # m/s: the speed of the straight approach
+    approach_s: float = 5.0          # s: the straight run before the execute
+    yaw_moment: float = 10.0         # N m: the "rudder", |tau_r| held from the execute
+    side: str = "starboard"          # "starboard" (tau_r < 0) or "port"
+    rudder_deg: float = 35.0         # deg: a ruddered vessel's rudder angle (in place of yaw_moment)
+    steady_after_deg: float = 360.0  # deg: heading change after which the turn counts as steady
+    duration: float = 60.0           # s: the whole run (approach included)
+    control_period: float = 0.01     # s
+    conditions: str = "calm"         # "calm" or "scenario" (module docstring)
+
+    def __post_init__(self):
+        _check(self, positive=("approach_speed", "yaw_moment", "duration", "control_period", "steady_after_deg",
+                               "rudder_deg"),
+               nonnegative=("approach_s",))
+        if self.steady_after_deg < 180:
+            raise ScenarioError(f"manoeuvre.steady_after_deg must be >= 180, got {self.steady_after_deg!r}")
+
+
+@dataclass(frozen=True)
+class ZigzagOptions:
+    """The zig-zag (Kempf): the "rudder" reversed at +-``angle_deg`` of heading change (10/10, 20/20)."""
+
+    approach_speed: float = 0.6      # m/s
+    yaw_moment: float = 10.0         # N m: the "rudder" amplitude
+    angle_deg: float = 10.0          # deg: the switching heading change (10 for 10/10, 20 for 20/20)
+    first_turn: str = "starboard"    # "starboard" or "port"
+    duration: float = 60.0           # s
+    control_period: float = 0.001    # s: the switch acts within one period (10 ms moved the overshoot 0.4 deg)
+    conditions: str = "calm"
+
+    def __post_init__(self):
+        _check(self, positive=("approach_speed", "yaw_moment", "angle_deg", "duration", "control_period"))
+        if not self.angle_deg < 180:
+            raise ScenarioError(f"manoeuvre.angle_deg must be < 180, got {self.angle_deg!r}")
+
+
+@dataclass(frozen=True)
+class SpiralOptions:
+    """Dieudonné's spiral: the "rudder" stepped from +max down to -max, then back up, each held."""
+
+    approach_speed: float = 0.6      # m/s: the start (the surge force stays the approach's)
+    max_yaw_moment: float = 10.0     # N m: the largest |tau_r| of the steps
+    max_rudder_deg: float = 20.0     # deg: a ruddered vessel's largest |rudder angle| (in place of max_yaw_moment)
+    steps: int = 5                   # steps from 0 to the maximum (2 steps + 1 commands per branch)
+    hold_s: float = 30.0             # s: each command held
+    settle_fraction: float = 0.25    # the last part of each hold averaged for the steady yaw rate
+    control_period: float = 0.01     # s
+    conditions: str = "calm"
+
+    def __post_init__(self):
+        _check(self, positive=("approach_speed", "max_yaw_moment", "max_rudder_deg", "hold_s", "control_period",
+                               "settle_fraction"))
+        if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 1:
+            raise ScenarioError(f"manoeuvre.steps must be an integer >= 1, got {self.steps!r}")
+        if not self.settle_fraction <= 1:
+            raise ScenarioError(f"manoeuvre.settle_fraction must be in (0, 1], got {self.settle_fraction!r}")
+
+    @property
+    def duration(self) -> float:
+        return len(self.commands()) * self.hold_s
+
+    def commands(self, amplitude: float | None = None) -> list[tuple[float, str]]:
+        """The held commands in order, each with its branch ("down" or "up"): steps of ``amplitude``
+        (default ``max_yaw_moment`` [N m]; a ruddered vessel's ``max_rudder_deg``, in its unit)."""
+        amplitude = self.max_yaw_moment if amplitude is None else amplitude
+        levels = [amplitude * i / self.steps for i in range(self.steps, -self.steps - 1, -1)]
+        return [(c, "down") for c in levels] + [(c, "up") for c in levels[::-1][1:]]
+
+
+@dataclass(frozen=True)
+class StoppingOptions:
+    """The stopping test: from the approach speed the surge force goes to ``astern_force``."""
+
+    approach_speed: float = 0.6      # m/s
+    approach_s: float = 5.0          # s: the straight run before the execute
+    astern_force: float = 0.0        # N: surge force after the execute (0: thrust off; < 0: astern)
+    stop_speed: float = 0.02         # m/s: the speed over ground below which the vessel counts as stopped
+    duration: float = 60.0           # s
+    control_period: float = 0.01     # s
+    conditions: str = "calm"
+
+    def __post_init__(self):
+        _check(self, positive=("approach_speed", "stop_speed", "duration", "control_period"),
+               nonnegative=("approach_s",))
+        if self.astern_force > 0:
+            raise ScenarioError(f"manoeuvre.astern_force must be <= 0 N (thrust off or astern), "
+                                f"got {self.astern_force!r}")
+
+
+KINDS = {"turning": TurningOptions, "zigzag": ZigzagOptions, "spiral": SpiralOptions, "stopping": StoppingOptions}
+
+
+@dataclass(frozen=True)
+class ManoeuvreSpec:
+    """``[manoeuvre]``: ``kind`` and that kind's options dataclass (:data:`KINDS`)."""
+
+    kind: str = "turning"
+    options: object = None
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ScenarioError(f"manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {self.kind!r}")
+        if self.options is None:
+            object.__setattr__(self, "options", KINDS[self.kind]())
+
+    def __getattr__(self, name):
+        if name.startswith("_") or name == "options":
+            raise AttributeError(name)
+        return getattr(self.options, name)
+
+
+#: the paper hull's length [m], the one the defaults of :data:`KINDS` are chosen for (usv_mj.vessels.PAPER_DIMENSIONS)
+PAPER_LENGTH_M = 1.98
+#: how each option scales with the length ratio lam = L / 1.98 m under Froude similarity (same
+#: Froude number U / sqrt(g L), same density): speeds sqrt(lam), forces lam^3, moments lam^4
+FROUDE_POWERS = {"approach_speed": 0.5, "stop_speed": 0.5, "yaw_moment": 4.0, "max_yaw_moment": 4.0,
+                 "astern_force": 3.0}
+
+
+def vessel_defaults(kind: str, vessel_model=None) -> dict:
+    """The defaults of manoeuvre ``kind``'s options on a vessel (a :class:`usv_mj.vessels.Vessel`;
+    None: the paper hull): the vessel's own, where it declares them (``Vessel.manoeuvre``: a data
+    file's ``[manoeuvre]`` table, its keys for every kind that has them and its ``[manoeuvre.KIND]``
+    subtables for one kind; e.g. the Otter's turning at the reference's propeller speeds),
+    and the speeds and the "rudder" of :data:`KINDS`'s defaults (chosen for the paper hull at
+    0.6 m/s, 10 N m) Froude-scaled to the vessel's length otherwise (:data:`FROUDE_POWERS`; the same
+    test in nondimensional terms: Fn = 0.136, N' = tau_r / (0.5 rho U^2 L^3) = 0.0070). The paper
+    hull's are :data:`KINDS`'s exactly (an empty dict). Only keys ``kind``'s options have."""
+    if vessel_model is None:
+        return {}
+    names = {f.name for f in fields(KINDS[kind])}
+    dims = getattr(vessel_model, "dimensions", None)
+    out = {}
+    # a ruddered vessel's "rudder" is an angle, not a moment: nothing of the paper's test scales to it
+    if dims is not None and float(dims.L) != PAPER_LENGTH_M and getattr(vessel_model, "inputs", "forces") != "rudder":
+        lam = float(dims.L) / PAPER_LENGTH_M
+        base = KINDS[kind]()
+        out = {k: getattr(base, k) * lam ** p for k, p in FROUDE_POWERS.items() if k in names}
+    own = getattr(vessel_model, "manoeuvre", None) or {}
+    out.update({k: v for k, v in own.items() if k in names and not isinstance(v, dict)})
+    out.update({k: v for k, v in (own.get(kind) or {}).items() if k in names})  # the kind's own table wins
+    return out
+
+
+def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> ManoeuvreSpec:
+    """A validated :class:`ManoeuvreSpec` from a ``[manoeuvre]`` table (every key checked); a key the
+    table does not give takes the vessel's default (:func:`vessel_defaults`), then the kind's."""
+    from usv_mj.scenario.spec import build_table
+
+    if not isinstance(table, dict):
+        raise ScenarioError(f"{source}: [manoeuvre] must be a table, got {table!r}")
+    table = dict(table)
+    kind = table.pop("kind", "turning")
+    if kind not in KINDS:
+        raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
+    vessel_model = getattr(vessel_model, "model", vessel_model)   # a scenario's VesselSpec or its Vessel
+    table = {**vessel_defaults(kind, vessel_model), **table}
+    if getattr(vessel_model, "inputs", "forces") == "rudder" and kind == "stopping":
+        raise ScenarioError(f"{source}: manoeuvre 'stopping' is not available on the ruddered vessel "
+                            f"{vessel_model.kind!r}: the MMG standard method models the propeller ahead only (no "
+                            f"astern revolutions for the crash stop); turning, zigzag and spiral are "
+                            f"(docs/manoeuvres.md)")
+    try:
+        options = build_table(KINDS[kind], table, source, "manoeuvre", extra_known={"kind"})
+    except ScenarioError as exc:
+        msg = str(exc)
+        raise ScenarioError(msg if msg.startswith(source) else f"{source}: {msg}") from None
+    return ManoeuvreSpec(kind, options)
+
+
+def approach_force(scenario, speed: float) -> float:
+    """The constant surge force [N] that holds ``speed`` [m/s] on a straight course, from the
+    scenario's own analytic plant (the one build's :func:`usv_mj.builder.make_plant`, calm water):
+    the F for which one integrator step from nu = (U, 0, 0) leaves the surge speed unchanged, by
+    secant iteration (the step is affine in F but for terms of order dt^2). A step of RK4 leaves a
+    state unchanged exactly where the vessel's acceleration is zero, so this is the equilibrium of
+    whatever hull the plant integrates (the paper's: d11(U) U - s 0.6, docs/model.md §1), with the
+    scenario's Delta included when it is on (d(t), a time-varying load, is not part of the drag:
+    left out)."""
+    import dataclasses
+
+    from usv_mj.builder import make_plant
+
+    vessel = getattr(getattr(scenario, "vessel", None), "model", None)
+    guess = getattr(vessel, "nominal_rps", None)   # a ruddered vessel: the force channel is n_P [1/s]
+    if hasattr(scenario.disturbance, "scale"):
+        scenario = dataclasses.replace(scenario, disturbance=dataclasses.replace(scenario.disturbance, scale=0.0))
+    plant = make_plant(scenario, "analytic", environment=None)
+    try:
+        def gain(force):
+            plant.reset((0.0, 0.0, 0.0), (speed, 0.0, 0.0), 0.0)
+            plant.step(force, 0.0)
+            return float(plant.state[3]) - speed
+
+        f0, f1 = (float(guess), 1.02 * float(guess)) if guess else (0.0, 1.0)
+        g0, g1 = gain(f0), gain(f1)
+        for _ in range(30):
+            if g1 == g0:
+                break
+            f0, f1, g0 = f1, f1 - g1 * (f1 - f0) / (g1 - g0), g1
+            g1 = gain(f1)
+            if abs(f1 - f0) <= 1e-12 * max(1.0, abs(f1)):
+                break
+    finally:
+        plant.close()
+    if not math.isfinite(f1):
+        raise ScenarioError(f"{scenario.source}: no constant surge force holds manoeuvre.approach_speed = {speed!r}")
+    return float(f1)
+
+
+def _no_delta(scenario) -> dict:
+    """The override that takes the paper's Delta off the scenario's vessel: ``[ship]`` for the paper
+    vessel, its ``[vessel]`` key for a vessel that has one (none: it has no Delta)."""
+    vessel = getattr(scenario, "vessel", None)
+    if vessel is None or vessel.kind == "paper":
+        return {"ship": {"uncertainty_scale": 0.0}}
+    options = vessel.options
+    if dataclasses.is_dataclass(options) and any(f.name == "uncertainty_scale" for f in dataclasses.fields(options)):
+        return {"vessel": {"uncertainty_scale": 0.0}}
+    return {}
+
+
+def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
+    """The scenario overrides that make ``scenario`` run manoeuvre ``spec`` (module docstring)."""
+    o = spec.options
+    calm = o.conditions == "calm"
+    over = {"baseline": {"enabled": False}, "control_period": o.control_period,
+            "initial": {"eta": [0.0, 0.0, 0.0], "nu": [o.approach_speed, 0.0, 0.0]}}
+    if calm:
+        over.update(disturbance={"scale": 0.0}, quantizer={"enabled": False}, **_no_delta(scenario))
+        scenario = scenario.with_overrides(over)  # the drag with the test's Delta (none)
+    force = approach_force(scenario, o.approach_speed)
+    # a ruddered vessel (usv_mj.physics.mmg): the channels are (n_P [1/s], delta [rad]); its [actuators]
+    # limit the rudder's angle and rate (docs/manoeuvres.md §2)
+    ruddered = getattr(getattr(getattr(scenario, "vessel", None), "model", None), "inputs", "forces") == "rudder"
+    if ruddered:   # a rudder angle beyond the steering gear's would be held at its limit, measured as asked
+        key = {"turning": "rudder_deg", "zigzag": "angle_deg", "spiral": "max_rudder_deg"}.get(spec.kind)
+        limit = math.degrees(scenario.actuators.generalized_limits()[3])
+        if key is not None and getattr(o, key) > limit + 1e-9:
+            raise ScenarioError(f"{scenario.source}: manoeuvre.{key} = {getattr(o, key)!r} deg is beyond the rudder of "
+                                f"the vessel {scenario.vessel.kind!r}, {limit:g} deg")
+    if spec.kind == "turning":
+        sign = SIDES[o.side]
+        rudder = math.radians(o.rudder_deg) if ruddered else o.yaw_moment
+        ctrl = {"kind": "open_loop", "times": [0.0, o.approach_s], "tau_u": force,
+                "tau_r": [0.0, sign * rudder], "interpolation": "step"}
+        duration = o.duration
+    elif spec.kind == "zigzag":
+        rudder = math.radians(o.angle_deg) if ruddered else o.yaw_moment   # the 10/10: 10 deg of rudder
+        ctrl = {"kind": "zigzag", "tau_u": force, "tau_r_amplitude": rudder, "psi_switch_deg": o.angle_deg,
+                "first_turn": o.first_turn}
+        duration = o.duration
+    elif spec.kind == "spiral":
+        cmds = o.commands(math.radians(o.max_rudder_deg) if ruddered else None)
+        ctrl = {"kind": "open_loop", "times": [i * o.hold_s for i in range(len(cmds))], "tau_u": force,
+                "tau_r": [c for c, _ in cmds], "interpolation": "step"}
+        duration = o.duration
+    else:
+        ctrl = {"kind": "open_loop", "times": [0.0, o.approach_s], "tau_u": [force, o.astern_force],
+                "tau_r": 0.0, "interpolation": "step"}
+        duration = o.duration
+    over["controller"] = ctrl
+    over["duration"] = duration
+    # the reference (the original course) runs on at the approach speed while the vessel turns: a
+    # manoeuvre is not judged on it, so its distance limit must not end a long one (a spiral)
+    reach = 2.0 * o.approach_speed * duration + 100.0
+    if reach > scenario.limits.max_distance:
+        over["limits"] = {"max_distance": reach}
+    return over
+
+
+def manoeuvre_scenario(scenario, spec: ManoeuvreSpec | None = None):
+    """``scenario`` made to run manoeuvre ``spec`` (default: its own ``[manoeuvre]``), validated
+    again; its ``[controller]`` is replaced whole by the manoeuvre's input and its ``[trajectory]``
+    by the original course (a line from the start at the approach speed)."""
+    from usv_mj.scenario.spec import from_dict, merge_tables
+
+    spec = spec if spec is not None else scenario.manoeuvre
+    if spec is None:
+        raise ScenarioError(f"{scenario.source}: no [manoeuvre] to run (give its kind)")
+    over = manoeuvre_overrides(scenario, spec)
+    ctrl = over.pop("controller")
+    raw = {k: v for k, v in scenario.raw.items() if k not in ("controller", "trajectory")}
+    if spec.options.conditions == "calm":
+        raw.pop("sea", None)
+    data = merge_tables(raw, over)
+    data["controller"] = ctrl
+    # the reference: the original course at the approach speed (what the run's figures and video
+    # show the track against; a manoeuvre is not judged on it)
+    data["trajectory"] = {"kind": "line", "speed": spec.options.approach_speed, "start": [0.0, 0.0], "heading_deg": 0.0}
+    data["manoeuvre"] = {"kind": spec.kind, **{f.name: getattr(spec.options, f.name) for f in fields(spec.options)}}
+    return from_dict(data, source=scenario.source or "<manoeuvre>")
+
+
+def execute_time(spec: ManoeuvreSpec) -> float:
+    """When the "rudder" (or the engine order) is put over [s]."""
+    return getattr(spec.options, "approach_s", 0.0)

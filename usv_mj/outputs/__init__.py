@@ -1,0 +1,1 @@
+"""Outputs: figures, report, video, the MCAP log and output folders, made from a finished record and its statics only."""

@@ -1,0 +1,226 @@
+"""Live in Foxglove: the run log's messages served over the Foxglove WebSocket protocol as they are written.
+
+``usv-mj run --live`` (and ``usv-mj render RUN.mcap --live``, a replay) serve the same topics,
+schemas and messages as the MCAP log (:mod:`usv_mj.outputs.log.topics`): nothing is encoded twice. The
+run log's writer (:class:`usv_mj.outputs.log.writer.RunLogWriter` with ``live=``) hands every chunk it
+writes to :meth:`LiveServer.chunk` before compressing it; the server walks the chunk's MCAP message
+records (op 0x05: channel u16, sequence u32, log time u64, publish time u64, data) and logs each
+one's bytes on a ``foxglove.Channel`` made from the file's own channel and schema records
+(the ``foxglove-sdk`` package, ``pip install "usv_mj[live]"``).
+
+Pacing: ``speed`` = None logs as fast as the run makes rows (each viewer has a deep buffer,
+:data:`BACKLOG`; when a viewer falls further behind, its oldest messages are dropped, the log file
+is always written in full); ``speed`` = X holds log time / X to the wall clock (1: real time).
+The first chunk waits for a viewer to subscribe (up to ``wait_s``; None: until one does), so that a
+viewer opened after the command sees the run from its start. Loopback (127.0.0.1) only by default.
+"""
+
+from __future__ import annotations
+
+import struct
+import sys
+import threading
+import time
+
+from usv_mj.core.errors import ScenarioError
+
+DEFAULT_PORT = 8765
+BACKLOG = 1 << 17        # messages buffered per viewer before the oldest are dropped
+SETTLE_S = 0.3           # after the first subscription, wait until none came for this long (max 2 s)
+_MESSAGE = 0x05
+_HEAD = struct.Struct("<BQHIQQ")   # opcode, record length, channel, sequence, log time, publish time
+INSTALL_HINT = 'live viewing needs the foxglove-sdk package: pip install "usv_mj[live]"'
+
+
+def layout_path() -> str:
+    """The Foxglove layout shipped with the package (3D scene, errors against the funnel, forces)."""
+    from importlib import resources
+
+    return str(resources.files("usv_mj.outputs.log") / "foxglove_layout.json")
+
+
+class LiveUnavailable(ScenarioError):
+    """foxglove-sdk is not installed (the CLI says so in one line, exit 2)."""
+
+
+def import_foxglove():
+    try:
+        import foxglove
+    except ImportError:
+        raise LiveUnavailable(INSTALL_HINT) from None
+    return foxglove
+
+
+class _Listener:
+    """Counts the viewers' subscriptions (the SDK calls these from its own thread)."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.subs: set = set()
+        self.changed = threading.Condition(self.lock)
+        self.last_change = 0.0
+        self.ever = False
+
+    def on_subscribe(self, client, channel):
+        with self.lock:
+            self.subs.add((client.id, channel.id))
+            self.ever = True
+            self.last_change = time.monotonic()
+            self.changed.notify_all()
+
+    def on_unsubscribe(self, client, channel):
+        with self.lock:
+            self.subs.discard((client.id, channel.id))
+            self.last_change = time.monotonic()
+            self.changed.notify_all()
+
+
+class LiveServer:
+    """A Foxglove WebSocket server fed with MCAP chunks (module docstring).
+
+    ``host`` / ``port`` [TCP; 0: any free port, see :attr:`port`], ``speed`` (None: unpaced; X > 0:
+    log time / X), ``wait_s`` [s] (None: wait for a viewer as long as it takes; 0: do not wait).
+    """
+
+    def __init__(self, port: int = DEFAULT_PORT, host: str = "127.0.0.1", speed: float | None = None,
+                 wait_s: float | None = None, say=None):
+        if speed is not None and not (speed > 0 and speed < float("inf")):
+            raise ScenarioError(f"--speed {speed!r}: must be a finite number > 0 (1 = real time)")
+        if not (isinstance(port, int) and 0 <= port < 65536):
+            raise ScenarioError(f"--live-port {port!r}: must be a TCP port, 0 to 65535")
+        foxglove = import_foxglove()
+        self._fg = foxglove
+        self.speed, self.wait_s = speed, wait_s
+        self._say = say or (lambda text: print(text, file=sys.stderr, flush=True))
+        self.context = foxglove.Context()
+        self.listener = _Listener()
+        try:
+            self.server = foxglove.start_server(name="usv_mj", host=host, port=port, context=self.context,
+                                                server_listener=self.listener, message_backlog_size=BACKLOG)
+        except Exception as exc:  # noqa: BLE001 - the SDK raises its own error types
+            raise ScenarioError(f"--live-port {port}: cannot serve on {host}:{port} ({exc})") from None
+        self.host, self.port = host, int(self.server.port)
+        self._channels: dict = {}      # (id of the file writer, MCAP channel id) -> foxglove.Channel
+        self._waited = False
+        self._clock: dict = {}         # per file: (wall [s], log time [ns]) of its first message paced
+        self.sent = 0
+
+    @property
+    def url(self) -> str:
+        return f"ws://{self.host}:{self.port}"
+
+    # --- fed by the run log's writer ---------------------------------------------------------------
+
+    def _channel(self, writer, cid: int):
+        key = (id(writer), cid)
+        ch = self._channels.get(key)
+        if ch is None:
+            rec = writer.channels[cid]
+            schema = writer.schemas.get(rec.schema_id)
+            fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
+                                                                    data=schema.data)
+            ch = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
+                                  context=self.context, metadata={str(k): str(v) for k, v in rec.metadata.items()})
+            self._channels[key] = ch
+        return ch
+
+    def chunk(self, writer, parts) -> None:
+        """Log every message of one uncompressed chunk (``parts``: its bytes / uint8 arrays in order)
+        of the MCAP file ``writer`` (a :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`)."""
+        for cid in writer.channels:      # every channel is advertised before its first message
+            self._channel(writer, cid)
+        if not self._waited:
+            self._waited = True
+            self.wait_for_viewer()
+        data = memoryview(b"".join(bytes(p) for p in parts))
+        pos, end, head = 0, len(data), _HEAD.size
+        while pos < end:
+            op, length = data[pos], struct.unpack_from("<Q", data, pos + 1)[0]
+            if op == _MESSAGE:
+                _, _, cid, _, log_time, _ = _HEAD.unpack_from(data, pos)
+                self._pace(id(writer), log_time)
+                self._channel(writer, cid).log(bytes(data[pos + head:pos + 9 + length]), log_time=log_time)
+                self.sent += 1
+            pos += 9 + length
+
+    def replay(self, path) -> int:
+        """Serve the messages of the MCAP file ``path`` in log-time order as :meth:`chunk` serves a
+        run's (``usv-mj render RUN.mcap --live``); returns the number of messages served."""
+        from mcap.reader import make_reader
+
+        with open(path, "rb") as f:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+            if summary is None:
+                raise ScenarioError(f"{path}: the log has no summary (an unfinished file): nothing to replay")
+            chans = {}
+            for cid, rec in summary.channels.items():
+                schema = summary.schemas.get(rec.schema_id)
+                fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
+                                                                        data=schema.data)
+                chans[cid] = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
+                                              context=self.context, metadata=dict(rec.metadata))
+            self._channels.update({("replay", cid): ch for cid, ch in chans.items()})
+            self.wait_for_viewer()
+            for _, channel, message in reader.iter_messages(log_time_order=True):
+                self._pace("replay", message.log_time)
+                chans[channel.id].log(message.data, log_time=message.log_time)
+                self.sent += 1
+        return self.sent
+
+    def _pace(self, key, log_time: int) -> None:
+        """Sleep until ``log_time`` [ns] is due at ``speed`` (each file's clock starts at its first
+        message: the baseline's file starts at t = 0 again)."""
+        if self.speed is None:
+            return
+        now = time.monotonic()
+        clock = self._clock.setdefault(key, (now, log_time))
+        ahead = (log_time - clock[1]) * 1e-9 / self.speed - (now - clock[0])
+        if ahead > 2e-3:
+            time.sleep(ahead)
+
+    # --- viewers -----------------------------------------------------------------------------------
+
+    def wait_for_viewer(self) -> bool:
+        """Block until a viewer subscribes to a channel and its subscriptions have settled, or until
+        ``wait_s``; True if one did."""
+        lis = self.listener
+        if self.wait_s is not None and self.wait_s <= 0:
+            return bool(lis.subs)
+        self._say(f"live: waiting for a viewer on {self.url} (Foxglove: Open connection, Foxglove WebSocket"
+                  + (f"; going on without one after {self.wait_s:g} s)" if self.wait_s is not None else
+                     "; Ctrl-C stops)"))
+        deadline = None if self.wait_s is None else time.monotonic() + self.wait_s
+        with lis.lock:
+            while not lis.subs:
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    self._say("live: no viewer came; the run goes on (the log is written in full)")
+                    return False
+                lis.changed.wait(0.2 if left is None else min(0.2, left))
+            first = time.monotonic()
+            while time.monotonic() - lis.last_change < SETTLE_S and time.monotonic() - first < 2.0:
+                lis.changed.wait(SETTLE_S)
+        self._say(f"live: a viewer is subscribed to {len(lis.subs)} channels")
+        return True
+
+    def finish(self, linger_s: float | None = None) -> None:
+        """After the run: serve until every viewer has gone (or ``linger_s`` [s]), then stop."""
+        lis = self.listener
+        if lis.subs:
+            self._say(f"live: the run is over ({self.sent} messages served); serving until the viewer "
+                      f"disconnects (Ctrl-C stops)")
+            deadline = None if linger_s is None else time.monotonic() + linger_s
+            try:
+                with lis.lock:
+                    while lis.subs and (deadline is None or time.monotonic() < deadline):
+                        lis.changed.wait(0.2)
+            except KeyboardInterrupt:   # Ctrl-C ends the serving, not the run (it is over and written)
+                self._say("live: stopped serving (Ctrl-C)")
+        self.close()
+
+    def close(self) -> None:
+        for ch in self._channels.values():
+            ch.close()
+        self._channels.clear()
+        self.server.stop()

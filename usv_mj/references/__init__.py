@@ -1,0 +1,1 @@
+"""References: trajectories by kind, and guidance planned around obstacles."""

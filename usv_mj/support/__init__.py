@@ -1,0 +1,1 @@
+"""Support: the numba cache, worker spawning, the package's files, TOML reading."""
