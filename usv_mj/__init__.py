@@ -22,7 +22,7 @@ from usv_mj.support.numba_cache import install_when_imported
 install_when_imported()     # a damaged numba cache file is compiled again, not EOFError for ever
 moved.install()             # a plug-in's old module names (usv_mj.registry, usv_mj.ship, ...) still import
 
-__version__ = "0.1.0"
+from usv_mj.core.version import __version__  # noqa: E402
 
 
 class _CheckoutFinder:

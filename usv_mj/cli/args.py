@@ -12,34 +12,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tomllib
 
 from usv_mj.core.errors import TooManyStepsError
+from usv_mj.scenario.overrides import parse_set, with_vessel  # noqa: F401 (the commands' names)
 from usv_mj.scenario.spec import ScenarioError, load_scenario, merge_tables, preset_names
 
 #: the exit codes of every command: done, stopped early, bad input, no OpenGL (usv_mj.cli.main's docstring)
 EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT, EXIT_NO_GL = 0, 1, 2, 3
-
-
-def parse_set(items: list[str]) -> dict:
-    """``--set a.b=1`` items -> nested dict; values are TOML (numbers, strings, lists, true/false)."""
-    out: dict = {}
-    for item in items:
-        if "=" not in item:
-            raise ScenarioError(f"--set {item!r}: expected KEY=VALUE, e.g. controller.k1=5")
-        key, value = item.split("=", 1)
-        try:
-            parsed = tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
-            parsed = value  # a bare word: take it as a string
-        node = out
-        parts = key.strip().split(".")
-        for part in parts[:-1]:
-            node = node.setdefault(part, {})
-            if not isinstance(node, dict):
-                raise ScenarioError(f"--set {item!r}: {part} was set to a value above, not a table")
-        node[parts[-1]] = parsed
-    return out
 
 
 def add_scenario_arguments(p: argparse.ArgumentParser) -> None:
@@ -60,22 +39,6 @@ def add_vessel_argument(p: argparse.ArgumentParser) -> None:
 def _with_vessel(args, overrides: dict) -> dict:
     """``overrides`` with --vessel's kind: shorthand for --set vessel.kind=X (docs/vessels.md)."""
     return with_vessel(getattr(args, "vessel", None), overrides)
-
-
-def with_vessel(kind, overrides: dict) -> dict:
-    """``overrides`` (a nested dict of scenario values) with ``[vessel] kind`` = ``kind`` (None or
-    "": unchanged), keeping the vessel's options given beside it: what --vessel does for every
-    command, and ``usv_mj.envs.load(vessel=...)`` for the environments. ScenarioError when
-    ``overrides`` make that impossible (a [vessel] that is not a table, the paper's [ship] options
-    with another kind)."""
-    if kind:
-        if not isinstance(overrides.get("vessel", {}), dict):
-            raise ScenarioError(f"--set vessel={overrides['vessel']!r}: [vessel] must be a table")
-        if isinstance(overrides.get("ship"), dict) and kind != "paper":
-            raise ScenarioError(f"--vessel {kind}: --set ship.* sets the paper vessel's parameters; "
-                                f"give the vessel's own as --set vessel.KEY=VALUE")
-        overrides = {**overrides, "vessel": {**overrides.get("vessel", {}), "kind": kind}}
-    return overrides
 
 
 def scenario_from_args(args):

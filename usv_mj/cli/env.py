@@ -96,7 +96,7 @@ def run_command(args: argparse.Namespace) -> int:
             return 2
     options = {"quantize": not args.no_quantize}
     if args.set:
-        from usv_mj.cli.args import parse_set
+        from usv_mj.scenario.overrides import parse_set
 
         try:
             options["overrides"] = parse_set(args.set)

@@ -343,7 +343,7 @@ def _add_external(sub, name, spec):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="usv-mj", formatter_class=_Formatter, description=__doc__)
-    from usv_mj import __version__
+    from usv_mj.core.version import __version__
 
     parser.add_argument("--version", action="version", version=f"usv-mj {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

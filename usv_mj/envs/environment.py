@@ -203,7 +203,7 @@ class USVEnvironment(control.Environment):
 
 
 def _scenario(task: str, options: dict, duration: float) -> Scenario:
-    from usv_mj.cli.args import with_vessel
+    from usv_mj.scenario.overrides import with_vessel
 
     scenario = options.pop("scenario", None)
     preset = options.pop("preset", "paper")

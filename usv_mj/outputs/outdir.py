@@ -163,7 +163,7 @@ def record(folder: Path, paths=None, *, patterns=(), command: str | None = None,
     """Add ``paths`` (relative to ``folder``; None: everything in it) and name ``patterns`` to the
     folder's manifest, creating it (``fresh``: a new one); each file with its size and SHA-256,
     its folders listed too."""
-    from usv_mj import __version__
+    from usv_mj.core.version import __version__
 
     folder = Path(folder)
     manifest = None if fresh else read_manifest(folder) or _legacy_manifest(folder)
