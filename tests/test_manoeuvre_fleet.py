@@ -17,7 +17,7 @@ from usv_mj.cli.main import main
 
 def test_defaults_are_the_paper_test_froude_scaled_or_the_vessels_own():
     from usv_mj import load_scenario
-    from usv_mj.jobs.manoeuvres.options import KINDS, vessel_defaults
+    from usv_mj.scenario.manoeuvre import KINDS, vessel_defaults
 
     g, rho = 9.81, 1025.0
     paper = load_scenario(preset="paper")

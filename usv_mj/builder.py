@@ -38,10 +38,10 @@ import numpy as np
 
 from usv_mj.core.errors import ScenarioError
 from usv_mj.core.registry import CONTROLLERS, PLANTS
+from usv_mj.physics.sea.environment import run_sea
 from usv_mj.scenario.spec import Scenario
 from usv_mj.references.trajectories import make_reference
 
-REFERENCE_MARGIN_S = 1.0  # the sea and the reference are made a little past the run's end
 
 
 @dataclass
@@ -98,12 +98,7 @@ class Parts:
 
 def make_environment(scenario: Scenario, duration: float | None = None):
     """The scenario's sea (waves, current, wind; docs/sea.md), or None when it is calm."""
-    if scenario.sea.calm:
-        return None
-    from usv_mj.physics.sea import Environment
-
-    return Environment(scenario.sea, ship=scenario.ship,
-                       t_max=(scenario.duration if duration is None else duration) + REFERENCE_MARGIN_S)
+    return run_sea(scenario.sea, scenario.ship, scenario.duration if duration is None else duration)
 
 
 def make_plant(scenario: Scenario, kind: str | None = None, environment="scenario", *, control_period: float | None = None,
@@ -340,7 +335,8 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
 def _obstacle_parts(scenario, plant, plan, duration, statics, contact):
     """The clearance monitor, the obstacle log and the online guidance as one loop hook and a sink."""
     from usv_mj.obstacles.clearance import make_clearance_monitor
-    from usv_mj.scene.compose import ContactParams, vessel_hull_radius
+    from usv_mj.scene.compose import ContactParams
+    from usv_mj.scene.hull import vessel_hull_radius
     from usv_mj.obstacles.hooks import ObstacleHook
     from usv_mj.references.planner import Guidance
     from usv_mj.obstacles.sink import ObstacleLog

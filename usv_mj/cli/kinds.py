@@ -22,6 +22,7 @@ import re
 
 from usv_mj.core.errors import UnknownKindError
 from usv_mj.core.registry import REGISTRIES
+from usv_mj.scenario.kinds import scenario_kinds, worker_imports  # noqa: F401 (re-exported)
 
 _BRACKET = re.compile(r"\[([^\[\]]+)\]")
 _NUMBERS = re.compile(r"[-+\d.,\s eE]*")
@@ -178,31 +179,3 @@ def run_command(args) -> int:
                 print("      (no options)")
         print()
     return 0
-
-
-def scenario_kinds(scenario) -> list[tuple[str, str]]:
-    """(registry section, kind) of every registered part ``scenario`` names."""
-    out = [("controller", scenario.controller.kind), ("trajectory", scenario.trajectory.kind),
-           ("plant", scenario.plant.kind)]
-    if scenario.baseline.enabled:
-        out.append(("controller", scenario.baseline.kind))
-    return out
-
-
-def worker_imports(scenario) -> tuple[str, ...]:
-    """The modules another process (a sweep's Dask worker) must import to find the kinds of
-    ``scenario`` that were registered at runtime by an importable module's decorator (built-ins,
-    entry points and ``module:Name`` kinds need none: a worker finds them by import). A kind
-    registered only in this process (in ``__main__``) raises :class:`usv_mj.core.errors.SweepError`."""
-    from usv_mj.core.errors import SweepError
-
-    modules = []
-    for section, kind in scenario_kinds(scenario):
-        registry = REGISTRIES[section]
-        problem = registry.portable(kind)
-        if problem is not None:
-            raise SweepError(f"{scenario.source}: {section}.kind: {problem}")
-        module = registry.module_to_import(kind)
-        if module and module not in modules:
-            modules.append(module)
-    return tuple(modules)

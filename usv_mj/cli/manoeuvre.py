@@ -10,7 +10,7 @@
 --out/VESSEL/ and writes manoeuvre_vessels.png, vessels.json and vessels.md beside them (:mod:`.fleet`).
 
 The manoeuvre's options are ``--set manoeuvre.KEY=VALUE`` (``usv-mj kinds`` does not list them:
-:mod:`usv_mj.jobs.manoeuvres.options`); ``--duration`` sets ``manoeuvre.duration``. Writes into --out
+:mod:`usv_mj.scenario.manoeuvre`); ``--duration`` sets ``manoeuvre.duration``. Writes into --out
 (default renders/manoeuvre-KIND): manoeuvre.json (the measures and the IMO rows), report.md,
 figures/ (manoeuvre_track.png, manoeuvre_time.png, manoeuvre_spiral.png and the run's own seven),
 run.mcap, summary.json; video.mp4 with --video.
@@ -24,7 +24,7 @@ from pathlib import Path
 
 from usv_mj.core.errors import ScenarioError
 
-from usv_mj.jobs.manoeuvres.options import KINDS
+from usv_mj.scenario.manoeuvre import KINDS
 
 
 def add_arguments(p) -> None:

@@ -113,10 +113,13 @@ class Registry:
     registers it on import; ``group``: the entry-point group searched for kinds not found.
     """
 
-    def __init__(self, what: str, builtins: dict[str, str], group: str):
+    def __init__(self, what: str, builtins: dict[str, str], group: str, files: tuple[str, str] | None = None):
         self.what = what
         self.group = group
         self._builtins = dict(builtins)  # kind -> module that registers it on import
+        # (suffix, "module:function"): a kind ending in the suffix is a data file, registered under its
+        # path by that function (imported by name: looking a file kind up is the registry's business)
+        self._files = files
         self._entries: dict[str, Entry] = {}
         self._entry_points = None        # name -> importlib.metadata.EntryPoint, read once
 
@@ -200,6 +203,9 @@ class Registry:
             return self._entries[kind]
         if kind in self._builtins:
             importlib.import_module(self._builtins[kind])
+        elif self._files is not None and kind.endswith(self._files[0]):
+            module_name, _, function = self._files[1].partition(":")
+            getattr(importlib.import_module(module_name), function)(kind)
         elif ":" in kind:
             self._load_module_name(kind, where)
         elif kind in self._eps():
@@ -336,7 +342,7 @@ def _importable(module: str) -> bool:
         return False
 
 
-PLANTS = Registry("plant", {"analytic": "usv_mj.plants.analytic", "mujoco": "usv_mj.plants.mujoco_plant"},
+PLANTS = Registry("plant", {"analytic": "usv_mj.plants.analytic", "mujoco": "usv_mj.plants.harbour"},
                   "usv_mj.plants")
 CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "usv_mj.controllers.pi_baseline",
                                       "los": "usv_mj.controllers.los", "open_loop": "usv_mj.controllers.open_loop",
@@ -350,7 +356,11 @@ DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"},
 VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_mj.vessels.clarke83",
                               "kvlcc2": "usv_mj.vessels.kvlcc2",
                               "cybership2": "usv_mj.vessels.datafile", "otter": "usv_mj.vessels.datafile"},
-                   "usv_mj.vessels")
+                   "usv_mj.vessels", files=(".toml", "usv_mj.vessels.datafile:register_file"))
+#: the standard manoeuvres (docs/manoeuvres.md): a kind's object is its options dataclass, as a
+#: disturbance's (the ``[manoeuvre]`` table's keys); the job that runs them is usv_mj.jobs.manoeuvres
+MANOEUVRES = Registry("manoeuvre", {k: "usv_mj.scenario.manoeuvre" for k in ("turning", "zigzag", "spiral", "stopping")},
+                      "usv_mj.manoeuvres")
 #: every registry by its scenario section (``usv-mj kinds`` lists them)
 REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES,
-              "vessel": VESSELS}
+              "vessel": VESSELS, "manoeuvre": MANOEUVRES}

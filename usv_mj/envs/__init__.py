@@ -69,7 +69,7 @@ GYM_IDS = {"usv_mj/Track-v0": "track", "usv_mj/TrackWaves-v0": "track_waves",
            "usv_mj/Harbor-v0": "harbor", "usv_mj/HarborWaves-v0": "harbor_waves"}
 
 _WHERE = {
-    "load": "environment", "gym_env": "environment", "episode_record": "environment",
+    "load": "environment", "gym_env": "gymnasium_env", "episode_record": "environment",
     "USVEnvironment": "environment", "PPCPolicy": "policies", "RandomPolicy": "policies",
     "TrackTask": "tasks", "HarbourTask": "tasks", "USVPhysics": "physics", "USVGymEnv": "gymnasium_env",
 }

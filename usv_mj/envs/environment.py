@@ -315,16 +315,6 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
     return USVEnvironment(build(), tsk, rebuild=build, **env_kw)
 
 
-def gym_env(task: str, seed=None, render_mode=None, **options):
-    """A Gymnasium view of :func:`load`: :class:`usv_mj.envs.gymnasium_env.USVGymEnv` (a flat,
-    scaled float32 observation and a normalized Box(-1, 1) action by default; see that module).
-    The same environments are registered as ``usv_mj/Track-v0`` ... for ``gymnasium.make``
-    (:data:`usv_mj.envs.GYM_IDS`). Raises ImportError if gymnasium is not installed."""
-    from usv_mj.envs.gymnasium_env import USVGymEnv
-
-    return USVGymEnv(task, seed=seed, render_mode=render_mode, **options)
-
-
 def step_row(env) -> tuple:
     """The row of the environment's present step, as :func:`episode_record` takes it: (t [s], state
     (6), reference (7), action (2), thrust (2), command (2), saturated (2)), copies."""
@@ -348,7 +338,7 @@ def episode_record(env, steps, metadata=None):
     scenario (its sea and, in the harbor, the layout's obstacles, and its vessel), so the video
     shows the water, the harbour and the vessel's hull.
     """
-    from usv_mj.controllers.base import FUNNEL_FIELDS
+    from usv_mj.core.layouts import FUNNEL_FIELDS
     from usv_mj.record.run_record import CORE_COLUMNS, RunRecord
     from usv_mj.physics.ship import wrap_angle as wrap
 

@@ -179,7 +179,7 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
         ax.set_ylabel("weight norm")
         ax.set_title("Fig. 7: neural network weight norms")
     else:  # another controller: its own declared diagnostics (beyond the funnel block)
-        from usv_mj.controllers.base import FUNNEL_FIELDS
+        from usv_mj.core.layouts import FUNNEL_FIELDS
 
         own = [c for c in record.diagnostic_fields if c not in FUNNEL_FIELDS][:8]
         for col in own:

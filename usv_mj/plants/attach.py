@@ -55,6 +55,8 @@ import weakref
 import mujoco
 import numpy as np
 
+from usv_mj.physics.sea.environment import run_sea
+from usv_mj.physics.ship import RigidBodySplit
 from usv_mj.plants import mujoco_callback as mcb
 
 N_USERDATA = mcb.N_USERDATA
@@ -226,10 +228,9 @@ def write_sea(ud: np.ndarray, packed) -> None:
 
 
 def _release(handle_id, data_address, userdata):
-    from usv_mj.plants.mujoco_plant import REGISTRY
 
     userdata[mcb.U_MAGIC] = 0.0
-    REGISTRY.remove(handle_id, data_address)
+    mcb.CALLBACKS.remove(handle_id, data_address)
 
 
 class Hydrodynamics:
@@ -268,9 +269,8 @@ class Hydrodynamics:
             data.userdata[mcb.U_LAYOUT] = mcb.LAYOUT_FREE
         if self.environment is not None:
             self.extend(horizon)
-        from usv_mj.plants.mujoco_plant import REGISTRY
-
-        REGISTRY.add(self)
+    
+        mcb.CALLBACKS.add(self)
         self._finalizer = weakref.finalize(self, _release, id(self), data._address, data.userdata)
         mujoco.mj_forward(model, data)
 
@@ -302,7 +302,7 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
     scenario:
         A :class:`usv_mj.scenario.spec.Scenario`, a preset name or a scenario TOML path (None: the paper
         preset): its ``[ship]``, ``[disturbance]`` and ``[sea]`` are used (through
-        :func:`usv_mj.builder.make_environment`, the build's own sea).
+        :func:`usv_mj.physics.sea.environment.run_sea`, the build's own sea).
     horizon:
         Plant time [s] up to which a sea's slowly varying parts (the OU grids of current and wind
         gusts) are made at once (calm: unused); past it they hold their last value (the waves go
@@ -310,9 +310,7 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
 
     Returns the :class:`Hydrodynamics` handle; keep it while stepping (``handle.detach()`` ends it).
     """
-    from usv_mj.builder import make_environment
     from usv_mj.scenario.spec import Scenario, load_scenario, preset_names
-    from usv_mj.physics.ship import RigidBodySplit
 
     if scenario is None or isinstance(scenario, str):
         if scenario is None or scenario in preset_names():
@@ -326,5 +324,5 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
         raise ValueError(f"attach_hydrodynamics: horizon must be a finite number of seconds > 0, got {horizon!r}")
     bid = hull_body(model, body)
     data = mujoco.MjData(model) if data is None else data
-    env = make_environment(scenario, float(horizon))
+    env = run_sea(scenario.sea, scenario.ship, float(horizon))
     return Hydrodynamics(model, data, bid, scenario.ship, scenario.disturbance, RigidBodySplit(), env, horizon)

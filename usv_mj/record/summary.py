@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from usv_mj.record.run_record import RunRecord
+from usv_mj.record.tracking import pose_errors, pose_errors_at  # noqa: F401 (the summary's API)
 from usv_mj.physics.ship import wrap_angle
 
 CHECK_TIMES = (5.0, 10.0, 20.0)
@@ -21,18 +22,6 @@ CHECK_TIMES = (5.0, 10.0, 20.0)
 def _finite(v):
     v = float(v)
     return v if math.isfinite(v) else None
-
-
-def pose_errors(record: RunRecord) -> dict:
-    """x - x_d [m], y - y_d [m] and wrap(psi - psi_d) [rad] at every row (the paper's Table 1 errors)."""
-    return {"x": record["x"] - record["x_d"], "y": record["y"] - record["y_d"],
-            "psi": wrap_angle(record["psi"] - record["psi_d"])}
-
-
-def pose_errors_at(record: RunRecord, k: int) -> dict:
-    """The pose errors of :func:`pose_errors` at row ``k`` only (floats; a single read of each column)."""
-    v = {c: record.value(c, k) for c in ("x", "x_d", "y", "y_d", "psi", "psi_d")}
-    return {"x": v["x"] - v["x_d"], "y": v["y"] - v["y_d"], "psi": float(wrap_angle(v["psi"] - v["psi_d"]))}
 
 
 def column_chunks(record: RunRecord, names) -> "iter":

@@ -32,7 +32,7 @@ import numpy as np
 
 from usv_mj.physics.ship import RigidBodySplit, ShipParams
 
-__all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS", "register_file", "of_table"]
+__all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS"]
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ class Vessel:
     manoeuvre: the vessel's own defaults of the standard manoeuvres' options ({key: value}, e.g.
         approach_speed, yaw_moment; a data file's ``[manoeuvre]`` table), each applied to every manoeuvre
         that has the option, and {manoeuvre kind: {key: value}} for one kind only (these win), or None: the paper hull's
-        Froude-scaled to its length (usv_mj.jobs.manoeuvres.options.vessel_defaults).
+        Froude-scaled to its length (usv_mj.scenario.manoeuvre.vessel_defaults).
     """
 
     kind: str
@@ -144,22 +144,3 @@ def from_derivatives(m, x_g, I_z, X_udot, Y_vdot, Y_rdot, N_vdot, N_rdot,
         coriolis_masses={"full": None, "rigid": (m, m, m * x_g), "none": (0.0, 0.0, 0.0)}[coriolis],
         crossflow=(crossflow_k, crossflow_L, strips) if crossflow_k > 0 else (0.0, 0.0, 0.0))
     return ship, split
-
-
-def of_table(table) -> Vessel | None:
-    """The vessel of a scenario's ``to_dict()`` (a run's metadata ``scenario``): its ``[vessel]``
-    resolved (with ``[ship]``, the paper kind's options, for the paper kind only: to_dict writes
-    the packed hull under ``ship`` beside every vessel); None when the table names no vessel."""
-    if not isinstance(table, dict) or not isinstance(table.get("vessel"), dict):
-        return None
-    from usv_mj.scenario.spec import from_dict
-
-    kinds = ("vessel", "ship") if table["vessel"].get("kind", "paper") == "paper" else ("vessel",)
-    return from_dict({k: table[k] for k in kinds if k in table}, source="<metadata>").vessel.model
-
-
-def register_file(path) -> str:
-    """Register the vessel data file ``path`` (docs/vessels.md) under its path as given; returns the kind."""
-    from usv_mj.vessels.datafile import register_file as _register
-
-    return _register(path)

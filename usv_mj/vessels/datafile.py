@@ -23,7 +23,7 @@ or by naming it in a scenario: ``[vessel] kind = "path/to/boat.toml"``. A file::
     kind = "twin"
     [manoeuvre]                  # optional: its own defaults of the manoeuvres' options
     approach_speed = 2.34        # m/s (otherwise the paper hull's test Froude-scaled to L:
-    yaw_moment = 15.8            # N m  usv_mj.jobs.manoeuvres.options.vessel_defaults)
+    yaw_moment = 15.8            # N m  usv_mj.scenario.manoeuvre.vessel_defaults)
 
 Every number of ``[derivatives]``, ``[dimensions]`` and ``[crossflow]`` is an option of the kind,
 so a scenario may change one (``[vessel] kind = "otter"``, ``m = 90.0``); the options dataclass of
@@ -39,7 +39,7 @@ from importlib import resources
 from typing import Any
 
 from usv_mj.core.errors import ScenarioError
-from usv_mj.core.registry import VESSELS
+from usv_mj.core.registry import MANOEUVRES, VESSELS
 from usv_mj.support.toml_values import read_toml
 
 from usv_mj.vessels import CORIOLIS, Dimensions, Vessel, from_derivatives
@@ -131,12 +131,11 @@ def read_file(path) -> dict:
     if manoeuvre is not None:
         if not isinstance(manoeuvre, dict):
             raise ScenarioError(f"{path}: [manoeuvre] must be a table, got {manoeuvre!r}")
-        from usv_mj.jobs.manoeuvres.options import KINDS
-
-        known = {f.name for cls in KINDS.values() for f in dataclasses.fields(cls)}
-        items = [(k, v) for k, v in manoeuvre.items() if not (k in KINDS and isinstance(v, dict))]
-        for kind in (k for k, v in manoeuvre.items() if k in KINDS and isinstance(v, dict)):
-            own = {f.name for f in dataclasses.fields(KINDS[kind])}   # [manoeuvre.KIND]: that kind's options
+        kinds = {e.kind: e.options_class for e in MANOEUVRES.entries()}   # the manoeuvres' options, by kind
+        known = {f.name for cls in kinds.values() for f in dataclasses.fields(cls)}
+        items = [(k, v) for k, v in manoeuvre.items() if not (k in kinds and isinstance(v, dict))]
+        for kind in (k for k, v in manoeuvre.items() if k in kinds and isinstance(v, dict)):
+            own = {f.name for f in dataclasses.fields(kinds[kind])}   # [manoeuvre.KIND]: that kind's options
             for key, value in manoeuvre[kind].items():
                 if key not in own:
                     raise ScenarioError(f"{path}: unknown key manoeuvre.{kind}.{key!r}; the {kind} options are "
@@ -187,7 +186,9 @@ class DataVessel:
 
 def register_file(path, kind: str | None = None, replace: bool = False) -> str:
     """Register the data file ``path`` as a vessel kind (``kind``: default the path as given);
-    returns the kind. A kind already registered from the same file is kept."""
+    returns the kind. A kind already registered from the same file is kept. The registry calls it
+    for a kind that ends in ``.toml`` (:data:`usv_mj.core.registry.VESSELS`: the scenario's
+    ``[vessel] kind``, resolved to an absolute path)."""
     kind = kind or str(path)
     entry = VESSELS._entries.get(kind)
     if entry is not None and not replace and isinstance(entry.obj, DataVessel):

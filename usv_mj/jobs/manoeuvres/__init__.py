@@ -28,7 +28,8 @@ from pathlib import Path
 
 from usv_mj.jobs.manoeuvres import imo
 from usv_mj.jobs.manoeuvres.measures import spiral_measures, stopping_measures, turning_measures, zigzag_measures
-from usv_mj.jobs.manoeuvres.options import KINDS, ManoeuvreSpec, execute_time, manoeuvre_from_table, manoeuvre_scenario
+from usv_mj.scenario.manoeuvre import KINDS, ManoeuvreSpec, manoeuvre_from_table
+from usv_mj.jobs.manoeuvres.trial import execute_time, manoeuvre_scenario
 
 __all__ = ["run_manoeuvre", "turning_circle", "zigzag", "spiral", "stopping", "measure", "vessel_length",
            "record_outputs", "spec_of_record",
@@ -51,7 +52,7 @@ def vessel_model(scenario):
     metadata: its ``[vessel]`` table; ``[ship]`` only for the paper vessel, whose options it is), or
     None for a table that names no vessel (an older log)."""
     if isinstance(scenario, dict):
-        from usv_mj.vessels import of_table
+        from usv_mj.scenario.spec import vessel_of_table as of_table
 
         return of_table(scenario)
     return getattr(getattr(scenario, "vessel", None), "model", None)

@@ -109,7 +109,7 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
 
     ``options``: ``transient`` [s]; ``log_path`` (write an MCAP log there through
     ``usv_mj.outputs.log.RunLogWriter``); ``imports`` (modules that register the run's kinds at
-    runtime: imported first, :func:`usv_mj.cli.kinds.worker_imports`); ``episode_fn``
+    runtime: imported first, :func:`usv_mj.scenario.kinds.worker_imports`); ``episode_fn``
     (``"module:function"``, ``fn(scenario, options) -> RunRecord`` runs the episode instead of
     :func:`usv_mj.loop.simulate.simulate`: a learned policy, :mod:`usv_mj.jobs.bench.policy`); ``row_hook``
     (``"module:function"``, ``fn(record, options) -> dict`` of columns added to the row: the
@@ -471,7 +471,7 @@ def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
-    from usv_mj.cli.kinds import worker_imports
+    from usv_mj.scenario.kinds import worker_imports
 
     token = uuid.uuid4().hex[:8]
     futures = {}

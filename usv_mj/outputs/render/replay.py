@@ -180,12 +180,12 @@ def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720,
     conaffinity = 0) of SEA_NODES x SEA_NODES nodes that :meth:`FrameRenderer.update_sea` shows,
     re-centres, fills and uploads per frame when the run had a sea.
     ``hull``: the vessel's (L, B, T) [m] (:func:`usv_mj.outputs.render.world.hull_dimensions`): the model file's hull scaled to it
-    by the MuJoCo plant's own :func:`usv_mj.plants.mujoco_plant.scale_hull` (what the plant
+    by the MuJoCo plant's own :func:`usv_mj.scene.hull.scale_hull` (what the plant
     simulates is what is drawn); None: the file's hull (the paper's).
     """
     spec, label = load_scene_spec(model_path)
     if hull is not None:
-        from usv_mj.plants.mujoco_plant import scale_hull
+        from usv_mj.scene.hull import scale_hull
         from usv_mj.vessels import Dimensions
 
         scale_hull(spec, Dimensions(*hull))
