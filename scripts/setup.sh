@@ -37,7 +37,7 @@ fi
 "$PYTHON" -c "import usv_mj, mujoco; print(f'setup: usv_mj {usv_mj.__version__} with mujoco {mujoco.__version__} ready')"
 # numba compiles the kernels and the main job's loop combinations once per checkout (about 15 s on
 # a fresh machine): done here, with a stamp per source fingerprint, so that the main job starts warm
-warm_stamp=$("$PYTHON" -c "from usv_mj.loop.compiled import _source_fingerprint, cache_dir; print(cache_dir() / ('warm-' + _source_fingerprint()))")
+warm_stamp=$("$PYTHON" -c "from usv_mj.loop.generate import _source_fingerprint, cache_dir; print(cache_dir() / ('warm-' + _source_fingerprint()))")
 if [ ! -e "$warm_stamp" ]; then
   echo "setup: compiling the simulation kernels (once per checkout)"
   warm_dir=$(mktemp -d)

@@ -85,7 +85,9 @@ import time
 
 import numpy as np
 
-from usv_mj.builder import make_environment, make_plant
+from usv_mj.builder import make_environment, make_plant, make_quantizers
+from usv_mj.loop.step import C_F_R, C_F_U, C_S_R, C_S_U, ControlStep
+from usv_mj.record.run_record import N_CORE
 from usv_mj.scenario.spec import Scenario
 
 SWITCH_GRID_S = 0.2            # inputs change only at multiples of this time [s]
@@ -186,20 +188,23 @@ def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: b
 
 def realized_inputs(scenario: Scenario, inputs: np.ndarray, dt: float) -> tuple[np.ndarray, dict]:
     """The forces the scenario's actuators (:mod:`usv_mj.physics.actuators`) realize of ``inputs`` at ``dt``
-    (the same for both plants), and the fraction of steps saturated per channel. Unlimited: the
-    inputs themselves. (The convergence studies keep the raw inputs: a lag or rate limit discretized
-    at each dt would give each dt another signal.)"""
+    (the same for both plants): the control step of every loop (:mod:`usv_mj.loop.step`) with the
+    quantizer off, and the fraction of steps saturated per channel. Unlimited: the inputs
+    themselves. (The convergence studies keep the raw inputs: a lag or rate limit discretized at
+    each dt would give each dt another signal.)"""
     from usv_mj.physics.actuators import Actuators
 
     act = Actuators(scenario.actuators, dt)
     if act.unlimited:
         return inputs, {"u": 0.0, "r": 0.0}
-    act.reset()
-    out = np.empty_like(inputs)
-    sat = np.zeros((len(inputs), 2))
+    step = ControlStep(make_quantizers(scenario.with_overrides({"quantizer": {"enabled": False}})), act)
+    step.reset()
+    rows = np.zeros((len(inputs), N_CORE))
+    no_state = np.zeros(6)   # no allocation here: the actuators do not read the state
     for k in range(len(inputs)):
-        out[k, 0], out[k, 1], sat[k, 0], sat[k, 1] = act.apply(inputs[k, 0], inputs[k, 1])
-    frac = sat.mean(axis=0) if len(inputs) else np.zeros(2)
+        step(inputs[k, 0], inputs[k, 1], no_state, rows[k])
+    out = rows[:, [C_F_U, C_F_R]]
+    frac = rows[:, [C_S_U, C_S_R]].mean(axis=0) if len(inputs) else np.zeros(2)
     return out, {"u": float(frac[0]), "r": float(frac[1])}
 
 

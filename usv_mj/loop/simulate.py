@@ -23,6 +23,7 @@ import numpy as np
 
 from usv_mj.physics.limits import within_limits
 from usv_mj.builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
+from usv_mj.loop.step import ControlStep
 from usv_mj.record.run_record import COL, N_CORE, SL_REF, SL_STATE, Event, RunRecord
 from usv_mj.scenario.spec import Scenario
 from usv_mj.references import trajectories
@@ -122,8 +123,8 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     duration = parts.duration
     dt = scenario.control_period
     n = int(round(duration / dt))
-    quant_u, quant_r = parts.quantizers
     actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario, getattr(controller, "commands", "forces"))
+    step = ControlStep(parts.quantizers, actuators)   # clip -> quantize -> actuators -> the row (usv_mj.loop.step)
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
     from usv_mj.loop.compiled import kernels_of
@@ -145,21 +146,17 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             sink.scene(plant.scene_xml())
     plant.reset(scenario.initial.eta, scenario.initial.nu, 0.0)
     controller.reset()
-    quant_u.reset()
-    quant_r.reset()
-    actuators.reset()
+    step.reset()
     data = record.buffer   # the rows from record.base on (all of them when in memory)
     base = 0
     sl_diag = slice(len(COL), len(COL) + len(fields))
     c_t = COL["t"]
-    c_tau_u, c_tau_r, c_q_u, c_q_r, c_k_u, c_k_r, c_f_u, c_f_r, c_s_u, c_s_r = (COL[c] for c in (
-        "tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r", "f_u", "f_r", "sat_u", "sat_r"))
     flush = _Flusher(record, sinks, progress)
     wall0 = time.perf_counter()
     k = 0
     try:
         if compiled is not None:
-            compiled, _ = kernels_of(parts, hooks)  # again after the resets: the kernels' state is theirs
+            compiled, _ = kernels_of(parts, hooks, step)  # again after the resets: the kernels' state is theirs
             k = _run_compiled(record, parts, compiled, block, flush, limits, dt, n, hooks)
             raise _Done
         x = plant.state
@@ -175,24 +172,12 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
                                data, k - base, x, ref, diag, sl_diag)
                 k += 1
                 break
-            q_u = quant_u.step(tau_u)
-            q_r = quant_r.step(tau_r)
-            f_u, f_r, s_u, s_r = actuators.apply(q_u, q_r, x)
             row = data[k - base]
             row[c_t] = t
             row[SL_STATE] = x
             row[SL_REF] = ref
             row[sl_diag] = diag
-            row[c_tau_u] = tau_u  # scalar stores: cheaper than building an array per step
-            row[c_tau_r] = tau_r
-            row[c_q_u] = q_u
-            row[c_q_r] = q_r
-            row[c_k_u] = quant_u.k
-            row[c_k_r] = quant_r.k
-            row[c_f_u] = f_u
-            row[c_f_r] = f_r
-            row[c_s_u] = s_u
-            row[c_s_r] = s_r
+            f_u, f_r = step(tau_u, tau_r, x, row)   # clip -> quantize -> actuators, the row's control columns
             k += 1
             record.n_rows = k
             if k - flush.mark >= block:
@@ -219,14 +204,14 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         cause = interrupt_in_chain(exc)
         if cause is not None:  # a signal that landed in compiled code surfaces as SystemError
             _interrupted(record, cause, k * dt)
-            _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
+            _finish_run(record, sinks, flush, wall0, step)
             return record
         record.status = "failed"
         record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}"
         record.events.append(Event(k * dt, "failed", record.stop_reason))
-        _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
+        _finish_run(record, sinks, flush, wall0, step)
         raise
-    _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
+    _finish_run(record, sinks, flush, wall0, step)
     return record
 
 
@@ -349,9 +334,9 @@ class _Flusher:
             self.progress(n)
 
 
-def _finish_run(record, sinks, flush, wall0, quant_u, quant_r):
+def _finish_run(record, sinks, flush, wall0, step):
     with _signals_held():
-        _finish_sinks(record, sinks, flush, wall0, quant_u, quant_r)
+        _finish_sinks(record, sinks, flush, wall0, step)
 
 
 def _signals_held():
@@ -375,7 +360,7 @@ def _signals_held():
     return held()
 
 
-def _finish_sinks(record, sinks, flush, wall0, quant_u, quant_r):
+def _finish_sinks(record, sinks, flush, wall0, step):
     flush(record.n_rows)
     record.events.sort(key=lambda e: e.t)
     wall = time.perf_counter() - wall0
@@ -383,7 +368,7 @@ def _finish_sinks(record, sinks, flush, wall0, quant_u, quant_r):
     record.metadata.update({
         "status": record.status, "stop_reason": record.stop_reason, "wall_time_s": wall,
         "realtime_factor": sim_t / wall if wall > 0 else float("inf"),
-        "quantizer_switches": {"u": quant_u.switches, "r": quant_r.switches},
+        "quantizer_switches": dict(zip(("u", "r"), step.switches)),
     })
     record.finish_store()   # a streamed record's last rows, headers and record.json, before the sinks end
     for sink in sinks:
