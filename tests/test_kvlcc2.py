@@ -236,7 +236,7 @@ def test_stopping_is_refused_on_the_ruddered_vessel(scenario):
     from usv_mj.core.errors import ScenarioError
     from usv_mj.scenario.manoeuvre import manoeuvre_from_table
 
-    with pytest.raises(ScenarioError, match="not available on the ruddered vessel 'kvlcc2': the MMG standard "
+    with pytest.raises(ScenarioError, match="not available on the vessel 'kvlcc2': the MMG standard "
                                             "method models the propeller ahead only"):
         manoeuvre_from_table({"kind": "stopping"}, "<test>", scenario.vessel)
     assert manoeuvre_from_table({"kind": "spiral"}, "<test>", scenario.vessel).options.max_rudder_deg == 10.0

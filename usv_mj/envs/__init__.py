@@ -32,7 +32,7 @@ used as is), else ``preset`` ("paper") and ``overrides`` (a nested dict as in sc
 in ``overrides={"vessel": {...}}``): the task runs that hull, its rigid body and hydrodynamics in
 the plant, its actuators between the action and the plant (the action bounds are their limits),
 its nominal model in :class:`PPCPolicy` and its hull in the pictures; the reference is the
-scenario's, as in a run; on a ruddered vessel ("kvlcc2", ``Vessel.inputs == "rudder"``) the action
+scenario's, as in a run; on a ruddered vessel ("kvlcc2": its channels are n_P and the rudder angle) the action
 is allocated to the propeller and the rudder (usv_mj.physics.mmg.mmg_allocate), as a force controller's in a run;
 ``control_period`` [s] (0.01), ``substeps`` (10), ``duration`` [s] (30 / 90), ``quantize`` (True),
 ``max_surge_force`` [N] and ``max_yaw_moment`` [N m] (1000: the action bounds of channels whose

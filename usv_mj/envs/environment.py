@@ -365,6 +365,6 @@ def episode_record(env, steps, metadata=None):
     scenario = getattr(task, "episode_scenario", None) or task.scenario
     meta = {"plant": "mujoco", "controller": "env", "control_period_s": env.control_timestep(),
             "duration_s": float(steps[-1][0]) if steps else 0.0, "scenario": scenario.to_dict(),
-            "diagnostic_fields": list(FUNNEL_FIELDS), "channels": channels_of(scenario)}
+            "diagnostic_fields": list(FUNNEL_FIELDS), "channels": channels_of(scenario).to_metadata()}
     meta.update(metadata or {})
     return RunRecord.from_arrays(cols, metadata=meta, diagnostic_fields=FUNNEL_FIELDS)

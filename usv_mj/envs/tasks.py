@@ -13,7 +13,7 @@ unlimited, the command itself), exactly as in :func:`usv_mj.loop.simulate.simula
 force is held over the control period: ``n_sub_steps`` = ``plant.substeps`` RK4 steps of the
 plant's time step. The action bounds are each channel's own range; a twin hull cannot reach both
 ends at once (full surge leaves no yaw moment), and its allocation decides as in a run
-(``priority``). On a ruddered vessel (``Vessel.inputs == "rudder"``, KVLCC2) the actuators
+(``priority``). On a ruddered vessel (its channels n_P and the rudder angle, KVLCC2) the actuators
 allocate the action to the propeller's n_P and the rudder angle at the state (usv_mj.physics.mmg.mmg_allocate),
 as a force controller's command in a run; its bounds are that allocation's reach at the vessel's
 approach speed (:func:`action_bounds`).

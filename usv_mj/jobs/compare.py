@@ -85,7 +85,8 @@ import time
 
 import numpy as np
 
-from usv_mj.builder import make_environment, make_plant, make_quantizers
+from usv_mj.builder import channels_of, make_environment, make_plant, make_quantizers
+from usv_mj.core.registry import CONTROLLERS
 from usv_mj.loop.step import C_F_R, C_F_U, C_S_R, C_S_U, ControlStep
 from usv_mj.record.run_record import N_CORE
 from usv_mj.scenario.spec import Scenario
@@ -139,8 +140,8 @@ def vessel_inputs(scenario: Scenario, duration: float, dt: float, one_signed: bo
     switching times are the same: surge -60..220 N -> n_P over :data:`RUDDER_RPS_RANGE` x its
     ``nominal_rps``, yaw level y [N m] -> delta = y / 11 x :data:`RUDDER_SIGNAL_DEG` (30 deg at
     the largest level, within KVLCC2's 35 deg)."""
-    model = getattr(scenario.vessel, "model", None)
-    if getattr(model, "inputs", "forces") != "rudder":
+    model = scenario.vessel.model
+    if model.channels.forces:
         return open_loop_inputs(duration, dt, one_signed=one_signed, scale=input_scale(scenario))
     raw = open_loop_inputs(duration, dt, one_signed=one_signed)
     lo, hi = RUDDER_RPS_RANGE
@@ -275,7 +276,8 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
     dt = scenario.control_period
     eta0, nu0 = scenario.initial.eta, scenario.initial.nu
     scale = input_scale(scenario)
-    ruddered = getattr(scenario.vessel.model, "inputs", "forces") == "rudder"
+    channels = scenario.vessel.model.channels   # the open loop's inputs are the vessel's own channels
+    ruddered = not channels.forces
     inputs, saturated = realized_inputs(scenario, vessel_inputs(scenario, scenario.duration, dt), dt)
     env = sea_environment(scenario)
     _say(progress, f"open loop, {scenario.duration:g} s at dt = {dt * 1e3:g} ms on both plants"
@@ -297,7 +299,7 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
                             "" if scale == (1.0, 1.0) else
                             f", surge and yaw scaled by {scale[0]:.4g} and {scale[1]:.4g} to the vessel "
                             f"(m11, m33 against the paper's)"), "wall_time_s": wall,
-              "actuators": scenario.actuators.describe(ruddered), "saturated_fraction": saturated}
+              "actuators": scenario.actuators.describe(channels), "saturated_fraction": saturated}
     if env is not None:
         _say(progress, f"open loop: the analytic plant from a start moved by {SENSITIVITY_OFFSET_M:g} m "
              "(the sea's sensitivity)")
@@ -526,12 +528,12 @@ def compare_closed_loop_saturated(scenario: Scenario, progress: bool = True) -> 
     convergence study): the plants' difference, the saturated fraction of each run (must be > 0 for
     the case to mean anything) and the funnel check."""
     sat = saturated_scenario(scenario)
-    rudder = getattr(sat.vessel.model, "inputs", "forces") == "rudder"
-    _say(progress, f"closed loop with saturating actuators ({sat.actuators.describe(rudder)}), {sat.duration:g} s")
+    applied = channels_of(sat, getattr(CONTROLLERS.get(sat.controller.kind).obj, "commands", "forces")).applied
+    _say(progress, f"closed loop with saturating actuators ({sat.actuators.describe(applied)}), {sat.duration:g} s")
     runs = _closed_loop_pair(sat)
     xa, xm = _record_states(runs["analytic"]), _record_states(runs["mujoco"])
     n = min(len(xa), len(xm))
-    result = {"duration_s": sat.duration, "actuators": sat.actuators.describe(rudder), **state_differences(xm[:n], xa[:n])}
+    result = {"duration_s": sat.duration, "actuators": sat.actuators.describe(applied), **state_differences(xm[:n], xa[:n])}
     result["status"] = {k: r.status for k, r in runs.items()}
     result["saturated_fraction"] = {k: {ch: float(np.mean(r[f"sat_{ch}"] > 0.5)) for ch in ("u", "r")}
                                     for k, r in runs.items()}

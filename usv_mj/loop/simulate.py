@@ -137,7 +137,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
         "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata, **loop,
         "criterion": criterion_of(controller).to_dict(),  # how the outputs judge the run (usv_mj.record.criteria)
-        "channels": channels_of(scenario, getattr(controller, "commands", "forces")),  # what tau and f hold
+        "channels": channels_of(scenario, getattr(controller, "commands", "forces")).to_metadata(),  # what tau and f hold
     }, fields, getattr(controller, "diagnostic_events", None), stream_above)
     record.statics = parts.statics
     for sink in sinks:

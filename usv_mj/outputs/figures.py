@@ -26,6 +26,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from usv_mj.physics.channels import RunChannels  # noqa: E402
 from usv_mj.record.decimate import decimate  # noqa: E402
 from usv_mj.record.run_record import RunRecord  # noqa: E402
 
@@ -144,21 +145,22 @@ def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, 
     dt = record.metadata.get("control_period_s") or 0.001
     n_zoom = min(len(record), int(round(ZOOM_S / dt)) + 1)   # rows with t <= 2 s
     zoom = decimate(_Rows(record, n_zoom), ("t", "tau_u", "q_tau_u", "tau_r", "q_tau_r"))
-    # a ruddered vessel's own channels (the metadata's channels, usv_mj.builder.channels_of: "rudder")
-    # are its n_P and rudder angle; an allocated run's tau are forces, as the law gave them
-    rudder = record.metadata.get("channels") == "rudder"
-    units = (("1/s", "rad") if rudder else ("N", "N m"))
-    titles = {"fig5_tau_u.png": "Propeller revolutions n_P (tau_u) and Q(tau_u)",
-              "fig6_tau_r.png": "Rudder angle (tau_r) and Q(tau_r)"} if rudder else FIGURES
-    for col, qcol, unit, fname, num in (("tau_u", "q_tau_u", units[0], "fig5_tau_u.png", 5),
-                                        ("tau_r", "q_tau_r", units[1], "fig6_tau_r.png", 6)):
+    # the command's channels (usv_mj.physics.channels; a ruddered vessel's n_P and rudder angle, an
+    # allocated run's forces as the law gave them): each figure names its quantity and unit
+    command = RunChannels.from_metadata(record.metadata.get("channels")).command
+    titles = dict(FIGURES) if command.forces else {
+        "fig5_tau_u.png": f"{command.surge.quantity.capitalize()} {command.surge.symbol} (tau_u) and Q(tau_u)",
+        "fig6_tau_r.png": f"{command.yaw.quantity.capitalize()} {command.yaw.symbol} (tau_r) and Q(tau_r)"}
+    for col, qcol, channel, fname, num in (("tau_u", "q_tau_u", command.surge, "fig5_tau_u.png", 5),
+                                           ("tau_r", "q_tau_r", command.yaw, "fig6_tau_r.png", 6)):
+        unit = channel.unit
         fig, (ax, axz) = plt.subplots(1, 2, figsize=(11, 4), gridspec_kw={"width_ratios": [2, 1]})
         c = decimate(record, ("t", col))
         ax.plot(c["t"], c[col], "C0", lw=0.8, label=col)
         q = decimate(record, ("t", qcol))
         ax.step(q["t"], q[qcol], "C1", lw=0.8, where="post", label=f"Q({col})")
         ax.set_xlabel("t [s]")
-        ax.set_ylabel(f"[{unit}]")
+        ax.set_ylabel(f"{channel.quantity} {col} [{unit}]")
         ax.grid(alpha=0.3)
         ax.legend(loc="upper right")
         axz.plot(zoom["t"], zoom[col], "C0", lw=1.0)

@@ -138,6 +138,12 @@ class ShipParams:
         """Do & Pan's offset of the controlled point, eps = m23/m22 [m] (:func:`do_pan_offset`)."""
         return do_pan_offset(self.m22, self.m23)
 
+    #: the plant's input channels are the generalized forces (tau_u [N], tau_r [N m]) themselves;
+    #: False: the hull makes its force from them (MMGShipParams: n_P and the rudder angle)
+    inputs_are_forces = True
+    #: the hull's model holds in calm water only (MMGShipParams: the MMG standard method's)
+    calm_water_only = False
+
     def as_array(self) -> np.ndarray:
         """Pack into the float64 vector that the kernels of this module take."""
         p = np.zeros(N_SHIP_PARAMS)
@@ -180,6 +186,9 @@ class MMGShipParams(ShipParams):
     """
 
     mmg: tuple = ()
+
+    inputs_are_forces = False
+    calm_water_only = True
 
     def __post_init__(self) -> None:
         super().__post_init__()

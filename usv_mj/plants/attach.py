@@ -246,10 +246,9 @@ class Hydrodynamics:
     callback = "native"  # what the callback registry of the MuJoCo plant reads
 
     def __init__(self, model, data, body: int, ship, disturbance, split, environment, horizon: float):
-        from usv_mj.physics.ship import is_mmg
-
-        if is_mmg(ship):  # its inputs are ctrl = (n_P, delta) on gearless motors: the MuJoCo plant's build
-            raise ValueError("attach_hydrodynamics: an MMG hull (KVLCC2) runs on usv_mj's MuJoCo plant only")
+        if not ship.inputs_are_forces:  # its inputs are ctrl = (n_P, delta) on gearless motors: the MuJoCo plant's build
+            raise ValueError("attach_hydrodynamics: a hull whose inputs are not forces (the MMG's KVLCC2) runs on "
+                             "usv_mj's MuJoCo plant only")
         self.model, self.data, self.body = model, data, body
         self.ship, self.disturbance, self.split = ship, disturbance, split
         self.environment = environment if environment is not None and not environment.calm else None

@@ -30,7 +30,7 @@ import weakref
 import mujoco
 import numpy as np
 
-from usv_mj.physics.ship import PaperDisturbance, RigidBodySplit, ShipParams, is_mmg
+from usv_mj.physics.ship import PaperDisturbance, RigidBodySplit, ShipParams
 
 from usv_mj.plants import attach
 from usv_mj.plants import mujoco_callback as mcb
@@ -106,7 +106,7 @@ class MuJoCoPlant(PlantBase):
         the paper's: the file as it is. ``from_scenario`` passes the scenario's vessel's, and its
         rigid body as ``split``.
 
-    An MMG hull (``usv_mj.physics.ship.is_mmg(ship)``: KVLCC2) loads with the motors' gear set to zero and
+    A hull whose inputs are not forces (``ship.inputs_are_forces`` False: the MMG's KVLCC2) loads with the motors' gear set to zero and
     ``nuserdata`` >= ``N_USERDATA_MMG``: ``ctrl`` = (n_P [1/s], delta [rad]) is then the actuator
     input and the callback makes the propeller's and the rudder's force from it (usv_mj.physics.mmg).
 
@@ -142,8 +142,8 @@ class MuJoCoPlant(PlantBase):
             raise TypeError(f"MuJoCoPlant: environment must be a usv_mj.physics.sea.Environment or None, "
                             f"got {type(environment).__name__}")
         self.environment = environment if environment is not None and not environment.calm else None
-        if self.environment is not None and is_mmg(ship):
-            raise ValueError("MuJoCoPlant: the MMG vessel (KVLCC2) runs in calm water only (no [sea])")
+        if self.environment is not None and ship.calm_water_only:
+            raise ValueError("MuJoCoPlant: this hull's model holds in calm water only (no [sea])")
         self._sea_arrays = None        # the packed arrays whose addresses are in d.userdata
         self._sea_horizon = math.inf   # plant time up to which they are valid [s]
         self.model_path = os.path.abspath(model_path or DEFAULT_MODEL)
@@ -172,10 +172,10 @@ class MuJoCoPlant(PlantBase):
             raise FileNotFoundError(f"MuJoCoPlant: model file not found: {path}")
         spec = mujoco.MjSpec.from_file(path)
         scale_hull(spec, self.dimensions)
-        need = mcb.N_USERDATA_MMG if is_mmg(self.ship) else mcb.N_USERDATA
+        need = mcb.N_USERDATA + len(self.ship.as_array()) - mcb.N_SHIP_PARAMS   # the packed hull's own words too
         if spec.nuserdata < need:
             spec.nuserdata = need
-        if is_mmg(self.ship):  # the motors carry (n_P [1/s], delta [rad]); the callback makes the force
+        if not self.ship.inputs_are_forces:  # the motors carry the hull's channels (n_P, delta); the callback makes the force
             for act in spec.actuators:
                 act.gear = [0.0] * 6
         self._set_ctrlrange(spec)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, fields
 
 from usv_mj.core.errors import ScenarioError
 from usv_mj.core.registry import MANOEUVRES
+from usv_mj.physics.channels import FORCES
 
 SIDES = {"starboard": -1.0, "port": 1.0}
 CONDITIONS = ("calm", "scenario")
@@ -206,7 +207,7 @@ def vessel_defaults(kind: str, vessel_model=None) -> dict:
     dims = getattr(vessel_model, "dimensions", None)
     out = {}
     # a ruddered vessel's "rudder" is an angle, not a moment: nothing of the paper's test scales to it
-    if dims is not None and float(dims.L) != PAPER_LENGTH_M and getattr(vessel_model, "inputs", "forces") != "rudder":
+    if dims is not None and float(dims.L) != PAPER_LENGTH_M and getattr(vessel_model, "channels", FORCES).forces:
         lam = float(dims.L) / PAPER_LENGTH_M
         base = options_of(kind)()
         out = {k: getattr(base, k) * lam ** p for k, p in FROUDE_POWERS.items() if k in names}
@@ -230,11 +231,11 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> Ma
                             f"got {kind!r}")
     vessel_model = getattr(vessel_model, "model", vessel_model)   # a scenario's VesselSpec or its Vessel
     table = {**vessel_defaults(kind, vessel_model), **table}
-    if getattr(vessel_model, "inputs", "forces") == "rudder" and kind == "stopping":
-        raise ScenarioError(f"{source}: manoeuvre 'stopping' is not available on the ruddered vessel "
-                            f"{vessel_model.kind!r}: the MMG standard method models the propeller ahead only (no "
-                            f"astern revolutions for the crash stop); turning, zigzag and spiral are "
-                            f"(docs/manoeuvres.md)")
+    why = getattr(vessel_model, "limitations", {}).get(kind)
+    if why:
+        possible = [k for k in MANOEUVRES.kinds() if k not in vessel_model.limitations]
+        raise ScenarioError(f"{source}: manoeuvre {kind!r} is not available on the vessel {vessel_model.kind!r}: {why}; "
+                            f"{', '.join(possible)} are (docs/manoeuvres.md)")
     try:
         options = build_table(options_of(kind), table, source, "manoeuvre", extra_known={"kind"})
     except ScenarioError as exc:

@@ -409,15 +409,17 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True, own_tab
         own = top["vessel"].model.actuators
         if own is not None and not own_actuators:
             data["actuators"] = dict(own)  # the vessel's, unless the scenario's own
-        elif own is not None and top["vessel"].model.inputs == "rudder" and own_table is not None:
-            # a ruddered vessel's steering gear and n_P cap are its own: the scenario's keys change them
-            # one by one (--set actuators.yaw_rate_nm_s=...), they do not take them away
+        elif own is not None and top["vessel"].model.actuators_merged and own_table is not None:
+            # a steering gear that is the ship's own (a ruddered vessel's, with its n_P cap): the
+            # scenario's keys change it one by one (--set actuators.yaw_rate_nm_s=...), never take it away
             data["actuators"] = {**own, **own_table}
-            angle = data["actuators"].get("max_yaw_nm", 0.0)
-            if isinstance(angle, (int, float)) and not angle < math.pi / 2:
-                raise ScenarioError(f"{source}: actuators.max_yaw_nm = {angle!r} is the rudder's angle limit on the vessel "
-                                    f"{top['vessel'].kind!r} [rad] and must be < pi/2 (its steering gear: "
-                                    f"vessel.max_rudder_deg)")
+        channels = top["vessel"].model.channels
+        for key, channel in (("max_surge_n", channels.surge), ("max_yaw_nm", channels.yaw)):
+            limit = data.get("actuators", {}).get(key) if isinstance(data.get("actuators"), dict) else None
+            if isinstance(limit, (int, float)) and not limit < channel.largest_limit:
+                raise ScenarioError(f"{source}: actuators.{key} = {limit!r} is the limit of the vessel "
+                                    f"{top['vessel'].kind!r}'s {channel.quantity} [{channel.unit}] and must be < "
+                                    f"{channel.largest_limit:.6g} {channel.unit}")
     for key in ("duration", "control_period"):
         if key in data:
             top[key] = convert(source, key, data[key], 0.0)
@@ -448,9 +450,10 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True, own_tab
     if "sea" in data:
         top["sea"] = _build_sea(data["sea"], source)
         vessel = getattr(top.get("vessel"), "model", None)
-        if getattr(vessel, "inputs", "forces") == "rudder" and not top["sea"].calm:
-            raise ScenarioError(f"{source}: [sea]: the vessel {top['vessel'].kind!r} (the MMG model) runs in calm "
-                                f"deep water only; remove the sea (docs/vessels.md)")
+        why = getattr(vessel, "limitations", {}).get("sea")
+        if why and not top["sea"].calm:
+            raise ScenarioError(f"{source}: [sea]: the vessel {top['vessel'].kind!r} cannot run in a sea: {why}; "
+                                f"remove the sea (docs/vessels.md)")
     if "obstacles" in data or "guidance" in data:
         top["obstacles"] = from_tables(data.get("obstacles"), source)
         top["guidance"] = guidance_from_table(data.get("guidance"), source)

@@ -26,10 +26,11 @@ unchanged by the mirror y -> -y (usv_mj.physics.ship), so their derivatives are 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from usv_mj.physics.channels import FORCES, Channels
 from usv_mj.physics.ship import RigidBodySplit, ShipParams
 
 __all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS"]
@@ -71,9 +72,14 @@ class Vessel:
     actuators: an ``[actuators]`` table (usv_mj.physics.actuators.ActuatorSpec keys) or None (the scenario's).
     source: where its numbers come from (one line; docs/vessels.md has the full citation).
     notes: what its model leaves out or approximates (one line each).
-    inputs: "forces" (the input channels are the surge force tau_u [N] and yaw moment tau_r [N m])
-        or "rudder" (a ruddered ship, usv_mj.physics.mmg: propeller revolutions n_P [1/s] and rudder angle
-        delta [rad], positive to port).
+    channels: the two input channels the plant receives (:class:`usv_mj.physics.channels.Channels`):
+        the surge force tau_u [N] and yaw moment tau_r [N m] (:data:`~usv_mj.physics.channels.FORCES`),
+        or a ruddered ship's propeller revolutions n_P [1/s] and rudder angle delta [rad] (positive
+        to port) with the allocation a force command reaches them through (usv_mj.physics.mmg).
+    limitations: what the vessel's model cannot do, {feature: why} (features: "sea", and a
+        manoeuvre's kind such as "stopping"); a scenario that asks for one is refused with the reason.
+    actuators_merged: a scenario's ``[actuators]`` keys change the vessel's own ``actuators`` one by
+        one (a steering gear that belongs to the ship) instead of replacing the table.
     scale: the model's scale 1:scale of a full-scale ship (IMO's criteria then apply to that ship), or None.
     nominal_rps: a ruddered vessel's propeller revolutions near its service speed [1/s] (where the
         manoeuvres' search for the n_P that holds the approach speed starts).
@@ -90,7 +96,9 @@ class Vessel:
     actuators: dict | None = None
     source: str = ""
     notes: tuple = ()
-    inputs: str = "forces"
+    channels: Channels = FORCES
+    limitations: dict = field(default_factory=dict)
+    actuators_merged: bool = False
     scale: float | None = None
     nominal_rps: float | None = None
     manoeuvre: dict | None = None

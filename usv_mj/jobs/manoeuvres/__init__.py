@@ -26,6 +26,7 @@ import numpy as np
 from dataclasses import asdict, replace
 from pathlib import Path
 
+from usv_mj.physics.channels import FORCES, RUDDER_ANGLE
 from usv_mj.jobs.manoeuvres import imo
 from usv_mj.jobs.manoeuvres.measures import spiral_measures, stopping_measures, turning_measures, zigzag_measures
 from usv_mj.scenario.manoeuvre import KINDS, ManoeuvreSpec, manoeuvre_from_table
@@ -94,7 +95,7 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
     o = spec.options
     t = record["t"]
     vessel = vessel_model(record.metadata.get("scenario") or {})
-    ruddered = getattr(vessel, "inputs", "forces") == "rudder"
+    ruddered = getattr(vessel, "channels", FORCES).yaw == RUDDER_ANGLE   # its "rudder" is a rudder, not a moment
     scale = getattr(vessel, "scale", None)
     if spec.kind == "turning":
         m = turning_measures(t, record["x"], record["y"], record["psi"], record["u"], record["v"], record["r"],
@@ -128,7 +129,8 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
     return {"kind": spec.kind, "options": asdict(o), "length_m": length, "plant": record.metadata.get("plant"),
             "saturated_fraction": saturated,
             "status": record.status, "simulated_s": float(t[-1]) if len(t) else 0.0,
-            "rudder": rudder, "measures": m, "imo": crit}
+            "rudder": rudder, "rudder_channel": getattr(vessel, "channels", FORCES).yaw.to_metadata(),
+            "measures": m, "imo": crit}
 
 
 def _fmt(v, unit=""):

@@ -13,6 +13,7 @@ import math
 from dataclasses import fields
 
 from usv_mj.core.errors import ScenarioError
+from usv_mj.physics.channels import RUDDER_ANGLE
 from usv_mj.scenario.manoeuvre import SIDES, ManoeuvreSpec
 
 
@@ -80,7 +81,7 @@ def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
     force = approach_force(scenario, o.approach_speed)
     # a ruddered vessel (usv_mj.physics.mmg): the channels are (n_P [1/s], delta [rad]); its [actuators]
     # limit the rudder's angle and rate (docs/manoeuvres.md §2)
-    ruddered = getattr(getattr(getattr(scenario, "vessel", None), "model", None), "inputs", "forces") == "rudder"
+    ruddered = scenario.vessel.model.channels.yaw == RUDDER_ANGLE   # the "rudder" is a rudder angle, not a moment
     if ruddered:   # a rudder angle beyond the steering gear's would be held at its limit, measured as asked
         key = {"turning": "rudder_deg", "zigzag": "angle_deg", "spiral": "max_rudder_deg"}.get(spec.kind)
         limit = math.degrees(scenario.actuators.generalized_limits()[3])

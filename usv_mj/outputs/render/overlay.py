@@ -12,10 +12,11 @@ What it shows (values of one record row, see :mod:`usv_mj.record.run_record`):
   for surge tau_u [N] and yaw tau_r [N m], on a symmetric scale ``tau_*_scale`` fixed for the whole
   video (the planner's 99th percentile of |tau|, or 1.25 x the actuators' limit when they have one;
   a clipped bar ends in a triangle); the actuators' limits ``tau_*_limits`` are red ticks;
-  On a ruddered vessel (``values["channels"]``, usv_mj.builder.channels_of) the rows are the
-  propeller's n_P [1/s] and the rudder angle [deg]: "rudder" (the open-loop and zig-zag controllers:
-  every bar is n_P / delta) or "allocated" (a force controller: the bars are its force and moment,
-  the text the n_P and delta they were allocated to);
+  each row is named by its command channel and says the applied value f in the applied channel's
+  unit (``values["channels"]``: the planner's rows from the record's channels,
+  :class:`usv_mj.physics.channels.RunChannels`): on a ruddered vessel the propeller's n_P [1/s] and
+  the rudder angle [deg]; a force command allocated to them (``allocated``) has bars of its force
+  and moment, the text the n_P and delta they were allocated to;
 - a legend of the 3-D layers (wake trail, reference path ahead, ghost hull, funnel box).
 
 A run without a funnel (``values["funnel"]`` False) shows its pose errors x - x_d, y - y_d and
@@ -208,22 +209,20 @@ def _draw_panel(frame, values, s):
         y += int(27 * s)
     y += int(4 * s)
     applied = values.get("f_u") is not None
-    channels = values.get("channels", "forces")
-    d.text((m, y), "control: tau (outline), applied (filled), limit (red)" if applied and channels != "allocated" else
+    channels = values.get("channels") or DEFAULT_CHANNELS
+    allocated = bool(channels.get("allocated"))
+    d.text((m, y), "control: tau (outline), applied f (filled), limit (red)" if applied and not allocated else
            "control: tau (outline), Q(tau) (filled); allocated to" if applied else
            "control: law tau (outline), Q(tau) (filled)", font=tiny, fill=DIM)
     y += int(20 * s)
-    rows = (("tau_u", "u", "N", 1.0, "F"), ("tau_r", "r", "Nm", 1.0, "F"))
-    if channels == "rudder":
-        rows = (("n_P", "u", "1/s", 1.0, "n"), ("delta", "r", "deg", 180.0 / math.pi, "d"))
-    elif channels == "allocated":
-        rows = (("tau_u", "u", "1/s", 1.0, "n_P"), ("tau_r", "r", "deg", 180.0 / math.pi, "delta"))
+    rows = [(label, key, unit, k, tag if allocated else "f")
+            for (label, tag, unit, k), key in zip(channels["rows"], ("u", "r"))]
     for label, key, unit, k, tag in rows:
         tau, q, f = values.get(f"tau_{key}"), values.get(f"q_tau_{key}"), values.get(f"f_{key}")
         sat = bool(values.get(f"sat_{key}") or 0.0)
         d.text((m, y), label, font=small, fill=TEXT)
         # allocated: the bar is the force (the law's and the transmitted command), f is not a force
-        bar_f = None if channels == "allocated" else f
+        bar_f = None if allocated else f
         _tau_bar(d, m + label_w, y + int(2 * s), bar_w, bar_h, tau, q, values.get(f"tau_{key}_scale"), bar_f,
                  values.get(f"tau_{key}_limits"), sat)
         if f is None:
@@ -235,6 +234,9 @@ def _draw_panel(frame, values, s):
         y += int(27 * s)
     frame[y0:y1, x0:x1] = np.asarray(img)
 
+
+#: the rows of a run whose channels are forces (a HUD made without the planner's channels)
+DEFAULT_CHANNELS = {"allocated": False, "rows": (("tau_u", "tau_u", "N", 1.0), ("tau_r", "tau_r", "N m", 1.0))}
 
 LEGEND = (("wake trail", TRAIL_RGBA), ("reference path ahead", PATH_RGBA), ("reference (ghost hull)", GHOST_RGBA),
           ("funnel |e1|<rho1, |e2|<rho2", FUNNEL_OK_RGBA))

@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usv_mj.physics.channels import RunChannels
+
 #: Colours (RGBA, 0..1) of the 3-D layers, shared with the overlay's legend.
 TRAIL_RGBA = (1.0, 1.0, 1.0, 0.85)
 PATH_RGBA = (1.0, 0.84, 0.10, 0.95)
@@ -360,9 +362,12 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     trail_xy = np.stack([_take(record, "x", trail_rows), _take(record, "y", trail_rows)], axis=-1)
     path_xy = np.stack([_take(record, "x_d", path_rows), _take(record, "y_d", path_rows)], axis=-1)
     md = getattr(record, "metadata", {}) or {}
-    channels = md.get("channels", "forces")   # usv_mj.builder.channels_of
-    # allocated: the actuators' limits are n_P's and the rudder's, not the force bars'
-    lim_u, lim_r = _actuator_limits(md) if channels != "allocated" else (None, None)
+    run = RunChannels.from_metadata(md.get("channels"))   # what tau and f hold (usv_mj.physics.channels)
+    # the bars are the command's (tau, Q(tau)); the text beside them the applied f in its own unit
+    channels = {"allocated": run.allocated,
+                "rows": tuple((c.symbol, a.symbol, a.display_unit, a.shown_factor) for c, a in zip(run.command, run.applied))}
+    # allocated: the actuators' limits are the applied channels' (n_P's, the rudder's), not the bars'
+    lim_u, lim_r = _actuator_limits(md) if not run.allocated else (None, None)
     scale_u = _bar_scale(lim_u, tau["tau_u"], tau["q_tau_u"])
     scale_r = _bar_scale(lim_r, tau["tau_r"], tau["q_tau_r"])
     vessel = ((md.get("scenario") or {}).get("vessel") or {}).get("kind", "paper")
