@@ -100,7 +100,13 @@ U_LAYOUT = U_SEA_ON + 8     # LAYOUT_PLANAR (0: slide x, slide y, hinge yaw; the
 U_HOLD = U_LAYOUT + 1       # 10: z0 [m], then (lock inertia, stiffness, damping) for heave [kg, N/m, N s/m],
 #                             roll and pitch [kg m^2, N m/rad, N m s/rad] (held_free_body_terms)
 U_FREE_SCRATCH = U_HOLD + 10  # 6 doubles: the planar (x, y, psi) and (x_dot, y_dot, r) read off the free joint
-N_USERDATA = U_FREE_SCRATCH + 6
+# several hulls in one model (a fleet, usv_mj.plants.fleet): one block of this layout per hull, each
+# its own parameters; the callback walks them (0 in each: one hull, the plant's layout as it was)
+U_NEXT = U_FREE_SCRATCH + 6   # words from this block to the next hull's (0: the last)
+U_QADR = U_NEXT + 1           # the hull's first dof in qpos / qvel / qfrc_passive (its x, y, yaw)
+U_MADR = U_NEXT + 2           # its first entry in d.M (the 6 of its dense 3x3 lower triangle)
+U_CADR = U_NEXT + 3           # its first motor in ctrl (surge, yaw)
+N_USERDATA = U_NEXT + 4
 LAYOUT_PLANAR = 0.0
 LAYOUT_FREE = 1.0
 # an MMG hull (usv_mj.physics.mmg; ud[U_P + P_MODEL] = MODEL_MMG) has its N_MMG_PARAMS constants after the
@@ -320,6 +326,7 @@ def native_callback():
     n_ud, magic = N_USERDATA, MAGIC
     u_scratch = U_SCRATCH
     u_layout = U_LAYOUT
+    u_next, u_qadr, u_madr, u_cadr = U_NEXT, U_QADR, U_MADR, U_CADR
 
     @cfunc(types.void(types.int64, types.int64), error_model="numpy")
     def hydrodynamic_passive(m_addr, d_addr):
@@ -338,20 +345,30 @@ def native_callback():
             if record_call(ud, status, t):
                 factor_m(m_addr, d_addr)
             return
-        qpos = carray(_f64_ptr(dw[o_qpos]), (3,))
-        qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
-        frc = carray(_f64_ptr(dw[o_frc]), (3,))
-        mm = carray(_f64_ptr(dw[o_m]), (6,))
-        ctrl = carray(_f64_ptr(dw[o_ctrl]), (2,))
-        qf = ud[u_scratch + 6:u_scratch + 9]
-        ma = ud[u_scratch + 9:u_scratch + 15]
-        if not record_call(ud, passive_terms(ud, t, qpos, qvel, ctrl, qf, ma), t):
-            return
-        for i in range(3):
-            frc[i] += qf[i]
-        for i in range(6):
-            mm[i] += ma[i]
-        factor_m(m_addr, d_addr)
+        added = False
+        base = 0
+        while True:   # one block per hull (U_NEXT: a fleet's next; 0 in the last, the single hull's)
+            blk = ud[base:]
+            qa, ma_, ca = np.int64(blk[u_qadr]), np.int64(blk[u_madr]), np.int64(blk[u_cadr])
+            qpos = carray(_f64_ptr(dw[o_qpos] + 8 * qa), (3,))
+            qvel = carray(_f64_ptr(dw[o_qvel] + 8 * qa), (3,))
+            frc = carray(_f64_ptr(dw[o_frc] + 8 * qa), (3,))
+            mm = carray(_f64_ptr(dw[o_m] + 8 * ma_), (6,))
+            ctrl = carray(_f64_ptr(dw[o_ctrl] + 8 * ca), (2,))
+            qf = blk[u_scratch + 6:u_scratch + 9]
+            ma = blk[u_scratch + 9:u_scratch + 15]
+            if record_call(blk, passive_terms(blk, t, qpos, qvel, ctrl, qf, ma), t):
+                for i in range(3):
+                    frc[i] += qf[i]
+                for i in range(6):
+                    mm[i] += ma[i]
+                added = True
+            nxt = np.int64(blk[u_next])
+            if nxt <= 0 or base + nxt + n_ud > ud.shape[0] or ud[base + nxt] != magic:
+                break
+            base += nxt
+        if added:
+            factor_m(m_addr, d_addr)
 
     _NATIVE = hydrodynamic_passive
     return _NATIVE

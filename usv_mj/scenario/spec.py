@@ -30,6 +30,7 @@ from typing import Any
 
 from usv_mj.physics.actuators import ActuatorSpec
 from usv_mj.core.errors import ScenarioError, SeaSettingsError, TooManyStepsError
+from usv_mj.scenario.fleet import vessels_from_tables
 from usv_mj.scenario.manoeuvre import manoeuvre_from_table
 from usv_mj.scenario.obstacles import GuidanceSpec, from_tables, guidance_from_table
 from usv_mj.core.registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES, VESSELS
@@ -261,6 +262,7 @@ class Scenario:
     obstacles: tuple = ()  # ObstacleSpec per [[obstacles]] table (usv_mj.scenario.obstacles)
     guidance: GuidanceSpec = field(default_factory=GuidanceSpec)  # [guidance]
     manoeuvre: Any = None  # [manoeuvre]: a ManoeuvreSpec (usv_mj.scenario.manoeuvre), None: no manoeuvre
+    vessels: tuple = ()  # [[vessels]]: a VesselEntry per vessel (usv_mj.scenario.fleet); (): one vessel, this one
     source: str = field(default="", compare=False)
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -461,6 +463,9 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True, own_tab
         vessel = top.get("vessel")
         top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source,
                                                 vessel.model if vessel is not None else None)
+    if "vessels" in data:
+        top["vessels"] = vessels_from_tables(data["vessels"], {k: v for k, v in data.items() if k != "vessels"},
+                                             source, from_dict)
     scenario = construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
 
