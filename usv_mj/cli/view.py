@@ -12,6 +12,11 @@ from usv_mj.cli.commands import COMMANDS
 
 EXIT_NO_DISPLAY = 3
 
+if __name__ == "__main__":   # python -m usv_mj.cli.view: the registered command (this module, imported by name)
+    from usv_mj.cli.main import main
+
+    sys.exit(main(["view", *sys.argv[1:]]))
+
 
 def add_arguments(p) -> None:
     flags.add_scenario_arguments(p)
@@ -43,8 +48,3 @@ def run(args) -> int:
     print(f"usv-mj view: {record.status} after {frames} frames{where}")
     return 0 if record.status in ("completed", "interrupted") else 1
 
-
-if __name__ == "__main__":
-    from usv_mj.cli.main import main
-
-    sys.exit(main(["view", *sys.argv[1:]]))
