@@ -72,6 +72,22 @@ def test_plant_choices_are_the_plant_registry_and_follow_it():
         assert f"({', '.join(VESSELS.kinds())};" in text, name
 
 
+def test_the_env_task_and_the_manoeuvre_are_checked_against_their_lists(capsys):
+    """The env task is one of usv_mj.envs.ALL_TASKS, the manoeuvre one of the manoeuvres' kinds: a
+    bad one is argparse's one line listing them (read when the value is parsed, not for --help)."""
+    from usv_mj.envs import ALL_TASKS
+
+    assert main(["env", "nosuch", "--video", "none"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "invalid choice: 'nosuch'" in err
+    assert f"(choose from {', '.join(map(repr, ALL_TASKS))})" in err
+    kind = next(a for a in _subparsers(build_parser())["manoeuvre"]._actions if a.dest == "kind")
+    kinds = kind.type.values()
+    assert "turning" in kinds and "zigzag" in kinds
+    assert main(["manoeuvre", "circle"]) == 2
+    assert f"(choose from {', '.join(map(repr, kinds))})" in capsys.readouterr().err
+
+
 def test_each_shared_flag_is_one_declaration():
     """A flag that several commands have reads the same in each (its help text and type), apart from
     the words a command passes for what it writes or sets."""

@@ -34,7 +34,8 @@ class Choices:
     """A flag's value checked against a list read from its module when a value is parsed, never
     when the parser is built or --help is shown, so that neither imports what only the command
     needs: ``type=Choices("usv_mj.envs", "ALL_TASKS")`` (argparse's ``choices=`` would read the list
-    for --help). A bad value is argparse's one line: ``invalid choice: 'x' (choose from ...)``."""
+    for --help); ``name`` may be a dotted path to a callable (``"MANOEUVRES.kinds"``). A bad value is
+    argparse's one line: ``invalid choice: 'x' (choose from ...)``."""
 
     def __init__(self, module: str, name: str):
         self.module, self.name = module, name
@@ -44,7 +45,9 @@ class Choices:
         if self._values is None:
             import importlib
 
-            values = getattr(importlib.import_module(self.module), self.name)
+            values = importlib.import_module(self.module)
+            for attr in self.name.split("."):
+                values = getattr(values, attr)
             self._values = tuple(values() if callable(values) else values)
         return self._values
 
