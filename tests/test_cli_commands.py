@@ -73,19 +73,23 @@ def test_plant_choices_are_the_plant_registry_and_follow_it():
 
 
 def test_the_env_task_and_the_manoeuvre_are_checked_against_their_lists(capsys):
-    """The env task is one of usv_mj.envs.ALL_TASKS, the manoeuvre one of the manoeuvres' kinds: a
-    bad one is argparse's one line listing them (read when the value is parsed, not for --help)."""
+    """The env task is one of usv_mj.envs.ALL_TASKS (read when the value is parsed, not for --help:
+    usv_mj.envs imports gymnasium), the manoeuvre a kind of the MANOEUVRES registry: a bad one is
+    argparse's one line listing them."""
     from usv_mj.envs import ALL_TASKS
 
     assert main(["env", "nosuch", "--video", "none"]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "invalid choice: 'nosuch'" in err
     assert f"(choose from {', '.join(map(repr, ALL_TASKS))})" in err
+    from usv_mj.core.registry import MANOEUVRES
+
     kind = next(a for a in _subparsers(build_parser())["manoeuvre"]._actions if a.dest == "kind")
-    kinds = kind.type.values()
-    assert "turning" in kinds and "zigzag" in kinds
+    assert tuple(kind.choices) == MANOEUVRES.kinds() and "turning" in kind.choices
     assert main(["manoeuvre", "circle"]) == 2
-    assert f"(choose from {', '.join(map(repr, kinds))})" in capsys.readouterr().err
+    assert f"(choose from {', '.join(map(repr, MANOEUVRES.kinds()))})" in capsys.readouterr().err
+    assert main(["manoeuvre", "--help"]) == 0
+    assert f"the manoeuvre: {', '.join(MANOEUVRES.kinds())}" in " ".join(capsys.readouterr().out.split())
 
 
 def test_each_shared_flag_is_one_declaration():

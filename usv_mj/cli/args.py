@@ -31,11 +31,16 @@ EXIT_OK, EXIT_STOPPED, EXIT_BAD_INPUT, EXIT_NO_GL = 0, 1, 2, 3
 
 
 class Choices:
-    """A flag's value checked against a list read from its module when a value is parsed, never
-    when the parser is built or --help is shown, so that neither imports what only the command
-    needs: ``type=Choices("usv_mj.envs", "ALL_TASKS")`` (argparse's ``choices=`` would read the list
-    for --help); ``name`` may be a dotted path to a callable (``"MANOEUVRES.kinds"``). A bad value is
-    argparse's one line: ``invalid choice: 'x' (choose from ...)``."""
+    """The choices of a flag, read from their module when first needed, so that building the parser
+    imports none of them: ``name`` is a list or a dotted path to a callable that gives one
+    (``Choices("usv_mj.core.registry", "MANOEUVRES.kinds")``). Two uses:
+
+    - ``choices=Choices(...)`` (with a ``metavar``: argparse reads the choices of a flag without one
+      when it is declared): read when a value is parsed or the command's --help is shown;
+    - ``type=Choices(...)``: read only when a value is parsed, for a list whose module is heavy
+      (``Choices("usv_mj.envs", "ALL_TASKS")``: usv_mj.envs imports gymnasium).
+
+    A bad value is argparse's one line either way: ``invalid choice: 'x' (choose from ...)``."""
 
     def __init__(self, module: str, name: str):
         self.module, self.name = module, name
@@ -50,6 +55,15 @@ class Choices:
                 values = getattr(values, attr)
             self._values = tuple(values() if callable(values) else values)
         return self._values
+
+    def __iter__(self):
+        return iter(self.values())
+
+    def __contains__(self, value) -> bool:
+        return value in self.values()
+
+    def __len__(self) -> int:
+        return len(self.values())
 
     def __call__(self, value: str) -> str:
         if value not in self.values():

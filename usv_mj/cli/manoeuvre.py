@@ -29,8 +29,8 @@ from usv_mj.core.errors import ScenarioError
 
 
 def add_arguments(p) -> None:
-    p.add_argument("kind", nargs="?", metavar="KIND", type=flags.Choices("usv_mj.scenario.manoeuvre", "KINDS"),
-                   help="the manoeuvre: turning, zigzag, spiral or stopping (default: the scenario's [manoeuvre])")
+    p.add_argument("kind", nargs="?", metavar="KIND", choices=flags.Choices("usv_mj.core.registry", "MANOEUVRES.kinds"),
+                   help="the manoeuvre: %(choices)s (default: the scenario's [manoeuvre])")
     flags.add_scenario_arguments(
         p, duration_help="simulated time [s]: manoeuvre.duration (default: the manoeuvre's, 60 s; not the spiral)",
         sea_note=" (with --set manoeuvre.conditions=scenario: a manoeuvre runs in calm water by default)")
