@@ -9,6 +9,7 @@ import os
 import numpy as np
 import pytest
 
+from usv_mj.cli import compare as compare_command
 from usv_mj.jobs import compare
 from usv_mj.scenario.spec import ScenarioError, load_scenario
 
@@ -101,9 +102,9 @@ def test_estimated_order_closed_form():
 
 def test_run_command_writes_and_rejects_bad_input(tmp_path, capsys):
     parser = argparse.ArgumentParser()
-    compare.add_arguments(parser)
+    compare_command.add_arguments(parser)
     args = parser.parse_args(["--duration", "2", "--out", str(tmp_path / "c"), "-q"])
-    assert compare.run_command(args) == 0
+    assert compare_command.run(args) == 0
     assert os.path.isfile(tmp_path / "c" / "compare.json")
     out = capsys.readouterr().out
     assert "closed loop" in out
@@ -111,11 +112,11 @@ def test_run_command_writes_and_rejects_bad_input(tmp_path, capsys):
     assert "closed loop (2 s): max position" in md and "![Closed loop](closed_loop.png)" in md
     assert next(line for line in out.splitlines() if line.startswith("closed loop (")) in md
     with pytest.raises(ScenarioError, match="duration"):
-        compare.run_command(parser.parse_args(["--duration", "-1"]))
+        compare_command.run(parser.parse_args(["--duration", "-1"]))
     with pytest.raises(ScenarioError):
-        compare.run_command(parser.parse_args(["--preset", "no-such-preset"]))
+        compare_command.run(parser.parse_args(["--preset", "no-such-preset"]))
     with pytest.raises(ScenarioError, match="disturbance"):
-        compare.run_command(parser.parse_args(["--set", "disturbance.scale=-1"]))
+        compare_command.run(parser.parse_args(["--set", "disturbance.scale=-1"]))
 
 
 def test_compare_saturated_closed_loop_case(short_compare):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from usv_mj import build, load_scenario, simulate
-from usv_mj.cli.view import KEY_DOWN, KEY_LEFT, KEY_SPACE, KEY_UP, SURGE_STEP_N, YAW_STEP_NM, ManualController
+from usv_mj.jobs.view import KEY_DOWN, KEY_LEFT, KEY_SPACE, KEY_UP, SURGE_STEP_N, YAW_STEP_NM, ManualController
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

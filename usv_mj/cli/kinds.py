@@ -20,6 +20,8 @@ import inspect
 import json
 import re
 
+from usv_mj.cli import args as flags
+from usv_mj.cli.commands import COMMANDS
 from usv_mj.core.errors import UnknownKindError
 from usv_mj.core.registry import REGISTRIES
 from usv_mj.scenario.kinds import scenario_kinds, worker_imports  # noqa: F401 (re-exported)
@@ -146,10 +148,16 @@ def _common_options(section: str) -> list[dict]:
 def add_arguments(p) -> None:
     p.add_argument("section", nargs="*", metavar="REGISTRY",
                    help=f"only these registries ({', '.join(REGISTRIES)}); default: all")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
+    flags.add_json_argument(p)
 
 
-def run_command(args) -> int:
+@COMMANDS.register(
+    "kinds", arguments=add_arguments,
+    help="every controller, trajectory, plant and disturbance kind: where it comes from, its options",
+    description="List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
+                "disturbance): where it comes from (built-in, an entry point's distribution, module:Name,\n"
+                "registered at runtime) and its options (name, type, default, unit). --json for one object.")
+def run(args) -> int:
     for name in args.section:
         if name not in REGISTRIES:
             import difflib

@@ -766,63 +766,7 @@ def _json_default(obj):
     raise TypeError(f"not JSON serializable: {type(obj).__name__}")
 
 
-def add_arguments(parser) -> None:
-    """Arguments of ``usv-mj compare``: the scenario options of ``usv-mj run`` (--preset, --scenario,
-    --set, --duration), --out and -q."""
-    from usv_mj.cli.args import add_scenario_arguments, add_vessel_argument
-
-    add_scenario_arguments(parser)
-    add_vessel_argument(parser)
-    parser.add_argument("--out", metavar="DIR", default=None, help="output folder (default renders/compare-<name>)")
-    from usv_mj.outputs.outdir import add_overwrite_argument
-
-    add_overwrite_argument(parser, "--out whole when it holds an earlier usv_mj output")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
-
-
-def run_command(args) -> int:
-    """``usv-mj compare``: 0 when every check of ``compare.json`` passes, 1 otherwise.
-
-    Bad scenario input raises :class:`usv_mj.scenario.spec.ScenarioError` (the CLI prints it, exit 2).
-    """
-    from usv_mj.cli.args import scenario_from_args
-    from usv_mj.scenario.spec import ScenarioError
-
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        raise ScenarioError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
-    scenario = scenario_from_args(args)
-    name = os.path.splitext(os.path.basename(args.scenario))[0] if args.scenario else (args.preset or "paper")
-    if getattr(args, "vessel", None):
-        name += "-" + os.path.splitext(os.path.basename(args.vessel))[0]
-    out = args.out or os.path.join("renders", f"compare-{name}")
-    from usv_mj.outputs.outdir import Staging, check_folder
-
-    check_folder(out, args.overwrite)
-    stage = Staging(out)
-    try:
-        result = compare_plants(scenario, str(stage.path), progress=not args.quiet)
-    except CompareInterrupted as exc:  # compare.json (passed: false, what stopped) is put in place
-        stage.commit()
-        print(f"usv-mj compare: {exc}; nothing was judged (compare.json says passed: false)", file=sys.stderr)
-        return 1
-    except BaseException:
-        stage.discard()
-        raise
-    lines = _report_lines(result)
-    for line in lines:
-        print(line)
-    try:
-        _write_markdown(os.path.join(str(stage.path), "compare.md"), scenario, lines)
-    except OSError as exc:
-        stage.discard()
-        print(f"usv-mj compare: cannot write {out}/compare.md: {exc.strerror or exc}", file=sys.stderr)
-        return 1
-    stage.commit()
-    print(f"written to {out}/compare.json, compare.md (+ open_loop.png, closed_loop.png, convergence.png)")
-    return 0 if result["passed"] else 1
-
-
-def _write_markdown(path: str, scenario: Scenario, lines: list[str]) -> None:
+def write_markdown(path: str, scenario: Scenario, lines: list[str]) -> None:
     """compare.md: the lines the command prints, and the three figures."""
     text = [f"# usv-mj compare: preset `{scenario.preset}`, {scenario.duration:g} s at "
             f"dt = {scenario.control_period * 1e3:g} ms", "", "```"] + lines + ["```", ""]
@@ -833,7 +777,7 @@ def _write_markdown(path: str, scenario: Scenario, lines: list[str]) -> None:
         fh.write("\n".join(text))
 
 
-def _report_lines(result: dict) -> list[str]:
+def report_lines(result: dict) -> list[str]:
     """What ``usv-mj compare`` prints about a finished comparison (also the body of compare.md)."""
     lines = []
     say = lines.append

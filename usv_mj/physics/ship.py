@@ -539,12 +539,14 @@ def kinetic_energy(ship: ShipParams, nu) -> float:
     return 0.5 * float(nu @ ship.mass_matrix() @ nu)
 
 
-@vectorize(["float64(float64)"], cache=True)
+@vectorize(cache=True)
 def wrap_angle(a):
     """Wrap an angle (or array of angles) to [-pi, pi): the one angle wrap of usv_mj.
 
     A numba ufunc: takes scalars, lists and arrays from Python and is callable from ``njit`` kernels
-    (the controllers' e3, the planner, the reference)."""
+    (the controllers' e3, the planner, the reference). Compiled for an input type when first called
+    with it (a float64 loop for the float64 angles of every caller), not when this module is
+    imported: importing the physics does not start numba's compiler (``usv-mj --help``, a bad input)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 

@@ -1,0 +1,74 @@
+"""``usv-mj render RUN``: the video of a recorded run again (:func:`usv_mj.outputs.render.render_run`), or
+its log replayed to Foxglove (--live)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from usv_mj.cli import args as flags
+from usv_mj.cli.commands import COMMANDS
+
+
+def add_arguments(p) -> None:
+    p.add_argument("run", metavar="RUN", help="a run directory (holding run.mcap) or an .mcap file")
+    flags.add_out_argument(p, "the .mp4 to write, or a directory (default: beside the run, <stem>.mp4)", metavar="OUT")
+    flags.add_quiet_argument(p)
+    flags.add_overwrite_argument(p, "the .mp4 and its .png still when usv_mj wrote them")
+    flags.add_video_arguments(p)
+    flags.add_live_arguments(p)   # --live: replay the log to Foxglove instead of drawing a video
+
+
+@COMMANDS.register("render", arguments=add_arguments,
+                   help="the video of a recorded run again (another size, speed or camera)",
+                   description="Draw the video of a recorded run again from its run.mcap alone: another size, "
+                   "frame rate,\nspeed-up or camera (top, chase, overview, chart). Writes video.mp4 and video.png.")
+def run(args) -> int:
+    """0 on success, 2 on bad input, 3 when no OpenGL backend starts."""
+    from usv_mj.outputs.render.gl_backend import GLUnavailableError
+    from usv_mj.outputs.render.video import default_output, load_run_log, render_run, stored_record
+
+    try:
+        stored = stored_record(args.run) if not getattr(args, "live", False) else None
+        if stored is not None:   # a long run's record on disk: read lazily, only the rows drawn
+            record, mcap = stored
+            log = None
+        else:
+            log, mcap = load_run_log(args.run)
+            record = log.record
+    except (FileNotFoundError, ValueError, RuntimeError) as exc:
+        print(f"usv-mj render: error: {exc}", file=sys.stderr)
+        return 2
+    if log is None and record.status != "completed":
+        print(f"usv-mj render: warning: the run's record says {record.status}: {record.stop_reason}", file=sys.stderr)
+    elif log is not None and log.notice:
+        print(f"usv-mj render: warning: the log is incomplete, the video shows what was recovered: {log.notice}",
+              file=sys.stderr)
+    if getattr(args, "live", False):
+        live = flags.live_server(args)
+        n = live.replay(mcap)
+        live.finish()
+        print(f"usv-mj render: served {n} messages of {mcap} live")
+        return 0
+    out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
+    try:
+        from usv_mj.outputs.outdir import check_file, record_file
+
+        check_file(out, args.overwrite)
+    except ValueError as exc:
+        print(f"usv-mj render: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        result = render_run(record, out, progress=not args.quiet, **flags.video_options(args))
+        record_file(out)
+    except GLUnavailableError as exc:
+        print(f"usv-mj render: {exc}", file=sys.stderr)
+        return 3
+    except ValueError as exc:
+        print(f"usv-mj render: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"video {result['mp4']} ({result['frames']} frames, {result['width']}x{result['height']} at "
+          f"{result['video_fps']:g} fps, {result['speedup']:.3g}x) and still {result['png']}")
+    print(f"rendered {result['fps']:.1f} frames/s in {result['wall_s']:.1f} s on {result['workers']} "
+          f"worker(s), GL {result['gl']} ({result['gl_renderer'] or 'unknown renderer'})")
+    return 0
