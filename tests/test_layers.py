@@ -177,8 +177,6 @@ def test_the_package_root_holds_only_the_api_and_the_build():
     assert set(folders) <= set(LAYER_OF_FOLDER), f"folders that are no layer: {set(folders) - set(LAYER_OF_FOLDER)}"
 
 
-@pytest.mark.xfail(reason="issue 33: the command line's argparse code still lives in jobs/ and outputs/ (moving into cli/)",
-                   strict=True)
 def test_every_import_goes_down_the_layers():
     bad = [f"{a} ({layer_of(a)}) imports {b} ({layer_of(b)}) at line {line}" + (" inside a function" if fn else "")
            for a, b, line, fn in edges() if layer_of(b) not in ALLOWED[layer_of(a)]]
@@ -198,8 +196,6 @@ def test_no_cycle_between_files_counting_every_import():
     assert not cycles, "import cycles (function-level imports counted):\n" + "\n".join(map(str, cycles))
 
 
-@pytest.mark.xfail(reason="issue 33: the command line's argparse code still lives in jobs/ and outputs/ (moving into cli/)",
-                   strict=True)
 def test_argparse_only_in_the_command_line():
     users = sorted(str(p.relative_to(ROOT)) for m, p in modules().items()
                    if layer_of(m) != "cli" and "argparse" in {a.name for n in ast.walk(ast.parse(p.read_text()))
