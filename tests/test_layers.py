@@ -42,7 +42,7 @@ ARROWS = {
     # will keep (controllers) and reports its events into the record
     "references": ("physics", "scenario", "scene", "controllers", "record"),
     "obstacles": ("scene", "record", "references"),
-    "build": ("scenario", "controllers", "references", "obstacles"),
+    "build": ("scenario", "controllers", "references", "obstacles", "plants"),   # a fleet of single plants
     "loop": ("build", "record"),
     "outputs": ("record", "scene", "physics"),
     "envs": ("build", "loop", "outputs", "plants"),   # the dm_control Physics is a view of the MuJoCo plant

@@ -384,3 +384,100 @@ def _obstacle_parts(scenario, plant, plan, duration, statics, contact):
     if monitor.note:
         metadata["note"] = monitor.note
     return (ObstacleHook(plant, monitor, log, guidance),), (log,), metadata
+
+
+# --- several vessels in one sea (scenario [[vessels]], issue 35) ------------------------------------
+
+
+@dataclass
+class VesselParts:
+    """One vessel of a fleet's build: its name, whether it is the own ship, its own scenario (the
+    scene's tables with the vessel's merged in: usv_mj.scenario.fleet), and the running parts a
+    single run of it would have (controller, reference, quantizers, actuators)."""
+
+    name: str
+    own_ship: bool
+    scenario: Scenario
+    controller: Any
+    reference: Any
+    quantizers: tuple
+    actuators: Any
+
+
+@dataclass
+class FleetParts:
+    """Everything :func:`usv_mj.simulate` needs for a run of several vessels: the shared plant (the
+    vessel index a dimension: ``reset_vessel``, ``step_vessels``, ``states``), one
+    :class:`VesselParts` per vessel in the scenario's order, the statics (the shared sea)."""
+
+    scenario: Scenario
+    duration: float
+    plant: Any
+    vessels: tuple
+    statics: Statics = field(default_factory=Statics)
+    metadata: dict = field(default_factory=dict)
+    own_plant: bool = True
+
+    def close(self) -> None:
+        if self.own_plant and self.plant is not None:
+            self.plant.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def make_fleet_plant(scenario: Scenario, kind: str | None = None, environment="scenario"):
+    """The plant of a fleet scenario: the plant kind's own fleet (the registry's ``fleet`` factory:
+    the MuJoCo plant's, every hull in one model with contacts between them), else one plant of the
+    kind per vessel (usv_mj.plants.fleet.SeparateHulls: the analytic plant's)."""
+    from usv_mj.plants.fleet import SeparateHulls
+
+    kind = kind or scenario.plant.kind
+    env = make_environment(scenario) if isinstance(environment, str) and environment == "scenario" else environment
+    factory = PLANTS.get(kind, "plant.kind").info.get("fleet")
+    if factory is not None:
+        return factory([(v.name, v.scenario) for v in scenario.vessels], environment=env,
+                       obstacles=tuple(scenario.obstacles))
+    plants = []
+    try:
+        for v in scenario.vessels:
+            plants.append(make_plant(v.scenario, kind, env))
+    except BaseException:
+        for p in plants:
+            p.close()
+        raise
+    return SeparateHulls(plants, [v.name for v in scenario.vessels])
+
+
+def build_fleet(scenario: Scenario, *, plant_kind: str | None = None, duration: float | None = None,
+                environment="scenario") -> FleetParts:
+    """The running parts of a scenario with ``[[vessels]]`` (:class:`FleetParts`): each vessel's
+    controller, reference, quantizers and actuators as its own single build makes them, and one
+    plant for all. ``plant_kind`` / ``duration`` / ``environment`` as :func:`build`'s."""
+    scenario = as_scenario(scenario, "build_fleet")
+    if not scenario.vessels:
+        raise ScenarioError(f"{scenario.source}: build_fleet: the scenario has no [[vessels]]")
+    duration = scenario.duration if duration is None else float(duration)
+    if not (math.isfinite(duration) and duration > 0):
+        raise ScenarioError(f"{scenario.source}: duration must be > 0 s, got {duration!r}")
+    if scenario.obstacles and scenario.guidance.avoid:
+        raise ScenarioError(f"{scenario.source}: [guidance] avoid plans one vessel's path around the obstacles; with "
+                            f"[[vessels]] each vessel's controller keeps clear itself: remove guidance.avoid")
+    env = make_environment(scenario, duration) if environment == "scenario" else environment
+    vessels = []
+    for v in scenario.vessels:
+        sc = v.scenario
+        controller = make_controller(sc)
+        problem = commands_error(sc, controller, sc.controller.kind)
+        if problem is not None:
+            raise ScenarioError(f"{sc.source}: {problem}")
+        commands = getattr(controller, "commands", "forces")
+        vessels.append(VesselParts(v.name, v.own_ship, sc, controller, make_reference(sc.trajectory, duration, sc),
+                                   make_quantizers(sc, commands), make_actuators(sc, commands)))
+    plant = make_fleet_plant(scenario, plant_kind, env)
+    return FleetParts(scenario, duration, plant, tuple(vessels), Statics(environment=env,
+                                                                          obstacles=tuple(scenario.obstacles)))

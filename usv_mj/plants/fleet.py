@@ -4,9 +4,9 @@ The vessel index is a dimension of the plant: :meth:`reset_vessel` (i, eta, nu),
 (forces, one row (f_u, f_r) per vessel held over the control period) and :attr:`states` (one row
 (x, y, psi, u, v, r) per vessel).
 
-- :class:`AnalyticFleet`: one :class:`usv_mj.plants.analytic.AnalyticPlant` per vessel, each its own
-  hull, in the same sea; hulls do not touch (a collision is a geometric event of the encounter
-  log). A vessel alone in it runs its single run's record bit for bit (the same plant).
+- :class:`SeparateHulls` (the analytic plant's fleet, and any plant kind's without one of its own):
+  one plant per vessel, each its own hull, in the same sea; hulls do not touch (a collision is a
+  geometric event of the encounter log). A vessel in it runs its single run's record bit for bit.
 - :class:`MuJoCoFleet`: one MuJoCo model of the scene (``models/scene.xml``) with every vessel's hull
   of ``models/usv.xml`` attached under its name (``own/hull``, ``own/x`` ...), each on its own planar
   joints, scaled to its dimensions, its rigid body its own; the water acts on each through the one
@@ -35,14 +35,14 @@ SEA_HORIZON_AHEAD_S = 120.0
 FLEET_HULL_CONTYPE, FLEET_HULL_CONAFFINITY = 1, 3
 
 
-class AnalyticFleet:
-    """The analytic plants of a fleet (module docstring); ``plants``: one per vessel, in order."""
-
-    name = "analytic"
+class SeparateHulls:
+    """A fleet of one plant per vessel (module docstring): the analytic plant's (:class:`AnalyticFleet`),
+    and any plant kind's that brings no fleet of its own; ``plants``: one per vessel, in order."""
 
     def __init__(self, plants, names):
         self.plants = list(plants)
         self.names = tuple(names)
+        self.name = getattr(self.plants[0], "name", "plant")
         self.control_period = self.plants[0].control_period
 
     @property
@@ -69,6 +69,18 @@ class AnalyticFleet:
     def close(self) -> None:
         for p in self.plants:
             p.close()
+
+
+AnalyticFleet = SeparateHulls
+
+
+def mujoco_fleet(vessels, environment=None, obstacles=(), contact=None) -> "MuJoCoFleet":
+    """The plant kind "mujoco"'s fleet (the registry's ``fleet`` factory): ``vessels`` = (name,
+    scenario) of each vessel (its hull, disturbance, rigid body, dimensions, actuator limits)."""
+    first = vessels[0][1]
+    return MuJoCoFleet([(name, sc.ship, sc.disturbance, sc.vessel.model.split, sc.vessel.model.dimensions,
+                         sc.actuators.generalized_limits()) for name, sc in vessels],
+                       first.control_period, first.plant.substeps, environment, obstacles, contact or ContactParams())
 
 
 class MuJoCoFleet:

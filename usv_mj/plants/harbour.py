@@ -14,6 +14,7 @@ import numpy as np
 
 from usv_mj.core.registry import PLANTS
 from usv_mj.physics.ship import PaperDisturbance, RigidBodySplit, ShipParams
+from usv_mj.plants.fleet import mujoco_fleet
 from usv_mj.plants.mujoco_plant import MuJoCoPlant
 from usv_mj.scene.compose import ContactParams, compose_scene, export_scene, obstacle_geom_name
 from usv_mj.scene.hull import HULL_COLLISION_GEOMS
@@ -101,7 +102,7 @@ class HarbourPlant(MuJoCoPlant):
         self._tmp.cleanup()
 
 
-@PLANTS.register("mujoco", rangefinders=True)
+@PLANTS.register("mujoco", rangefinders=True, fleet=mujoco_fleet)
 def mujoco_plant(options, scenario, environment=None, obstacles=(), contact=None, safety_radii=None, rangefinders=()):
     """The MuJoCo plant of ``scenario`` (``options``: None, it has none): the hull of
     ``models/usv.xml`` in open water (:class:`MuJoCoPlant`), or the scene composed from the hull
