@@ -45,6 +45,8 @@ def run(args) -> int:
         raise ScenarioError("--live serves the run log's messages: drop --no-log")
     live = flags.live_server(args)
     t0 = time.perf_counter()
+    if scenario.vessels:   # several vessels in one sea: the fleet's job (usv_mj.jobs.fleet)
+        return _run_fleet(args, scenario, out, live, t0)
     try:
         result = run_job(scenario, out, baseline=False if args.no_baseline else None, video=not args.no_video,
                          log=not args.no_log, progress=not args.quiet,
@@ -66,5 +68,22 @@ def run(args) -> int:
     elif result.summary["status"] != "completed":
         print(f"usv-mj run: the run {result.summary['status']}: {result.summary.get('stop_reason')}", file=sys.stderr)
     if result.summary["status"] != "completed" or result.summary.get("job_stopped"):
+        return EXIT_STOPPED
+    return EXIT_OK
+
+
+def _run_fleet(args, scenario, out, live, t0) -> int:
+    from usv_mj.jobs.fleet import one_screen_fleet_summary, run_fleet_job
+
+    if not args.no_video:
+        print("usv-mj run: several vessels: the video is not drawn yet (--no-video to silence this)",
+              file=sys.stderr)
+    result = run_fleet_job(scenario, out, log=not args.no_log, progress=not args.quiet, overwrite=args.overwrite,
+                           live=live)
+    if live is not None:
+        live.finish()
+    print(one_screen_fleet_summary(result, time.perf_counter() - t0))
+    if result.summary["status"] != "completed":
+        print(f"usv-mj run: the run {result.summary['status']}: {result.summary.get('stop_reason')}", file=sys.stderr)
         return EXIT_STOPPED
     return EXIT_OK

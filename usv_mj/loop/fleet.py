@@ -29,9 +29,11 @@ from usv_mj.record.fleet import FleetRecord
 from usv_mj.record.run_record import COL, SL_REF, SL_STATE, Event, RunRecord
 
 
-def simulate_fleet(parts, progress=None, block: int = 2000) -> FleetRecord:
+def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None = None) -> FleetRecord:
     """Run the fleet of ``parts`` (:class:`usv_mj.builder.FleetParts`) in closed loop; returns the
-    :class:`FleetRecord`. ``progress(n)`` is called with the number of new steps every ``block``."""
+    :class:`FleetRecord`. ``progress(n)`` is called with the number of new steps every ``block``;
+    ``sinks``: {vessel name: [RunSink, ...]} (a run log's sink per vessel) get each vessel's record
+    as a single run's sinks get it (start, rows every block, finish)."""
     scenario, plant, vessels = parts.scenario, parts.plant, parts.vessels
     dt = scenario.control_period
     n = int(round(parts.duration / dt))
@@ -44,7 +46,8 @@ def simulate_fleet(parts, progress=None, block: int = 2000) -> FleetRecord:
         fields.append(f)
         records[v.name] = RunRecord(n + 1, metadata={
             "preset": v.scenario.preset, "plant": plant.name, "controller": v.controller.name, "vessel_name": v.name,
-            "own_ship": v.own_ship, "duration_s": parts.duration, "control_period_s": dt, "source": v.scenario.source,
+            "own_ship": v.own_ship, "length_m": float(v.scenario.vessel.model.dimensions.L),
+            "duration_s": parts.duration, "control_period_s": dt, "source": v.scenario.source,
             "scenario": v.scenario.to_dict(), "diagnostic_fields": list(f), "loop": "python",
             "loop_reason": "a run of several vessels runs the Python loop",
             "criterion": criterion_of(v.controller).to_dict(),
@@ -62,6 +65,8 @@ def simulate_fleet(parts, progress=None, block: int = 2000) -> FleetRecord:
         plant.reset_vessel(i, v.scenario.initial.eta, v.scenario.initial.nu, 0.0)
         v.controller.reset()
         steps[i].reset()
+    sinks = {name: list((sinks or {}).get(name, ())) for name in names}
+    flush = _FleetFlusher(record, sinks)
     seers = [getattr(v.controller, "traffic", None) for v in vessels]
     X = np.array(plant.states)
     F = np.zeros((len(vessels), 2))
@@ -94,6 +99,8 @@ def simulate_fleet(parts, progress=None, block: int = 2000) -> FleetRecord:
                 refs.append(ref)
             record.contacts[k] = plant.contacts()
             k += 1
+            if k - flush.mark >= block:
+                flush(k)
             if progress is not None and k - counted >= block:
                 progress(k - counted)
                 counted = k
@@ -116,12 +123,61 @@ def simulate_fleet(parts, progress=None, block: int = 2000) -> FleetRecord:
         _stop(record, "interrupted", k * dt, f"interrupted by {who} at t = {k * dt:.3f} s")
     except Exception as exc:
         _stop(record, "failed", k * dt, f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}")
-        _finish(record, steps, wall0)
+        _finish(record, steps, wall0, flush)
         raise
     if progress is not None and k > counted:
         progress(k - counted)
-    _finish(record, steps, wall0)
+    _finish(record, steps, wall0, flush)
     return record
+
+
+#: a contact force above this [N] between two hulls is a collision (MuJoCo's solver leaves tiny forces at rest)
+CONTACT_EVENT_N = 1e-6
+
+
+class _FleetFlusher:
+    """Every ``block`` rows: each vessel's new events (usv_mj.record.events) and the contact episodes
+    between hulls (a "vessel_contact" event in both vessels' records and the fleet's), then each
+    vessel's sinks get the rows."""
+
+    def __init__(self, record: FleetRecord, sinks: dict):
+        self.record, self.sinks = record, sinks
+        self.mark = 0
+        self.started = False
+
+    def start(self) -> None:
+        for name in self.record.names:
+            for s in self.sinks[name]:
+                s.start(self.record.records[name])
+        self.started = True
+
+    def __call__(self, hi: int) -> None:
+        if not self.started:
+            self.start()
+        lo, rec = self.mark, self.record
+        if hi <= lo:
+            return
+        for name in rec.names:
+            r = rec.records[name]
+            r.events.extend(detect_events(r, lo, hi))
+        c = rec.contacts
+        dt = rec.metadata["control_period_s"]
+        for p, (i, j) in enumerate(rec.pairs):
+            on = c[lo:hi, p] > CONTACT_EVENT_N
+            before = bool(lo > 0 and c[lo - 1, p] > CONTACT_EVENT_N)
+            edges = np.diff(np.concatenate(([before], on)).astype(np.int8))
+            for k in np.flatnonzero(edges == 1):
+                t = (lo + k) * dt
+                a, b = rec.names[i], rec.names[j]
+                event = Event(t, "vessel_contact", f"the hulls of {a!r} and {b!r} touch ({c[lo + k, p]:.4g} N)",
+                              {"pair": [a, b], "force_N": float(c[lo + k, p]), "state": "start"})
+                rec.events.append(event)
+                rec.records[a].events.append(event)
+                rec.records[b].events.append(event)
+        for name in rec.names:
+            for s in self.sinks[name]:
+                s.rows(rec.records[name], lo, hi)
+        self.mark = hi
 
 
 class _Stop(Exception):
@@ -134,12 +190,16 @@ def _stop(record: FleetRecord, status: str, t: float, message: str) -> None:
     record.events.append(Event(t, "divergence" if status == "diverged" else status, message))
 
 
-def _finish(record: FleetRecord, steps, wall0: float) -> None:
+def _finish(record: FleetRecord, steps, wall0: float, flush) -> None:
     wall = time.perf_counter() - wall0
+    flush(record.n_rows)
     for (name, r), step in zip(record.records.items(), steps):
-        r.events.extend(detect_events(r, 0, r.n_rows))
+        r.events.sort(key=lambda e: e.t)
         r.status = record.status
         r.stop_reason = record.stop_reason
         r.metadata.update({"status": record.status, "stop_reason": record.stop_reason, "wall_time_s": wall,
                            "quantizer_switches": dict(zip(("u", "r"), step.switches))})
     record.metadata.update({"status": record.status, "stop_reason": record.stop_reason, "wall_time_s": wall})
+    for name in record.names:
+        for s in flush.sinks[name]:
+            s.finish(record.records[name])
