@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from usv_mj.record import colregs_scores as sc
+from usv_mj.scenario.imazu import imazu_situation
 
 L = 2.0
 P = sc.ScoreParams()
@@ -238,3 +239,17 @@ def test_overtaking_without_action_and_min_over_targets():
     assert every.minimum["S13"] == 0.0 and every.minimum["S14"] is None and every.minimum["S17"] is None
     d = every.to_dict()
     assert d["pairs"]["1"]["situation"] == "overtaking" and d["minimum"]["S14"] is None
+
+
+def test_imazu_without_avoidance_collides_with_every_target():
+    # Imazu case 5 (head-on + crossing from starboard) at L = 2 m, U = 1 m/s: R = 100 m, every vessel
+    # at (0, 100) at t = 100 s if nobody manoeuvres; scored with the scenario's situations
+    sit = imazu_situation(5, L, 1.0)
+    t = np.arange(0.0, 200.0 + DT / 2, DT)
+    states = np.stack([track(t, v.eta[0], v.eta[1], [(0.0, v.heading_deg, v.speed)]) for v in sit.vessels], axis=1)
+    every = sc.score_encounters(t, states, [L] * 3, situations=sit.situations)
+    for j, name in ((1, "head_on"), (2, "crossing_give_way")):
+        s = every.pairs[j]
+        assert s.situation == name and s.entry_index == 0 and s.t_cpa_s == 100.0
+        assert s.r_cpa_m == pytest.approx(0.0, abs=1e-9) and s.S_safety == 0.0 and s.S16 == 0.0
+    assert every.minimum["S_safety"] == 0.0 and every.minimum["S14"] == 0.0 and every.minimum["S15"] == 0.0
