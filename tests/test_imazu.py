@@ -146,6 +146,8 @@ def test_situations_at_the_start_are_the_published_ones():
         sit = imazu_situation(case, L, U)
         for vessel, published in zip(sit.targets, imazu_case(case).targets):
             assert SITUATION_NAMES[classify_pair(sit.own.state, vessel.state)] == published.situation, (case, vessel.name)
+        assert sit.situations == {i: t.situation for i, t in enumerate(imazu_case(case).targets, start=1)}
+    assert imazu_situation(5, L, U).situations == {1: "head_on", 2: "crossing_give_way"}
 
 
 def test_scaling_examples():

@@ -48,7 +48,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numba import njit
 
-from usv_mj.physics.encounters import G_ALPHA, G_BETA, G_DCPA, G_RANGE, G_TCPA, N_GEOMETRY, pair_geometry, wrap360
+from usv_mj.physics.encounters import (G_ALPHA, G_BETA, G_DCPA, G_RANGE, G_TCPA, N_GEOMETRY, ordered_pair,
+                                       pair_geometry, vessels_terms_into, wrap360, write_pair)
 
 # --- situations and roles -------------------------------------------------------------------------------
 #: the situation of a pair as seen from own ship (int codes, stored in arrays)
@@ -268,19 +269,20 @@ def colregs_step_into(states, lengths, cp, situation, geometry):
     :func:`update_situation` for each pair i < j with the reference length max(L_i, L_j) and
     mirrored into ``[j, i]``. ``states`` (N, 6), ``lengths`` (N,) [m]."""
     n = states.shape[0]
+    terms = np.empty((n, 4))
+    vessels_terms_into(states, terms)
     for i in range(n):
         for k in range(N_GEOMETRY):
             geometry[i, i, k] = np.nan
         situation[i, i] = NONE
     for i in range(n):
-        speed_i = math.hypot(states[i, 3], states[i, 4])
+        speed_i = math.hypot(terms[i, 2], terms[i, 3])
         for j in range(i + 1, n):
-            g = pair_geometry(states[i], states[j])
-            h = pair_geometry(states[j], states[i])
-            for k in range(N_GEOMETRY):
-                geometry[i, j, k] = g[k]
-                geometry[j, i, k] = h[k]
-            speed_j = math.hypot(states[j, 3], states[j, 4])
+            g = ordered_pair(states, terms, i, j)
+            h = ordered_pair(states, terms, j, i)
+            write_pair(geometry, i, j, g)
+            write_pair(geometry, j, i, h)
+            speed_j = math.hypot(terms[j, 2], terms[j, 3])
             code = update_situation(situation[i, j], g[G_RANGE], g[G_BETA], g[G_ALPHA], g[G_TCPA], g[G_DCPA],
                                     speed_i, speed_j, max(lengths[i], lengths[j]), cp)
             situation[i, j] = code

@@ -133,27 +133,57 @@ def tcpa_dcpa(dx, dy, wx, wy):
 
 
 @njit(cache=True)
+def vessel_terms(state):
+    """What a pair's geometry needs of one vessel, once per step: (compass heading [deg], compass
+    course over ground [deg], vx, vy [m/s])."""
+    psi, u, v = state[_PSI], state[_U], state[_V]
+    vx, vy = world_velocity(psi, u, v)
+    return compass_deg(psi), course_deg(psi, u, v), vx, vy
+
+
+@njit(cache=True)
+def pair_terms(dx, dy, heading_own, heading_target, course_own, course_target, wx, wy):
+    """The 7-tuple of :func:`pair_geometry` from the relative position d = (dx, dy) [m], the two
+    vessels' compass headings and courses [deg] (:func:`vessel_terms`) and the relative velocity
+    w = v_target - v_own [m/s]."""
+    bearing = wrap360(math.degrees(math.atan2(dx, dy)))
+    beta = wrap180(bearing - heading_own)
+    alpha = wrap180(bearing + 180.0 - heading_target)
+    t, d = tcpa_dcpa(dx, dy, wx, wy)
+    return math.hypot(dx, dy), bearing, beta, alpha, wrap360(course_target - course_own), t, d
+
+
+@njit(cache=True)
 def pair_geometry(own, target):
     """The geometry of ``target`` seen from ``own`` (each a state (x, y, psi, u, v, r)), a 7-tuple in
     the order of :data:`GEOMETRY_FIELDS`: range [m], true bearing [deg], relative bearing beta [deg],
     contact angle alpha [deg], course difference [deg], TCPA [s], DCPA [m] (module docstring)."""
-    dx = target[_X] - own[_X]
-    dy = target[_Y] - own[_Y]
-    rng = math.hypot(dx, dy)
-    bearing = wrap360(math.degrees(math.atan2(dx, dy)))
-    beta = wrap180(bearing - compass_deg(own[_PSI]))
-    alpha = wrap180(bearing + 180.0 - compass_deg(target[_PSI]))
-    diff = wrap360(course_deg(target[_PSI], target[_U], target[_V]) - course_deg(own[_PSI], own[_U], own[_V]))
-    vxo, vyo = world_velocity(own[_PSI], own[_U], own[_V])
-    vxt, vyt = world_velocity(target[_PSI], target[_U], target[_V])
-    t, d = tcpa_dcpa(dx, dy, vxt - vxo, vyt - vyo)
-    return rng, bearing, beta, alpha, diff, t, d
+    ho, co, vxo, vyo = vessel_terms(own)
+    ht, ct, vxt, vyt = vessel_terms(target)
+    return pair_terms(target[_X] - own[_X], target[_Y] - own[_Y], ho, ht, co, ct, vxt - vxo, vyt - vyo)
 
 
 @njit(cache=True)
-def _write(out, g):
-    out[G_RANGE], out[G_BEARING], out[G_BETA], out[G_ALPHA] = g[0], g[1], g[2], g[3]
-    out[G_COURSE_DIFF], out[G_TCPA], out[G_DCPA] = g[4], g[5], g[6]
+def vessels_terms_into(states, out):
+    """:func:`vessel_terms` of every vessel (states (N, 6)) into ``out`` (N, 4)."""
+    for i in range(states.shape[0]):
+        h, c, vx, vy = vessel_terms(states[i])
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = h, c, vx, vy
+
+
+@njit(cache=True)
+def ordered_pair(states, terms, i, j):
+    """:func:`pair_geometry` of vessel j seen from vessel i, from the step's :func:`vessels_terms_into`."""
+    return pair_terms(states[j, _X] - states[i, _X], states[j, _Y] - states[i, _Y], terms[i, 0], terms[j, 0],
+                      terms[i, 1], terms[j, 1], terms[j, 2] - terms[i, 2], terms[j, 3] - terms[i, 3])
+
+
+@njit(cache=True)
+def write_pair(out, i, j, g):
+    """``out[i, j, :]`` = the 7-tuple ``g`` (element by element: a slice per pair costs more than
+    the geometry)."""
+    out[i, j, G_RANGE], out[i, j, G_BEARING], out[i, j, G_BETA], out[i, j, G_ALPHA] = g[0], g[1], g[2], g[3]
+    out[i, j, G_COURSE_DIFF], out[i, j, G_TCPA], out[i, j, G_DCPA] = g[4], g[5], g[6]
 
 
 @njit(cache=True)
@@ -161,12 +191,14 @@ def pair_matrix_into(states, out):
     """Every ordered pair of N vessels: ``out[i, j]`` (an (N, N, N_GEOMETRY) array) is vessel j seen
     from vessel i; the diagonal is NaN. ``states`` is (N, 6)."""
     n = states.shape[0]
+    terms = np.empty((n, 4))
+    vessels_terms_into(states, terms)
     for i in range(n):
         for k in range(N_GEOMETRY):
             out[i, i, k] = np.nan
         for j in range(n):
             if j != i:
-                _write(out[i, j], pair_geometry(states[i], states[j]))
+                write_pair(out, i, j, ordered_pair(states, terms, i, j))
 
 
 @njit(cache=True)
@@ -174,7 +206,9 @@ def pair_series_into(own, target, out):
     """One pair over time: ``out[k]`` (a (T, N_GEOMETRY) array) is ``target[k]`` seen from ``own[k]``
     (both (T, 6))."""
     for k in range(own.shape[0]):
-        _write(out[k], pair_geometry(own[k], target[k]))
+        g = pair_geometry(own[k], target[k])
+        out[k, G_RANGE], out[k, G_BEARING], out[k, G_BETA], out[k, G_ALPHA] = g[0], g[1], g[2], g[3]
+        out[k, G_COURSE_DIFF], out[k, G_TCPA], out[k, G_DCPA] = g[4], g[5], g[6]
 
 
 # --- Python faces (the same kernels) ----------------------------------------------------------------

@@ -14,7 +14,7 @@ Per pair (own ship i, target j; angles clockwise, + = starboard, from
 - the **window**: from the entry of the pair's COLREGs situation (the lock of
   :mod:`usv_mj.physics.colregs`: stage-2 range and TCPA > 0) to the end; the **CPA** is the
   window's smallest range (the actual CPA of the tracks), with alpha_cpa and beta_cpa there;
-- ``S_r`` range score, ``S_theta`` pose score, ``S_safety = (1 - S_r) S_theta + S_r``;
+- ``S_r`` range score, ``S_theta`` pose score, ``S_safety = (1 - S_r) S_theta + S_r`` (0 when S_r = 0);
 - give-way (head-on, crossing with the target on starboard, overtaking): ``S16 = S_safety
   S_apparent (1 - P_delay)``, with ``S_apparent = 1 - g_chi P_na_course - g_u P_na_speed``;
 - stand-on (crossing with the target on port, overtaken): ``S17 = S_safety (1 - P_stage2)
@@ -178,7 +178,11 @@ def pose_score(alpha_cpa_deg: float, beta_cpa_deg: float, p: ScoreParams | None 
 
 
 def safety_score(s_r: float, s_theta: float) -> float:
-    """S_safety (OE-2023 eq. 2) = (1 - S_r) S_theta + S_r: 0 at a collision whatever the pose."""
+    """S_safety (OE-2023 eq. 2) = (1 - S_r) S_theta + S_r, and 0 when S_r = 0 (inside R_col): the
+    pose cannot mask a collision (the formula alone would give S_theta there; the reconstruction's
+    ``total_safety_score`` and research note §3.2 make it 0)."""
+    if s_r <= 0.0:
+        return 0.0
     return _unit((1.0 - s_r) * s_theta + s_r)
 
 

@@ -202,6 +202,8 @@ class ImazuSituation:
         as TUD_RL) [m]; run at least 2 T_cpa_s.
     vessels:
         The own ship, then the targets (:class:`VesselStart`).
+    target_situations:
+        The published situation of each target for the own ship (usv_mj.physics.colregs' names).
     """
 
     case: int
@@ -214,6 +216,13 @@ class ImazuSituation:
     collision_point: tuple[float, float]
     goal: tuple[float, float]
     vessels: tuple[VesselStart, ...]
+    target_situations: tuple[str, ...] = ()
+
+    @property
+    def situations(self) -> dict[int, str]:
+        """``{vessel index: the own ship's situation}`` for the targets (1, 2, 3): what
+        :func:`usv_mj.record.colregs_scores.score_encounters` takes as ``situations``."""
+        return {i: name for i, name in enumerate(self.target_situations, start=1)}
 
     @property
     def own(self) -> VesselStart:
@@ -255,4 +264,5 @@ def imazu_situation(case_id: int, length_m: float, speed_mps: float, *, k_R: flo
             f"ts{n}", (cx - run * math.cos(psi), cy - run * math.sin(psi), psi), target.speed_ratio * speed_mps,
             (own_heading + target.course_rel_deg) % 360.0, target.speed_ratio))
     return ImazuSituation(case.id, case.variant, length_m, speed_mps, k_R, R, T, (cx, cy),
-                          (x0 + 2.0 * R * fx, y0 + 2.0 * R * fy), tuple(vessels))
+                          (x0 + 2.0 * R * fx, y0 + 2.0 * R * fy), tuple(vessels),
+                          tuple(t.situation for t in case.targets))
