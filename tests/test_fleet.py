@@ -120,3 +120,31 @@ def test_the_fleet_job_logs_every_vessel_and_the_encounter(tmp_path):
     # 30 m apart closing at about 1.2 m/s: after 5 s the range is 30 - (distance covered) (> 25 m)
     assert 20.0 < pair["min_range_m"] < 30.0 and pair["t_min_range_s"] == pytest.approx(5.0)
     assert (out / "figures" / "fleet_tracks.png").is_file() and (out / "report.md").read_text().count("own-target")
+
+
+def test_the_fleet_video_draws_every_vessel_where_the_record_has_it():
+    """The planner puts each other vessel in every frame at its recorded pose (the frame's row), with
+    its trail and the own ship's safety domain; the renderer draws its hull in its colour and its name
+    where the top camera sees it (a pixel of the target's colour at its projected position)."""
+    from usv_mj.outputs.render.planner import VESSEL_RGBA, add_fleet, plan_frames
+    from usv_mj.outputs.render.video import render_frames
+
+    record = simulate(fleet("analytic", HEAD_ON, duration=12.0))
+    plan = add_fleet(plan_frames(record.own_record, width=320, height=180, max_frames=4), record, 320, 180,
+                     domain=5.94)
+    for spec, k in zip(plan.frames, plan.rows):
+        (name, pose, trail, rgba, size), = spec.others
+        assert name == "target" and rgba == VESSEL_RGBA[0] and size == pytest.approx((1.98, 0.76))
+        assert pose == (record["target"]["x"][k], record["target"]["y"][k], record["target"]["psi"][k])
+        assert spec.domain == 5.94 and spec.own_name == "own"
+        v = spec.view     # every vessel inside the top view (half-height vertically, aspect 16:9)
+        assert abs(pose[1] - v.cy) < v.half_height and abs(spec.pose[1] - v.cy) < v.half_height
+    spec = plan.frames[-1]
+    (frame,) = render_frames(record.own_record, rows=[int(plan.rows[-1])], width=320, height=180,
+                             layers=("trail",), views=spec.view, fleet=record)
+    (_, (x, y, _), _, rgba, _), = spec.others
+    scale = 90.0 / spec.view.half_height
+    px, py = int(round(160 + (x - spec.view.cx) * scale)), int(round(90 - (y - spec.view.cy) * scale))
+    patch = frame[max(0, py - 2):py + 3, max(0, px - 2):px + 3].reshape(-1, 3).astype(float)
+    target = np.array(rgba[:3]) * 255
+    assert np.min(np.linalg.norm(patch - target, axis=1)) < 90   # lit and shaded, the target's orange

@@ -75,11 +75,8 @@ def run(args) -> int:
 def _run_fleet(args, scenario, out, live, t0) -> int:
     from usv_mj.jobs.fleet import one_screen_fleet_summary, run_fleet_job
 
-    if not args.no_video:
-        print("usv-mj run: several vessels: the video is not drawn yet (--no-video to silence this)",
-              file=sys.stderr)
     result = run_fleet_job(scenario, out, log=not args.no_log, progress=not args.quiet, overwrite=args.overwrite,
-                           live=live)
+                           live=live, video=not args.no_video, render_options=flags.video_options(args))
     if live is not None:
         live.finish()
     print(one_screen_fleet_summary(result, time.perf_counter() - t0))

@@ -12,7 +12,9 @@ job ends, however it ends, as a single run's job: :mod:`usv_mj.jobs.run`):
   contacts, the own ship's safety domain);
 - ``figures/``: the own ship's figures as a single run's, and ``fleet_tracks.png``,
   ``fleet_ranges.png`` (:mod:`usv_mj.outputs.fleet_figures`);
-- ``report.md``: the vessels and the encounter in tables.
+- ``report.md``: the vessels and the encounter in tables;
+- ``video.mp4`` and ``video.png``: every vessel drawn (its hull, wake trail and name), the own
+  ship's safety domain about it (:func:`usv_mj.outputs.render.planner.add_fleet`).
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ def log_name(vessel: str, own: str) -> str:
 
 
 def run_fleet_job(scenario, out_dir, *, plant_kind: str | None = None, log: bool = True, progress: bool = True,
-                  overwrite: bool = False, live=None) -> FleetJobResult:
+                  overwrite: bool = False, live=None, video: bool = True, render_options: dict | None = None) -> FleetJobResult:
     """Run the fleet ``scenario`` and write every output into ``out_dir`` (module docstring)."""
     out = Path(out_dir)
     check_folder(out, overwrite)
@@ -54,7 +56,7 @@ def run_fleet_job(scenario, out_dir, *, plant_kind: str | None = None, log: bool
     with _OutLock(out), _Signals() as signals:
         stage = Staging(out)
         try:
-            result = _run(parts, stage.path, log, progress, live, signals)
+            result = _run(parts, stage.path, log, progress, live, signals, video, dict(render_options or {}))
         finally:
             parts.close()
             with signals.deferred():
@@ -65,7 +67,7 @@ def run_fleet_job(scenario, out_dir, *, plant_kind: str | None = None, log: bool
     return result
 
 
-def _run(parts, out: Path, log: bool, progress: bool, live, signals) -> FleetJobResult:
+def _run(parts, out: Path, log: bool, progress: bool, live, signals, video: bool, render_opts: dict) -> FleetJobResult:
     from contextlib import ExitStack
 
     scenario = parts.scenario
@@ -101,6 +103,15 @@ def _run(parts, out: Path, log: bool, progress: bool, live, signals) -> FleetJob
                "wall_time_s": time.perf_counter() - t0}
     files["figures"] = draw_figures(record.own_record, out / "figures") + \
         draw_fleet_figures(record, out / "figures", summary=encounters)
+    if video:
+        from usv_mj.outputs.render import render_run
+
+        stats = render_run(record.own_record, out / "video.mp4", fleet=record, domain=encounters.get("safety_domain_m")
+                           or 0.0, progress=progress, **{k: v for k, v in render_opts.items()
+                                                         if k in ("width", "height", "fps", "speedup", "camera",
+                                                                  "workers", "gl")})
+        files["video"], files["still"] = out / "video.mp4", Path(stats["png"])
+        summary["render"] = {k: v for k, v in stats.items() if isinstance(v, (int, float, str))}
     files["report"] = write_fleet_report(out / "report.md", summary)
     files["summary"] = out / "summary.json"
     write_json(files["summary"], summary)

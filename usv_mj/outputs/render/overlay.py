@@ -314,3 +314,16 @@ def draw_sea_arrows(frame: np.ndarray, current_xy, wind_speed: float, wind_direc
         d.text((cx + size // 2 + int(8 * s), cy - int(2 * s)), _fmt(speed, ".2f", " m/s"), font=small, fill=TEXT)
     frame[y0:y1, x0:x1] = np.asarray(img)
     return frame
+
+
+def draw_labels(frame: np.ndarray, labels) -> None:
+    """Each (text, pixel x, pixel y, rgb) of ``labels`` written onto ``frame`` (a fleet's vessel names
+    beside their hulls), with a dark outline so that it reads on the water."""
+    h, w = frame.shape[:2]
+    font = hud_font(max(12, round(16 * h / 720)))
+    img = Image.fromarray(frame)
+    d = ImageDraw.Draw(img)
+    for text, x, y, rgb in labels:
+        if 0 <= x < w and 0 <= y < h:
+            d.text((x, y), text, font=font, fill=tuple(rgb), stroke_width=2, stroke_fill=(10, 20, 30))
+    frame[:] = np.asarray(img)

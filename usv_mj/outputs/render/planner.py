@@ -77,6 +77,10 @@ class FrameSpec:
     view: TopView | None = None
     hud: dict = field(default_factory=dict)
     world: object = None                             # usv_mj.outputs.render.world.RenderWorld (sea, obstacles) or None
+    # the other vessels of a fleet (add_fleet): (name, pose (x, y, psi), trail (n, 2), rgba, (L, B) [m])
+    others: tuple = ()
+    own_name: str = ""                               # the own ship's name (a fleet's; "" for a single run)
+    domain: float = 0.0                              # the own ship's safety domain radius [m] (0: none drawn)
 
 
 @dataclass
@@ -422,3 +426,47 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
         frames.append(FrameSpec(j, float(t[k]), (float(x[k]), float(y[k]), float(psi[k])), ref, fc, fh, ok,
                                 trail, path, view, hud, world))
     return Plan(frames, rows, t0, t1, sp, played, float(fps), eps)
+
+
+#: the other vessels' colours in a fleet's video (the own ship is the model's hull)
+VESSEL_RGBA = ((0.95, 0.55, 0.10, 0.95), (0.55, 0.35, 0.85, 0.95), (0.15, 0.70, 0.45, 0.95),
+               (0.90, 0.25, 0.45, 0.95), (0.30, 0.60, 0.95, 0.95), (0.75, 0.75, 0.20, 0.95))
+
+
+def add_fleet(plan: Plan, fleet, width: int, height: int, trail_s: float | None = None, segments: int = 48,
+              domain: float = 0.0) -> Plan:
+    """The frames of ``plan`` (made from the own ship's record of ``fleet``, a
+    :class:`usv_mj.record.fleet.FleetRecord`) with every other vessel at the frame's row: its pose,
+    its wake trail, its colour (:data:`VESSEL_RGBA`) and size, the own ship's safety domain
+    (``domain`` [m]) and a top view that holds every vessel."""
+    own = fleet.own_record
+    n = valid_rows(own)
+    trail_s = max(10.0, 3.0 * plan.played_speedup) if trail_s is None else float(trail_s)
+    aspect = width / height
+    others = [name for name in fleet.names if name != fleet.own]
+    dims = {}
+    for name in fleet.names:
+        from usv_mj.outputs.render.world import hull_dimensions
+
+        hull = hull_dimensions(fleet[name])
+        dims[name] = (hull[0], hull[1]) if hull is not None else (1.98, 0.76)
+    for j, spec in enumerate(plan.frames):
+        k = int(plan.rows[j])
+        items, pts = [], [spec.pose[:2]]
+        trail_rows, _ = frame_rows(own, n, np.array([k]), trail_s, 0.0, segments)
+        for c, name in enumerate(others):
+            rec = fleet[name]
+            pose = tuple(float(rec[col][k]) for col in ("x", "y", "psi"))
+            trail = np.stack([_take(rec, "x", trail_rows[0]), _take(rec, "y", trail_rows[0])], axis=-1)
+            items.append((name, pose, trail, VESSEL_RGBA[c % len(VESSEL_RGBA)], dims[name]))
+            if all(math.isfinite(v) for v in pose[:2]):
+                pts.append(pose[:2])
+        if spec.view is not None and len(pts) > 1:
+            # every vessel in the picture, never closer than the own ship's own view
+            spec.view = top_view(np.array(pts + [(spec.view.cx, spec.view.cy)], float), aspect,
+                                 spec.view.half_height)
+        spec.others = tuple(items)
+        spec.own_name = fleet.own
+        spec.domain = float(domain)
+        spec.hud["title"] = f"{len(fleet.names)} vessels / " + spec.hud.get("title", "")
+    return plan

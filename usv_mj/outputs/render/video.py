@@ -26,7 +26,7 @@ from usv_mj.outputs.render.defaults import CAMERAS_HELP, MAX_FPS  # noqa: F401 (
 from usv_mj.outputs.render.defaults import DEFAULT_FPS, DEFAULT_HEIGHT, DEFAULT_WIDTH, check_size
 from usv_mj.outputs.render.gl_backend import GLUnavailableError  # noqa: F401 (what render_run raises)
 from usv_mj.outputs.render.gl_backend import in_process_backend, renderer_name, select_backend
-from usv_mj.outputs.render.planner import LAYERS, Plan, plan_frames
+from usv_mj.outputs.render.planner import LAYERS, Plan, add_fleet, plan_frames
 
 
 # --- workers -------------------------------------------------------------------------------------
@@ -208,17 +208,21 @@ def _default_workers(n_frames: int) -> int:
 def render_frames(record, *, width: int = 320, height: int = 240, camera: str = "top", rows=None,
                   fps: float = DEFAULT_FPS, speedup: float | None = None, max_frames: int | None = None,
                   layers=LAYERS, views=None, workers: int = 1, gl: str | None = None, model=None,
-                  shadows: bool = False, samples: int = 0, hull="record") -> list[np.ndarray]:
+                  shadows: bool = False, samples: int = 0, hull="record", fleet=None,
+                  domain: float = 0.0) -> list[np.ndarray]:
     """Frames of ``record`` as (height, width, 3) uint8 arrays, without writing a video.
 
     ``rows``: draw exactly these record rows (one frame each) instead of the video's time mapping.
     ``views``: a :class:`~usv_mj.outputs.render.planner.TopView` (or one per frame) to pin the top camera.
     ``hull``: the drawn hull's (L, B, T) [m]; "record" (default): the record's vessel's
     (:func:`usv_mj.outputs.render.world.hull_dimensions`); None: the model file's hull.
+    ``fleet``, ``domain``: every other vessel of a fleet too, as :func:`render_run` draws them.
     """
     check_size(width, height)
     plan = _plan(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera, max_frames=max_frames,
                  rows=rows)
+    if fleet is not None:
+        plan = add_fleet(plan, fleet, width, height, domain=domain)
     specs = plan.frames
     if views is not None:
         views = list(views) if isinstance(views, (list, tuple)) else [views] * len(specs)
@@ -250,7 +254,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
                workers: int | None = None, progress: bool = True, gl: str | None = None, model=None,
                shadows: bool = False, samples: int = 0, layers=LAYERS, crf: int = 23, preset: str = "ultrafast",
                max_frames: int | None = None, segment_frames: int = 120, pool: "RenderWorkers | None" = None,
-               hull="record") -> dict:
+               hull="record", fleet=None, domain: float = 0.0) -> dict:
     """Render ``record`` (a finished :class:`~usv_mj.record.run_record.RunRecord`) to an mp4 and a PNG of its last frame.
 
     Parameters
@@ -272,6 +276,9 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
         MuJoCo plant scales it (:func:`usv_mj.outputs.render.world.hull_dimensions`); None: the model file's.
     samples: multisampling. crf, preset: libx264 quality and speed (ultrafast: about 15 ms of CPU a
         720p frame, veryfast about 35 ms). max_frames: cap (tests).
+    fleet: the :class:`usv_mj.record.fleet.FleetRecord` whose own ship ``record`` is: every other
+        vessel drawn too (its hull, trail and name; :func:`usv_mj.outputs.render.planner.add_fleet`),
+        with the own ship's safety domain of ``domain`` [m] (0: none).
 
     Returns a dict: frames, fps (frames rendered and encoded per wall second, planning and start-up
     included), wall_s, mp4, png, width, height, video_fps, video_s, speedup (as played), camera,
@@ -305,6 +312,8 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
         backend = select_backend(gl)
     plan = plan_frames(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera,
                        max_frames=max_frames)
+    if fleet is not None:
+        plan = add_fleet(plan, fleet, width, height, domain=domain)
     n = len(plan.frames)
     workers = _default_workers(n) if workers is None else max(1, min(int(workers), n))
     encoder = {"preset": preset, "crf": crf}
