@@ -10,8 +10,9 @@ What it shows (values of one record row, see :mod:`usv_mj.record.run_record`):
 - the controls: the law's output tau (outline), the quantized command Q(tau) (a thin marker) and
   the force the actuators realized, which the plant received (filled bar; red while saturated; its
   value printed after the bar as "applied"), for surge tau_u [N] and yaw tau_r [N m], on a
-  symmetric scale ``tau_*_scale`` fixed for the whole video (the planner's 99th percentile of |tau|, or 1.25 x the actuators' limit when they have one;
-  a clipped bar ends in a triangle); the actuators' limits ``tau_*_limits`` are red ticks;
+  symmetric scale ``tau_*_scale`` fixed for the whole video (the planner's 99th percentile of
+  |tau|, or 1.25 x the actuators' limit when they have one; a clipped bar ends in a triangle); the
+  actuators' limits ``tau_*_limits`` are red ticks;
   each row is named by its command channel and says the applied value f in the applied channel's
   unit (``values["channels"]``: the planner's rows from the record's channels,
   :class:`usv_mj.physics.channels.RunChannels`): on a ruddered vessel the propeller's n_P [1/s] and
