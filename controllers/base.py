@@ -14,6 +14,10 @@ A controller is any object with
   declares :data:`FUNNEL_FIELDS` among them, and the outputs then show funnel errors and
   violations; ``diagnostic_events`` (optional) maps a 0/1 field to the event kind its episodes
   are logged as (the PPC law's ``{"s2_clamped": "s2_clamp"}``);
+- ``diagnostic_units`` (optional): a mapping from a diagnostic field to its unit, SI as the rest
+  (``{"u_error": "m/s", "integral_psi": "rad s", "switches": "-"}``; "-" dimensionless). It goes
+  into the run record's metadata, and figure 7 draws the fields one panel per unit with that unit
+  on the axis; a field without a declared unit gets a panel of its own, marked "unit not declared";
 - ``from_scenario(gains, scenario)`` (a classmethod) when it is registered in
   :data:`usv_mj.core.registry.CONTROLLERS` with its typed gains dataclass.
 

@@ -93,6 +93,7 @@ class ZigzagController:
         "turn",            # sign of the commanded yaw moment: +1 port, -1 starboard
         "switches",        # reversals so far
     )
+    diagnostic_units = {"heading_change": "rad", "turn": "-", "switches": "-"}
     criterion = NotJudged("manoeuvre")
 
     @classmethod

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Install what usv_mj needs on a fresh Debian machine: the Mesa GL stack for headless rendering
-# (EGL, with OSMesa as the fallback; no GPU needed) and the Python package with its test extras.
+# (EGL, with OSMesa as the fallback; no GPU needed), a virtual X display (xvfb, and xauth for
+# xvfb-run) on which the tests open `usv-mj view`'s window, and the Python package with its test extras.
 # Idempotent: a second run only checks.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-SYSTEM_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6)
+SYSTEM_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6 xvfb xauth)
 missing=()
 for pkg in "${SYSTEM_PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")

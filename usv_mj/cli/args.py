@@ -345,3 +345,16 @@ def scenario_from_args(args):
                                 "give --set plant.kind=... or drop one of them)")
         overrides.setdefault("plant", {})["kind"] = args.plant
     return load_scenario(args.scenario, preset=args.preset, overrides=with_vessel(vessel, overrides))
+
+
+def report_failed(rows: list[dict], prog: str, noun: str, show: int = 5) -> int:
+    """One line on stderr for each of the first ``show`` runs that failed (no result: raised, or its
+    worker died), naming it and why; 1 when any did, else 0. (Diverged runs are results.)"""
+    failed = [r for r in rows if r.get("status") == "failed"]
+    for r in failed[:show]:
+        print(f"{prog}: {noun} {r['run_id']} failed: {r.get('reason')}", file=sys.stderr)
+    if len(failed) > show:
+        print(f"{prog}: ... and {len(failed) - show} more failed {noun}s (report.md lists them)", file=sys.stderr)
+    if failed:
+        print(f"{prog}: {len(failed)} {noun}(s) failed; --resume --retry-failed runs them again", file=sys.stderr)
+    return 1 if failed else 0

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from usv_mj.cli import args as flags
 from usv_mj.cli.commands import COMMANDS
-from usv_mj.core.errors import ScenarioError, SweepError
+from usv_mj.core.errors import ScenarioError, SweepError, WorkerError
 
 
 def add_arguments(p) -> None:
@@ -78,6 +78,10 @@ def run(args) -> int:
         print(f"\nusv-mj bench: interrupted: the episodes finished so far are in {out}/results.parquet; "
               f"run the same command with --resume to finish", file=sys.stderr)
         return 1
+    except WorkerError as exc:
+        print(f"usv-mj bench: stopped: {exc}; the episodes finished so far are in {out}/results.parquet "
+              f"(--resume runs the rest)", file=sys.stderr)
+        return 1
     if not result.complete:
         print(f"{len(result.rows)} of {len(suite.plan.runs)} episodes in {out}/results.parquet; run again with "
               f"--resume for the rest")
@@ -88,4 +92,4 @@ def run(args) -> int:
                                         suite.vessels != [""])))
     print(f"{len(result.rows)} episodes ({result.ran} run now), {result.failed} not ok; {out}/report.md, "
           f"{out}/leaderboard.json, {out}/figures/")
-    return 0
+    return flags.report_failed(result.rows, "usv-mj bench", "episode")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from usv_mj.cli import args as flags
 from usv_mj.cli.commands import COMMANDS
-from usv_mj.core.errors import ScenarioError
+from usv_mj.core.errors import ScenarioError, WorkerError
 from usv_mj.jobs.sweep.loads import LOADS
 
 
@@ -60,6 +60,9 @@ def run(args) -> int:
         return 2
     except KeyboardInterrupt:
         print("\nusv-mj capability: interrupted", file=sys.stderr)
+        return 1
+    except WorkerError as exc:
+        print(f"usv-mj capability: stopped: {exc}", file=sys.stderr)
         return 1
     for r in results:
         d = "any direction" if r.direction_deg is None else f"{r.direction_deg:g} deg"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from usv_mj.cli import args as flags
 from usv_mj.cli.commands import COMMANDS
-from usv_mj.core.errors import ScenarioError, SweepError
+from usv_mj.core.errors import ScenarioError, SweepError, WorkerError
 
 
 def add_arguments(p) -> None:
@@ -33,7 +33,9 @@ def add_arguments(p) -> None:
                 "the controller's criterion (the funnel for the paper's controller).\n"
                 "--resume runs only what is missing.")
 def run(args) -> int:
-    """0 when every run was recorded, 2 on a bad sweep file or option, 1 when interrupted."""
+    """0 when every run was recorded and none failed, 2 on a bad sweep file or option, 1 when
+    interrupted, stopped by its workers (a run that cannot be set up on one, none left) or when runs
+    failed (one line each: the run and its reason)."""
     from usv_mj.jobs.sweep import load_sweep, run_sweep
 
     out = args.out if args.out is not None else str(Path("renders") / f"sweep-{Path(args.sweep).stem}")
@@ -68,6 +70,10 @@ def run(args) -> int:
         print(f"\nusv-mj sweep: interrupted: the runs finished so far are in {out}/results.parquet; "
               f"run the same command with --resume to finish the sweep", file=sys.stderr)
         return 1
+    except WorkerError as exc:
+        print(f"usv-mj sweep: stopped: {exc}; the runs finished so far are in {out}/results.parquet "
+              f"(--resume runs the rest)", file=sys.stderr)
+        return 1
     if not result.complete:
         print(f"{len(result.rows)} of {len(plan.runs)} runs in {out}/results.parquet; run again with "
               f"--resume for the rest")
@@ -76,4 +82,5 @@ def run(args) -> int:
 
     print(f"{len(result.rows)} runs ({result.ran} run now): {passed_rate(result.rows)}; {result.failed} diverged or "
           f"failed; {out}/results.parquet, {out}/report.md")
-    return 0
+    return flags.report_failed(result.rows, "usv-mj sweep", "run")
+

@@ -20,6 +20,7 @@ if __name__ == "__main__":   # python -m usv_mj.cli.view: the registered command
 
 def add_arguments(p) -> None:
     flags.add_scenario_arguments(p)
+    flags.add_vessel_argument(p)   # as `usv-mj run --vessel` (README: view takes run's scenario flags)
     flags.add_plant_argument(p, default="mujoco", help="the viewer shows the MuJoCo plant (the only choice)")
     p.add_argument("--manual", action="store_true",
                    help="drive it yourself: arrows up/down surge, left/right yaw, space zero (open loop)")

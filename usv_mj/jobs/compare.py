@@ -21,7 +21,10 @@ exactly the same input signal) and compares each with a fine-step reference (the
 dt = 5/8 ms, whose own error is 8^4 = 4096 times smaller than the finest study step); its
 ``max_position_m`` is the difference between the plants, and ``mujoco_vs_reference_m`` /
 ``analytic_vs_reference_m`` are each plant's error. The estimated order is the least-squares slope
-of log(error) against log(dt) (4 expected). The paper's damping has |u| u, |v| r, |r| v terms
+of log(error) against log(dt) (4 expected), over the errors above round-off (:func:`roundoff_floor`:
+ROUNDOFF_ULPS units in the last place of the largest coordinate the runs reach); with fewer than
+two of them the order is not measurable there and is reported so (None in compare.json, its
+``roundoff_m`` beside it), not as the slope of round-off noise. The paper's damping has |u| u, |v| r, |r| v terms
 (docs/model.md §1) whose second derivatives jump where a velocity crosses zero; the rich inputs make u, v, r
 cross zero, which lowers RK4's order against the exact solution for both plants alike (about 1.8
 seen), while the plants' difference still shrinks as dt^4. The same study with one-signed inputs
@@ -99,6 +102,7 @@ OPEN_REFERENCE_DIVISOR = 8
 OPEN_CONVERGENCE_HORIZON_S = 20.0
 CLOSED_CONVERGENCE_DTS = (0.004, 0.002, 0.001)
 CLOSED_CONVERGENCE_HORIZON_S = 30.0
+ROUNDOFF_ULPS = 100            # a position difference below this many ulps of the largest coordinate is round-off
 SENSITIVITY_OFFSET_M = 1e-12   # the twin's start offset (in a sea) [m]
 SENSITIVITY_FACTOR = 10.0      # plants' difference <= factor x twin departure + SENSITIVITY_FLOOR_M
 SENSITIVITY_FLOOR_M = 1e-9
@@ -236,12 +240,33 @@ def state_differences(a: np.ndarray, b: np.ndarray) -> dict:
     }
 
 
-def estimated_order(dts, errors) -> float | None:
-    """Least-squares slope of log(error) against log(dt); None if an error is 0 or not finite."""
+def estimated_order(dts, errors, floor: float = 0.0) -> float | None:
+    """Least-squares slope of log(error) against log(dt) over the errors above ``floor`` [m] (round-off:
+    :func:`roundoff_floor`); None if an error is 0 or not finite, or fewer than two are above ``floor``
+    (the order is not measurable there)."""
     dts, errors = np.asarray(dts, float), np.asarray(errors, float)
     if len(dts) < 2 or not np.all(np.isfinite(errors)) or np.any(errors <= 0):
         return None
-    return float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
+    above = errors > floor
+    if np.count_nonzero(above) < 2:
+        return None
+    return float(np.polyfit(np.log(dts[above]), np.log(errors[above]), 1)[0])
+
+
+def roundoff_floor(*states) -> float:
+    """[m] The position difference that round-off alone makes between runs of these state histories
+    (x, y, ...): ROUNDOFF_ULPS units in the last place of the largest |x| or |y| they reach (1 m at least)."""
+    scale = max([1.0] + [float(np.max(np.abs(np.asarray(x)[:, :2]))) for x in states if len(x)])
+    return ROUNDOFF_ULPS * float(np.finfo(float).eps) * scale
+
+
+def order_text(order: dict, key: str) -> str:
+    """An order of compare.json as printed: "4.01", or why it is not there."""
+    value = order.get(key)
+    if value is not None:
+        return f"{value:.2f}"
+    floor = order.get("roundoff_m")
+    return "n/a" if floor is None else f"not measurable (the errors are at round-off, below {floor:.0e} m)"
 
 
 def _say(progress: bool, text: str) -> None:
@@ -422,16 +447,19 @@ def _open_convergence(scenario: Scenario, horizon: float, one_signed: bool, envi
         a, m = a[::stride], m[::stride]
         rows.append({"dt": h, "max_position_m": state_differences(m, a)["max_position_m"],
                      "mujoco_vs_reference_m": state_differences(m, r)["max_position_m"],
-                     "analytic_vs_reference_m": state_differences(a, r)["max_position_m"]})
+                     "analytic_vs_reference_m": state_differences(a, r)["max_position_m"],
+                     "roundoff_m": roundoff_floor(m, a, r)})
     dts = [row["dt"] for row in rows]
+    floor = max(row["roundoff_m"] for row in rows)
     return {
         "rows": rows,
         "reference": f"analytic plant at dt = {dt_ref:g} s",
         "order": {
-            "plants_difference": estimated_order(dts, [row["max_position_m"] for row in rows]),
-            "mujoco_vs_reference": estimated_order(dts, [row["mujoco_vs_reference_m"] for row in rows]),
-            "analytic_vs_reference": estimated_order(dts, [row["analytic_vs_reference_m"] for row in rows]),
+            "plants_difference": estimated_order(dts, [row["max_position_m"] for row in rows], floor),
+            "mujoco_vs_reference": estimated_order(dts, [row["mujoco_vs_reference_m"] for row in rows], floor),
+            "analytic_vs_reference": estimated_order(dts, [row["analytic_vs_reference_m"] for row in rows], floor),
             "expected": 4,
+            "roundoff_m": floor,
         },
         "zero_crossings_of_reference": _zero_crossings(ref),
     }
@@ -572,12 +600,14 @@ def compare_closed_loop(scenario: Scenario, progress: bool = True) -> tuple[dict
         stride = int(round(coarse / h))
         q = {kind: int(pair[kind]["q_tau_u"].size and np.sum(np.diff(pair[kind]["k_u"]) != 0)) for kind in pair}
         rows.append({"dt": h, "max_position_m": state_differences(m[:k:stride], a[:k:stride])["max_position_m"],
-                     "quantizer_switches_u": q})
+                     "quantizer_switches_u": q, "roundoff_m": roundoff_floor(m[:k], a[:k])})
     result["convergence"] = rows
     result["convergence_horizon_s"] = horizon
+    floor = max(r["roundoff_m"] for r in rows)
     result["convergence_order"] = {
-        "plants_difference": estimated_order([r["dt"] for r in rows], [r["max_position_m"] for r in rows]),
+        "plants_difference": estimated_order([r["dt"] for r in rows], [r["max_position_m"] for r in rows], floor),
         "expected": 4,
+        "roundoff_m": floor,
     }
     t = runs["analytic"]["t"][:n]
     ref = np.stack([runs["analytic"]["x_d"][:n], runs["analytic"]["y_d"][:n]], axis=1)
@@ -648,9 +678,9 @@ def _plot_convergence(path: str, open_loop: dict, closed_loop: dict) -> None:
             ax.loglog(dts, err, "d-.", label="MuJoCo - reference, one-signed inputs")
         anchor = max(rows[0]["max_position_m"], 1e-18)
         ax.loglog(dts, anchor * (dts / dts[0]) ** 4, color="0.5", lw=1, label="slope 4")
-        order = res["convergence_order"]["plants_difference"]
-        ax.set_title(f"{title}: max position difference vs dt (order {order:.2f})" if order is not None
-                     else f"{title}: max position difference vs dt")
+        order = order_text(res["convergence_order"], "plants_difference")
+        ax.set_title(f"{title}: max position difference vs dt (order {order})" if order != "n/a"
+                     else f"{title}: max position difference vs dt", fontsize=9 if len(order) > 8 else None)
         ax.set_xlabel("dt [s]")
         ax.set_ylabel("max position difference [m]")
         ax.legend(fontsize=8, loc="lower right")
@@ -795,15 +825,15 @@ def report_lines(result: dict) -> list[str]:
               f"{ad['sensitivity_max_position_m']:.1e} m)")
     say(f"open loop   ({ol['duration_s']:g} s): max position {ol['max_position_m']:.3e} m, heading "
           f"{ol['max_heading_rad']:.3e} rad, velocity {ol['max_velocity']:.3e}; order "
-          f"{_fmt(ol['convergence_order']['plants_difference'])} (plants), "
-          f"{_fmt(ol['convergence_order']['mujoco_vs_reference'])} (MuJoCo vs reference), "
-          f"{_fmt(ol['convergence_one_signed_inputs']['order']['mujoco_vs_reference'])} (MuJoCo vs reference, "
-          f"one-signed inputs)")
+          f"{order_text(ol['convergence_order'], 'plants_difference')} (plants), "
+          f"{order_text(ol['convergence_order'], 'mujoco_vs_reference')} (MuJoCo vs reference), "
+          f"{order_text(ol['convergence_one_signed_inputs']['order'], 'mujoco_vs_reference')} (MuJoCo vs "
+          f"reference, one-signed inputs)")
     say(f"closed loop ({cl['duration_s']:g} s): max position {cl['max_position_m']:.3e} m, heading "
         f"{cl['max_heading_rad']:.3e} rad, velocity {cl['max_velocity']:.3e}; "
         + (f"inside funnels {cl['inside_funnels']}" if "inside_funnels" in cl else
            f"passed ({cl['criterion']}) {cl['passed_criterion']}")
-        + f"; order {_fmt(cl['convergence_order']['plants_difference'])}")
+        + f"; order {order_text(cl['convergence_order'], 'plants_difference')}")
     cs = result["closed_loop_saturated"]
     say(f"closed loop saturated ({cs['actuators']}): max position {cs['max_position_m']:.3e} m; saturated "
           f"fraction {cs['saturated_fraction']}")
@@ -818,6 +848,3 @@ def report_lines(result: dict) -> list[str]:
         say(f"  {'ok  ' if ok else 'FAIL'} {check}")
     return lines
 
-
-def _fmt(x) -> str:
-    return "n/a" if x is None else f"{x:.2f}"

@@ -2,10 +2,17 @@
 
 The scenario is built once (:func:`usv_mj.build`, the MuJoCo plant: the hull of ``models/usv.xml``
 or the harbour with its obstacles, the hydrodynamic callback and the sea acting) and run by the
-project's own loop (:func:`usv_mj.simulate`) with the controller in it; a loop hook hands the
-plant's ``mjData`` to ``mujoco.viewer.launch_passive`` every frame (1/60 s of wall time) and holds
-the simulated time to ``speed`` times the wall clock. Closing the window ends the run (recorded
-as interrupted). With ``manual`` the controller is replaced by the keyboard (open loop):
+project's own loop (:func:`usv_mj.simulate`) with the controller in it; a loop hook poses the
+viewer's model from the plant every 1/60 s of paced time and holds the simulated time to ``speed``
+times the wall clock. Closing the window ends the run (recorded as interrupted).
+
+What the viewer draws (:func:`display_of`): in open water the plant simulates the hull of
+``models/usv.xml`` alone, with no water, sky or light, and MuJoCo's default camera looks at the
+origin, so once the hull has left it (the paper starts at (2, -3) m) the 3-D view was all black.
+The viewer draws ``models/scene.xml`` instead (water, sky, sun), with the plant's hull (scaled to
+the vessel) posed from the plant; a harbour's plant already runs in that scene and is drawn as it
+is. The camera follows the hull (MuJoCo's tracking camera; the mouse still turns and zooms it).
+With ``manual`` the controller is replaced by the keyboard (open loop):
 
     arrow up / down      surge force tau_u + / - SURGE_STEP_N
     arrow left / right   yaw moment tau_r + / - YAW_STEP_NM (left turns to port, counter-clockwise)
@@ -32,6 +39,7 @@ from usv_mj.record.criteria import NotJudged
 SURGE_STEP_N = 10.0     # N per key press
 YAW_STEP_NM = 1.0       # N m per key press
 FRAME_S = 1.0 / 60.0    # wall time between two viewer syncs [s]
+STALL_S = 0.25          # behind the paced clock by more than this [s]: the clock waits instead
 KEY_UP, KEY_DOWN, KEY_LEFT, KEY_RIGHT, KEY_SPACE = 265, 264, 263, 262, 32   # GLFW key codes
 
 
@@ -95,32 +103,83 @@ class ManualController:
 
 
 class ViewerHook:
-    """The loop hook that shows the plant in the viewer and paces the run (module docstring)."""
+    """The loop hook that shows the plant in the viewer and paces the run (module docstring).
+    ``display``: what :func:`display_of` returns (None: the plant's own model and data)."""
 
-    def __init__(self, viewer, speed: float):
+    def __init__(self, viewer, speed: float, display=None):
         import mujoco
 
         self.viewer, self.speed, self._mj = viewer, speed, mujoco
+        self.display = display
         self._wall0 = None
         self._next = 0.0
         self.frames = 0
 
     def __call__(self, t, k, plant):
-        now = time.monotonic()
+        shown = t / self.speed   # the wall time [s] at which this state is due on screen
         if self._wall0 is None:
-            self._wall0 = now - t / self.speed
-        if now < self._next:
+            self._wall0 = time.monotonic() - shown
+        if shown < self._next:   # a frame every FRAME_S of paced time (the loop runs faster than that)
             return
         if not self.viewer.is_running():
             raise KeyboardInterrupt("closing the viewer")
         with self.viewer.lock():
-            self._mj.mj_kinematics(plant.model, plant.data)
+            if self.display is None:
+                self._mj.mj_kinematics(plant.model, plant.data)
+            else:
+                model, data, pose = self.display
+                pose()
+                self._mj.mj_kinematics(model, data)
+                self._mj.mj_comPos(model, data)   # subtree_com: where the tracking camera looks
         self.viewer.sync()
         self.frames += 1
-        ahead = t / self.speed - (time.monotonic() - self._wall0)
+        ahead = shown - (time.monotonic() - self._wall0)
         if ahead > 0:
             time.sleep(ahead)
-        self._next = time.monotonic() + FRAME_S
+        elif ahead < -STALL_S:   # a stall (a first compile, a slow frame) is not run through faster than speed
+            self._wall0 = time.monotonic() - shown
+        self._next = shown + FRAME_S
+
+
+def display_of(plant, scenario):
+    """``(model, data, pose)``: what the viewer draws and ``pose()``, which sets it to the plant's
+    state (see the module docstring). The plant's own model and data when its scene has the water
+    (a plane of the world body: the harbour composed on ``models/scene.xml``)."""
+    import mujoco
+
+    m = plant.model
+    if any(m.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE and m.geom_bodyid[g] == 0 for g in range(m.ngeom)):
+        return m, plant.data, lambda: None
+    from usv_mj.outputs.render.replay import build_replay_model
+    from usv_mj.outputs.render.world import hull_dimensions
+
+    model, _ = build_replay_model(None, ghost=False, sea=False, hull=hull_dimensions(scenario))
+    data = mujoco.MjData(model)
+    joints = ("x", "y", "yaw")
+    src = [int(m.jnt_qposadr[m.joint(j).id]) for j in joints]
+    dst = [int(model.jnt_qposadr[model.joint(j).id]) for j in joints]
+
+    def pose():
+        data.qpos[dst] = plant.data.qpos[src]
+        data.time = plant.data.time
+
+    pose()
+    mujoco.mj_forward(model, data)
+    return model, data, pose
+
+
+def follow_hull(viewer, model, length: float) -> None:
+    """Point the viewer's camera at body "hull" and keep it there (MuJoCo's tracking camera), from
+    behind and above at a few hull lengths."""
+    import mujoco
+
+    with viewer.lock():
+        cam = viewer.cam
+        cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+        cam.trackbodyid = model.body("hull").id
+        cam.distance = 4.0 * float(length)
+        cam.elevation = -25.0
+        cam.azimuth = 210.0
 
 
 def _wait_closed(viewer, threads, timeout_s: float = 5.0) -> None:
@@ -152,15 +211,17 @@ def view(scenario, *, manual: bool = False, speed: float = 1.0):
         raise NoDisplay(str(exc)) from None
     controller = ManualController() if manual else None
     with build(scenario, controller=controller) as parts:
+        display = display_of(parts.plant, scenario)
         before = set(threading.enumerate())
         try:
-            viewer = mujoco.viewer.launch_passive(parts.plant.model, parts.plant.data,
+            viewer = mujoco.viewer.launch_passive(display[0], display[1], show_right_ui=False,
                                                   key_callback=controller.key if controller is not None else None)
         except Exception as exc:  # noqa: BLE001 - GLFW reports no display in several ways
             raise NoDisplay(f"the viewer did not open ({type(exc).__name__}: {exc}); it needs a desktop "
                             f"(MUJOCO_GL={os.environ.get('MUJOCO_GL', 'unset')})") from None
         threads = [t for t in threading.enumerate() if t not in before]
-        hook = ViewerHook(viewer, speed)
+        follow_hull(viewer, display[0], scenario.vessel.model.dimensions.L)
+        hook = ViewerHook(viewer, speed, None if display[0] is parts.plant.model else display)
         try:
             record = simulate(parts, hooks=[hook])
         finally:

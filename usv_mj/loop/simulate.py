@@ -114,6 +114,14 @@ def _simulate_fleet(scenario, plant_kind, duration, progress, block):
         parts.close()
 
 
+def _diagnostic_units(controller, fields: tuple) -> dict:
+    """``{"diagnostic_units": {field: unit}}`` of the controller's declared units of its diagnostic
+    fields (:mod:`usv_mj.controllers.base`), for the figures; {} when it declares none."""
+    units = getattr(controller, "diagnostic_units", None) or {}
+    units = {str(k): str(v) for k, v in dict(units).items() if k in fields}
+    return {"diagnostic_units": units} if units else {}
+
+
 def _new_record(rows: int, block: int, store, metadata: dict, fields: tuple, events,
                 stream_above: float | None = None) -> RunRecord:
     """The empty record of a run of ``rows`` rows: in memory, or streamed (``store``, see simulate)."""
@@ -150,7 +158,8 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     record = _new_record(n + 1, block, store, {
         "preset": scenario.preset, "plant": plant.name, "controller": controller.name,
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
-        "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata, **loop,
+        "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **_diagnostic_units(controller, fields),
+        **parts.metadata, **loop,
         "criterion": criterion_of(controller).to_dict(),  # how the outputs judge the run (usv_mj.record.criteria)
         "channels": channels_of(scenario, getattr(controller, "commands", "forces")).to_metadata(),  # what tau and f hold
     }, fields, getattr(controller, "diagnostic_events", None), stream_above)

@@ -59,7 +59,18 @@ UNITS = {"m": "kg", "x_g": "m", "I_z": "kg m^2", "X_udot": "kg", "Y_vdot": "kg",
 
 
 class _DataOptions:
-    """Base of a data file's options dataclass: every number finite (checked at construction)."""
+    """Base of a data file's options dataclass: every number finite (checked at construction).
+
+    An instance pickles as the file's kind, its contents and the values (:func:`_data_options`), not
+    by its class's name: the class is made at runtime by the process that read the file, so another
+    process (a sweep's Dask worker) has no such class until it registers the kind from those contents.
+    """
+
+    _datafile = ("", {})   # (kind, contents of read_file): set on each file's class
+
+    def __reduce__(self):
+        kind, contents = type(self)._datafile
+        return _data_options, (kind, contents, {f.name: getattr(self, f.name) for f in dataclasses.fields(self)})
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -171,6 +182,7 @@ class DataVessel:
         self.kind = kind
         self.contents = contents
         self.options = _options_class(kind, contents["options"])
+        self.options._datafile = (kind, contents)
         self.__doc__ = contents["description"] or f"vessel data file {kind}"
         self.__qualname__ = f"DataVessel({os.path.basename(kind)})"
 
@@ -195,9 +207,25 @@ def register_file(path, kind: str | None = None, replace: bool = False) -> str:
         return kind  # read once per process (edit a file, then start again or pass replace=True)
     if not os.path.isfile(path):
         raise ScenarioError(f"vessel.kind: no vessel data file {str(path)!r}")
-    factory = DataVessel(kind, read_file(path))
-    VESSELS._decorator(kind, factory.options, {"doc": factory.__doc__}, _source(kind), True)(factory)
+    _register(kind, read_file(path))
     return kind
+
+
+def _register(kind: str, contents: dict) -> DataVessel:
+    factory = DataVessel(kind, contents)
+    VESSELS._decorator(kind, factory.options, {"doc": factory.__doc__}, _source(kind), True)(factory)
+    return factory
+
+
+def _data_options(kind: str, contents: dict, values: dict):
+    """An unpickled data-file options instance (:meth:`_DataOptions.__reduce__`): the kind registered
+    in this process from the contents that came with it (the same contents already registered: kept),
+    so that a worker needs neither the file nor the process that read it."""
+    entry = VESSELS._entries.get(kind)
+    factory = entry.obj if entry is not None else None
+    if not isinstance(factory, DataVessel) or factory.contents != contents:
+        factory = _register(kind, contents)
+    return factory.options(**values)
 
 
 def _source(kind: str) -> str:

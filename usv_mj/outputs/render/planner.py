@@ -37,6 +37,8 @@ GHOST_RGBA = (0.35, 0.95, 1.0, 0.38)
 FUNNEL_OK_RGBA = (0.25, 0.95, 0.45, 0.95)
 FUNNEL_BAD_RGBA = (1.0, 0.25, 0.2, 0.95)
 FUNNEL_FILL_ALPHA = 0.12
+#: an obstacle's inflated safety boundary: magenta, apart from the path's yellow (they shared it: issue 34)
+SAFETY_LINE_RGBA = (1.0, 0.3, 0.85, 0.9)
 
 #: What can be drawn: 3-D layers, then the 2-D overlay ("hud" panel, "legend").
 LAYERS = ("trail", "path", "ghost", "funnel", "hud", "legend")
@@ -388,6 +390,8 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
         obstacle_table = np.array([(*o["center"], *o["velocity"], _bounding_radius(o))
                                    for o in json.loads(world.obstacles)], float).reshape(-1, 5)
 
+    # the legend names the safety boundary when one is drawn (an obstacle with an inflation > 0)
+    safety = world is not None and any(math.isfinite(v) and v > 0 for v in world.inflation or ())
     frames = []
     for j in range(len(rows)):
         k = j   # the frame's row in ``sub``
@@ -416,6 +420,8 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
             pts += _obstacles_near(obstacle_table, float(t[k]), float(x[k]), float(y[k]))
         view = top_view(np.array(pts, float), aspect, min_half)
         hud = {"t": float(t[k]), "t_end": t1, "speedup": played, "title": title, "camera": camera, "funnel": funnel,
+               "safety_boundary": safety,
+               "view_half_m": view.half_height if camera == "top" else None,
                "e": tuple(float(e[i][k]) for i in range(3)), "rho": tuple(float(rho[i][k]) for i in range(3)),
                "tau_u": float(tau["tau_u"][k]), "q_tau_u": float(tau["q_tau_u"][k]),
                "tau_r": float(tau["tau_r"][k]), "q_tau_r": float(tau["q_tau_r"][k]),

@@ -44,9 +44,7 @@ import numpy as np
 import mujoco
 
 from usv_mj.outputs.render.planner import (FUNNEL_BAD_RGBA, FUNNEL_FILL_ALPHA, FUNNEL_OK_RGBA, GHOST_RGBA, LAYERS, PATH_RGBA,
-                      TRAIL_RGBA, FrameSpec, TopView)
-
-SAFETY_LINE_RGBA = (1.0, 0.8, 0.1, 0.9)   # inflated safety boundary (as the Foxglove scene's)
+                      SAFETY_LINE_RGBA, TRAIL_RGBA, FrameSpec, TopView)
 from usv_mj.support.assets import models_dir
 
 REPO_MODELS = models_dir()
