@@ -148,3 +148,34 @@ def test_the_fleet_video_draws_every_vessel_where_the_record_has_it():
     patch = frame[max(0, py - 2):py + 3, max(0, px - 2):px + 3].reshape(-1, 3).astype(float)
     target = np.array(rgba[:3]) * 255
     assert np.min(np.linalg.norm(patch - target, axis=1)) < 90   # lit and shaded, the target's orange
+
+
+def test_plot_and_render_of_a_fleet_log_redraw_the_fleet(tmp_path, monkeypatch):
+    """``usv-mj plot`` and ``usv-mj render`` of a fleet's run.mcap read its companions back as the
+    fleet (usv_mj.outputs.log.fleet_log): the fleet's figures and report, and a video handed every
+    vessel, from the log alone: the positions equal the simulated record's."""
+    from usv_mj.cli.main import main
+    from usv_mj.jobs.fleet import run_fleet_job
+    from usv_mj.outputs.log import read_run
+    from usv_mj.outputs.log.fleet_log import fleet_of_log
+    from usv_mj.outputs.render import video
+
+    result = run_fleet_job(fleet("analytic", HEAD_ON, duration=5.0), tmp_path / "run", progress=False, video=False)
+    back = fleet_of_log(read_run(tmp_path / "run" / "run.mcap"))
+    assert back.names == ("own", "target") and back.own == "own"
+    for name in back.names:
+        assert np.array_equal(back[name]["x"], result.record[name]["x"])
+    assert main(["plot", str(tmp_path / "run"), "--out", str(tmp_path / "again")]) == 0
+    assert (tmp_path / "again" / "figures" / "fleet_tracks.png").is_file()
+    assert "own-target" in (tmp_path / "again" / "report.md").read_text()
+    seen = {}
+
+    def fake_render(record, out, **kw):
+        seen.update(kw, own=record.metadata.get("vessel_name"))
+        return {"mp4": out, "png": out, "frames": 1, "width": 2, "height": 2, "video_fps": 1.0, "speedup": 1.0,
+                "fps": 1.0, "wall_s": 0.0, "workers": 1, "gl": "none", "gl_renderer": ""}
+
+    monkeypatch.setattr(video, "render_run", fake_render)
+    assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "v.mp4"), "--quiet"]) == 0
+    assert seen["own"] == "own" and seen["fleet"].names == ("own", "target")
+    assert seen["domain"] == pytest.approx(3 * 1.98)   # the own ship's safety domain: 3 hull lengths
