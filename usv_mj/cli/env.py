@@ -36,7 +36,7 @@ def task_kind(value: str) -> str:
 
     if value not in TASKS.kinds() and ":" not in value:
         raise argparse.ArgumentTypeError(f"invalid choice: {value!r} (choose from "
-                                         f"{', '.join(map(repr, TASKS.kinds()))}, or 'package.module:factory')")
+                                         f"{', '.join(map(repr, TASKS.kinds()))}); or 'package.module:factory'")
     try:
         TASKS.get(value, "usv-mj env")
     except UnknownKindError as exc:
