@@ -8,8 +8,8 @@ the same contract the day it appears. The contracts:
   drive (the build refuses the others in one line); the compiled and the Python loop give the same
   record bit for bit; the declared criterion exists, is in the record and evaluates it; the
   ``diagnostic_fields`` are unique, not core columns and are the record's columns after the core;
-  the record's metadata declares its channels, and the actuators' columns are in their units
-  (within the actuators' limits, in the vessel's own channels);
+  the record's metadata declares its channels (the command's and the applied ones, the vessel's own,
+  each with its unit) and the actuators' columns are in those units (within the actuators' limits);
 - trajectories: the reference is the 7-vector layout at t = 0 and after (its velocities and yaw
   rate the time derivatives of its pose, by central differences), its kernel (if any) gives
   ``evaluate`` bit for bit, and both loops give the same record;
@@ -155,9 +155,18 @@ def test_controller_contract(controller, vessel, runs):
     assert isinstance(criterion.describe(), str) and criterion.describe()
     json.dumps(verdict, allow_nan=False)   # JSON-ready: no inf, no NaN
 
-    # the channels the record declares, and the actuators' columns in their units: within the
-    # actuators' limits, which are in the vessel's own channels (a force, or n_P and a rudder angle)
-    assert auto.metadata["channels"] == channels_of(sc, getattr(ctrl, "commands", "forces"))
+    # the channels the record declares: the command's (tau, Q(tau)) and the applied ones (f), the
+    # latter the vessel's own, each named with its unit, read back as they were written
+    from usv_mj.physics.channels import RunChannels
+
+    declared = auto.metadata["channels"]
+    assert declared == channels_of(sc, getattr(ctrl, "commands", "forces")).to_metadata()
+    read = RunChannels.from_metadata(declared)
+    assert [(c.symbol, c.unit) for c in read.applied] == [(c.symbol, c.unit) for c in sc.vessel.model.channels]
+    assert all(c.symbol and c.unit for c in (*read.command, *read.applied))
+    assert read.allocated == declared["allocated"]
+    # the actuators' columns in the applied channels' units: within the actuators' limits, which are
+    # given in the vessel's own channels (a force, or n_P and a rudder angle)
     u_lo, u_hi, r_lo, r_hi = sc.actuators.generalized_limits()
     tol = 1e-9
     assert np.all(np.isfinite(auto["f_u"])) and np.all(np.isfinite(auto["f_r"]))
