@@ -1,4 +1,5 @@
-"""Registries of the parts a scenario names by ``kind``: plants, controllers, trajectories, disturbances, vessels.
+"""Registries of the parts a scenario names by ``kind``: plants, controllers, trajectories, disturbances, vessels,
+manoeuvres; and of the environments' tasks (:data:`TASKS`, :class:`TaskRegistry`).
 
 As in dm_control's suite, a part registers itself where it is defined::
 
@@ -361,6 +362,69 @@ VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_
 #: disturbance's (the ``[manoeuvre]`` table's keys); the job that runs them is usv_mj.jobs.manoeuvres
 MANOEUVRES = Registry("manoeuvre", {k: "usv_mj.scenario.manoeuvre" for k in ("turning", "zigzag", "spiral", "stopping")},
                       "usv_mj.manoeuvres")
-#: every registry by its scenario section (``usv-mj kinds`` lists them)
+
+
+class TaskRegistry(Registry):
+    """The environments' tasks (:mod:`usv_mj.envs`), registered as dm_control's suite registers its
+    own: by a decorator on the task's factory, with its typed options and its tags::
+
+        @TASKS.register("my_task", options=MyOptions, tags=("waves",), scenario={"sea": {...}})
+        def my_task(options, scenario, *, random, environment_kwargs): ...   # -> the environment
+
+    ``options``: the dataclass of the task's keyword options of ``usv_mj.envs.load`` (its
+    ``duration`` [s] and ``preview_times`` [s] fields, when it has them, set the episode's length
+    and how far the scenario's reference reaches); ``tags``: words that say what the task holds
+    ("waves": the task's own sea; "obstacles": a harbour), read by :meth:`tagged`; ``scenario``:
+    the scenario tables the task sets, under the user's overrides. The factory's contract is in
+    :mod:`usv_mj.envs.suite`. The built-in tasks come first in :meth:`kinds`, in their declared
+    order; :meth:`on_register` calls a function with every entry registered from then on (the
+    Gymnasium ids of a task registered at runtime). It imports no dm_control: a built-in's module
+    is imported when its kind is looked up."""
+
+    def __init__(self, what: str, builtins: dict[str, str], group: str):
+        super().__init__(what, builtins, group)
+        self._listeners = []
+
+    def kinds(self) -> tuple[str, ...]:
+        """The built-in tasks in their declared order, then the others (registered, entry points) sorted."""
+        others = (set(self._entries) | set(self._eps())) - set(self._builtins)
+        return tuple(self._builtins) + tuple(sorted(others))
+
+    def tagged(self, *tags: str) -> tuple[str, ...]:
+        """The kinds (in :meth:`kinds` order) whose entry has every one of ``tags`` (loads the entries)."""
+        want = set(tags)
+        entries = {e.kind: e for e in self.entries()}
+        return tuple(k for k in self.kinds() if k in entries and want <= set(entries[k].tags))
+
+    def on_register(self, listener) -> None:
+        """Call ``listener(entry)`` after each registration from now on (not for the earlier ones)."""
+        if listener not in self._listeners:
+            self._listeners.append(listener)
+
+    def _decorator(self, kind, options, info, source, replace):
+        info = dict(info)
+        tags = info.get("tags", ())
+        if isinstance(tags, str) or not all(isinstance(t, str) and t for t in tags):
+            raise ValueError(f"{self.what} {kind!r}: tags must be a tuple of words, got {tags!r}")
+        info["tags"] = tuple(tags)
+        tables = info.get("scenario")
+        if tables is not None and not isinstance(tables, dict):
+            raise ValueError(f"{self.what} {kind!r}: scenario must be a dict of scenario tables, got {tables!r}")
+        info["scenario"] = dict(tables or {})
+        register = super()._decorator(kind, options, info, source, replace)
+
+        def deco(obj):
+            out = register(obj)
+            for listener in list(self._listeners):
+                listener(self._entries[kind])
+            return out
+
+        return deco
+
+
+#: the environments' tasks (usv_mj.envs.load, the Gymnasium ids, usv-mj env): :class:`TaskRegistry`
+TASKS = TaskRegistry("task", {k: "usv_mj.envs.suite" for k in ("track", "track_waves", "harbor", "harbor_waves")},
+                     "usv_mj.tasks")
+#: every registry by its scenario section (``usv-mj kinds`` lists them), and the environments' tasks
 REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES,
-              "vessel": VESSELS, "manoeuvre": MANOEUVRES}
+              "vessel": VESSELS, "manoeuvre": MANOEUVRES, "task": TASKS}
