@@ -135,6 +135,72 @@ def draw_worst(rows: list[dict], suite, path: Path) -> None:
     plt.close(fig)
 
 
+def closest_episodes(rows: list[dict]) -> dict:
+    """``{controller: row}``: each controller's encounter episode with the smallest closest approach
+    (``m.min_range_m``; the first of equals in run order)."""
+    out: dict = {}
+    for r in rows:
+        d = r.get(PREFIX + "min_range_m")
+        if d is None or r.get("vary.situation") is None:
+            continue
+        c = r["vary.controller"]
+        if c not in out or d < out[c][0]:
+            out[c] = (d, r)
+    return {c: r for c, (_, r) in out.items()}
+
+
+def draw_closest(rows: list[dict], suite, path: Path) -> None:
+    """Each controller's closest encounter (:func:`closest_episodes`), run again: every vessel's track
+    (the own ship's planned route dashed), the positions at the closest approach and the own ship's
+    safety domain there (usv_mj.record.encounters.SAFETY_DOMAIN_L own lengths)."""
+    from usv_mj.jobs.bench.metrics import own_ranges
+    from usv_mj.loop.simulate import simulate
+    from usv_mj.record.encounters import SAFETY_DOMAIN_L, lengths_of
+
+    plt = _plt()
+    from matplotlib.patches import Circle
+
+    closest = closest_episodes(rows)
+    ctrls = [c.name for c in suite.controllers if c.name in closest]
+    if not ctrls:
+        return
+    by_id = {r.run_id: r for r in suite.plan.runs}
+    fig, axes = plt.subplots(1, len(ctrls), figsize=(4.4 * len(ctrls), 4.6), squeeze=False)
+    for ax, c in zip(axes[0], ctrls):
+        row = closest[c]
+        try:
+            fleet = simulate(by_id[row["run_id"]].scenario)
+        except Exception as exc:  # drawn as a note: the leaderboard stands without the figure
+            ax.text(0.5, 0.5, f"could not run it again:\n{type(exc).__name__}: {exc}", ha="center", va="center",
+                    fontsize=7, transform=ax.transAxes, wrap=True)
+            continue
+        _, ranges = own_ranges(fleet)
+        k = int(np.unravel_index(np.argmin(ranges), ranges.shape)[0])
+        own = fleet.own_record
+        ax.plot(own["x_d"], own["y_d"], "k--", lw=0.8, label="own route")
+        for name in fleet.names:
+            r = fleet.records[name]
+            line, = ax.plot(r["x"], r["y"], lw=1.4 if name == fleet.own else 1.0, label=name)
+            ax.plot(r["x"][:1], r["y"][:1], "o", ms=3, color=line.get_color())
+            ax.plot(r["x"][k], r["y"][k], "s", ms=4, color=line.get_color())
+        radius = SAFETY_DOMAIN_L * lengths_of(fleet)[fleet.own]
+        ax.add_patch(Circle((own["x"][k], own["y"][k]), radius, fill=False, ls=":", color="m",
+                            label=f"safety domain {SAFETY_DOMAIN_L:g} L"))
+        ax.set_aspect("equal", adjustable="datalim")
+        vessel = f" / {row['vary.vessel']}" if row.get("vary.vessel") else ""
+        what = "collision" if row.get(PREFIX + "collision") else (
+            "in the domain" if row.get(PREFIX + "domain_kept") is False else "domain kept")
+        ax.set_title(f"{c}: Imazu {row['vary.situation']} ({row['vary.task']} / {row['vary.condition']}{vessel})\n"
+                     f"closest {row[PREFIX + 'min_range_m']:.2f} m at t = {own['t'][k]:.0f} s, {what}", fontsize=8)
+        ax.set_xlabel("x [m] (east)", fontsize=8)
+        ax.set_ylabel("y [m] (north)", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def _draw_obstacle(ax, ob: dict) -> None:
     from matplotlib.patches import Circle, Rectangle
 

@@ -28,6 +28,11 @@ input is never applied).
   :class:`usv_mj.obstacles.sink.ObstacleLog`); None / 0 in open water.
 - Goal (a task with a goal, e.g. a transit's last waypoint): ``goal_reached`` when the hull origin
   comes within ``goal_radius_m`` of it; ``time_to_goal_s`` the first such t_k (None when not reached).
+- Encounters (a task of several vessels, the Imazu situations: :func:`encounter_metrics`, on the
+  :class:`usv_mj.record.fleet.FleetRecord` and the own ship's run alone on its route, the
+  "no-traffic run"): ``collision``, ``min_range_m``, ``domain_kept``, the COLREGs scores
+  ``S_safety``, ``S13`` .. ``S17`` (the smallest over the targets), ``path_deviation_m``,
+  ``time_loss_s``, and the own ship's inputs as above (its effort in its own channels).
 
 Intervals over episodes: :func:`bootstrap_ci` (percentile bootstrap of the mean, a fixed seed) for
 continuous metrics and :func:`wilson_ci` for rates (:data:`RATES`).
@@ -80,6 +85,22 @@ METRICS = (
     MetricSpec("goal_reached", "goal reached", "", "higher", rate=True),
     MetricSpec("time_to_goal_s", "time to goal", "s", "lower"),
 )
+ENCOUNTER_METRICS = (
+    MetricSpec("collision", "collision", "", "lower", rate=True),
+    MetricSpec("min_range_m", "min range", "m", "higher"),
+    MetricSpec("domain_kept", "safety domain kept", "", "higher", rate=True),
+    MetricSpec("S_safety", "S_safety", "", "higher"),
+    MetricSpec("S13", "S13 overtaking", "", "higher"),
+    MetricSpec("S14", "S14 head-on", "", "higher"),
+    MetricSpec("S15", "S15 crossing", "", "higher"),
+    MetricSpec("S16", "S16 give-way", "", "higher"),
+    MetricSpec("S17", "S17 stand-on", "", "higher"),
+    MetricSpec("path_deviation_m", "path deviation", "m", "lower"),
+    MetricSpec("time_loss_s", "time loss", "s", "lower"),
+)
+"""The metrics of an encounter task (:func:`encounter_metrics`): the same formulas for every
+controller, the controller's own criterion not among them."""
+METRICS = METRICS + ENCOUNTER_METRICS
 BY_COLUMN = {m.column: m for m in METRICS}
 RATES = tuple(m.column for m in METRICS if m.rate)
 
@@ -162,6 +183,90 @@ def goal_metrics(record, goal, radius_m: float) -> dict:
     if not inside.any():
         return {"goal_reached": False, "time_to_goal_s": None}
     return {"goal_reached": True, "time_to_goal_s": float(t[int(np.argmax(inside))] - t[0])}
+
+
+# --- encounters: the own ship among other vessels (the Imazu tasks) ----------------------------------
+
+#: the scores of usv_mj.record.colregs_scores an encounter episode reports (the smallest over the targets)
+SCORES = ("S_safety", "S13", "S14", "S15", "S16", "S17")
+
+
+def own_ranges(fleet) -> tuple[list, np.ndarray]:
+    """(the other vessels' indices j, (rows, j) centre-to-centre ranges [m] from the own ship)."""
+    xy = fleet.states()[:fleet.n_rows, :, :2]
+    own = fleet.names.index(fleet.own)
+    others = [j for j in range(len(fleet.names)) if j != own]
+    return others, np.hypot(*(xy[:, others, :] - xy[:, own:own + 1, :]).transpose(2, 0, 1))
+
+
+def collided(fleet) -> bool:
+    """The own ship touched another hull: on MuJoCo a contact force above
+    :data:`usv_mj.loop.fleet.CONTACT_EVENT_N` between their hulls at some row; on the analytic plant
+    (no contact model, the hulls pass through each other) a centre range below (L_own + L_j) / 2 at
+    some row, L the hull lengths."""
+    from usv_mj.loop.fleet import CONTACT_EVENT_N
+    from usv_mj.record.encounters import lengths_of
+
+    own = fleet.names.index(fleet.own)
+    if fleet.metadata.get("plant") == "mujoco":
+        pairs = [p for p, (i, j) in enumerate(fleet.pairs) if own in (i, j)]
+        return bool((fleet.contact_rows()[:, pairs] > CONTACT_EVENT_N).any())
+    lengths = lengths_of(fleet)
+    others, ranges = own_ranges(fleet)
+    touch = np.array([(lengths[fleet.own] + lengths[fleet.names[j]]) / 2.0 for j in others])
+    return bool((ranges < touch).any())
+
+
+def encounter_metrics(fleet, alone=None, situations: dict | None = None) -> dict:
+    """The metrics of an encounter episode (Imazu 1987; the scores of Woerner et al. 2019 as Hagen
+    et al. 2023 write them, :mod:`usv_mj.record.colregs_scores`), from the fleet's record ``fleet``
+    and ``alone``, the own ship's record of its run with no other vessel (the same scenario, route,
+    controller and sea: the "no-traffic run"; None: no time loss):
+
+    - ``collision``: :func:`collided`;
+    - ``min_range_m``: the smallest centre-to-centre range from the own ship to any other vessel [m];
+    - ``domain_kept``: ``min_range_m`` >= the own ship's safety domain, SAFETY_DOMAIN_L L_own
+      (:data:`usv_mj.record.encounters.SAFETY_DOMAIN_L`, 3 own lengths);
+    - ``S_safety``, ``S13`` .. ``S17``: :func:`usv_mj.record.colregs_scores.score_encounters` of the
+      own ship against every other vessel with the scenario's ``situations`` ({vessel index:
+      situation}, e.g. an Imazu case's), the smallest over the targets (None where none applies);
+    - ``path_deviation_m``: max |e_ct| over the episode, the own ship's cross-track error from its
+      planned route (its reference, :func:`errors`; for a straight route the distance from the line) [m];
+    - ``time_loss_s``: (s_alone - s) / U at the episode's last row, s the own ship's along-track
+      position on its route (the along-track error from the reference point, which both runs share)
+      and U the route's speed there: the time at the planned speed the avoidance cost, against the
+      same controller with no traffic (so the controller's own lag in a sea is not counted) [s];
+      None when the runs did not end at the same row;
+    - the own ship's inputs (:func:`input_metrics`): its effort in its own channels (the record's
+      applied f_u, f_r).
+
+    JSON-ready (None, no NaN)."""
+    from usv_mj.record.colregs_scores import score_encounters
+    from usv_mj.record.criteria import PathTolerance
+    from usv_mj.record.encounters import SAFETY_DOMAIN_L, lengths_of
+
+    own = fleet.own_record
+    n = fleet.n_rows
+    lengths = lengths_of(fleet)
+    out: dict = {"collision": collided(fleet)}
+    _, ranges = own_ranges(fleet)
+    out["min_range_m"] = _finite(ranges.min()) if ranges.size else None
+    out["domain_kept"] = None if out["min_range_m"] is None else \
+        bool(out["min_range_m"] >= SAFETY_DOMAIN_L * lengths[fleet.own])
+    t = np.asarray(own["t"])[:n]
+    scores = score_encounters(t, fleet.states()[:n], [lengths[name] for name in fleet.names],
+                              own=fleet.names.index(fleet.own), situations=situations).minimum
+    out.update({k: (None if scores.get(k) is None else _finite(scores[k])) for k in SCORES})
+    path = PathTolerance().errors(own)
+    out["path_deviation_m"] = _finite(np.max(np.abs(path["cross"]))) if n else None
+    out["time_loss_s"] = None
+    if alone is not None and n and alone.n_rows == n and alone.value("t", -1) == own.value("t", -1):
+        speed = math.hypot(own.value("x_d_dot", -1), own.value("y_d_dot", -1))
+        if speed > 0:
+            along_alone = PathTolerance().errors(alone)["along"][-1]
+            out["time_loss_s"] = _finite((along_alone - path["along"][-1]) / speed)
+    out.update(input_metrics(own))
+    return out
 
 
 @dataclass(frozen=True)

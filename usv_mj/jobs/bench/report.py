@@ -25,15 +25,23 @@ import numpy as np
 from usv_mj.jobs.bench.episode import PREFIX
 from usv_mj.jobs.bench.metrics import BY_COLUMN, METRICS, estimate
 
+ENCOUNTER = ("collision", "domain_kept", "min_range_m", "S_safety", "S13", "S14", "S15", "S16", "S17",
+             "path_deviation_m", "time_loss_s")
+"""An encounter task's metrics (usv_mj.jobs.bench.metrics.ENCOUNTER_METRICS), all ranked: the same
+formulas for every controller (an encounter episode measures no ``passed``: the controllers' own
+criteria differ, a path tolerance for ``los``, the clearance for ``sbmpc``)."""
 RANKED = ("iae_cross_track", "iae_heading", "max_cross_track_after_settle", "settling_time_cross_track",
-          "energy", "switches_per_s_u", "passed", "min_clearance_m", "contact", "goal_reached", "time_to_goal_s")
-"""The metrics of the summary ranking and the heat map (one of each kind of quality)."""
-TABLE = ("iae_cross_track", "ise_cross_track", "iae_heading", "max_cross_track_after_settle",
+          "energy", "switches_per_s_u", "passed", "min_clearance_m", "contact", "goal_reached",
+          "time_to_goal_s") + ENCOUNTER
+"""The metrics of the summary ranking and the heat map (one of each kind of quality; a table ranks
+the ones its episodes measured)."""
+TABLE = ENCOUNTER + ("iae_cross_track", "ise_cross_track", "iae_heading", "max_cross_track_after_settle",
          "max_heading_after_settle", "settling_time_cross_track", "effort_u", "effort_r", "energy",
          "switches_per_s_u", "switches_per_s_r", "total_variation_u", "saturation_fraction", "passed",
          "min_clearance_m", "contact", "goal_reached", "time_to_goal_s")
 """The columns of a task's table (those the task measured); every metric is in leaderboard.json."""
 BARS = ("iae_cross_track", "iae_heading", "energy", "passed")
+ENCOUNTER_BARS = ("collision", "min_range_m", "path_deviation_m", "energy")
 
 
 def group_key(row: dict) -> tuple:
@@ -204,9 +212,48 @@ def glance_table(agg: dict, scores: dict, controllers: list, vessels: bool) -> l
             score = f"{scores[key][c]:.2f}" if math.isfinite(scores[key].get(c, math.nan)) else "-"
             if top is not None and c in sc and sc[c] == top:
                 score = f"**{score}**"
+            if v["collision"].n:   # an encounter: the closest approach and the collisions
+                row.append(f"{score} ({_fmt(v['min_range_m'].mean)} m, {100 * v['collision'].mean:.0f} %)")
+                continue
             passed = "-" if not v["passed"].n else f"{100 * v['passed'].mean:.0f} %"
             row.append(f"{score} (IAE {_fmt(v['iae_cross_track'].mean)}, {passed})")
         lines.append("| " + " | ".join(row) + " |")
+    return lines
+
+
+def situations_table(rows: list[dict], controllers: list, vessels: bool) -> list[str]:
+    """The encounter episodes one by one (an Imazu task's, ``vary.situation``): per condition (and
+    vessel), the situations as rows and the controllers as columns, each cell the closest approach
+    [m] and what it was ("collision", "in the domain": inside the own ship's safety domain), the
+    smallest COLREGs score S_safety after it (markdown); [] without encounter episodes."""
+    enc = [r for r in rows if r.get("vary.situation") is not None]
+    if not enc:
+        return []
+    ctrls = [c for c in controllers if any(r["vary.controller"] == c for r in enc)]
+    groups: dict = {}
+    for r in enc:
+        groups.setdefault((r["vary.condition"], r.get("vary.vessel") or "default"), {}) \
+            .setdefault((r["vary.task"], int(r["vary.situation"])), {})[r["vary.controller"]] = r
+    lines = []
+    for (cond, vessel), by_case in groups.items():
+        lines += [f"### {cond}" + (f" / {vessel}" if vessels else ""), "",
+                  "| situation | task | " + " | ".join(f"`{c}`" for c in ctrls) + " |",
+                  "| --- | --- |" + " --- |" * len(ctrls)]
+        for (task, case), by_ctrl in sorted(by_case.items(), key=lambda kv: kv[0][1]):
+            cells = []
+            for c in ctrls:
+                r = by_ctrl.get(c)
+                if r is None or r["status"] != "ok" or r.get(PREFIX + "min_range_m") is None:
+                    cells.append("-" if r is None else r["status"])
+                    continue
+                what = "collision" if r.get(PREFIX + "collision") else (
+                    "in the domain" if r.get(PREFIX + "domain_kept") is False else "")
+                safety = r.get(PREFIX + "S_safety")
+                text = f"{_fmt(r[PREFIX + 'min_range_m'])} m" + (f", {what}" if what else "") \
+                    + ("" if safety is None else f", S_safety {safety:.2f}")
+                cells.append(f"**{text}**" if what else text)
+            lines.append(f"| {case} | {task} | " + " | ".join(cells) + " |")
+        lines.append("")
     return lines
 
 
@@ -229,14 +276,18 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
              f"(diverged or failed). Each cell: the mean over the episodes, [its 95 % interval] (percentile "
              f"bootstrap; Wilson for the rates); the best of each column in bold; ↓ lower is better, ↑ higher. "
              f"Metrics: docs/metrics.md.", "", "## Summary ranking", "",
-             f"Mean rank of each controller over every table and the ranked metrics ({', '.join(RANKED)}); "
+             f"Mean rank of each controller over every table and the ranked metrics its episodes measured "
+             f"({', '.join(c for c in RANKED if any(v[c].n for cells in agg.values() for v in cells.values()))}); "
              f"wins: the (table, metric) pairs it is best in.", ""]
     lines += printed_leaderboard(agg, controllers, vessels)
     if getattr(suite, "skipped", None):
         lines += ["", "Not scored: " + "; ".join(f"`{c}` on `{t}` ({why})" for t, c, why in suite.skipped) + "."]
+    encounters = any(r.get("vary.situation") is not None for r in rows)
     lines += ["", "### At a glance", "", "Each cell: the normalised score of the heat map (1 = the best of the "
               "table on every ranked metric, 0 = the worst; the best in bold), (the mean IAE of the cross-track "
-              "error [m s], the share of episodes that passed the controller's own criterion).", ""]
+              "error [m s], the share of episodes that passed the controller's own criterion)"
+              + ("; for an encounter task (the mean closest approach [m], the share of episodes with a collision)"
+                 if encounters else "") + ".", ""]
     lines += glance_table(agg, scores, controllers, vessels)
     lines += ["", "![normalised scores](figures/heatmap.png)", ""]
     tasks_seen = []
@@ -245,7 +296,17 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
             tasks_seen.append(key[0])
             lines += [f"## Task `{key[0]}`", "", f"![bars](figures/bars-{key[0]}.png)", ""]
         lines += [f"### {table_name(key, vessels)}", ""] + task_table(cells, controllers) + [""]
-    if draw:
+    if encounters:
+        lines += ["## Situations", "", "Every encounter episode: the closest approach of the own ship to any other "
+                  "vessel, centre to centre; **collision** (the hulls touched: MuJoCo's contact, or on the analytic "
+                  "plant a range below half the two lengths) or **in the domain** (inside the own ship's safety "
+                  "domain of 3 own lengths); the smallest COLREGs safety score S_safety over the targets "
+                  "(docs/metrics.md, Encounters).", ""] + situations_table(rows, controllers, vessels)
+    if draw and encounters:
+        lines += ["## Closest encounters", "", "Each controller's episode with the smallest closest approach, run "
+                  "again: every vessel's track, the own ship's safety domain at the closest approach.", "",
+                  "![closest encounters](figures/closest-encounters.png)", ""]
+    if draw and any(r.get(PREFIX + "iae_cross_track") is not None for r in rows):
         lines += ["## Worst episodes", "", "Each controller's episode with the largest mean cross-track error "
                   "(IAE / duration), run again and drawn against its reference.", "",
                   "![worst episodes](figures/worst-episodes.png)", ""]
@@ -266,13 +327,16 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
                     "normalised_score": {c: _j(s) for c, s in scores[k].items()}} for k, cells in agg.items()],
     }, indent=1))
     if draw:
-        from usv_mj.jobs.bench.figures import draw_bars, draw_heatmap, draw_worst
+        from usv_mj.jobs.bench.figures import draw_bars, draw_closest, draw_heatmap, draw_worst
 
         draw_heatmap(scores, controllers, vessels, figures / "heatmap.png")
         for task in tasks_seen:
-            draw_bars({k: v for k, v in agg.items() if k[0] == task}, controllers, BARS, vessels,
-                      figures / f"bars-{task}.png", task)
+            cells = {k: v for k, v in agg.items() if k[0] == task}
+            bars = ENCOUNTER_BARS if any(c["collision"].n for v in cells.values() for c in v.values()) else BARS
+            draw_bars(cells, controllers, bars, vessels, figures / f"bars-{task}.png", task)
         draw_worst(rows, suite, figures / "worst-episodes.png")
+        if encounters:
+            draw_closest(rows, suite, figures / "closest-encounters.png")
     return out / "report.md"
 
 

@@ -29,6 +29,13 @@ A suite is TOML (the default: ``usv_mj/jobs/bench/suites/default.toml``)::
     vary = { "initial.eta[0]" = { uniform = [-2.0, 2.0] } } # the sweep's distributions (usv_mj.jobs.sweep.spec)
     settle_time_s = 20.0      # the metrics' options (docs/metrics.md); goal = [x, y] or "last_waypoint"
 
+    [[tasks]]
+    name = "two-targets"      # an encounter task: its episodes are Imazu situations (usv_mj.jobs.bench.imazu)
+    imazu = [5, 6, 7]         # or a table: cases, k_R, froude, duration_T, variant
+
+A suite shipped in the package is named without a path: ``default`` (``suites/default.toml``) and
+``imazu`` (``suites/imazu.toml``: the 22 Imazu situations, docs/encounters.md).
+
 Each episode is a :class:`usv_mj.jobs.sweep.spec.RunSpec` whose ``values`` (the ``vary.*`` columns of
 the results) are ``task``, ``condition``, ``vessel``, ``controller``, ``episode`` and the drawn
 values; its ``options`` carry the metrics' options and, for a policy, the episode function and its
@@ -56,6 +63,7 @@ from pathlib import Path
 import numpy as np
 
 from usv_mj.core.errors import SweepError
+from usv_mj.jobs.bench.imazu import FLEET_EPISODE, fleet_scenario, imazu_options
 from usv_mj.jobs.bench.metrics import MetricOptions
 from usv_mj.scenario.spec import ScenarioError, from_dict, load_scenario
 from usv_mj.jobs.sweep.spec import RunSpec, SweepPlan, apply_values, check_references, draw_values, load_base, parse_axis
@@ -64,7 +72,7 @@ from usv_mj.support.toml_values import read_toml
 SUITE_KEYS = ("name", "episodes", "seed", "duration", "plant", "controllers", "vessels", "conditions", "tasks",
               "transient")
 TASK_KEYS = ("name", "base", "duration", "set", "vary", "settle_time_s", "band_cross_track_m", "band_heading_deg",
-             "goal", "goal_radius_m", "episodes")
+             "goal", "goal_radius_m", "episodes", "imazu")
 CONDITION_KEYS = ("set", "actuators", "sea")
 CONTROLLER_KEYS = ("name", "kind", "set", "policy", "control_period", "criterion")
 POLICY_KEYS = ("control_period", "criterion")
@@ -74,7 +82,29 @@ POLICY_EPISODE = "usv_mj.jobs.bench.policy:policy_episode"
 
 def default_suite_path() -> Path:
     """The suite shipped in the package (``usv_mj/jobs/bench/suites/default.toml``)."""
-    return Path(str(resources.files("usv_mj.jobs.bench") / "suites" / "default.toml"))
+    return shipped_suite_path("default")
+
+
+def shipped_suite_path(name: str) -> Path:
+    """The suite ``name`` shipped in the package: ``usv_mj/jobs/bench/suites/<name>.toml``."""
+    return Path(str(resources.files("usv_mj.jobs.bench") / "suites" / f"{name}.toml"))
+
+
+def shipped_suites() -> list[str]:
+    """The names of the suites shipped in the package (``default``, ``imazu``)."""
+    return sorted(p.stem for p in Path(str(resources.files("usv_mj.jobs.bench") / "suites")).glob("*.toml"))
+
+
+def suite_path(spec: str | Path | None) -> Path:
+    """The file of a suite given as a path, or as the bare name of a shipped suite (``imazu``): a file
+    of that name in the working folder wins; None is ``default``."""
+    if spec is None:
+        return default_suite_path()
+    path = Path(spec)
+    if not path.is_file() and isinstance(spec, str) and path.name == spec and path.suffix != ".toml" \
+            and spec in shipped_suites():
+        return shipped_suite_path(spec)
+    return path
 
 
 @dataclass(frozen=True)
@@ -219,10 +249,12 @@ def _positive(source, where, v, default, *, integer=False):
 
 
 def load_suite(path: str | Path | None = None) -> Suite:
-    """Read, sample and validate a suite file (default: the shipped one); see the module docstring."""
-    path = Path(path) if path is not None else default_suite_path()
+    """Read, sample and validate a suite file, or a shipped suite by name (default: "default"); see the
+    module docstring."""
+    path = suite_path(path)
     if not path.is_file():
-        raise SweepError(f"suite file {str(path)!r} does not exist")
+        raise SweepError(f"suite file {str(path)!r} does not exist (the suites shipped in the package, by name: "
+                         f"{', '.join(shipped_suites())})")
     return plan_suite(read_toml(path, SweepError, "suite file"), str(path), path.parent)
 
 
@@ -262,7 +294,11 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
         if not isinstance(sets, dict):
             raise SweepError(f"{source}: {where}: set must be a table of path = value, got {sets!r}")
         base = apply_values(base, {**fixed, **sets}, f"{source} {where}")
-        n_ep = _positive(source, f"{where}: episodes", task.get("episodes"), episodes, integer=True)
+        imazu = imazu_options(task["imazu"], f"{source}: {where}") if "imazu" in task else None
+        if imazu is not None and "episodes" in task:
+            raise SweepError(f"{source}: {where}: an imazu task's episodes are its cases (imazu.cases): remove episodes")
+        n_ep = len(imazu.cases) if imazu is not None else \
+            _positive(source, f"{where}: episodes", task.get("episodes"), episodes, integer=True)
         per_task[name] = n_ep
         vary = task.get("vary", {})
         if not isinstance(vary, dict):
@@ -284,12 +320,14 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
         for ctrl in controllers:
             if ctrl.policy and base.obstacles:
                 skipped.append((name, ctrl.name, "a policy's Track observation has no view of the obstacles"))
+            elif ctrl.policy and imazu is not None:
+                skipped.append((name, ctrl.name, "a policy's Track observation has no view of the other vessels"))
         for cname, ctable in conditions.items():
             cond = _condition(source, cname, ctable or {}, base)
             for vessel in vessels:
                 ves = apply_values(cond, {"vessel.kind": vessel}, f"{source} vessel {vessel!r}") if vessel else cond
                 for ctrl in controllers:
-                    if ctrl.policy and base.obstacles:
+                    if ctrl.policy and (base.obstacles or imazu is not None):
                         continue
                     scen = _policy_scenario(source, ctrl, ves) if ctrl.policy else _controller(source, ctrl, ves)
                     for ep in range(n_ep):
@@ -298,6 +336,12 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
                         run_values = {"task": name, "condition": cname, "vessel": vessel or "default",
                                       "controller": ctrl.name, "episode": ep, **values}
                         options = {"row_hook": ROW_HOOK, "metrics": metric_opts}
+                        if imazu is not None:   # the own ship among the targets of Imazu case c
+                            c = imazu.cases[ep]
+                            scenario, sit = fleet_scenario(scenario, c, imazu, f"{source} {where} episode {ep}")
+                            run_values = {**run_values, "situation": c}
+                            options.update({"episode_fn": FLEET_EPISODE,
+                                            "encounter": {"situations": {str(j): s for j, s in sit.situations.items()}}})
                         if ctrl.policy:
                             options.update({"episode_fn": POLICY_EPISODE, "policy": _policy_path(ctrl.policy, directory),
                                             "criterion": _policy_criterion(ctrl, options["metrics"])})
@@ -351,4 +395,5 @@ def describe(suite: Suite) -> str:
             + "".join(f"; {c} not on {t} ({why})" for t, c, why in suite.skipped))
 
 
-__all__ = ["Suite", "ControllerEntry", "load_suite", "plan_suite", "default_suite_path", "describe"]
+__all__ = ["Suite", "ControllerEntry", "load_suite", "plan_suite", "default_suite_path", "shipped_suite_path",
+           "shipped_suites", "suite_path", "describe"]
