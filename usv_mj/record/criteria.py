@@ -13,7 +13,7 @@ It imports nothing of the package at import time but the errors (the pose errors
 
 Contract (each criterion):
 
-- ``kind``: a short identifier ("funnel", "pose_tolerance", "path_tolerance", "not_judged");
+- ``kind``: a short identifier ("funnel", "pose_tolerance", "path_tolerance", "clearance", "not_judged");
 - ``noun``: what holds or is lost, in the outputs' sentences ("the funnel", "the pose tolerance");
 - ``describe() -> str``: one line in plain words, for the report and the console;
 - ``to_dict() -> dict`` and :func:`criterion_from_dict` (its inverse);
@@ -220,6 +220,51 @@ class PathTolerance:
 
 
 @dataclass(frozen=True)
+class Clearance:
+    """Kept when, at every control step with another vessel in sight (a finite ``column``), the
+    nearest other vessel is at least ``min_range_m`` away, centre to centre: the criterion of a
+    collision-avoidance law (``sbmpc``: the own ship's safety domain,
+    :data:`usv_mj.record.encounters.SAFETY_DOMAIN_L` own lengths). The range is the controller's
+    own diagnostic (``nearest_range`` [m], NaN while no other vessel is there), so a record or a
+    log judges it alone; a run without other vessels has no judged step (``passed`` None)."""
+
+    min_range_m: float = 0.0          # m: the nearest vessel's centre distance must stay at least this
+    column: str = "nearest_range"     # the record's column of that distance [m] (NaN: no vessel)
+
+    kind = "clearance"
+    noun = "the clearance"
+
+    def __post_init__(self):
+        v = self.min_range_m
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and v == v and 0 <= v < float("inf")):
+            raise ScenarioError(f"criterion {self.kind}: min_range_m = {v!r} must be a finite number >= 0")
+        if not (isinstance(self.column, str) and self.column):
+            raise ScenarioError(f"criterion {self.kind}: column must be a column name, got {self.column!r}")
+
+    def describe(self) -> str:
+        return f"the nearest other vessel stays at least {self.min_range_m:g} m away (centre to centre)"
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, **asdict(self)}
+
+    @property
+    def columns(self):
+        return ("t", self.column)
+
+    def evaluate(self, record) -> dict:
+        if self.column not in record:
+            raise ScenarioError(f"criterion {self.kind}: the record has no column {self.column!r} (controller "
+                                f"{record.metadata.get('controller', '?')!r} declares none)")
+        return _evaluate(self, record)
+
+    def judge(self, c):
+        r = np.asarray(c[self.column], dtype=float)
+        judged = ~np.isnan(r)
+        broken = ~(r >= self.min_range_m)
+        return broken, judged, {"max_intrusion_m": np.where(judged, np.maximum(self.min_range_m - r, 0.0), 0.0)}
+
+
+@dataclass(frozen=True)
 class NotJudged:
     """An open-loop input or a manoeuvre: the run has no success criterion (``passed`` is None)."""
 
@@ -239,7 +284,7 @@ class NotJudged:
                 "violations": None, "first_violation_s": None, "judged_steps": 0, "params": _params(self)}
 
 
-CRITERIA = {c.kind: c for c in (FunnelCriterion, PoseTolerance, PathTolerance, NotJudged)}
+CRITERIA = {c.kind: c for c in (FunnelCriterion, PoseTolerance, PathTolerance, Clearance, NotJudged)}
 
 
 def criterion_from_dict(d: dict):
