@@ -500,23 +500,21 @@ def virtual_reference(state, ref, line, factor: float, g: np.ndarray) -> tuple[n
     return out, pi_p, x_e, y_e
 
 
-@CONTROLLERS.register("sbmpc", gains=SBMPCGains)
-class SBMPCController:
-    """Scenario-based MPC collision avoidance over the LOS path follower (module docstring)."""
+class AvoidanceOverLOS:
+    """What an avoidance law over the LOS path follower shares (``sbmpc`` here, ``vo`` in
+    controllers/vo.py): the traffic (usv_mj/loop/fleet.py's contract) with the COLREGs lock per
+    vessel and the nearest vessel's range/DCPA/TCPA, a re-plan every ``gains.replan_period_s``, the
+    stand-on duty (module docstring), the chosen behaviour commanded to LOS through the virtual
+    reference, the diagnostics and the criterion. A law defines ``name``, ``from_scenario``,
+    ``_choose`` and its own ``kernel`` (``return self._kernel()``: usv_mj.core.kernels runs a kernel
+    only for the class that defines it). Its gains extend LOSGains with ``replan_period_s``,
+    ``d_relevant_L``, ``stand_on`` and ``stand_on_range_L``."""
 
-    name = "sbmpc"
     diagnostic_fields = DIAGNOSTIC_FIELDS
 
-    @classmethod
-    def from_scenario(cls, gains: SBMPCGains, scenario) -> "SBMPCController":
-        """The controller for ``scenario``: its path follower as ``kind = "los"`` builds it (the
-        vessel's nominal ship, its control period) and the hull's length L."""
-        follower = LOSController.from_scenario(gains.los_gains(), scenario)
-        return cls(gains, follower, float(scenario.vessel.model.dimensions.L))
-
-    def __init__(self, gains: SBMPCGains, follower: LOSController, length: float):
+    def __init__(self, gains, follower: LOSController, length: float):
         if not (math.isfinite(length) and length > 0):
-            raise ScenarioError(f"controller sbmpc: the hull's length must be > 0 m, got {length!r}")
+            raise ScenarioError(f"controller {self.name}: the hull's length must be > 0 m, got {length!r}")
         self.gains = gains
         self.follower = follower
         self.length = float(length)
@@ -524,10 +522,6 @@ class SBMPCController:
         #: judged by keeping clear: the nearest vessel outside the safety domain (SAFETY_DOMAIN_L L)
         self.criterion = Clearance(min_range_m=SAFETY_DOMAIN_L * self.length)
         self._g = gains.as_array()
-        self._k = gains.packed()
-        self._offsets = gains.offsets()
-        self._factors = gains.factors()
-        self._costs = np.zeros((self._offsets.size, self._factors.size))
         self._cp = ColregsParams().as_array()
         self._replan_every = max(1, int(round(gains.replan_period_s / self.dt)))
         self._diag = np.zeros(len(DIAGNOSTIC_FIELDS))
@@ -547,7 +541,7 @@ class SBMPCController:
         self._calls = 0
         self._plan_now = False
 
-    def kernel(self):
+    def _kernel(self):
         """The path follower's kernel on this controller's diagnostics vector (a single run has no
         traffic: the law is LOS's, and the avoidance's fields keep their reset values)."""
         k = self.follower.kernel()
@@ -591,16 +585,13 @@ class SBMPCController:
         return {j: names[ROLE_OF[c]] for j, c in enumerate(self._situation) if c != NONE and ROLE_OF[c] in names}
 
     def _plan(self, state, reference) -> None:
-        """Choose the behaviour (module docstring) from the traffic of this control period."""
+        """Choose the behaviour from the traffic of this control period: the vessels within
+        ``d_relevant_L`` (none: the nominal behaviour), the stand-on duty, then ``_choose``."""
         states, index, lengths = self._states, self._index, self._lengths
         length = float(lengths[index]) if lengths is not None else self.length
-        vx, vy = world_velocity(state[2], state[3], state[4])
-        u0 = math.hypot(vx, vy)
-        chi0 = math.atan2(vy, vx) if u0 > 1e-3 else float(state[2])
-        hax, hay = math.cos(chi0), math.sin(chi0)
         relevant = self.gains.d_relevant_L * length
         stand_range = self.gains.stand_on_range_L * length
-        rows, stand_on, near, give_way = [], False, False, False
+        rows, codes, stand_on, near, give_way = [], [], False, False, False
         for j in range(states.shape[0]):
             if j == index:
                 continue
@@ -613,28 +604,25 @@ class SBMPCController:
             if d > relevant:
                 continue
             vbx, vby = world_velocity(b[2], b[3], b[4])
-            nb = math.hypot(vbx, vby)
-            hbx, hby = (vbx / nb, vby / nb) if nb > 1e-3 else (math.cos(b[2]), math.sin(b[2]))
-            flags = pair_flags(state[0], state[1], vx, vy, hax, hay, b[0], b[1], vbx, vby, hbx, hby, self._k)
-            rows.append((b[0], b[1], vbx, vby, float(lengths[j])) + tuple(float(f) for f in flags))
+            rows.append((b[0], b[1], vbx, vby, float(lengths[j]), b[2]))
+            codes.append(int(self._situation[j]))
         if not rows:   # nobody near: the nominal behaviour
             self._chi, self._p = 0.0, 1.0
             self._diag[D_COST] = math.nan
             return
-        targets = np.array(rows, dtype=np.float64)
         speed = max(math.hypot(reference[REF_XDOT], reference[REF_YDOT]), SPEED_FLOOR)
-        plan_behaviours(np.array([state[0], state[1], chi0, u0]), np.asarray(reference, dtype=np.float64), targets,
-                        length, speed, self._g, self._k, self._offsets, self._factors, self._chi, self._p,
-                        self._costs)
-        if self.gains.stand_on and stand_on and not (near or give_way):   # Rule 17 a i: keep course and speed
-            a, b = int(np.flatnonzero(self._offsets == 0.0)[0]), int(np.flatnonzero(self._factors == 1.0)[0])
-            h = float(self._costs[a, b])
-        else:
-            a, b, h = best_behaviour(self._costs)
-        pi_p = path_errors(state, reference)[0]
-        self._line = (float(state[0]), float(state[1]), pi_p + float(self._offsets[a]))
-        self._chi, self._p = float(self._offsets[a]), float(self._factors[b])
+        duty = bool(self.gains.stand_on and stand_on and not (near or give_way))   # Rule 17 a i
+        chi, p, angle, h = self._choose(state, np.asarray(reference, dtype=np.float64), np.array(rows), codes,
+                                        length, speed, duty)
+        self._line = (float(state[0]), float(state[1]), float(angle))
+        self._chi, self._p = float(chi), float(p)
         self._diag[D_COST] = h
+
+    def _choose(self, state, reference, targets, codes, length, speed, duty):
+        """(offset [rad], speed factor, the held line's angle [rad], cost) of the law's choice;
+        ``targets`` rows of (x, y, vx, vy, length, psi) of the vessels in sight, ``codes`` their
+        locked situations (usv_mj.physics.colregs), ``duty``: the stand-on duty holds."""
+        raise NotImplementedError
 
     def __call__(self, t, state, reference):
         if self._states is not None and self._plan_now:
@@ -652,3 +640,51 @@ class SBMPCController:
             diag[0], diag[1], diag[2] = y_e, x_e, pi_p   # the reference path's errors and angle (chi_d: the command)
         diag[D_OFFSET], diag[D_FACTOR] = self._chi, self._p
         return tau_u, tau_r, diag
+
+
+@CONTROLLERS.register("sbmpc", gains=SBMPCGains)
+class SBMPCController(AvoidanceOverLOS):
+    """Scenario-based MPC collision avoidance over the LOS path follower (module docstring)."""
+
+    name = "sbmpc"
+
+    @classmethod
+    def from_scenario(cls, gains: SBMPCGains, scenario) -> "SBMPCController":
+        """The controller for ``scenario``: its path follower as ``kind = "los"`` builds it (the
+        vessel's nominal ship, its control period) and the hull's length L."""
+        follower = LOSController.from_scenario(gains.los_gains(), scenario)
+        return cls(gains, follower, float(scenario.vessel.model.dimensions.L))
+
+    def __init__(self, gains: SBMPCGains, follower: LOSController, length: float):
+        self._k = gains.packed()
+        self._offsets = gains.offsets()
+        self._factors = gains.factors()
+        self._costs = np.zeros((self._offsets.size, self._factors.size))
+        super().__init__(gains, follower, length)
+
+    def kernel(self):
+        return self._kernel()
+
+    def _choose(self, state, reference, targets, codes, length, speed, duty):
+        """Every behaviour scored (:func:`plan_behaviours`), the least cost chosen, or (0, 1) under
+        the stand-on duty; the line held at the path angle + the offset."""
+        vx, vy = world_velocity(state[2], state[3], state[4])
+        u0 = math.hypot(vx, vy)
+        chi0 = math.atan2(vy, vx) if u0 > 1e-3 else float(state[2])
+        hax, hay = math.cos(chi0), math.sin(chi0)
+        rows = []
+        for bx, by, vbx, vby, lb, psib in targets:
+            nb = math.hypot(vbx, vby)
+            hbx, hby = (vbx / nb, vby / nb) if nb > 1e-3 else (math.cos(psib), math.sin(psib))
+            flags = pair_flags(state[0], state[1], vx, vy, hax, hay, bx, by, vbx, vby, hbx, hby, self._k)
+            rows.append((bx, by, vbx, vby, lb) + tuple(float(f) for f in flags))
+        plan_behaviours(np.array([state[0], state[1], chi0, u0]), reference, np.array(rows, dtype=np.float64),
+                        length, speed, self._g, self._k, self._offsets, self._factors, self._chi, self._p,
+                        self._costs)
+        if duty:
+            a, b = int(np.flatnonzero(self._offsets == 0.0)[0]), int(np.flatnonzero(self._factors == 1.0)[0])
+            h = float(self._costs[a, b])
+        else:
+            a, b, h = best_behaviour(self._costs)
+        pi_p = path_errors(state, reference)[0]
+        return self._offsets[a], self._factors[b], pi_p + self._offsets[a], h
