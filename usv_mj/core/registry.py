@@ -347,7 +347,8 @@ PLANTS = Registry("plant", {"analytic": "usv_mj.plants.analytic", "mujoco": "usv
                   "usv_mj.plants")
 CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "usv_mj.controllers.pi_baseline",
                                       "los": "usv_mj.controllers.los", "open_loop": "usv_mj.controllers.open_loop",
-                                      "zigzag": "usv_mj.controllers.zigzag", "sbmpc": "usv_mj.controllers.sbmpc"},
+                                      "zigzag": "usv_mj.controllers.zigzag", "sbmpc": "usv_mj.controllers.sbmpc",
+                                      "vo": "usv_mj.controllers.vo"},
                        "usv_mj.controllers")
 TRAJECTORIES = Registry("trajectory", {k: "usv_mj.references.trajectories" for k in ("paper", "line", "circle", "waypoints")},
                         "usv_mj.references.trajectories")
