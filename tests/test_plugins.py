@@ -196,6 +196,9 @@ def test_usv_mj_kinds_lists_the_installed_plugin_with_its_options(installed, tmp
     assert {o["name"]: o["unit"] for o in pd["options"]}["kd_yaw"] == "N m s/rad"
     pi = {o["name"]: o["unit"] for o in {r["kind"]: r for r in table["controller"]["kinds"]}["pi"]["options"]}
     assert (pi["kp_r"], pi["ki_r"], pi["kd_r"]) == ("N m/rad", "N m/(rad s)", "N m s/rad")  # from its docstring
+    squall = {r["kind"]: r for r in table["disturbance"]["kinds"]}["squall"]   # a d(t) of its own
+    assert squall["source"] == "entry point usv_mj.disturbances (dist usv-mj-example-plugin 0.1.0)"
+    assert {o["name"]: o["unit"] for o in squall["options"]} == {"moment": "N m", "start": "s", "end": "s"}
     text = _cli(["kinds", "trajectory"], tmp_path, [installed, REPO])
     assert text.returncode == 0 and "lawnmower" in text.stdout and "lane_spacing" in text.stdout
 
