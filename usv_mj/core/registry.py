@@ -40,7 +40,7 @@ Where a kind is found, in this order (:meth:`Registry.get`):
 3. ``"package.module:Name"`` (as Gymnasium's ``entry_point``): the module is imported and ``Name``
    taken; it is registered under that very string;
 4. a Python **entry point** named ``kind`` in the registry's group (``usv_mj.controllers``,
-   ``usv_mj.references.trajectories``, ``usv_mj.plants``, ``usv_mj.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
+   ``usv_mj.trajectories``, ``usv_mj.plants``, ``usv_mj.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
 
 For 3 and 4 the object named is either registered by its own module's decorator, or registered
 here with the options dataclass it declares as its class attribute ``options`` (none if it has no
@@ -358,7 +358,7 @@ CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "us
                                       "zigzag": "usv_mj.controllers.zigzag"},
                        "usv_mj.controllers")
 TRAJECTORIES = Registry("trajectory", {k: "usv_mj.references.trajectories" for k in ("paper", "line", "circle", "waypoints")},
-                        "usv_mj.references.trajectories")
+                        "usv_mj.trajectories")  # the entry-point group: a public name, kept from before the layers
 #: d(t) (usv_mj.physics.disturbances: the contract, the dispatch); a kind's object is its options dataclass
 DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"}, "usv_mj.disturbances",
                         self_options=True)
