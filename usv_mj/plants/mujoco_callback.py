@@ -33,7 +33,9 @@ propeller and rudder force :func:`usv_mj.physics.mmg.mmg_terms` of the inputs ``
 motors have zero gear) on the constants at ``U_MMG``, after the layout (``N_USERDATA_MMG`` words).
 MuJoCo calls the passive callback once per RK4 stage after building ``d.M`` for that stage's pose
 and with ``d.time`` at the stage time, so d(t) is evaluated exactly where the analytic plant
-evaluates it.
+evaluates it. d(t) is the scenario's disturbance kind: its packed vector at ``U_DP``
+(:func:`usv_mj.physics.disturbances.packed_disturbance`), whose last word sends
+:func:`usv_mj.physics.disturbances.disturbance_at` to the paper's kernel (0) or to the kind's cfunc.
 
 A hull on a free joint (``d.userdata[U_LAYOUT]`` = LAYOUT_FREE, written by
 :func:`usv_mj.attach_hydrodynamics`) takes the same terms on the free joint's x, y and yaw dofs
