@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from usv_mj.plants.mujoco_callback import N_USERDATA  # what the hydrodynamics need (99: the vessels' layout, the packed d(t))
+from usv_mj.plants.mujoco_callback import N_USERDATA  # what the hydrodynamics need (103: the vessels' and fleets' layout, the packed d(t))
 
 import usv_mj
 from usv_mj import build, load_scenario
