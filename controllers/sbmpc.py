@@ -4,8 +4,9 @@ A COLREGs-aware collision-avoidance law for any vessel of a scenario with ``[[ve
 (docs/encounters.md, "Collision avoidance"): ``[controller] kind = "sbmpc"``. It steers the
 vessel's own reference with the path follower of :mod:`usv_mj.controllers.los` (the LOS controller
 itself, composed: its law, its gains, its kernel) and, every re-plan period, chooses one of a finite
-set of *behaviours* (a course offset chi_ca added to the LOS course command and a factor P on its
-speed command) by simulating each ahead against the other vessels and scoring it.
+set of *behaviours*, a course offset chi_ca and a factor P on the speed command, by simulating each
+ahead against the other vessels and scoring it. "No avoidance", the baseline, is ``kind = "los"``
+with the same gains: the path follower alone.
 
 Sources: T. A. Johansen, T. Perez and A. Cristofaro, "Ship collision avoidance and COLREGS compliance
 using simulation-based control behavior selection with predictive hazard assessment", IEEE T-ITS
@@ -13,75 +14,95 @@ using simulation-based control behavior selection with predictive hazard assessm
 the COLREGs predicate mu and the defaults as the public implementations write them (research note
 /work/notes/encounters-research.md §4: PSBMPC ``sbmpc.cpp``, ``mpc_cost_cpu.hpp``, AutoSea
 ``sb_mpc.cpp``); the transitional cost of Hagen et al., ICRA 2018, doi 10.1109/ICRA.2018.8463182
-(§4.4). Conventions are usv_mj's (ENU, psi and the course counter-clockwise from east): a course
-offset chi_ca > 0 turns to **port**, chi_ca < 0 to **starboard**.
+(§4.4). Conventions are usv_mj's (ENU, psi and courses counter-clockwise from east): a course offset
+chi_ca > 0 turns to **port**, chi_ca < 0 to **starboard**. What is this module's own and not the
+sources' is marked *(here)*.
 
-The behaviours (§4.1): course offsets {-90, -75, ..., 90} deg (13) x speed factors {1, 0.5, 0}
-(39), each held over the whole horizon.
+**The behaviours** (§4.1): course offsets {-90, -75, ..., 90} deg (13) x speed factors {1, 0.5, 0}
+(39), each held over the horizon. A behaviour is, for the path follower:
 
-The prediction, per behaviour, from the re-plan time t0 over the horizon T = horizon_L L / U
-(L the own hull's length, U the reference's path speed at t0) in steps of ``prediction_step_s``:
+- (0, P): LOS on the vessel's own reference path, its speed command times P (LOS brings the
+  vessel back to its path);
+- (chi_ca != 0, P): LOS on the straight line through the vessel's position at the re-plan at the
+  path angle + chi_ca: the course pi_p + chi_ca held *(here: Johansen adds chi_ca to the LOS course
+  command, so that LOS keeps pulling the vessel back and it settles Delta tan(chi_ca) off its path,
+  1.7 m for 30 deg with this hull's 3 m lookahead; the other vessels, predicting it at constant
+  velocity, then expect it to keep drifting and each gives way less than it needs: in test_fleet's
+  head-on the two passed 6.2 m apart instead of the 9.9 m aimed at. Holding the course is what the
+  constant-velocity prediction of the others assumes.)*
 
-- the own ship: a kinematic course/speed model driven by the path follower's own guidance with the
-  behaviour applied: the reference point moves on at its velocity at t0 (a straight path; a curved
-  reference is followed approximately), chi_c = pi_p - atan(y_e / Delta) + chi_ca (the LOS of
-  controllers/los.py step 2, plain: its integral state is not predicted) and
-  u_c = P clip(U_p - u_at x_e / sqrt(x_e^2 + l_at^2), u_c_min, u_c_max) (step 5); the course and the
-  speed follow them as first-order lags, chi' = wrap(chi_c - chi)/T_chi, U' = (u_c - U)/T_U, stepped
-  exactly (exponential discretization), then the position by U (cos chi, sin chi);
-- every other vessel within ``d_relevant_L`` own lengths: constant velocity over ground (its state's
-  R(psi) (u, v)).
+LOS is commanded through a *virtual reference* it reads exactly as the behaviour asks: a point on
+the line abeam of the vessel (on the path: at the true cross-track error, so LOS's own integral
+state sees the path's), moving along the line at P x LOS's speed command. With the nominal behaviour
+(0, 1) the vessel's own reference is passed unchanged: without other vessels (a single run, or none
+within ``d_relevant_L``) the law **is** the LOS controller, bit for bit, and a single run compiles
+with LOS's kernel.
 
-The cost of behaviour k (§4.2), minimised over the 39:
+**The prediction** of each behaviour from the re-plan time t0 over the horizon T = horizon_L L / U
+(L the own hull's length, U the reference's path speed at t0) in steps of ``prediction_step_s``
+(:func:`predict_own`): the own ship as a kinematic course/speed model driven by the path follower's
+guidance on the behaviour's line (LOS step 2, plain: chi_c = angle - atan(y_e / Delta); on the path
+the reference point moves on at its velocity at t0, a straight path) and its speed command (LOS step
+5, P clip(U_p - u_at x_e / sqrt(x_e^2 + l_at^2), u_c_min, u_c_max), x_e along the reference path),
+the course and the speed lagging their commands by first-order lags T_chi, T_U (exact
+discretization); every other vessel within ``d_relevant_L`` own lengths at constant velocity over
+ground (its state's R(psi) (u, v)).
+
+**The cost** of behaviour k (§4.2), minimised over the 39 (:func:`plan_behaviours`):
 
     H(k) = max_i max_t [ C_i(t) R_i(t) + kappa mu_i(t) + kappa_TC mu_TC,i(t) ]
            + K_u (1 - P) + K_du |P - P_last| + K_chi,side chi_ca^2 + K_dchi,side wrap(chi_ca - chi_last)^2
-           + kappa_SO [own ship stands on and the behaviour is not (0, 1)]
 
-- collision risk R_i(t) = (d_safe / d_i(t))^q / (t - t0)^p while d_i(t) <= d_safe, else 0, with
-  d_i the **hull-to-hull** distance (centre distance minus (L_0 + L_i)/2, PSBMPC's), floored at
-  d_safe / 20 (the risk of an overlap is finite); p = 1, q = 4;
+- collision risk R_i(t) = (d_safe / d_i(t))^q / (t - t0)^p while d_i(t) <= d_safe and the pair is
+  closing, else 0: d_i the **hull-to-hull** distance (centre distance minus (L_0 + L_i)/2, PSBMPC's),
+  floored at d_safe / 20 (an overlap has a finite risk); p = 1, q = 4. *(Here: "and closing",
+  (p_i - p_0).(v_i - v_0) < 0. Without it a pair already inside d_safe but opening keeps the risk of
+  its first predicted instants, the same for every behaviour, and C's |dv|^2 then rewards the
+  behaviour that matches the target's velocity: in a crossing from starboard the give-way ship,
+  past astern, turned to follow the target at 5.5 m.)*
 - collision cost C_i(t) = k_coll (|v_0(t) - v_i| / U)^2: PSBMPC's K_coll |dv|^2 with K_coll = 0.2 at
   about 2 m/s, made dimensionless with the research note's scaling K_coll = 0.2 (2 m/s / U)^2
   (§7 item 6), so k_coll = 0.8;
-- mu_i(t) (§4.3, Johansen's predicate, as PSBMPC and AutoSea compute it along the predicted
-  tracks, with v the velocities and L the unit line of sight from own ship to the target):
-  CLOSE (centre distance <= d_close) and STARBOARD (the target to starboard of own course) and
-  (HEAD_ON or (CROSSED and not OVERTAKEN)), not counted once the pair is passed and farther than
-  d_safe: HEAD_ON = |v_i| > eps and v_0.v_i < -cos(phi_HO)|v_0||v_i| and v_0.L > cos(phi_AH)|v_0|;
+- mu_i(t) (§4.3, Johansen's predicate as PSBMPC and AutoSea compute it along the predicted tracks; v
+  the velocities, L the unit line of sight from own ship to the target): CLOSE (centre distance <=
+  d_close) and STARBOARD (the target to starboard of own course) and (HEAD_ON or (CROSSED and not
+  OVERTAKEN)); HEAD_ON = |v_i| > eps and v_0.v_i < -cos(phi_HO)|v_0||v_i| and v_0.L > cos(phi_AH)|v_0|;
   CROSSED = v_0.v_i < cos(phi_CR)|v_0||v_i|; OVERTAKEN = v_0.v_i > cos(phi_OT)|v_0||v_i| and
-  |v_0| < |v_i|; passed = one vessel more than 112.5 deg off the other's course and not being
-  overtaken by it;
-- mu_TC,i(t) (§4.4): with the flags of the pair at t0 (S_0 target on starboard, O_0 own ship
-  overtaking, Q_0 own ship overtaken, H_0 head-on, X_0 crossing), the behaviour makes the target
-  change sides as COLREGs forbid, while CLOSE: O_0 and the side changed; Q_0 and own ship's side seen
-  from the target changed; X_0 and S_0 and S(t) and chi_ca to port; H_0 and not S_0 and S(t);
+  |v_0| < |v_i|;
+- mu_TC,i(t) (§4.4): with the pair's flags at t0 (:func:`pair_flags`: S_0 target on starboard, O_0
+  own ship overtaking, Q_0 own ship overtaken, H_0 head-on, X_0 crossing), while CLOSE the behaviour
+  makes the target change sides as COLREGs forbid: O_0 and the side changed; Q_0 and own ship's
+  side seen from the target changed; X_0 and S_0 and S(t) and chi_ca to port; H_0 and not S_0 and S(t);
+- neither mu nor mu_TC counts once the pair is passed (one vessel more than 112.5 deg off the
+  other's course and not being overtaken by it: PSBMPC's) and farther than d_safe *(here for mu_TC
+  too: past, a target astern sits on one side or the other, which is no violation)*;
 - the control cost (§4.2, PSBMPC's form), course terms in rad^2, port offsets and port changes
-  weighted more (Rule 14/15: alter to starboard);
-- the stand-on term (this module's, not Johansen's: Rule 17 a i): while the own ship's locked
-  COLREGs role (:mod:`usv_mj.physics.colregs`, the lock of docs/encounters.md) is *stand-on*
-  towards a target farther than ``stand_on_range_L`` own lengths (stage 3: Rule 17 a ii lets it act
-  inside) and *give-way* towards none, every behaviour but (0, 1) costs ``kappa_so`` more: the
-  stand-on vessel keeps its course and speed. Without it, two SB-MPC vessels in a crossing both
-  turn (the stand-on one too): Johansen's cost has no stand-on duty.
+  weighted more (Rules 14/15: alter to starboard).
 
-Between re-plans the chosen behaviour is held. The path follower is commanded with it through a
-*virtual reference* that LOS reads exactly as the behaviour asks: the path angle turned by chi_ca
-and a point abeam of the vessel at the true cross-track error (so LOS's course command is
-pi_p - atan((y_e + sigma y_int)/Delta) + chi_ca) moving at P u_c (so its speed command is P u_c).
-With the nominal behaviour (0, 1) the vessel's own reference is passed unchanged: without other
-vessels (a single run, or no vessel within ``d_relevant_L``) the law **is** the LOS controller, bit
-for bit, and a single run compiles with LOS's kernel.
+**The stand-on duty** *(here; not in Johansen's cost)*: while the own ship's locked COLREGs role
+(:mod:`usv_mj.physics.colregs`, the lock of docs/encounters.md, advanced every control period) is
+*stand-on* towards some vessel, all such vessels are farther than ``stand_on_range_L`` own lengths
+(stage 3, where Rule 17 a ii lets it act) and it gives way to none, the behaviour is (0, 1): it keeps
+its course and speed (Rule 17 a i). Without it two SB-MPC vessels in a crossing both turn at the
+first re-plan: each predicts the other at constant velocity, and the stand-on one cannot know yet that
+the give-way one will act.
 
-Parameters (:class:`SBMPCGains`): the LOS gains (every key of ``kind = "los"``, the path
-follower's) and the SB-MPC's own, defaults from the research note §7 item 6 (PSBMPC's milliAmpere
-tuning, the only public one for a 5 m craft at about 2 m/s), lengths in own-ship lengths L and the
-horizon in L/U so that the same numbers suit a 2 m USV and a 320 m tanker. Diagnostics: the LOS's,
-then the chosen behaviour and its cost and the nearest vessel's range, DCPA and TCPA
-(:data:`DIAGNOSTIC_FIELDS`). Criterion: :class:`usv_mj.record.criteria.Clearance`, the nearest vessel
-stays outside the own ship's safety domain (:data:`usv_mj.record.encounters.SAFETY_DOMAIN_L` own
-lengths, centre to centre) at every step with a vessel in sight; a run without other vessels is not
-judged (no step has one).
+**The path follower's gains** are LOS's (every key of ``kind = "los"``, :class:`SBMPCGains` extends
+:class:`usv_mj.controllers.los.LOSGains`) with one default changed: ``crab_compensation = false``.
+LOS's heading command chi_d - beta feeds the sway of a hard turn back into the heading: on the paper
+hull a 75 deg course step at 0.6 m/s gives a 60 deg crab angle (v = 0.55 m/s at u = 0.31 m/s), the
+heading overshoots by about 55 deg and swings +-30 deg for 10 s; an avoidance manoeuvre is such a
+step.
+
+**Parameters** (:class:`SBMPCGains`): defaults from the research note §7 item 6 (PSBMPC's milliAmpere
+tuning, the only public one for a 5 m craft at about 2 m/s), distances in own-ship lengths L and the
+horizon in L/U, so that the same numbers suit a 2 m USV and a 320 m tanker. Diagnostics: LOS's
+(``cross_track_error``, ``along_track_error`` and ``path_angle`` of the vessel's own path, ``chi_d``
+the course commanded), then the behaviour held, its cost and the nearest vessel's range, DCPA and TCPA
+(:data:`AVOIDANCE_FIELDS`). Criterion: :class:`usv_mj.record.criteria.Clearance`, the nearest vessel
+outside the own ship's safety domain (:data:`usv_mj.record.encounters.SAFETY_DOMAIN_L` own lengths,
+centre to centre) at every step with a vessel in sight; a run without other vessels has no judged
+step (not judged).
 """
 
 from __future__ import annotations
@@ -135,41 +156,39 @@ class SBMPCGains(LOSGains):
 
     crab_compensation: bool = False       # LOS's, off here (los: on): module docstring, "The path follower"
     # --- the behaviours (§4.1)
-    max_offset_deg: float = 90.0          # deg: the largest course offset either side (0 < . <= 180)
-    offset_step_deg: float = 15.0         # deg: their spacing: {-90, -75, ..., 0, ..., 75, 90}
-    speed_factors: tuple = (1.0, 0.5, 0.0)  # -: the factors on the speed command, each in [0, 1]
+    max_offset_deg: float = 90.0          # [deg] the largest course offset either side, in (0, 180]
+    offset_step_deg: float = 15.0         # [deg] their spacing: {-90, -75, ..., 0, ..., 75, 90}
+    speed_factors: tuple = (1.0, 0.5, 0.0)  # [-] the factors on the speed command, each in [0, 1], 1 among them
     # --- the prediction
-    horizon_L: float = 60.0               # L/U: the horizon T = horizon_L L / U [s] (120 s for 2 m at 1 m/s)
-    prediction_step_s: float = 0.5        # s: the prediction's step (PSBMPC 0.5 s)
-    replan_period_s: float = 2.0          # s: a behaviour is chosen this often and held between (2-5 s, §7)
-    course_time_s: float = 1.0            # s: T_chi, the course's first-order lag (PSBMPC 0.92 s)
-    speed_time_s: float = 1.5             # s: T_U, the speed's first-order lag (PSBMPC 1.44 s)
+    horizon_L: float = 60.0               # [L/U] the horizon T = horizon_L L / U (120 s for 2 m at 1 m/s)
+    prediction_step_s: float = 0.5        # [s] the prediction's step (PSBMPC 0.5 s)
+    replan_period_s: float = 2.0          # [s] a behaviour is chosen this often and held between (2-5 s, §7)
+    course_time_s: float = 1.0            # [s] T_chi, the course's first-order lag (PSBMPC 0.92 s)
+    speed_time_s: float = 1.5             # [s] T_U, the speed's first-order lag (PSBMPC 1.44 s)
     # --- distances, in own lengths
-    d_safe_L: float = 4.0                 # L: the safety distance, hull to hull (PSBMPC's measure)
-    d_close_L: float = 25.0               # L: COLREGs apply within this centre distance (stage 2)
-    d_relevant_L: float = 50.0            # L: vessels farther than this at the re-plan are ignored (R = 50 L)
+    d_safe_L: float = 4.0                 # [L] the safety distance, hull to hull (PSBMPC's measure)
+    d_close_L: float = 25.0               # [L] COLREGs apply within this centre distance (stage 2)
+    d_relevant_L: float = 50.0            # [L] vessels farther than this at the re-plan are ignored (R = 50 L)
     # --- the cost (§4.2-4.4)
-    p_time: float = 1.0                   # -: p, the risk's time exponent
-    q_distance: float = 4.0               # -: q, the risk's distance exponent
-    k_coll: float = 0.8                   # -: collision cost k_coll (|dv|/U)^2 (= PSBMPC 0.2 s^2/m^2 at 2 m/s)
-    kappa: float = 10.0                   # -: the COLREGs violation mu's cost
-    kappa_tc: float = 20.0                # -: the transitional cost mu_TC's
-    k_speed: float = 15.0                 # -: K_u, per unit of speed reduction 1 - P
-    k_speed_change: float = 6.0           # -: K_du, per unit of |P - P_last|
-    k_course_starboard: float = 1.3       # 1/rad^2: K_chi for a starboard offset
-    k_course_port: float = 1.6            # 1/rad^2: K_chi for a port offset
-    k_change_starboard: float = 0.9       # 1/rad^2: K_dchi for a change of offset to starboard
-    k_change_port: float = 1.2            # 1/rad^2: K_dchi for a change to port
-    phi_ah_deg: float = 68.5              # deg: "ahead": the target within this of own course
-    phi_ot_deg: float = 68.5              # deg: overtaking: courses within this
-    phi_ho_deg: float = 22.5              # deg: head-on: courses within this of reciprocal
-    phi_cr_deg: float = 68.5              # deg: crossing: courses more than this apart
-    head_on_min_speed_U: float = 0.125    # U: a target slower than this is never head-on (PSBMPC 0.25 m/s at 2 m/s)
+    p_time: float = 1.0                   # [-] p, the risk's time exponent
+    q_distance: float = 4.0               # [-] q, the risk's distance exponent
+    k_coll: float = 0.8                   # [-] collision cost k_coll (|dv|/U)^2 (PSBMPC's 0.2 s^2/m^2 at 2 m/s)
+    kappa: float = 10.0                   # [-] the COLREGs violation mu's cost
+    kappa_tc: float = 20.0                # [-] the transitional cost mu_TC's
+    k_speed: float = 15.0                 # [-] K_u, per unit of speed reduction 1 - P
+    k_speed_change: float = 6.0           # [-] K_du, per unit of |P - P_last|
+    k_course_starboard: float = 1.3       # [1/rad^2] K_chi for a starboard offset
+    k_course_port: float = 1.6            # [1/rad^2] K_chi for a port offset
+    k_change_starboard: float = 0.9       # [1/rad^2] K_dchi for a change of offset to starboard
+    k_change_port: float = 1.2            # [1/rad^2] K_dchi for a change to port
+    phi_ah_deg: float = 68.5              # [deg] "ahead": the target within this of own course
+    phi_ot_deg: float = 68.5              # [deg] overtaking: courses within this
+    phi_ho_deg: float = 22.5              # [deg] head-on: courses within this of reciprocal
+    phi_cr_deg: float = 68.5              # [deg] crossing: courses more than this apart
+    head_on_min_speed_U: float = 0.125    # [U] a target slower than this is never head-on (PSBMPC 0.25 m/s at 2 m/s)
     # --- the stand-on duty (this module's: Rule 17)
     stand_on: bool = True                 # a stand-on vessel keeps course and speed (Rule 17 a i) while ...
-    stand_on_range_L: float = 7.5         # L: ... the target is farther than this (stage 3: Rule 17 a ii)
-    # --- the targets' velocity
-    target_filter_s: float = 0.0          # s: the targets' velocities over ground low-pass filtered with this time constant (0: as measured)
+    stand_on_range_L: float = 7.5         # [L] ... the target is farther than this (stage 3: Rule 17 a ii)
 
     def __post_init__(self) -> None:
         self.los_gains()   # the path follower's gains, validated as LOS validates them
@@ -481,23 +500,21 @@ def virtual_reference(state, ref, line, factor: float, g: np.ndarray) -> tuple[n
     return out, pi_p, x_e, y_e
 
 
-@CONTROLLERS.register("sbmpc", gains=SBMPCGains)
-class SBMPCController:
-    """Scenario-based MPC collision avoidance over the LOS path follower (module docstring)."""
+class AvoidanceOverLOS:
+    """What an avoidance law over the LOS path follower shares (``sbmpc`` here, ``vo`` in
+    controllers/vo.py): the traffic (usv_mj/loop/fleet.py's contract) with the COLREGs lock per
+    vessel and the nearest vessel's range/DCPA/TCPA, a re-plan every ``gains.replan_period_s``, the
+    stand-on duty (module docstring), the chosen behaviour commanded to LOS through the virtual
+    reference, the diagnostics and the criterion. A law defines ``name``, ``from_scenario``,
+    ``_choose`` and its own ``kernel`` (``return self._kernel()``: usv_mj.core.kernels runs a kernel
+    only for the class that defines it). Its gains extend LOSGains with ``replan_period_s``,
+    ``d_relevant_L``, ``stand_on`` and ``stand_on_range_L``."""
 
-    name = "sbmpc"
     diagnostic_fields = DIAGNOSTIC_FIELDS
 
-    @classmethod
-    def from_scenario(cls, gains: SBMPCGains, scenario) -> "SBMPCController":
-        """The controller for ``scenario``: its path follower as ``kind = "los"`` builds it (the
-        vessel's nominal ship, its control period) and the hull's length L."""
-        follower = LOSController.from_scenario(gains.los_gains(), scenario)
-        return cls(gains, follower, float(scenario.vessel.model.dimensions.L))
-
-    def __init__(self, gains: SBMPCGains, follower: LOSController, length: float):
+    def __init__(self, gains, follower: LOSController, length: float):
         if not (math.isfinite(length) and length > 0):
-            raise ScenarioError(f"controller sbmpc: the hull's length must be > 0 m, got {length!r}")
+            raise ScenarioError(f"controller {self.name}: the hull's length must be > 0 m, got {length!r}")
         self.gains = gains
         self.follower = follower
         self.length = float(length)
@@ -505,10 +522,6 @@ class SBMPCController:
         #: judged by keeping clear: the nearest vessel outside the safety domain (SAFETY_DOMAIN_L L)
         self.criterion = Clearance(min_range_m=SAFETY_DOMAIN_L * self.length)
         self._g = gains.as_array()
-        self._k = gains.packed()
-        self._offsets = gains.offsets()
-        self._factors = gains.factors()
-        self._costs = np.zeros((self._offsets.size, self._factors.size))
         self._cp = ColregsParams().as_array()
         self._replan_every = max(1, int(round(gains.replan_period_s / self.dt)))
         self._diag = np.zeros(len(DIAGNOSTIC_FIELDS))
@@ -525,11 +538,10 @@ class SBMPCController:
         self._index = 0
         self._lengths = None
         self._situation = None
-        self._velocity = None
         self._calls = 0
         self._plan_now = False
 
-    def kernel(self):
+    def _kernel(self):
         """The path follower's kernel on this controller's diagnostics vector (a single run has no
         traffic: the law is LOS's, and the avoidance's fields keep their reset values)."""
         k = self.follower.kernel()
@@ -545,12 +557,6 @@ class SBMPCController:
         n = states.shape[0]
         if self._situation is None or self._situation.shape[0] != n:
             self._situation = np.zeros(n, dtype=np.int64)
-            self._velocity = None
-        v_now = np.array([world_velocity(s[2], s[3], s[4]) for s in states])
-        if self._velocity is None or self.gains.target_filter_s <= 0.0:
-            self._velocity = v_now
-        else:
-            self._velocity += (1.0 - math.exp(-self.dt / self.gains.target_filter_s)) * (v_now - self._velocity)
         self._states, self._index = states, int(index)
         self._lengths = np.asarray(lengths, dtype=np.float64)
         own = states[index]
@@ -579,16 +585,13 @@ class SBMPCController:
         return {j: names[ROLE_OF[c]] for j, c in enumerate(self._situation) if c != NONE and ROLE_OF[c] in names}
 
     def _plan(self, state, reference) -> None:
-        """Choose the behaviour (module docstring) from the traffic of this control period."""
+        """Choose the behaviour from the traffic of this control period: the vessels within
+        ``d_relevant_L`` (none: the nominal behaviour), the stand-on duty, then ``_choose``."""
         states, index, lengths = self._states, self._index, self._lengths
         length = float(lengths[index]) if lengths is not None else self.length
-        vx, vy = world_velocity(state[2], state[3], state[4])
-        u0 = math.hypot(vx, vy)
-        chi0 = math.atan2(vy, vx) if u0 > 1e-3 else float(state[2])
-        hax, hay = math.cos(chi0), math.sin(chi0)
         relevant = self.gains.d_relevant_L * length
         stand_range = self.gains.stand_on_range_L * length
-        rows, stand_on, near, give_way = [], False, False, False
+        rows, codes, stand_on, near, give_way = [], [], False, False, False
         for j in range(states.shape[0]):
             if j == index:
                 continue
@@ -600,29 +603,26 @@ class SBMPCController:
             near |= role == STAND_ON and d <= stand_range
             if d > relevant:
                 continue
-            vbx, vby = float(self._velocity[j, 0]), float(self._velocity[j, 1])
-            nb = math.hypot(vbx, vby)
-            hbx, hby = (vbx / nb, vby / nb) if nb > 1e-3 else (math.cos(b[2]), math.sin(b[2]))
-            flags = pair_flags(state[0], state[1], vx, vy, hax, hay, b[0], b[1], vbx, vby, hbx, hby, self._k)
-            rows.append((b[0], b[1], vbx, vby, float(lengths[j])) + tuple(float(f) for f in flags))
+            vbx, vby = world_velocity(b[2], b[3], b[4])
+            rows.append((b[0], b[1], vbx, vby, float(lengths[j]), b[2]))
+            codes.append(int(self._situation[j]))
         if not rows:   # nobody near: the nominal behaviour
             self._chi, self._p = 0.0, 1.0
             self._diag[D_COST] = math.nan
             return
-        targets = np.array(rows, dtype=np.float64)
         speed = max(math.hypot(reference[REF_XDOT], reference[REF_YDOT]), SPEED_FLOOR)
-        plan_behaviours(np.array([state[0], state[1], chi0, u0]), np.asarray(reference, dtype=np.float64), targets,
-                        length, speed, self._g, self._k, self._offsets, self._factors, self._chi, self._p,
-                        self._costs)
-        if self.gains.stand_on and stand_on and not (near or give_way):   # Rule 17 a i: keep course and speed
-            a, b = int(np.flatnonzero(self._offsets == 0.0)[0]), int(np.flatnonzero(self._factors == 1.0)[0])
-            h = float(self._costs[a, b])
-        else:
-            a, b, h = best_behaviour(self._costs)
-        pi_p = path_errors(state, reference)[0]
-        self._line = (float(state[0]), float(state[1]), pi_p + float(self._offsets[a]))
-        self._chi, self._p = float(self._offsets[a]), float(self._factors[b])
+        duty = bool(self.gains.stand_on and stand_on and not (near or give_way))   # Rule 17 a i
+        chi, p, angle, h = self._choose(state, np.asarray(reference, dtype=np.float64), np.array(rows), codes,
+                                        length, speed, duty)
+        self._line = (float(state[0]), float(state[1]), float(angle))
+        self._chi, self._p = float(chi), float(p)
         self._diag[D_COST] = h
+
+    def _choose(self, state, reference, targets, codes, length, speed, duty):
+        """(offset [rad], speed factor, the held line's angle [rad], cost) of the law's choice;
+        ``targets`` rows of (x, y, vx, vy, length, psi) of the vessels in sight, ``codes`` their
+        locked situations (usv_mj.physics.colregs), ``duty``: the stand-on duty holds."""
+        raise NotImplementedError
 
     def __call__(self, t, state, reference):
         if self._states is not None and self._plan_now:
@@ -640,3 +640,51 @@ class SBMPCController:
             diag[0], diag[1], diag[2] = y_e, x_e, pi_p   # the reference path's errors and angle (chi_d: the command)
         diag[D_OFFSET], diag[D_FACTOR] = self._chi, self._p
         return tau_u, tau_r, diag
+
+
+@CONTROLLERS.register("sbmpc", gains=SBMPCGains)
+class SBMPCController(AvoidanceOverLOS):
+    """Scenario-based MPC collision avoidance over the LOS path follower (module docstring)."""
+
+    name = "sbmpc"
+
+    @classmethod
+    def from_scenario(cls, gains: SBMPCGains, scenario) -> "SBMPCController":
+        """The controller for ``scenario``: its path follower as ``kind = "los"`` builds it (the
+        vessel's nominal ship, its control period) and the hull's length L."""
+        follower = LOSController.from_scenario(gains.los_gains(), scenario)
+        return cls(gains, follower, float(scenario.vessel.model.dimensions.L))
+
+    def __init__(self, gains: SBMPCGains, follower: LOSController, length: float):
+        self._k = gains.packed()
+        self._offsets = gains.offsets()
+        self._factors = gains.factors()
+        self._costs = np.zeros((self._offsets.size, self._factors.size))
+        super().__init__(gains, follower, length)
+
+    def kernel(self):
+        return self._kernel()
+
+    def _choose(self, state, reference, targets, codes, length, speed, duty):
+        """Every behaviour scored (:func:`plan_behaviours`), the least cost chosen, or (0, 1) under
+        the stand-on duty; the line held at the path angle + the offset."""
+        vx, vy = world_velocity(state[2], state[3], state[4])
+        u0 = math.hypot(vx, vy)
+        chi0 = math.atan2(vy, vx) if u0 > 1e-3 else float(state[2])
+        hax, hay = math.cos(chi0), math.sin(chi0)
+        rows = []
+        for bx, by, vbx, vby, lb, psib in targets:
+            nb = math.hypot(vbx, vby)
+            hbx, hby = (vbx / nb, vby / nb) if nb > 1e-3 else (math.cos(psib), math.sin(psib))
+            flags = pair_flags(state[0], state[1], vx, vy, hax, hay, bx, by, vbx, vby, hbx, hby, self._k)
+            rows.append((bx, by, vbx, vby, lb) + tuple(float(f) for f in flags))
+        plan_behaviours(np.array([state[0], state[1], chi0, u0]), reference, np.array(rows, dtype=np.float64),
+                        length, speed, self._g, self._k, self._offsets, self._factors, self._chi, self._p,
+                        self._costs)
+        if duty:
+            a, b = int(np.flatnonzero(self._offsets == 0.0)[0]), int(np.flatnonzero(self._factors == 1.0)[0])
+            h = float(self._costs[a, b])
+        else:
+            a, b, h = best_behaviour(self._costs)
+        pi_p = path_errors(state, reference)[0]
+        return self._offsets[a], self._factors[b], pi_p + self._offsets[a], h

@@ -117,17 +117,16 @@ def test_head_on_without_avoidance_collides():
     assert centre_range(rec).min() < length
 
 
-def crossing(target_steer: str):
-    """Own ship northbound from (0, 0); the target 20 m east or west of the meeting point (0, 20),
-    crossing at right angles at the same speed: both reach (0, 20) at t = 20 / 0.6 = 33 s.
-    ``target_steer``: "keep" (the target from starboard keeps course and speed) or "sbmpc" (the
-    target from port runs sbmpc too)."""
+def crossing(side: str, target_steer: str):
+    """Own ship northbound from (0, 0); the target 20 m east ("starboard": heading west) or west
+    ("port": heading east) of the meeting point (0, 20), crossing at right angles at the same speed:
+    both reach (0, 20) at t = 20 / 0.6 = 33 s, 28.3 m = 14.3 L apart at the start. ``target_steer``:
+    "keep" (course and speed kept: no avoidance) or "sbmpc"."""
     d = 20.0
     own = avoiding({"name": "own", "initial": {"eta": [0.0, 0.0, NORTH], "nu": [U, 0.0, 0.0]}})
-    if target_steer == "keep":   # from starboard (east), heading west
-        target = {"name": "target", "steer": "keep", "initial": {"eta": [d, d, math.pi], "nu": [U, 0.0, 0.0]}}
-    else:                        # from port (west), heading east
-        target = avoiding({"name": "target", "initial": {"eta": [-d, d, 0.0], "nu": [U, 0.0, 0.0]}})
+    x, psi = (d, math.pi) if side == "starboard" else (-d, 0.0)
+    start = {"name": "target", "initial": {"eta": [x, d, psi], "nu": [U, 0.0, 0.0]}}
+    target = {**start, "steer": "keep"} if target_steer == "keep" else avoiding(start)
     return d, own, target
 
 
@@ -143,7 +142,7 @@ def test_crossing_from_starboard_the_own_ship_gives_way_astern():
     DCPA 0) keeps course and speed: the own ship (give-way, Rules 15/16) turns to starboard first
     and crosses the target's track (y = 20 m) astern of it, the target already west of the own
     ship there; the centres stay outside the safety domain."""
-    d, own, target = crossing("keep")
+    d, own, target = crossing("starboard", "keep")
     sc, rec = run("analytic", [own, target], 50.0)
     length = sc.vessels[0].scenario.vessel.model.dimensions.L
     o, t = rec["own"], rec["target"]
@@ -160,7 +159,7 @@ def test_crossing_from_port_the_own_ship_stands_on():
     course and speed (behaviour (0, 1), on its line) while the target is farther than
     stand_on_range_L = 7.5 L; it never turns to port for it (Rule 17 c); the target (give-way)
     turns to starboard and crosses the own ship's track (x = 0) astern of it."""
-    d, own, target = crossing("sbmpc")
+    d, own, target = crossing("port", "sbmpc")
     sc, rec = run("analytic", [own, target], 45.0)
     length = sc.vessels[0].scenario.vessel.model.dimensions.L
     o, t = rec["own"], rec["target"]
@@ -308,3 +307,34 @@ def test_the_clearance_criterion_by_hand():
     assert criterion_from_dict(c.to_dict()) == c
     with pytest.raises(ScenarioError, match="min_range_m"):
         Clearance(min_range_m=-1.0)
+
+
+def test_crossing_from_port_an_unresponsive_give_way_vessel_is_avoided_from_stage_3():
+    """The same crossing from port, the give-way target keeping course and speed (it never gives
+    way): the own ship stands on while the target is farther than 7.5 L (14.85 m: at about
+    t = 16 s, the range closing at 0.6 sqrt(2) = 0.85 m/s from 28.3 m), then avoids it (Rule 17 b)
+    to starboard, never to port (Rule 17 c), and stays outside the safety domain."""
+    d, own, target = crossing("port", "keep")
+    sc, rec = run("analytic", [own, target], 40.0)
+    length = sc.vessels[0].scenario.vessel.model.dimensions.L
+    o = rec["own"]
+    rng = centre_range(rec)
+    far = rng > SBMPCGains().stand_on_range_L * length
+    assert np.all(o["course_offset"][far] == 0.0) and np.all(o["speed_factor"][far] == 1.0)
+    acted = o["course_offset"] != 0.0
+    assert acted.any() and np.all(o["course_offset"] <= 0.0)
+    assert 14.0 < o["t"][np.argmax(acted)] < 20.0        # the first re-plan after the range passed 14.85 m
+    assert first_turn_sign(o, NORTH) == -1.0
+    assert rng.min() > SAFETY_DOMAIN_L * length
+
+
+def test_the_example_scenario_is_the_head_on_tested_here():
+    """examples/scenarios/head_on_colav.toml (the README's) is this file's head-on: test_fleet's starts,
+    sbmpc on both vessels with crab compensation off, the control period of these tests."""
+    sc = load_scenario("head_on_colav")
+    assert sc.control_period == DT and sc.plant.kind == "mujoco"
+    assert [v.name for v in sc.vessels] == [v["name"] for v in HEAD_ON]
+    for v, entry in zip(sc.vessels, HEAD_ON):
+        assert v.scenario.controller.kind == "sbmpc" and v.scenario.controller.gains.crab_compensation is False
+        assert tuple(v.scenario.initial.eta) == pytest.approx(tuple(entry["initial"]["eta"]))
+        assert v.scenario.trajectory.speed == entry["initial"]["nu"][0]
