@@ -55,6 +55,7 @@ import numpy as np
 try:
     import gymnasium
     from gymnasium import spaces
+    from gymnasium.error import ResetNeeded
 except ImportError:  # pragma: no cover - optional dependency
     from usv_mj.core.errors import missing_extra
 
@@ -160,8 +161,6 @@ class EncounterEnv(gymnasium.Env):
         """One step (``action_repeat`` control periods). After the step that ended the episode, or
         before the first reset, raises ``gymnasium.error.ResetNeeded``."""
         if self._over:
-            from gymnasium.error import ResetNeeded
-
             raise ResetNeeded(f"{self._where}: step: the episode has ended (the last step returned terminated or "
                               f"truncated) or was never started; call reset() first")
         a = checked_action(action, f"{self._where}: step")

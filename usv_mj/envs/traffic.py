@@ -224,6 +224,10 @@ def traffic_situation(situation, *, vessel: str | None = "otter", target_vessel:
     if len(scenario.vessels) < 2:
         raise ValueError(f"{where}: a traffic situation needs at least two vessels, {name} has "
                          f"{len(scenario.vessels)}")
+    if imazu is not None:   # the own ship's goal 2 R ahead, every target's as far beyond the collision point
+        cx, cy = imazu.collision_point
+        fixed = {v.name: (2.0 * cx - v.eta[0], 2.0 * cy - v.eta[1]) for v in imazu.vessels}
+        goals = {**fixed, **dict(goals or {})}
     return TrafficSituation(name, scenario, _goals(scenario, goals, where), R, U, R / U, imazu)
 
 
@@ -329,6 +333,8 @@ class Traffic:
             self.parts.close()
             raise
         self.geometry = np.empty((n, n, N_GEOMETRY))
+        self._scales = [self._make_scales(i) for i in range(n)]
+        self._bounds_scaled = self._make_bounds()
         self.k = 0
         self.X = None
 
@@ -528,13 +534,19 @@ class Traffic:
 
     def scales(self, i: int) -> np.ndarray:
         """What divides vessel i's physical observation into the scaled one (module docstring)."""
+        return self._scales[i]
+
+    def bounds_scaled(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) of the scaled observation (clipped to them)."""
+        return self._bounds_scaled
+
+    def _make_scales(self, i: int) -> np.ndarray:
         R, U, T = self.situation.length_scale, self.situation.speed_scale, self.situation.time_scale
         own = np.array([U, U, U / self.lengths[i], R, R])
         slot = np.array([1.0, R, R, U, U, R, 1.0, 1.0, R, T])
         return np.concatenate([own, np.tile(slot, self.max_targets)])
 
-    def bounds_scaled(self) -> tuple[np.ndarray, np.ndarray]:
-        """(low, high) of the scaled observation (clipped to them)."""
+    def _make_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         slot_lo = np.array([0.0, -OBS_BOUND, -OBS_BOUND, -OBS_BOUND, -OBS_BOUND, 0.0, -1.0, -1.0, 0.0, -OBS_BOUND])
         slot_hi = np.array([1.0, OBS_BOUND, OBS_BOUND, OBS_BOUND, OBS_BOUND, OBS_BOUND, 1.0, 1.0, OBS_BOUND, OBS_BOUND])
         lo = np.concatenate([np.full(N_OWN, -OBS_BOUND), np.tile(slot_lo, self.max_targets)])
@@ -580,7 +592,9 @@ def scaled_observation(traffic: Traffic, i: int) -> tuple[np.ndarray, tuple]:
     float32; and the names in its target slots."""
     physical, names = traffic.observe(i)
     lo, hi = traffic.bounds_scaled()
-    v = np.nan_to_num(physical / traffic.scales(i), nan=0.0, posinf=OBS_BOUND, neginf=-OBS_BOUND)
+    v = physical / traffic.scales(i)
+    if not np.all(np.isfinite(v)):
+        v = np.nan_to_num(v, nan=0.0, posinf=OBS_BOUND, neginf=-OBS_BOUND)
     return np.clip(v, lo, hi).astype(np.float32), names
 
 
