@@ -15,9 +15,9 @@ one plant step for all (``plant.step_vessels``).
 
 Per agent (a vessel index i):
 
-- **Goal.** The vessel's reference position at 2/3 of the episode (an Imazu case: the own ship's
-  goal 2 R ahead, reached at 2 T on its straight course; the episode lasts 3 T; every target's the
-  same distance beyond the collision point), or the ``goals`` given.
+- **Goal.** An Imazu case: the own ship's 2 R ahead (reached at 2 T on its straight course; the
+  episode lasts 3 T), every target's as far beyond the collision point as it starts before it. A
+  scenario: the vessel's reference position at 2/3 of the episode. Or the ``goals`` given.
 - **Observation** (physical units, :data:`OWN_FIELDS` then :data:`TARGET_FIELDS` per slot): its
   surge, sway and yaw rate and the goal in its body frame; then ``max_targets`` slots of the other
   vessels nearest first (within ``sensor_range``; an empty slot is all zeros): a mask (1: a vessel is
@@ -45,7 +45,11 @@ Per agent (a vessel index i):
 A vessel that is no agent, or an agent that has ended, keeps its step: the others its controller,
 an ended agent a zero command through its control step (it drifts, still a hull in the sea).
 Everything is deterministic: the situation is fixed, and only the draw among several situations
-uses the environments' random generator.
+uses the environments' random generator. An Imazu case is built on the ``paper`` preset (its
+scenario tables, the paper's disturbance of scale 1e-4 included: ``overrides={"disturbance":
+{"scale": 0.0}}`` removes it); its targets keep course and speed by the LOS controller
+(``controllers/los.py``, whose speed set-point stops at ``u_c_max`` = 1.5 m/s by default: a faster
+``speed`` needs ``target_controller={"kind": "los", "u_c_max": ...}``).
 """
 
 from __future__ import annotations
