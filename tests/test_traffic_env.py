@@ -247,3 +247,17 @@ def test_options_are_checked_with_the_place_named():
         EncounterEnv(23, plant="analytic")
     with pytest.raises(ValueError, match=r"action_repeat must be an integer >= 1"):
         traffic_parallel_env(1, plant="analytic", action_repeat=0)
+
+
+@pytest.mark.parametrize("quantize", [True, False])
+def test_the_quantize_option_is_the_track_tasks(quantize):
+    """quantize=False passes the clipped action to the actuators as it is (command = action);
+    quantize=True puts it through Eq. 3's quantizer (a level, not 100 N), whatever [quantizer] says."""
+    env = EncounterEnv(1, plant="analytic", physical_actions=True, quantize=quantize, action_repeat=1)
+    try:
+        env.reset(seed=0)
+        _, _, _, _, info = env.step(np.array([100.0, 5.0]))
+        assert info["action"].tolist() == [100.0, 5.0]
+        assert (info["command"].tolist() == [100.0, 5.0]) is not quantize
+    finally:
+        env.close()

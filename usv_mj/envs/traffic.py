@@ -320,8 +320,10 @@ class Traffic:
                 if self.is_agent[i]:
                     lo, hi = action_bounds(v.scenario, max_surge_force, max_yaw_moment)
                     self.bounds.append((lo, hi))
-                    self.steps.append(ControlStep(make_quantizers(v.scenario), make_actuators(v.scenario),
-                                                  (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))))
+                    step = ControlStep(make_quantizers(v.scenario), make_actuators(v.scenario),
+                                       (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])))
+                    step.quantize = self.quantize   # the option wins over [quantizer], as the Track task's
+                    self.steps.append(step)
                 else:
                     self.bounds.append(None)
                     self.steps.append(ControlStep(v.quantizers, v.actuators))
