@@ -27,6 +27,12 @@ the same contract the day it appears. The contracts:
   ``envs.load`` takes (their defaults give the task's default episode, bit for bit), its tags are
   words, an episode keeps its observation spec and rewards in [0, 1]; it has a Gymnasium id and is
   a choice of ``usv-mj env``; a task of the user's own registered by the decorator is all of that;
+- environments beside the tasks (:data:`usv_mj.envs.ENV_IDS`: ``usv_mj/Encounter-v0``; and the
+  PettingZoo traffic environment, which has no id): not kinds of ``TASKS``, so not held to the task
+  contract (a task is a dm_control environment of one hull on the MuJoCo plant, rewards in [0, 1],
+  made by ``envs.load``; these are their own ``gymnasium.Env`` / ``ParallelEnv`` of a fleet on either
+  plant, with penalties below 0). Their ids are registered with Gymnasium beside the tasks' and no
+  task's id shadows them; their libraries' own API checks are tests/test_traffic_env.py's;
 - commands: every command of the program answers ``--help`` (exit 0) naming each of its flags.
 
 Runs are short (1-2 s of simulated time) and each scenario is run once per loop for every test
@@ -428,6 +434,22 @@ def test_a_task_of_the_users_own_is_a_task_everywhere(capsys):
     finally:
         TASKS.unregister("test_circle_task")
         gymnasium.envs.registry.pop(env_id, None)
+
+
+def test_environments_beside_the_tasks_have_their_own_gymnasium_ids():
+    """ENV_IDS (module docstring: no kinds of TASKS, their API checks in tests/test_traffic_env.py):
+    each id is in Gymnasium's registry with its own entry point, which is a gymnasium.Env, and is
+    no task's id (a task of that name would take the id from it)."""
+    gymnasium = pytest.importorskip("gymnasium")
+    from gymnasium.envs.registration import load_env_creator
+
+    from usv_mj import envs
+
+    assert envs.ENV_IDS
+    for env_id, entry_point in envs.ENV_IDS.items():
+        assert gymnasium.envs.registry[env_id].entry_point == entry_point
+        assert issubclass(load_env_creator(entry_point), gymnasium.Env)
+        assert env_id not in envs.GYM_IDS
 
 
 # --- commands --------------------------------------------------------------------------------------

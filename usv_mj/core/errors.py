@@ -83,7 +83,7 @@ class Terminated(KeyboardInterrupt):
 
 #: The optional dependencies (pyproject.toml's extras): import name -> (pip name, extra).
 EXTRAS = {"gymnasium": ("gymnasium", "gym"), "shimmy": ("shimmy", "gym"), "dask_jobqueue": ("dask-jobqueue", "hpc"),
-          "bokeh": ("bokeh", "hpc"), "stable_baselines3": ("stable-baselines3", "rl")}
+          "bokeh": ("bokeh", "hpc"), "stable_baselines3": ("stable-baselines3", "rl"), "pettingzoo": ("pettingzoo", "gym")}
 
 
 class MissingExtra(UsvMjError, ImportError):
