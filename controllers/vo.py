@@ -37,6 +37,14 @@ turn to port came back among the cheapest*), a candidate violates the rules when
 it does not move away, (p_A - p_B).w < 0, and passes on the wrong side, cross(p_A - p_B, w) < 0
 (ENU: the target would pass on the own ship's starboard side; AutoSea's sign).
 
+*The cone's horizon is t_max = 12 L/U* (40 s for the paper hull at 0.6 m/s), not the sources' 60 s
+(30 L/U here): with 30 L/U a head-on target is in the cone from about 50 L, before the COLREGs lock
+engages at stage 2 (25 L; usv_mj.physics.colregs); with no constraint yet both exits of the cone
+cost alike, the choice flipped between -15 and +15 deg at every re-plan, the heading was 25 deg
+off at 25 L, the lock read the head-on as a crossing from port (the own ship standing on) and the
+own ship met its target 0.62 m apart (Imazu situation 1, calm water, docs/encounters.md §6). With
+12 L/U a head-on enters the cone at about 24 L, after the lock.
+
 **The cost** of a candidate (minimised; the first minimum in the order above, so a tie goes to the
 smaller change, starboard first): |v - v_pref|^2 / U^2 (Q = I, as colav-sim) + w_vo for a candidate
 in any vessel's VO + w_colregs for one that violates the constraint towards any vessel (colav-sim:
@@ -75,7 +83,7 @@ class VOGains(LOSGains):
     heading_span_deg: float = 120.0       # [deg] candidate courses up to this either side of LOS's (AutoSea +-120)
     heading_step_deg: float = 5.0         # [deg] their spacing (AutoSea about 2.4, colav-sim 2.5)
     n_speeds: int = 5                     # candidate speeds: 1, ..., 0 times LOS's speed command, evenly (>= 2)
-    t_max_L: float = 30.0                 # [L/U] the cone's time horizon (60 s for 2 m at 1 m/s: AutoSea, colav-sim 60 s)
+    t_max_L: float = 12.0                 # [L/U] the cone's time horizon (module docstring; the sources 60 s: 30 L/U here)
     d_safe_L: float = 4.0                 # [L] the safety distance, hull to hull (sbmpc's)
     lookahead_L: float = 10.0             # [L] the lookahead of the preferred course chi_p (module docstring)
     w_vo: float = 1000.0                  # [-] cost of a candidate inside a velocity obstacle (colav-sim)
