@@ -84,6 +84,17 @@ BY_COLUMN = {m.column: m for m in METRICS}
 RATES = tuple(m.column for m in METRICS if m.rate)
 
 
+def worst_value(column: str):
+    """The value an episode that is not ok (diverged or failed) counts with in the leaderboard:
+    the worst the metric can take (+inf when lower is better, -inf when higher; a rate's bad
+    outcome: ``passed`` and ``goal_reached`` False, ``contact`` True). Its own metrics are not used:
+    they integrate only up to the divergence, so they would reward it (docs/metrics.md)."""
+    spec = BY_COLUMN[column]
+    if spec.rate:
+        return spec.better == "lower"
+    return math.inf if spec.better == "lower" else -math.inf
+
+
 def _finite(v) -> float | None:
     v = float(v)
     return v if math.isfinite(v) else None
@@ -261,7 +272,9 @@ class Estimate:
 
 def estimate(column: str, values) -> Estimate:
     """The mean of ``values`` (None: not measured, left out) and its interval: Wilson for the rates
-    of :data:`RATES` (True counts), the percentile bootstrap otherwise."""
+    of :data:`RATES` (True counts), the percentile bootstrap otherwise. A value of +-inf (the worst
+    value of an episode not ok, :func:`worst_value`) makes the mean and both ends of its interval
+    that infinity."""
     present = [v for v in values if v is not None and not (isinstance(v, float) and math.isnan(v))]
     n = len(present)
     if n == 0:
@@ -271,5 +284,8 @@ def estimate(column: str, values) -> Estimate:
         lo, hi = wilson_ci(k, n)
         return Estimate(k / n, lo, hi, n)
     x = np.asarray(present, float)
+    if not np.isfinite(x).all():
+        m = float(np.mean(x))
+        return Estimate(m, m, m, n)
     lo, hi = bootstrap_ci(x)
     return Estimate(float(np.mean(x)), lo, hi, n)
