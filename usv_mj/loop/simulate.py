@@ -168,7 +168,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             for hook in hooks:
                 hook(t, k, plant)
             ref = reference.evaluate(t)
-            tau_u, tau_r, diag = controller(t, x, ref)
+            tau_u, tau_r, diag = controller(t, x.copy(), ref)  # its own copy: the row and the actuators keep x
             if not (abs(tau_u) < limits.max_force and abs(tau_r) < limits.max_force):
                 _stop_diverged(record, t, f"control force out of limits or not finite: tau_u = {tau_u!r}, "
                                f"tau_r = {tau_r!r}", {"tau_u": _json_number(tau_u), "tau_r": _json_number(tau_r)},
