@@ -40,6 +40,12 @@ class PluginImportError(UnknownKindError):
     the kind, where it was named, and the import's own error)."""
 
 
+class PluginContractError(ScenarioError):
+    """A plug-in (a part named by ``package.module:Name``, an entry point, a class registered at
+    runtime or handed to the API) breaks the contract of its sort: the message names the plug-in,
+    the contract and the fix. Bad input of the user's (exit 2), not a defect of usv_mj."""
+
+
 class ArgumentTypeError(UsvMjError, TypeError):
     """A public function was handed the wrong kind of object; the message names the function, the
     argument, what it takes and what it got: ``simulate: scenario must be ..., got NoneType``."""

@@ -24,7 +24,8 @@ One call of the generated ``run_block`` does what the Python loop does for rows 
 plant's step from the previous row (if any) and the state check, the hook's kernel (which may
 answer that Python must do this row's hook: run_block returns, Python calls the hook, and the
 block goes on from that row with ``resume``), then the reference, the
-controller, the force check, the quantizers, the actuators and the row's every column (core and
+controller, the check of its diag's length against its ``diagnostic_fields`` (the status
+DIAG_MISMATCH: a contract error), the force check, the quantizers, the actuators and the row's every column (core and
 the controller's diagnostics). It returns (rows written, status, state). Between blocks Python
 flushes the sinks, detects events, reports progress and lets Ctrl-C (a KeyboardInterrupt) in,
 exactly where the Python loop does.
@@ -47,7 +48,7 @@ from usv_mj.support.assets import PACKAGE_DIR
 from usv_mj.record.run_record import COL, N_CORE
 
 # statuses returned by run_block
-BLOCK_END, DONE, FORCE_LIMIT, PLANT_FAILED, DIVERGED, HOOK = 0, 1, 2, 3, 4, 5
+BLOCK_END, DONE, FORCE_LIMIT, PLANT_FAILED, DIVERGED, HOOK, DIAG_MISMATCH = 0, 1, 2, 3, 4, 5, 6
 
 _ROLES = ("ref", "ctrl", "qu", "qr", "act", "plant", "hook")
 
@@ -78,6 +79,9 @@ def run_block(k, stop, n, dt, data, base, n_diag, max_force, max_speed, max_yaw_
         resume = False
         ref = ref_fn(t, {ref_args})
         tau_u, tau_r, diag = ctrl_fn(t, x, ref, {ctrl_args})
+        if len(diag) != n_diag:  # the controller's contract (diagnostic_fields), before the row takes it
+            out[0] = len(diag)
+            return k, {DIAG_MISMATCH}, x
         row = data[k - base]  # data holds the record's window: rows base..
         if not (abs(tau_u) < max_force and abs(tau_r) < max_force):
             row[{c_t}] = t
@@ -185,7 +189,7 @@ def compiled_block(kernels: dict):
         combination=", ".join(f"{role} {m}.{n}" for role, (m, n) in names.items()),
         imports=imports, tuples=", ".join(f"{role}_a" for role in _ROLES), n_core=N_CORE,
         BLOCK_END=BLOCK_END, DONE=DONE, FORCE_LIMIT=FORCE_LIMIT, PLANT_FAILED=PLANT_FAILED, DIVERGED=DIVERGED,
-        HOOK=HOOK,
+        HOOK=HOOK, DIAG_MISMATCH=DIAG_MISMATCH,
         **{f"c_{c}": COL[c] for c in ("t", "x", "x_d", "y_d", "tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r",
                                       "f_u", "f_r", "sat_u", "sat_r")},
         c_q_u=COL["q_tau_u"], c_q_r=COL["q_tau_r"], c_s_u=COL["sat_u"], c_s_r=COL["sat_r"], **fields)
@@ -342,7 +346,7 @@ def _after(record, k, status, x, pk, syncs, flush, block) -> bool:
     # plant steps taken: one per row but the last (whose step is still to come), or per row
     # before the stop
     pk.sync(k - 1 if status in (BLOCK_END, DONE) else k, x)
-    if status == FORCE_LIMIT:  # the Python loop stops before its flush check
+    if status in (FORCE_LIMIT, DIAG_MISMATCH):  # the Python loop stops before its flush check
         return False
     if status == HOOK:
         return True

@@ -21,6 +21,8 @@ from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
+from usv_mj.core.errors import PluginContractError
+from usv_mj.core.kernels import diag_contract, diag_mismatch
 from usv_mj.physics.limits import within_limits
 from usv_mj.builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from usv_mj.record.run_record import COL, N_CORE, SL_REF, SL_STATE, Event, RunRecord
@@ -39,6 +41,14 @@ class RunSink(Protocol):
     def rows(self, record: RunRecord, lo: int, hi: int) -> None: ...
 
     def finish(self, record: RunRecord) -> None: ...
+
+
+def _length(diag) -> int:
+    """The number of entries of a controller's diagnostics vector (-1: not a vector)."""
+    try:
+        return len(diag)
+    except TypeError:
+        return -1
 
 
 def make_reference(scenario: Scenario, duration: float | None = None):
@@ -126,6 +136,9 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario, getattr(controller, "commands", "forces"))
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
+    problem = diag_contract(controller)   # before anything runs: a kernel's diag against the fields
+    if problem is not None:
+        raise PluginContractError(problem)
     from usv_mj.loop.compiled import kernels_of
     from usv_mj.record.criteria import criterion_of
 
@@ -151,6 +164,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     data = record.buffer   # the rows from record.base on (all of them when in memory)
     base = 0
     sl_diag = slice(len(COL), len(COL) + len(fields))
+    n_fields = len(fields)
     c_t = COL["t"]
     c_tau_u, c_tau_r, c_q_u, c_q_r, c_k_u, c_k_r, c_f_u, c_f_r, c_s_u, c_s_r = (COL[c] for c in (
         "tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r", "f_u", "f_r", "sat_u", "sat_r"))
@@ -169,6 +183,12 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
                 hook(t, k, plant)
             ref = reference.evaluate(t)
             tau_u, tau_r, diag = controller(t, x.copy(), ref)  # its own copy: the row and the actuators keep x
+            try:   # the diag's length before the row takes it (a 1-long one would broadcast)
+                ok = len(diag) == n_fields
+            except TypeError:
+                ok = False
+            if not ok:
+                raise PluginContractError(diag_mismatch(controller, _length(diag)))
             if not (abs(tau_u) < limits.max_force and abs(tau_r) < limits.max_force):
                 _stop_diverged(record, t, f"control force out of limits or not finite: tau_u = {tau_u!r}, "
                                f"tau_r = {tau_r!r}", {"tau_u": _json_number(tau_u), "tau_r": _json_number(tau_r)},
@@ -256,9 +276,11 @@ class _Done(Exception):
 
 def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()) -> int:
     """The compiled loop (usv_mj.loop.compiled) until the run stops, with the Python loop's events."""
-    from usv_mj.loop.compiled import DIVERGED, FORCE_LIMIT, run_compiled
+    from usv_mj.loop.compiled import DIAG_MISMATCH, DIVERGED, FORCE_LIMIT, run_compiled
 
     k, status, x, out = run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks)
+    if status == DIAG_MISMATCH:   # the Python loop raises it from the same row
+        raise PluginContractError(diag_mismatch(parts.controller, int(out[0])))
     if status == FORCE_LIMIT:
         tau_u, tau_r = float(out[0]), float(out[1])
         t = k * dt
