@@ -68,6 +68,11 @@ TASK_KEYS = ("name", "base", "duration", "set", "vary", "settle_time_s", "band_c
 CONDITION_KEYS = ("set", "actuators", "sea")
 CONTROLLER_KEYS = ("name", "kind", "set", "policy", "control_period", "criterion")
 POLICY_KEYS = ("control_period", "criterion")
+MAX_EPISODES = 100_000
+"""The most episodes a suite may plan (every task's episodes x conditions x vessels x controllers):
+each planned episode holds its own scenario (about 20 kB) and takes about 10 ms to draw and
+validate, so 100 000 are about 2 GB and a quarter of an hour before the first episode runs. A
+bigger suite is refused before anything is drawn: split it into several suites."""
 ROW_HOOK = "usv_mj.jobs.bench.episode:metrics_row"
 POLICY_EPISODE = "usv_mj.jobs.bench.policy:policy_episode"
 
@@ -218,6 +223,24 @@ def _positive(source, where, v, default, *, integer=False):
     return v
 
 
+def check_size(source, episodes: int, tasks: list, n_conditions: int, n_vessels: int, n_controllers: int) -> int:
+    """The number of episodes the suite plans (every task's episodes x conditions x vessels x
+    controllers; a policy left off a task with obstacles still counted), refused over
+    :data:`MAX_EPISODES` before anything is drawn."""
+    per_task = []
+    for ti, task in enumerate(tasks):
+        if not isinstance(task, dict):
+            raise SweepError(f"{source}: [[tasks]] {ti} must be a table, got {task!r}")
+        name = task.get("name", ti)
+        per_task.append(_positive(source, f"task {name!r}: episodes", task.get("episodes"), episodes, integer=True))
+    n = sum(per_task) * n_conditions * n_vessels * n_controllers
+    if n > MAX_EPISODES:
+        raise SweepError(f"{source}: {n} episodes ({sum(per_task)} over the tasks x {n_conditions} conditions x "
+                         f"{n_vessels} vessels x {n_controllers} controllers) is over the limit of {MAX_EPISODES}: "
+                         f"too many to plan (about 20 kB each); split the suite")
+    return n
+
+
 def load_suite(path: str | Path | None = None) -> Suite:
     """Read, sample and validate a suite file (default: the shipped one); see the module docstring."""
     path = Path(path) if path is not None else default_suite_path()
@@ -245,6 +268,7 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
     tasks = data.get("tasks")
     if not isinstance(tasks, list) or not tasks:
         raise SweepError(f"{source}: a suite needs at least one [[tasks]] table")
+    check_size(source, episodes, tasks, len(conditions), len(vessels), len(controllers))
     runs, names, per_task, skipped = [], [], {}, []
     for ti, task in enumerate(tasks):
         _check_keys(source, f"[[tasks]] {ti}", task, TASK_KEYS)
