@@ -35,6 +35,19 @@ SIDES = {"starboard": -1.0, "port": 1.0}
 CONDITIONS = ("calm", "scenario")
 
 
+def _check_duration(obj, section="manoeuvre"):
+    """The run must pass its approach (the execute at ``approach_s``) and take at least one control
+    step: refused here, before the run, not after it when there is nothing to measure."""
+    duration, period = obj.duration, obj.control_period
+    approach = getattr(obj, "approach_s", 0.0)
+    if hasattr(obj, "approach_s") and not duration > approach:
+        raise ScenarioError(f"{section}.duration = {duration!r} s does not pass the approach: the execute is at "
+                            f"{section}.approach_s = {approach!r} s; give a duration longer than approach_s")
+    if not duration >= period:
+        raise ScenarioError(f"{section}.duration = {duration!r} s is shorter than one control period "
+                            f"({section}.control_period = {period!r} s)")
+
+
 def _check(obj, positive=(), nonnegative=(), section="manoeuvre"):
     for f in fields(obj):
         v = getattr(obj, f.name)
@@ -74,6 +87,7 @@ class TurningOptions:
                nonnegative=("approach_s",))
         if self.steady_after_deg < 180:
             raise ScenarioError(f"manoeuvre.steady_after_deg must be >= 180, got {self.steady_after_deg!r}")
+        _check_duration(self)
 
 
 @dataclass(frozen=True)
@@ -92,6 +106,7 @@ class ZigzagOptions:
         _check(self, positive=("approach_speed", "yaw_moment", "angle_deg", "duration", "control_period"))
         if not self.angle_deg < 180:
             raise ScenarioError(f"manoeuvre.angle_deg must be < 180, got {self.angle_deg!r}")
+        _check_duration(self)
 
 
 @dataclass(frozen=True)
@@ -114,6 +129,9 @@ class SpiralOptions:
             raise ScenarioError(f"manoeuvre.steps must be an integer >= 1, got {self.steps!r}")
         if not self.settle_fraction <= 1:
             raise ScenarioError(f"manoeuvre.settle_fraction must be in (0, 1], got {self.settle_fraction!r}")
+        if not self.hold_s >= self.control_period:
+            raise ScenarioError(f"manoeuvre.hold_s = {self.hold_s!r} s is shorter than one control period "
+                                f"(manoeuvre.control_period = {self.control_period!r} s)")
 
     @property
     def duration(self) -> float:
@@ -145,6 +163,7 @@ class StoppingOptions:
         if self.astern_force > 0:
             raise ScenarioError(f"manoeuvre.astern_force must be <= 0 N (thrust off or astern), "
                                 f"got {self.astern_force!r}")
+        _check_duration(self)
 
 
 KINDS = {"turning": TurningOptions, "zigzag": ZigzagOptions, "spiral": SpiralOptions, "stopping": StoppingOptions}
@@ -289,7 +308,14 @@ def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
     if calm:
         over.update(disturbance={"scale": 0.0}, quantizer={"enabled": False}, **_no_delta(scenario))
         scenario = scenario.with_overrides(over)  # the drag with the test's Delta (none)
+    limits = scenario.limits
+    if not o.approach_speed < limits.max_speed:   # the run would stop as diverged at its first step
+        raise ScenarioError(f"{scenario.source}: manoeuvre.approach_speed = {o.approach_speed!r} m/s is not below "
+                            f"limits.max_speed = {limits.max_speed!r} m/s, where a run counts as diverged")
     force = approach_force(scenario, o.approach_speed)
+    if not abs(force) < limits.max_force:
+        raise ScenarioError(f"{scenario.source}: manoeuvre.approach_speed = {o.approach_speed!r} m/s takes a surge "
+                            f"force of {force:.6g} N, not below limits.max_force = {limits.max_force!r} N")
     # a ruddered vessel (usv_mj.physics.mmg): the channels are (n_P [1/s], delta [rad]); its [actuators]
     # limit the rudder's angle and rate (docs/manoeuvres.md §2)
     ruddered = getattr(getattr(getattr(scenario, "vessel", None), "model", None), "inputs", "forces") == "rudder"
