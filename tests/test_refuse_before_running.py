@@ -7,6 +7,8 @@ line, nothing written), not after the work (or the memory) is spent.
   is shorter than a control period, or whose approach speed the run's limits call divergence, is
   refused when its options are read; a run that ends before the execute at run time (a divergence)
   reports that there is nothing to measure instead of crashing in the measures;
+- cause 15: a bench task whose name cannot name its figure's file ('a/b': figures/bars-a/b.png)
+  is refused when the suite is planned, not after every episode ran.
 """
 
 from __future__ import annotations
@@ -111,3 +113,18 @@ def test_the_manoeuvre_command_refuses_before_writing(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "does not pass the approach" in err[0]
     assert not out.exists()
+
+
+# --- cause 15: a bench task's name is a file name ---------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["a/b", "..", "a\\b", "tab\there"])
+def test_a_task_name_that_cannot_name_a_file_is_refused(monkeypatch, name):
+    _no_draws(monkeypatch)
+    with pytest.raises(SweepError, match=r"\[\[tasks\]\] 0: name .* cannot name a file \(figures/bars-NAME.png\)"):
+        plan_suite({"tasks": [{"name": name}]})
+
+
+def test_a_task_name_with_a_space_plans():
+    suite = plan_suite({"episodes": 1, "controllers": ["los"], "tasks": [{"name": "line 0.6", "duration": 2.0}]})
+    assert suite.tasks == ["line 0.6"]

@@ -274,7 +274,7 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
     for key, cells in agg.items():
         if key[0] not in tasks_seen:
             tasks_seen.append(key[0])
-            lines += [f"## Task `{key[0]}`", "", f"![bars](figures/bars-{key[0]}.png)", ""]
+            lines += [f"## Task `{key[0]}`", "", f"![bars](<figures/bars-{key[0]}.png>)", ""]
         lines += [f"### {table_name(key, vessels)}", ""] + task_table(cells, controllers) + [""]
     if draw:
         lines += ["## Worst episodes", "", "Each controller's episode with the largest mean cross-track error "

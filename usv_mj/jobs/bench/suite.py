@@ -275,6 +275,10 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
         name = task.get("name")
         if not isinstance(name, str) or not name or name in names:
             raise SweepError(f"{source}: [[tasks]] {ti}: name must be a unique non-empty string, got {name!r}")
+        bad = sorted({c for c in name if c in "/\\" or not c.isprintable()})
+        if bad or name in (".", ".."):
+            raise SweepError(f"{source}: [[tasks]] {ti}: name {name!r} cannot name a file (figures/bars-NAME.png): "
+                             f"no {', '.join(map(repr, bad)) or 'name . or ..'}; use letters, digits, '-', '_', '.'")
         names.append(name)
         where = f"task {name!r}"
         base = load_base(f"{source} {where}", task.get("base", "paper"), directory)
