@@ -364,6 +364,11 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     check_commands(scenario, scenario.controller.kind)
     if run_baseline and scenario.baseline.kind != scenario.controller.kind:
         check_commands(scenario, scenario.baseline.kind, " (it is the baseline: --no-baseline skips it)")
+    from usv_mj.jobs.preflight import check_controller
+
+    check_controller(scenario)   # a plug-in's contracts, before anything is written
+    if run_baseline and scenario.baseline.kind != scenario.controller.kind:
+        check_controller(scenario, scenario.baseline.kind)
     with _OutLock(out), _Signals() as signals:
         stage = Staging(out)
         try:

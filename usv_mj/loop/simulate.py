@@ -140,7 +140,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     if problem is not None:
         raise PluginContractError(problem)
     from usv_mj.loop.compiled import kernels_of
-    from usv_mj.record.criteria import criterion_of
+    from usv_mj.record.criteria import criterion_of, criterion_to_dict
 
     compiled, why = (None, "asked for (loop='python')") if not use_compiled else kernels_of(parts, hooks)
     loop = {"loop": "compiled"} if compiled is not None else {"loop": "python", "loop_reason": why}
@@ -148,7 +148,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         "preset": scenario.preset, "plant": plant.name, "controller": controller.name,
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
         "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata, **loop,
-        "criterion": criterion_of(controller).to_dict(),  # how the outputs judge the run (usv_mj.record.criteria)
+        "criterion": criterion_to_dict(criterion_of(controller)),  # how the outputs judge the run (usv_mj.record.criteria)
         "channels": channels_of(scenario, getattr(controller, "commands", "forces")),  # what tau and f hold
     }, fields, getattr(controller, "diagnostic_events", None), stream_above)
     record.statics = parts.statics

@@ -201,7 +201,7 @@ def episode_metrics(record, *, settle_time_s: float = 20.0, band_cross_track_m: 
     """Every metric of :data:`METRICS` of one episode (module docstring), plus ``settled_cross_track``
     and ``settled_heading`` (False: the settling time is censored); JSON-ready (None, no NaN).
     The options: :class:`MetricOptions` (validated there)."""
-    from usv_mj.record.criteria import criterion_of_record
+    from usv_mj.record.criteria import criterion_of_record, judge
 
     MetricOptions(settle_time_s, band_cross_track_m, band_heading_rad, None if goal is None else tuple(goal),
                   goal_radius_m)
@@ -216,7 +216,7 @@ def episode_metrics(record, *, settle_time_s: float = 20.0, band_cross_track_m: 
         ts, settled = settling_time(t, err, band) if len(t) else (None, False)
         out[f"settling_time_{name}"], out[f"settled_{name}"] = ts, settled
     out.update(input_metrics(record))
-    out["passed"] = criterion_of_record(record).evaluate(record)["passed"]
+    out["passed"] = judge(criterion_of_record(record), record)["passed"]
     obstacles = record.metadata.get("obstacles") or {}
     out["min_clearance_m"] = obstacles.get("min_clearance_m")
     out["contact"] = (int(obstacles.get("contacts") or 0) > 0) if obstacles else None
