@@ -8,6 +8,14 @@ defect of usv_mj" nor as a bare AttributeError deep inside.
   back, or judges "not judged" and says why; an ``evaluate`` that raises or returns what the
   contract does not allow (None, NaN) leaves the run not judged with the error in its block; a
   ``first_violation_s`` of None (allowed) reads in every output.
+- cause 17: a plug-in's factory (usv_mj.core.registry.Entry.make) is held to its registry's
+  contract: a signature that cannot take (options, scenario, **context) (a trajectory without
+  ``duration=``), an exception of its own, a part without the registry's interface (an entry-point
+  vessel factory returning a dict) raise PluginContractError naming it; a subclass of a registered
+  class named by ``module:Name`` without ``options`` takes its registered parent's; numba's
+  compiler errors read as one line (what failed, where), naming a plug-in's kernel.
+- cause 10's refusal at load: a controller whose kernel's diagnostics do not fit its declared
+  fields is refused by ``usv-mj run`` before anything is written.
 """
 
 from __future__ import annotations
@@ -209,3 +217,183 @@ def test_judge_lets_a_builtin_error_through():
     rec = usv_mj.simulate(_scenario("los"), plant_kind="analytic")
     with pytest.raises(ScenarioError, match="no funnel columns"):
         judge(FunnelCriterion(), rec)
+
+
+# --- cause 17: plug-in factories, entry points, numba -----------------------------------------------
+
+FACTORIES = textwrap.dedent('''
+    import numpy as np
+    from numba import njit
+
+    from usv_mj.controllers.los import LOSController
+    from usv_mj.references.trajectories import LineReference
+
+
+    class NoDuration(LineReference):
+        @classmethod
+        def from_scenario(cls, options, scenario):          # the registry passes duration=
+            return super().from_scenario(options, scenario, duration=scenario.duration)
+
+
+    class SubLOS(LOSController):                             # no options: LOSController's
+        pass
+
+
+    class Orphan:                                            # no options, no registered parent
+        name = "orphan"
+        diagnostic_fields = ()
+
+        @classmethod
+        def from_scenario(cls, options, scenario):
+            return cls(options.k1)
+
+
+    class NotAController:
+        @classmethod
+        def from_scenario(cls, options, scenario):
+            return object()
+
+
+    def boat_one_argument(options):
+        return None
+
+
+    def boat_dict(options, scenario):
+        return {"ship": None}
+
+
+    @njit(cache=True)
+    def bad_kernel(t, x, ref, diag):
+        return 0.0, "oops" + 1, diag
+
+
+    class BadKernel:
+        name = "bad"
+        diagnostic_fields = ()
+
+        def __init__(self):
+            self._diag = np.zeros(0)
+
+        @classmethod
+        def from_scenario(cls, options, scenario):
+            return cls()
+
+        def reset(self):
+            pass
+
+        def kernel(self):
+            from usv_mj.core.kernels import Kernel
+            return Kernel(bad_kernel, (self._diag,))
+
+        def __call__(self, t, state, reference):
+            return 0.0, 0.0, self._diag
+
+
+    class ShortLOS(LOSController):
+        diagnostic_fields = ("e_ct", "e_psi")
+''')
+
+
+@pytest.fixture
+def factories(tmp_path, monkeypatch):
+    (tmp_path / "fact_plugin.py").write_text(FACTORIES)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    sys.modules.pop("fact_plugin", None)
+    import fact_plugin
+    yield fact_plugin
+    sys.modules.pop("fact_plugin", None)
+
+
+def test_a_trajectory_factory_without_duration_is_named(factories):
+    from usv_mj.references.trajectories import make_reference
+
+    sc = load_scenario(preset="paper", overrides={"trajectory": {"kind": "fact_plugin:NoDuration"}})
+    with pytest.raises(PluginContractError, match=r"trajectory kind 'fact_plugin:NoDuration' \(fact_plugin.NoDuration"
+                                                  r".from_scenario, module:Name\): its factory cannot be called as "
+                                                  r"\(options, scenario, duration=...\): got an unexpected keyword "
+                                                  r"argument 'duration'; a trajectory factory takes \(options, "
+                                                  r"scenario, duration=...\)"):
+        make_reference(sc.trajectory, sc.duration, sc)
+
+
+def test_a_subclass_named_by_module_name_takes_its_parents_options(factories):
+    from usv_mj.builder import make_controller
+    from usv_mj.controllers.los import LOSController, LOSGains
+
+    first = next(iter(LOSGains.__dataclass_fields__))          # a key of LOSGains: validated as the parent's
+    value = 2 * getattr(LOSGains(), first)
+    sc = load_scenario(preset="paper", overrides={"controller": {"kind": "fact_plugin:SubLOS", first: value}})
+    assert isinstance(sc.controller.gains, LOSGains) and getattr(sc.controller.gains, first) == value
+    c = make_controller(sc)
+    assert isinstance(c, LOSController) and type(c).__name__ == "SubLOS"
+
+
+def test_a_factory_that_fails_is_the_plugins_error(factories):
+    from usv_mj.builder import make_controller
+
+    sc = load_scenario(preset="paper", overrides={"controller": {"kind": "fact_plugin:Orphan"}})
+    with pytest.raises(PluginContractError, match=r"controller kind 'fact_plugin:Orphan' .*: its factory raised "
+                                                  r"AttributeError: 'NoneType' object has no attribute 'k1' at "
+                                                  r"fact_plugin.py:\d+ \(a defect of the plug-in, not of usv_mj\); "
+                                                  r"it was given options None: .* the class attribute `options`"):
+        make_controller(sc)
+    sc = load_scenario(preset="paper", overrides={"controller": {"kind": "fact_plugin:NotAController"}})
+    with pytest.raises(PluginContractError, match=r"its factory returned object .* which has no name, "
+                                                  r"diagnostic_fields, reset, __call__"):
+        make_controller(sc)
+
+
+def test_an_entry_point_vessel_factory_is_held_to_the_contract(factories, monkeypatch):
+    from importlib.metadata import EntryPoint
+
+    from usv_mj.core.errors import ScenarioError
+    from usv_mj.core.registry import VESSELS
+
+    eps = dict(VESSELS._eps())
+    for name in ("boat_one_argument", "boat_dict"):
+        eps[name] = EntryPoint(name=name, value=f"fact_plugin:{name}", group="usv_mj.vessels")
+    monkeypatch.setattr(VESSELS, "_entry_points", eps)
+    try:   # the scenario loader says which scenario (a ScenarioError, PluginContractError's parent)
+        with pytest.raises(ScenarioError, match=r"vessel kind 'boat_one_argument' \(fact_plugin.boat_one_argument, "
+                                                      r"entry point usv_mj.vessels .*\): its factory cannot be called as "
+                                                      r"\(options, scenario\)"):
+            load_scenario(preset="paper", overrides={"vessel": {"kind": "boat_one_argument"}})
+        with pytest.raises(ScenarioError, match=r"its factory returned dict .*, which has no kind, ship, split, "
+                                                      r"dimensions: a vessel has kind, ship, split, dimensions"):
+            load_scenario(preset="paper", overrides={"vessel": {"kind": "boat_dict"}})
+    finally:
+        for name in ("boat_one_argument", "boat_dict"):
+            VESSELS.unregister(name)
+
+
+def test_numba_errors_read_as_one_line_naming_the_plugins_kernel(factories):
+    from usv_mj.core.errors import compiler_summary, one_line
+
+    sc = load_scenario(preset="paper", overrides={"duration": 0.2, "baseline": {"enabled": False},
+                                                  "controller": {"kind": "fact_plugin:BadKernel"}})
+    with pytest.raises(PluginContractError) as caught:
+        usv_mj.simulate(sc, plant_kind="analytic")
+    text = str(caught.value)
+    assert "\x1b" not in text and "\n" not in text
+    assert text.startswith("numba cannot compile the loop with the plug-in's controller kernel fact_plugin.bad_kernel: "
+                           "No implementation of function Function(<built-in function add>) found for signature: "
+                           ">>> add(")
+    assert "fact_plugin.py, line " in text, text
+    # a numba error raised in a plug-in's own Python call: one line, no escape codes
+    try:
+        factories.bad_kernel(0.0, np.zeros(6), np.zeros(7), np.zeros(0))
+    except Exception as exc:
+        line = one_line(exc)
+    assert line.startswith("TypingError: No implementation of function") and "\x1b" not in line
+    assert compiler_summary("an ordinary message") is None
+
+
+def test_run_refuses_a_controller_whose_diagnostics_do_not_fit_before_writing(factories, tmp_path, capsys):
+    from usv_mj.cli.main import main
+
+    out = tmp_path / "o"
+    assert main(["run", "--plant", "analytic", "--set", "controller.kind=fact_plugin:ShortLOS", "--duration", "1",
+                 "--no-baseline", "--no-video", "-q", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "fact_plugin.ShortLOS returns 13 diagnostics but declares 2" in err[0]
+    assert not out.exists() and not list(tmp_path.glob(".o*"))

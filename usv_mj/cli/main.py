@@ -61,7 +61,7 @@ import importlib
 import time
 from pathlib import Path
 
-from usv_mj.core.errors import Terminated
+from usv_mj.core.errors import Terminated, one_line
 from usv_mj.cli.args import (EXIT_BAD_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_STOPPED,  # noqa: F401 (re-exported)
                            add_live_arguments, add_scenario_arguments, add_vessel_argument, live_server, parse_set,
                            scenario_from_args)
@@ -429,7 +429,7 @@ def main(argv: list[str] | None = None) -> int:
         while where is not None and where.tb_next is not None:
             where = where.tb_next
         at = f" at {Path(where.tb_frame.f_code.co_filename).name}:{where.tb_lineno}" if where is not None else ""
-        print(f"usv-mj {args.command}: internal error: {type(exc).__name__}: {' '.join(str(exc).split())}{at} "
+        print(f"usv-mj {args.command}: internal error: {one_line(exc)}{at} "
               "(a defect of usv_mj; USV_MJ_DEBUG=1 shows the traceback)", file=sys.stderr)
         return EXIT_STOPPED
 

@@ -9,6 +9,8 @@ caller may catch the family or one member.
 
 from __future__ import annotations
 
+import re
+
 
 class UsvMjError(Exception):
     """Base of every error that usv_mj raises on purpose (never a bug)."""
@@ -76,3 +78,44 @@ def missing_extra(module: str, what: str) -> MissingExtra:
     """The one-line error for ``what`` needing the optional ``module``: ``pip install "usv_mj[gym]"``."""
     package, extra = EXTRAS[module]
     return MissingExtra(f"{what} needs {package}, which is not installed: pip install \"usv_mj[{extra}]\"")
+
+
+_ANSI = re.compile(r"\x1b\[[0-9;?]*[ -/]*[@-~]")
+
+
+def plain_text(text) -> str:
+    """``text`` without terminal escape sequences (numba highlights its messages with them)."""
+    return _ANSI.sub("", str(text))
+
+
+def compiler_summary(text: str) -> str | None:
+    """numba's compiler error (``Failed in nopython mode pipeline ...``, dozens of lines) as one
+    line: what failed and the first source line it names (``file.py, line N``); None for text
+    that is not one."""
+    lines = [line.strip() for line in plain_text(text).splitlines()]
+    if not any(line.startswith("Failed in ") for line in lines):
+        return None
+    body = [line for line in lines if line and not line.startswith(("Failed in ", "During:"))]
+    what = ""
+    for i, line in enumerate(body):
+        if line.startswith("File "):
+            break
+        what = line
+        if not line.endswith(":"):
+            break
+        what = " ".join(body[i:i + 2])
+        break
+    where = next((line[len("File "):].rstrip(":").replace('"', "") for line in body if line.startswith("File ")), "")
+    return what + (f" ({where})" if where else "")
+
+
+def message_line(exc: BaseException) -> str:
+    """``exc``'s message on one line, escape sequences removed, a numba compiler error summarized."""
+    text = compiler_summary(str(exc))
+    return text if text is not None else " ".join(plain_text(exc).split())
+
+
+def one_line(exc: BaseException) -> str:
+    """``Type: message`` (:func:`message_line`)."""
+    text = message_line(exc)
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__

@@ -53,12 +53,13 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import importlib
+import inspect
 import re
 import sys
 from dataclasses import dataclass, field
 from typing import Any
 
-from usv_mj.core.errors import PluginImportError, UnknownKindError
+from usv_mj.core.errors import PluginContractError, PluginImportError, UnknownKindError, UsvMjError, one_line
 
 BUILT_IN = "built-in"
 _MODULE_NAME = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
@@ -75,6 +76,8 @@ class Entry:
     obj: Any
     info: dict = field(default_factory=dict)
     source: str = "registered at runtime"
+    what: str = "part"              # the registry's noun ("controller"), for messages
+    returns: tuple = ()             # what the part must have (the registry's interface), checked on a plug-in's
 
     def __getattr__(self, name):  # entry.gains, entry.options, entry.doc, ... from the registration's keywords
         if name.startswith("__"):
@@ -94,16 +97,52 @@ class Entry:
         """The module that defines the object ("" if it has none)."""
         return getattr(self.obj, "__module__", "") or ""
 
+    @property
+    def plugin(self) -> bool:
+        """Whether the object is a plug-in's (its errors are its own, not usv_mj's): anything but a
+        built-in and a vessel data file (data, made by usv_mj's own factory)."""
+        return self.source != BUILT_IN and not self.source.startswith("data file")
+
     def make(self, options, scenario, **context):
         """The part: ``obj.from_scenario(options, scenario, **context)``, or ``obj(options,
         scenario, **context)`` for a plain factory; a kind whose object *is* its options class (a
-        disturbance) gives ``options`` itself."""
+        disturbance) gives ``options`` itself. A plug-in's factory is held to the contract: a
+        signature that cannot take these arguments, an exception of its own (not a usv_mj error
+        it lets through) or a part without the registry's interface raises
+        :class:`PluginContractError` naming the plug-in, the contract and the fix."""
         factory = getattr(self.obj, "from_scenario", None)
-        if factory is not None:
-            return factory(options, scenario, **context)
-        if self.obj is self.options_class:
+        if factory is None and self.obj is self.options_class:
             return options
-        return self.obj(options, scenario, **context)
+        factory = factory if factory is not None else self.obj
+        if not self.plugin:
+            return factory(options, scenario, **context)
+        name = _name_of(self.obj) + (".from_scenario" if factory is not self.obj else "")
+        head = f"{self.what} kind {self.kind!r} ({name}, {self.source})"
+        call = "(options, scenario" + "".join(f", {k}=..." for k in context) + ")"
+        try:
+            inspect.signature(factory).bind(options, scenario, **context)
+        except TypeError as exc:
+            raise PluginContractError(f"{head}: its factory cannot be called as {call}: {exc}; a {self.what} "
+                                      f"factory takes {call} (usv_mj.core.registry)") from None
+        except ValueError:   # no signature to read (a builtin): the call itself says
+            pass
+        try:
+            part = factory(options, scenario, **context)
+        except UsvMjError:
+            raise
+        except Exception as exc:
+            hint = ""
+            if options is None and self.options_class is None:
+                hint = ("; it was given options None: a class named by 'module:Name' or an entry point declares "
+                        "its options dataclass as the class attribute `options` (or derives from a registered class)")
+            raise PluginContractError(f"{head}: its factory raised {one_line(exc)}{_where(exc)} (a defect of the "
+                                      f"plug-in, not of usv_mj){hint}") from exc
+        missing = [a for a in self.returns if not hasattr(part, a)]
+        if missing:
+            raise PluginContractError(f"{head}: its factory returned {type(part).__name__} {_short(part)}, which has "
+                                      f"no {', '.join(missing)}: a {self.what} has {', '.join(self.returns)} "
+                                      f"(usv_mj.core.registry)")
+        return part
 
 
 class Registry:
@@ -113,9 +152,10 @@ class Registry:
     registers it on import; ``group``: the entry-point group searched for kinds not found.
     """
 
-    def __init__(self, what: str, builtins: dict[str, str], group: str):
+    def __init__(self, what: str, builtins: dict[str, str], group: str, returns: tuple = ()):
         self.what = what
         self.group = group
+        self.returns = tuple(returns)   # the attributes a part must have (checked on a plug-in's)
         self._builtins = dict(builtins)  # kind -> module that registers it on import
         self._entries: dict[str, Entry] = {}
         self._entry_points = None        # name -> importlib.metadata.EntryPoint, read once
@@ -153,7 +193,7 @@ class Registry:
             if options is not None:
                 full["options"] = options
                 full["gains"] = options  # the controllers' historical name
-            self._entries[kind] = Entry(kind, obj, full, source)
+            self._entries[kind] = Entry(kind, obj, full, source, self.what, self.returns)
             return obj
 
         return deco
@@ -299,11 +339,14 @@ class Registry:
             raise UnknownKindError(f"{head}: the module {obj.__name__!r} registers no {self.what} kind {kind!r}")
         own = next((e for e in self._entries.values() if e.obj is obj), None)
         if own is not None:
-            self._entries[kind] = Entry(kind, obj, dict(own.info), source)
+            self._entries[kind] = Entry(kind, obj, dict(own.info), source, self.what, self.returns)
             return
         options = getattr(obj, "options", None) if isinstance(obj, type) else None
         if options is not None and not (isinstance(options, type) and dataclasses.is_dataclass(options)):
             options = None
+        if options is None and isinstance(obj, type):   # a subclass of a registered class: its options
+            options = next((e.options_class for base in obj.__mro__[1:] for e in list(self._entries.values())
+                            if e.obj is base and e.options_class is not None), None)
         try:
             self._decorator(kind, options, {}, source, False)(obj)
         except ValueError as exc:
@@ -327,6 +370,23 @@ def _one_line(exc) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
+def _where(exc) -> str:
+    """" (at file.py:N)": the innermost frame of ``exc``'s traceback."""
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    if tb is None:
+        return ""
+    import os
+
+    return f" at {os.path.basename(tb.tb_frame.f_code.co_filename)}:{tb.tb_lineno}"
+
+
+def _short(obj) -> str:
+    text = repr(obj)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _importable(module: str) -> bool:
     from importlib.util import find_spec
 
@@ -337,20 +397,20 @@ def _importable(module: str) -> bool:
 
 
 PLANTS = Registry("plant", {"analytic": "usv_mj.plants.analytic", "mujoco": "usv_mj.plants.mujoco_plant"},
-                  "usv_mj.plants")
+                  "usv_mj.plants", returns=("name", "control_period", "reset", "step", "state", "time"))
 CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "usv_mj.controllers.pi_baseline",
                                       "los": "usv_mj.controllers.los", "open_loop": "usv_mj.controllers.open_loop",
                                       "zigzag": "usv_mj.controllers.zigzag"},
-                       "usv_mj.controllers")
+                       "usv_mj.controllers", returns=("name", "diagnostic_fields", "reset", "__call__"))
 TRAJECTORIES = Registry("trajectory", {k: "usv_mj.references.trajectories" for k in ("paper", "line", "circle", "waypoints")},
-                        "usv_mj.references.trajectories")
+                        "usv_mj.references.trajectories", returns=("evaluate",))
 DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"}, "usv_mj.physics.disturbances")
 #: the hulls (docs/vessels.md): a module, or a data file of usv_mj/vessels/data/ read by
 #: usv_mj.vessels.datafile (its kinds are named here, so that looking one up imports no physics)
 VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_mj.vessels.clarke83",
                               "kvlcc2": "usv_mj.vessels.kvlcc2",
                               "cybership2": "usv_mj.vessels.datafile", "otter": "usv_mj.vessels.datafile"},
-                   "usv_mj.vessels")
+                   "usv_mj.vessels", returns=("kind", "ship", "split", "dimensions"))
 #: every registry by its scenario section (``usv-mj kinds`` lists them)
 REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES,
               "vessel": VESSELS}

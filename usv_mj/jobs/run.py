@@ -219,7 +219,7 @@ class _OutLock:
         return False
 
 
-from usv_mj.core.errors import Terminated  # noqa: E402  (SIGTERM / SIGHUP as Ctrl-C)
+from usv_mj.core.errors import Terminated, compiler_summary, plain_text  # noqa: E402  (Terminated: SIGTERM / SIGHUP as Ctrl-C)
 
 
 class _Signals:
@@ -323,7 +323,10 @@ def _one_line(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.strerror:
         where = exc.filename or ""
         return f"{where}: {exc.strerror}" if where else exc.strerror
-    text = str(exc).strip().splitlines()
+    summary = compiler_summary(str(exc))   # numba's dozens of highlighted lines: what failed, and where
+    if summary is not None:
+        return f"{type(exc).__name__}: {summary}"
+    text = plain_text(exc).strip().splitlines()
     if type(exc).__name__ in ("RunLogError", "RenderWorkerError") and text:
         return text[-1]
     return f"{type(exc).__name__}: {text[-1] if text else ''}".rstrip(": ")

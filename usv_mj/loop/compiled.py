@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
+from numba.core.errors import NumbaError
 
 from usv_mj.core.kernels import Kernel, kernel_blocker, kernel_of
 from usv_mj.support.assets import PACKAGE_DIR
@@ -284,9 +285,12 @@ def run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()):
                 if run_block is None:
                     run_block = compiled_block(kernels)
                     release = _hold_signals()   # its first call may compile it
-            k, status, x = run_block(k, stop, n, dt, data, record.base, n_diag, limits.max_force, limits.max_speed,
-                                     limits.max_yaw_rate, limits.max_distance, x, out, resume,
-                                     *(kernels[r].args for r in _ROLES))
+            try:
+                k, status, x = run_block(k, stop, n, dt, data, record.base, n_diag, limits.max_force,
+                                         limits.max_speed, limits.max_yaw_rate, limits.max_distance, x, out, resume,
+                                         *(kernels[r].args for r in _ROLES))
+            except NumbaError as exc:   # the loop could not be compiled: which kernel, in one line
+                raise compile_error(kernels, exc) from None
             resume = False
             more = _after(record, k, status, x, pk, syncs, flush, block)
             if release is not None:
@@ -305,6 +309,27 @@ def run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()):
             release(deliver=False)
         for sync in syncs:
             sync()
+
+
+def compile_error(kernels: dict, exc: BaseException) -> Exception:
+    """The error of a generated loop numba could not compile: a plug-in's kernel named (a
+    :class:`PluginContractError`: its module and function, numba's reason in one line, the fix), else
+    usv_mj's own defect (RuntimeError), never numba's dozens of highlighted lines."""
+    from usv_mj.core.errors import PluginContractError, compiler_summary, plain_text
+
+    reason = compiler_summary(str(exc)) or " ".join(plain_text(exc).split())
+    plugins = [(role, *kernel_name(kernels[role].fn)) for role in _ROLES]
+    plugins = [(role, m, n) for role, m, n in plugins if not m.startswith("usv_mj.")]
+    if not plugins:
+        return RuntimeError(f"the compiled loop could not be compiled: {type(exc).__name__}: {reason}")
+    names = ", ".join(f"{_LABELS[role]} kernel {m}.{n}" for role, m, n in plugins)
+    return PluginContractError(f"numba cannot compile the loop with the plug-in's {names}: {reason}; a kernel is an "
+                               f"njit function numba can type with the loop's arguments (usv_mj.core.kernels): "
+                               f"fix it, or give the part no kernel (the Python loop runs it)")
+
+
+_LABELS = {"ref": "reference", "ctrl": "controller", "qu": "surge quantizer", "qr": "yaw quantizer",
+           "act": "actuators", "plant": "plant", "hook": "hook"}
 
 
 def _hold_signals():

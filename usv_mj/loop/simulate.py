@@ -21,7 +21,7 @@ from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
-from usv_mj.core.errors import PluginContractError
+from usv_mj.core.errors import PluginContractError, message_line
 from usv_mj.core.kernels import diag_contract, diag_mismatch
 from usv_mj.physics.limits import within_limits
 from usv_mj.builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
@@ -242,7 +242,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
             return record
         record.status = "failed"
-        record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}"
+        record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {message_line(exc)}"
         record.events.append(Event(k * dt, "failed", record.stop_reason))
         _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
         raise
