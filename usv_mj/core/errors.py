@@ -53,6 +53,11 @@ class ArgumentTypeError(UsvMjError, TypeError):
     argument, what it takes and what it got: ``simulate: scenario must be ..., got NoneType``."""
 
 
+class ArgumentValueError(UsvMjError, ValueError):
+    """A public function was handed an argument of the right type but a value it cannot take; the
+    message names the function, the argument, what it takes and what it got."""
+
+
 def expected(where: str, name: str, what: str, value) -> ArgumentTypeError:
     """The :class:`ArgumentTypeError` of ``where``'s argument ``name`` that should be ``what``."""
     shown = repr(value) if isinstance(value, (str, bytes, int, float)) and len(repr(value)) <= 40 else None

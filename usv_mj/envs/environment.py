@@ -18,6 +18,8 @@ with warnings.catch_warnings():
 from dm_env import specs
 
 from usv_mj.builder import channels_of, make_environment, make_plant
+from usv_mj.core import arguments
+from usv_mj.core.errors import expected
 from usv_mj.scenario.spec import Scenario, ScenarioError, load_scenario, merge_tables
 
 from usv_mj.envs import ALL_TASKS
@@ -256,8 +258,15 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
 
     Raises ValueError for an unknown task, option or vessel.
     """
+    if not isinstance(task, str):
+        raise expected("usv_mj.envs.load", "task", f"a task name ({', '.join(ALL_TASKS)})", task)
     if task not in ALL_TASKS:
         raise ValueError(f"usv_mj.envs.load: unknown task {task!r}; tasks: {', '.join(ALL_TASKS)}")
+    if seed is not None and not isinstance(seed, np.random.RandomState):
+        arguments.integer("usv_mj.envs.load", "seed", seed, 0, "an integer >= 0, a numpy.random.RandomState or None")
+    arguments.mapping_or_none("usv_mj.envs.load", "task_kwargs", task_kwargs, "a dict of task options or None")
+    arguments.mapping_or_none("usv_mj.envs.load", "environment_kwargs", environment_kwargs,
+                              "a dict (time_limit, flat_observation, legacy_step) or None")
     options = {**(task_kwargs or {}), **options}
     env_kw = dict(environment_kwargs or {})
     unknown = sorted(set(env_kw) - set(ENVIRONMENT_KWARGS))
@@ -270,7 +279,10 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
         options.setdefault("duration", env_kw.pop("time_limit"))
     harbour = task in HARBOUR_TASKS
     default_duration = 90.0 if harbour else 30.0
-    duration = float(options.pop("duration", default_duration))
+    duration = options.pop("duration", default_duration)
+    if not arguments.is_real(duration):
+        raise expected("usv_mj.envs.load", "duration", "a number of seconds > 0", duration)
+    duration = float(duration)
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"usv_mj.envs.load: duration must be a finite number > 0 s, got {duration!r}")
     preview = tuple(options.get("preview_times", DEFAULT_PREVIEW))

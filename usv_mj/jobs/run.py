@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -219,7 +220,7 @@ class _OutLock:
         return False
 
 
-from usv_mj.core.errors import Terminated, compiler_summary, plain_text  # noqa: E402  (Terminated: SIGTERM / SIGHUP as Ctrl-C)
+from usv_mj.core.errors import Terminated, compiler_summary, expected, plain_text  # noqa: E402  (Terminated: SIGTERM / SIGHUP as Ctrl-C)
 
 
 class _Signals:
@@ -355,6 +356,10 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     from usv_mj.jobs.preflight import check_run
     from usv_mj.outputs.log.writer import log_every
 
+    if not isinstance(scenario, Scenario):
+        raise expected("run_job", "scenario", "a Scenario (usv_mj.load_scenario)", scenario)
+    if not isinstance(out_dir, (str, os.PathLike)):
+        raise expected("run_job", "out_dir", "the output folder's path (str or pathlib.Path)", out_dir)
     log_every(log_rate, scenario.control_period)   # a bad rate is refused before anything is written
     from usv_mj.outputs.outdir import Staging
 

@@ -21,6 +21,7 @@ from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
+from usv_mj.core import arguments
 from usv_mj.core.errors import PluginContractError, message_line
 from usv_mj.core.kernels import diag_contract, diag_mismatch
 from usv_mj.physics.limits import within_limits
@@ -92,6 +93,17 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
     """
     if loop not in ("auto", "python"):
         raise ValueError(f"simulate: loop must be 'auto' or 'python', got {loop!r}")
+    block = arguments.integer("simulate", "block", block, 1, "the number of rows between the sinks' flushes, "
+                              "an integer >= 1")
+    arguments.callable_or_none("simulate", "progress", progress, "a callable progress(n_new_steps) or None")
+    sinks = arguments.each("simulate", "sinks", sinks, "a run sink (an object with start, rows, finish)",
+                           lambda s: all(callable(getattr(s, m, None)) for m in ("start", "rows", "finish")),
+                           "a list of run sinks (objects with start, rows, finish)")
+    hooks = arguments.each("simulate", "hooks", hooks, "a hook, a callable hook(t, k, plant)", callable,
+                           "a list of hooks, callables hook(t, k, plant)")
+    duration = arguments.seconds("simulate", "duration", duration)
+    if reference is not None:
+        arguments.having("simulate", "reference", reference, ("evaluate",), "a reference trajectory")
     if not isinstance(scenario, Parts):
         from usv_mj.builder import as_scenario
 

@@ -341,9 +341,16 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
     Returns the :class:`Hydrodynamics` handle; keep it while stepping (``handle.detach()`` ends it).
     """
     from usv_mj.builder import make_environment
+    from usv_mj.core.errors import expected
     from usv_mj.scenario.spec import Scenario, load_scenario, preset_names
     from usv_mj.physics.ship import RigidBodySplit
 
+    if not isinstance(model, mujoco.MjModel):
+        raise expected("attach_hydrodynamics", "model", "a mujoco.MjModel (mujoco.MjModel.from_xml_path(...))", model)
+    if data is not None and not isinstance(data, mujoco.MjData):
+        raise expected("attach_hydrodynamics", "data", "the model's mujoco.MjData, or None (a new one)", data)
+    if not isinstance(body, str):
+        raise expected("attach_hydrodynamics", "body", "the hull body's name (str)", body)
     if scenario is None or isinstance(scenario, str):
         if scenario is None or scenario in preset_names():
             scenario = load_scenario(preset=scenario)
