@@ -162,6 +162,10 @@ def commands_error(scenario: Scenario, controller, kind: str) -> str | None:
     allocation of :func:`make_actuators`; a rudder controller cannot drive a vessel without one."""
     inputs = getattr(getattr(scenario.vessel, "model", None), "inputs", "forces")
     commands = getattr(controller, "commands", "forces")
+    if commands not in ("forces", "any", "rudder"):   # not a rudder controller: a word the contract lacks
+        return (f"the {kind!r} controller declares commands = {commands!r}; a controller's commands is 'forces' "
+                f"(the default: tau_u [N], tau_r [N m]), 'any' (plain numbers) or 'rudder' (n_P [1/s], a rudder "
+                f"angle [rad]) (controllers/base.py)")
     if commands in ("any", inputs) or (commands == "forces" and allocation_of(scenario) is not None):
         return None
     if commands == "forces":   # a ruddered vessel with no MMG block to allocate through (a plug-in's)

@@ -33,6 +33,7 @@ import os
 import signal
 import sys
 import threading
+import warnings
 
 
 def _signal_while_starting(signum, frame):
@@ -61,7 +62,7 @@ import importlib
 import time
 from pathlib import Path
 
-from usv_mj.core.errors import Terminated, one_line
+from usv_mj.core.errors import PluginWarning, Terminated, one_line
 from usv_mj.cli.args import (EXIT_BAD_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_STOPPED,  # noqa: F401 (re-exported)
                            add_live_arguments, add_scenario_arguments, add_vessel_argument, live_server, parse_set,
                            scenario_from_args)
@@ -382,7 +383,18 @@ def _harmonize(p: argparse.ArgumentParser) -> None:
         p.add_argument(*new, **kwargs)
 
 
+_PYTHON_WARNING = warnings.formatwarning
+
+
+def _one_line_warning(message, category, filename, lineno, line=None):
+    """usv_mj's own warnings (a plug-in's entry point not used) as one line, others as Python's."""
+    if issubclass(category, PluginWarning):
+        return f"usv-mj: warning: {message}\n"
+    return _PYTHON_WARNING(message, category, filename, lineno, line)
+
+
 def main(argv: list[str] | None = None) -> int:
+    warnings.formatwarning = _one_line_warning
     if threading.current_thread() is threading.main_thread():
         # until a command installs its own handlers: SIGTERM / SIGHUP end it as Ctrl-C would (exit 1)
         for sig in (signal.SIGTERM, signal.SIGHUP):

@@ -65,6 +65,11 @@ def expected(where: str, name: str, what: str, value) -> ArgumentTypeError:
     return ArgumentTypeError(f"{where}: {name} must be {what}, got {got}")
 
 
+class PluginWarning(UserWarning):
+    """Something about the installed plug-ins the user should know but that does not stop the run
+    (an entry point shadowed by a built-in kind, or named by two distributions)."""
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised like Ctrl-C's KeyboardInterrupt (its text: the signal's name), so
     that every ending by a signal is recorded as an interruption."""

@@ -56,10 +56,12 @@ import importlib
 import inspect
 import re
 import sys
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
-from usv_mj.core.errors import PluginContractError, PluginImportError, UnknownKindError, UsvMjError, one_line
+from usv_mj.core.errors import (PluginContractError, PluginImportError, PluginWarning, UnknownKindError, UsvMjError,
+                                one_line)
 
 BUILT_IN = "built-in"
 _MODULE_NAME = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
@@ -159,6 +161,8 @@ class Registry:
         self._builtins = dict(builtins)  # kind -> module that registers it on import
         self._entries: dict[str, Entry] = {}
         self._entry_points = None        # name -> importlib.metadata.EntryPoint, read once
+        self._ep_notes: dict = {}        # name -> why an entry point of that name is not (or not alone) used
+        self._warned: set = set()
 
     # --- registering ----------------------------------------------------------------------------
 
@@ -236,6 +240,12 @@ class Registry:
         if not isinstance(kind, str) or not kind:
             raise UnknownKindError(f"{where + ': ' if where else ''}a {self.what} kind must be a non-empty "
                                    f"string, got {kind!r}")
+        if kind not in self._warned:   # once per kind: an entry point of its name is not (or not alone) used
+            self._warned.add(kind)
+            if ":" not in kind:
+                self._eps()
+                if kind in self._ep_notes:
+                    warnings.warn(self._ep_notes[kind], PluginWarning, stacklevel=2)
         if kind in self._entries:
             return self._entries[kind]
         if kind in self._builtins:
@@ -293,11 +303,30 @@ class Registry:
         if self._entry_points is None:
             from importlib.metadata import entry_points
 
-            found = {}
+            found, every = {}, {}
             for ep in entry_points(group=self.group):
                 found.setdefault(ep.name, ep)  # the first distribution on sys.path wins, as for imports
+                every.setdefault(ep.name, []).append(ep)
+            notes = {}
+            for name, eps in every.items():
+                dists = [_dist_name(ep) for ep in eps]
+                if name in self._builtins:
+                    notes[name] = (f"{self.what} kind {name!r} is built in: the entry point {name!r} of the group "
+                                   f"{self.group} ({', '.join(dists)}) is not used; give it another name")
+                    found.pop(name, None)
+                elif len(eps) > 1:
+                    notes[name] = (f"{self.what} kind {name!r}: {len(eps)} distributions declare the entry point "
+                                   f"({', '.join(dists)}); the first on sys.path is used ({dists[0]}: "
+                                   f"{eps[0].value}); uninstall or rename the others")
+            self._ep_notes = notes
             self._entry_points = found
         return self._entry_points
+
+    def notes(self) -> list[str]:
+        """Why entry points of the group are not (or not alone) used (shadowed by a built-in kind,
+        declared by two distributions): one line each (``usv-mj kinds`` prints them)."""
+        self._eps()
+        return [self._ep_notes[k] for k in sorted(self._ep_notes)]
 
     def _load_module_name(self, kind: str, where: str) -> None:
         module_name, _, attr = kind.partition(":")
@@ -306,7 +335,8 @@ class Registry:
             raise UnknownKindError(f"{head}: expected 'package.module:Name' (a module path, a colon, an "
                                    f"attribute)")
         try:
-            module = importlib.import_module(module_name)
+            with _output_to_stderr():
+                module = importlib.import_module(module_name)
         except Exception as exc:
             raise PluginImportError(f"{head}: cannot import module {module_name!r} "
                                     f"({type(exc).__name__}: {_one_line(exc)})") from None
@@ -323,7 +353,8 @@ class Registry:
         dist_name = f"{dist.name} {dist.version}" if dist is not None else "unknown distribution"
         head = f"{where + ': ' if where else ''}{self.what} kind {kind!r} (entry point {ep.value!r} of {dist_name})"
         try:
-            obj = ep.load()
+            with _output_to_stderr():
+                obj = ep.load()
         except Exception as exc:
             raise PluginImportError(f"{head}: cannot be loaded ({type(exc).__name__}: {_one_line(exc)})") from None
         self._adopt(kind, obj, f"entry point {self.group} (dist {dist_name})", head)
@@ -364,6 +395,19 @@ def _same_definition(a, b) -> bool:
 
 def _name_of(obj) -> str:
     return f"{getattr(obj, '__module__', '?')}.{getattr(obj, '__qualname__', repr(obj))}"
+
+
+def _output_to_stderr():
+    """While a plug-in is imported, what it prints goes to stderr: a command's stdout (``usv-mj kinds
+    --json``, ``inspect``) stays its own."""
+    import contextlib
+
+    return contextlib.redirect_stdout(sys.stderr)
+
+
+def _dist_name(ep) -> str:
+    dist = getattr(ep, "dist", None)
+    return f"dist {dist.name} {dist.version}" if dist is not None else "an unknown distribution"
 
 
 def _one_line(exc) -> str:

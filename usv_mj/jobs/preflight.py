@@ -52,9 +52,11 @@ def check_plan(scenario: Scenario) -> None:
     try:
         make_plan(scenario)
     except (PlanningError, ValueError) as exc:
-        if isinstance(exc, ScenarioError):
+        message = str(exc)
+        if isinstance(exc, ScenarioError) and scenario.source and message.startswith(scenario.source):
             raise
-        raise ScenarioError(f"{scenario.source}: guidance: {exc}") from None
+        raise (PlanningError if isinstance(exc, PlanningError) else ScenarioError)(
+            f"{scenario.source}: guidance: {message}") from None
 
 
 def check_video(render_options: dict | None) -> None:

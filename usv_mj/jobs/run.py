@@ -327,10 +327,12 @@ def _one_line(exc: BaseException) -> str:
     summary = compiler_summary(str(exc))   # numba's dozens of highlighted lines: what failed, and where
     if summary is not None:
         return f"{type(exc).__name__}: {summary}"
-    text = plain_text(exc).strip().splitlines()
+    text = [line.strip() for line in plain_text(exc).strip().splitlines() if line.strip()]
     if type(exc).__name__ in ("RunLogError", "RenderWorkerError") and text:
         return text[-1]
-    return f"{type(exc).__name__}: {text[-1] if text else ''}".rstrip(": ")
+    # every line: a message's first line is often its reason (MuJoCo's "Error: mass and inertia of
+    # moving bodies must be larger than mjMINVAL", then "Element name 'hull', id 1, line 54")
+    return f"{type(exc).__name__}: {'; '.join(text)}".rstrip(": ")
 
 
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
@@ -646,6 +648,9 @@ class _StagedJob:
         if self.fault:
             stopped, fault = self.stopped, self.fault
             message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
+            rec = self.record
+            if rec is not None and rec.status in ("diverged", "failed"):   # the run's own end first: not hidden
+                message = f"the run {rec.status}: {rec.stop_reason}; then {message}"
             raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),
                             final_out, self.summary_out)
         return JobResult(out, self.record, self.summary_out, self.base_rec, self.base_summary, self.check, files,

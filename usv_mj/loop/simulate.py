@@ -16,6 +16,7 @@ the rows up to the stop stay valid and the sinks are always finished.
 from __future__ import annotations
 
 import math
+import os
 import time
 from typing import Callable, Iterable, Protocol
 
@@ -262,9 +263,32 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     return record
 
 
+def interrupter(exc: BaseException) -> str:
+    """Who interrupted a run, in words: "the user (Ctrl-C)", a signal's name (SIGTERM, SIGHUP), the
+    reason usv_mj's own code gave ("closing the viewer"), or a KeyboardInterrupt a part raised
+    (a plug-in's: where, and its text), which is not a signal."""
+    from usv_mj.core.errors import Terminated
+
+    text = str(exc)
+    if text in ("", "Ctrl-C"):
+        return "the user (Ctrl-C)"
+    if isinstance(exc, Terminated):
+        return text
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    where = os.path.abspath(tb.tb_frame.f_code.co_filename) if tb is not None else ""
+    if where.startswith(_PACKAGE_DIR):
+        return text
+    return f"a KeyboardInterrupt raised at {os.path.basename(where)}:{tb.tb_lineno} ({text!r}), not a signal" \
+        if tb is not None else f"a KeyboardInterrupt ({text!r}), not a signal"
+
+
+_PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep   # usv_mj/
+
+
 def _interrupted(record: RunRecord, exc: BaseException, t: float) -> None:
-    who = str(exc)
-    who = "the user (Ctrl-C)" if who in ("", "Ctrl-C") else who
+    who = interrupter(exc)
     record.status = "interrupted"
     record.stop_reason = f"interrupted by {who} at t = {t:.3f} s"
     record.events.append(Event(t, "interrupted", record.stop_reason))

@@ -129,7 +129,13 @@ def by_table(by: dict, controllers: list, what: str) -> list[str]:
 
 def printed_leaderboard(agg: dict, controllers: list, vessels: bool) -> list[str]:
     """What ``usv-mj bench`` prints at the end (and report.md opens with): the summary ranking,
-    then the mean rank per task and, with vessels, per vessel (markdown)."""
+    then the mean rank per task and, with vessels, per vessel (markdown). With fewer than two
+    controllers there is nothing to rank: one sentence says so instead of empty tables."""
+    present = [c for c in controllers if any(c in cells for cells in agg.values())]
+    if len(present) < 2:
+        who = f"one controller (`{present[0]}`)" if present else "no controller"
+        return [f"The suite scores {who}: a ranking compares two or more, so there is none; its metrics are in "
+                f"the tables of each task (report.md, leaderboard.json)."]
     lines = summary_table(ranking(agg))
     lines += ["", "Mean rank per task (over its conditions" + (" and vessels" if vessels else "")
               + "; lower is better, the best in bold):", ""] + by_table(ranking_by(agg, 0), controllers, "task")

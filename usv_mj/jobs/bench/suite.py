@@ -258,6 +258,9 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
         raise SweepError(f"{source}: seed must be a whole number >= 0, got {seed!r}")
     duration = _positive(source, "duration", data.get("duration"), 60.0)
     controllers = _controllers(source, data.get("controllers", ["ppc", "pi", "los"]))
+    for i, ctrl in enumerate(controllers):
+        if ctrl.policy is not None:
+            _check_policy(source, f"controllers[{i}] ({ctrl.name!r})", ctrl.policy, directory)
     vessels = data.get("vessels", [])
     if not isinstance(vessels, list) or not all(isinstance(v, str) and v for v in vessels):
         raise SweepError(f"{source}: vessels must be a list of vessel kinds, got {vessels!r}")
@@ -361,6 +364,33 @@ def _policy_criterion(ctrl: ControllerEntry, metrics: dict) -> dict:
     from usv_mj.jobs.bench.policy import default_criterion
 
     return dict(ctrl.criterion) if ctrl.criterion else default_criterion(metrics["settle_time_s"]).to_dict()
+
+
+def _check_policy(source, where: str, spec, directory: Path | None) -> None:
+    """A policy that cannot be found is refused when the suite is planned, not in every episode (a
+    bench whose episodes all failed to load it, exit 0): a ``.zip`` must exist, a
+    ``package.module:callable``'s module must be importable (it is imported by the workers)."""
+    import importlib.util
+
+    if not isinstance(spec, str) or not spec:
+        raise SweepError(f"{source}: {where}: policy must be a .zip or package.module:callable, got {spec!r}")
+    if spec.endswith(".zip"):
+        path = Path(_policy_path(spec, directory))
+        if not path.is_file():
+            raise SweepError(f"{source}: {where}: policy file {str(path)!r} does not exist"
+                             + (" (a relative path is taken from the suite's folder)" if not Path(spec).is_absolute()
+                                else ""))
+        return
+    module, _, attr = spec.partition(":")
+    if not module or not attr:
+        raise SweepError(f"{source}: {where}: policy {spec!r}: give a stable-baselines3 .zip or "
+                         f"package.module:callable")
+    try:
+        found = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        found = None
+    if found is None:
+        raise SweepError(f"{source}: {where}: policy {spec!r}: no module {module!r} on the Python path")
 
 
 def _policy_path(spec: str, directory: Path | None) -> str:

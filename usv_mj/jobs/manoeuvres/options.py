@@ -163,6 +163,9 @@ class StoppingOptions:
         if self.astern_force > 0:
             raise ScenarioError(f"manoeuvre.astern_force must be <= 0 N (thrust off or astern), "
                                 f"got {self.astern_force!r}")
+        if not self.stop_speed < self.approach_speed:   # "stopped" at the execute: a time to stop of 0
+            raise ScenarioError(f"manoeuvre.stop_speed = {self.stop_speed!r} m/s must be below manoeuvre.approach_speed "
+                                f"= {self.approach_speed!r} m/s (the vessel would count as stopped at the execute)")
         _check_duration(self)
 
 
@@ -233,7 +236,9 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> Ma
     if kind not in KINDS:
         raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
     vessel_model = getattr(vessel_model, "model", vessel_model)   # a scenario's VesselSpec or its Vessel
-    table = {**vessel_defaults(kind, vessel_model), **table}
+    given = table
+    defaults = vessel_defaults(kind, vessel_model)
+    table = {**defaults, **table}
     if getattr(vessel_model, "inputs", "forces") == "rudder" and kind == "stopping":
         raise ScenarioError(f"{source}: manoeuvre 'stopping' is not available on the ruddered vessel "
                             f"{vessel_model.kind!r}: the MMG standard method models the propeller ahead only (no "
@@ -243,7 +248,22 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> Ma
         options = build_table(KINDS[kind], table, source, "manoeuvre", extra_known={"kind"})
     except ScenarioError as exc:
         msg = str(exc)
-        raise ScenarioError(msg if msg.startswith(source) else f"{source}: {msg}") from None
+        msg = msg if msg.startswith(source) else f"{source}: {msg}"
+        own = {k: v for k, v in ((getattr(vessel_model, "manoeuvre", None) or {}).items()) if k in defaults}
+        own.update({k: v for k, v in ((getattr(vessel_model, "manoeuvre", None) or {}).get(kind) or {}).items()
+                    if k in defaults})
+        blamed = {k: defaults[k] for k in own if k not in given}
+        if blamed:   # the table alone is fine: the vessel's own [manoeuvre] values are what does not fit
+            try:
+                build_table(KINDS[kind], given, source, "manoeuvre", extra_known={"kind"})
+            except ScenarioError:
+                blamed = {}
+        if blamed:
+            blamed = {k: v for k, v in blamed.items() if f"manoeuvre.{k}" in msg} or blamed
+            values = ", ".join(f"{k} = {v!r}" for k, v in blamed.items())
+            raise ScenarioError(f"vessel {vessel_model.kind!r}: its own [manoeuvre] defaults ({values}, from its data "
+                                f"file) do not fit the {kind}: {msg.removeprefix(source + ': ')}") from None
+        raise ScenarioError(msg) from None
     return ManoeuvreSpec(kind, options)
 
 

@@ -575,7 +575,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``usv-mj render RUN``."""
     parser.add_argument("run", metavar="RUN", help="a run directory (holding run.mcap) or an .mcap file")
     parser.add_argument("--out", default=None,
-                        help="the .mp4 to write, or a directory (default: beside the run, <stem>.mp4)")
+                        help="the .mp4 to write, or a folder that exists (the video goes in it as run.mp4, or "
+                             "<stem>.mp4 for an .mcap file; default: beside the run)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     from usv_mj.outputs.outdir import add_overwrite_argument
 
@@ -631,6 +632,16 @@ def default_output(run_path: Path, mcap_path: Path) -> Path:
     return mcap_path.with_suffix(".mp4")
 
 
+def output_path(out, run_path, mcap_path: Path) -> Path:
+    """Where ``usv-mj render --out OUT`` writes: OUT itself (an .mp4), or, when OUT is a folder that
+    exists, the default name (:func:`default_output`) in it; no OUT: :func:`default_output`."""
+    default = default_output(Path(run_path), mcap_path)
+    if not out:
+        return default
+    p = Path(out)
+    return p / default.name if p.is_dir() else p
+
+
 def run_command(args: argparse.Namespace) -> int:
     """``usv-mj render RUN``: 0 on success, 2 on bad input, 3 when no OpenGL backend starts."""
     try:
@@ -657,7 +668,7 @@ def run_command(args: argparse.Namespace) -> int:
         live.finish()
         print(f"usv-mj render: served {n} messages of {mcap} live")
         return 0
-    out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
+    out = output_path(args.out, args.run, mcap)
     try:
         from usv_mj.outputs.outdir import check_file, record_file
 
