@@ -50,10 +50,12 @@ kind registered only by a decorator in a script's ``__main__`` exists only in th
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import difflib
 import importlib
 import inspect
+import os
 import re
 import sys
 import warnings
@@ -400,8 +402,6 @@ def _name_of(obj) -> str:
 def _output_to_stderr():
     """While a plug-in is imported, what it prints goes to stderr: a command's stdout (``usv-mj kinds
     --json``, ``inspect``) stays its own."""
-    import contextlib
-
     return contextlib.redirect_stdout(sys.stderr)
 
 
@@ -421,8 +421,6 @@ def _where(exc) -> str:
         tb = tb.tb_next
     if tb is None:
         return ""
-    import os
-
     return f" at {os.path.basename(tb.tb_frame.f_code.co_filename)}:{tb.tb_lineno}"
 
 

@@ -44,6 +44,7 @@ import numpy as np
 from numba import njit
 from numba.core.errors import NumbaError
 
+from usv_mj.core.errors import PluginContractError, compiler_summary, plain_text
 from usv_mj.core.kernels import Kernel, kernel_blocker, kernel_of
 from usv_mj.support.assets import PACKAGE_DIR
 from usv_mj.record.run_record import COL, N_CORE
@@ -315,8 +316,6 @@ def compile_error(kernels: dict, exc: BaseException) -> Exception:
     """The error of a generated loop numba could not compile: a plug-in's kernel named (a
     :class:`PluginContractError`: its module and function, numba's reason in one line, the fix), else
     usv_mj's own defect (RuntimeError), never numba's dozens of highlighted lines."""
-    from usv_mj.core.errors import PluginContractError, compiler_summary, plain_text
-
     reason = compiler_summary(str(exc)) or " ".join(plain_text(exc).split())
     plugins = [(role, *kernel_name(kernels[role].fn)) for role in _ROLES]
     plugins = [(role, m, n) for role, m, n in plugins if not m.startswith("usv_mj.")]

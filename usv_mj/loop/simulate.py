@@ -23,7 +23,7 @@ from typing import Callable, Iterable, Protocol
 import numpy as np
 
 from usv_mj.core import arguments
-from usv_mj.core.errors import PluginContractError, message_line
+from usv_mj.core.errors import PluginContractError, Terminated, message_line
 from usv_mj.core.kernels import diag_contract, diag_mismatch
 from usv_mj.physics.limits import within_limits
 from usv_mj.builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
@@ -267,8 +267,6 @@ def interrupter(exc: BaseException) -> str:
     """Who interrupted a run, in words: "the user (Ctrl-C)", a signal's name (SIGTERM, SIGHUP), the
     reason usv_mj's own code gave ("closing the viewer"), or a KeyboardInterrupt a part raised
     (a plug-in's: where, and its text), which is not a signal."""
-    from usv_mj.core.errors import Terminated
-
     text = str(exc)
     if text in ("", "Ctrl-C"):
         return "the user (Ctrl-C)"

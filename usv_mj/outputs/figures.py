@@ -25,6 +25,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from usv_mj.record.decimate import decimate  # noqa: E402
 from usv_mj.record.run_record import RunRecord  # noqa: E402
@@ -96,8 +97,6 @@ DRAWABLE = 1e150
 
 def _largest_value(fig) -> float:
     """The largest |value| of the data the figure's axes hold (inf when any is not finite)."""
-    import numpy as np
-
     worst = 0.0
     for ax in fig.axes:
         for line in ax.get_lines():

@@ -47,7 +47,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from usv_mj.core.errors import ScenarioError
+from usv_mj.core.errors import PluginContractError, ScenarioError
 
 
 def _finite(v) -> float | None:
@@ -312,8 +312,6 @@ def criterion_from_dict(d: dict):
 def check_criterion(criterion, owner: str):
     """The contract of a declared criterion, checked when its controller is loaded (module
     docstring); a plug-in's class is added to :data:`CRITERIA` under its kind. Returns it."""
-    from usv_mj.core.errors import PluginContractError
-
     who = f"{owner}: its criterion {criterion!r} ({class_path(criterion)})"
     missing = [m for m in ("kind", "describe", "to_dict", "evaluate") if not hasattr(criterion, m)]
     if missing:
