@@ -132,3 +132,14 @@ def test_a_kernel_that_returns_fewer_diagnostics_is_stopped_at_its_first_row(tmp
     parts = usv_mj.build(sc, plant_kind="analytic", controller=short_ctrl_kernel.Short())
     with pytest.raises(PluginContractError, match=r"Short returns 1 diagnostics but declares 3"):
         usv_mj.simulate(parts, loop=loop)
+
+
+def test_data_no_kernel_reads_keeps_the_kernel():
+    from usv_mj.record.criteria import PathTolerance
+
+    sc = _scenario()
+    judged = type("Judged", (LOSController,), {"criterion": PathTolerance(settle_time_s=5.0, cross_track_m=1.0)})
+    assert kernel_blocker(_controller(judged, sc)) is None
+    c = _controller(LOSController, sc)
+    c.criterion = PathTolerance(settle_time_s=1.0, cross_track_m=2.0)   # set on the object, as from_scenario may
+    assert kernel_blocker(c) is None

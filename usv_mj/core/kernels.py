@@ -34,7 +34,7 @@ in the Python loop, unless it defines a ``kernel`` of its own (then it answers f
 standing for all its methods); the reason names the class and the
 methods (``record.metadata["loop_reason"]``, e.g. "LineReference subclass WavyLine overrides
 pose"). Allowed below the kernel's class, because the kernel is made from the object they built:
-plain data attributes under a new name or a label (``kind = "wavy"``, ``name``: :data:`LABELS`;
+plain data attributes under a new name or of :data:`LABELS` (``kind = "wavy"``, ``name``, ``criterion``;
 a class, such as an options dataclass, under a new name), the constructors ``__init__``, ``from_spec``, ``from_scenario``, and the names a class lists in its own ``KERNEL_NEUTRAL`` (a frozenset): methods
 the kernel does not stand in for, which both loops call alike or neither calls (not the methods
 the kernel replaces, nor anything they call; e.g. :class:`usv_mj.scene.compose.HarbourPlant`'s
@@ -64,9 +64,10 @@ class Kernel(NamedTuple):
     n_diag: int | None = None   # a controller's: the length of the diag it returns (None: not declared)
 
 
-#: names that label a part (messages, registries) and that no kernel reads: a class below the
-#: kernel's may give them its own values
-LABELS = frozenset({"name", "kind"})
+#: data no kernel reads, which a class below the kernel's (or the object) may give its own values:
+#: the labels (messages, registries) and what the loop and the outputs read around the kernel, the
+#: same way in both loops (how the run is judged, its 0/1 fields' event kinds, what the channels are)
+LABELS = frozenset({"name", "kind", "criterion", "diagnostic_events", "commands"})
 
 #: names a class below the kernel's may define (the class's bookkeeping and the constructors:
 #: the kernel is made from the object they built, after them)
