@@ -153,7 +153,8 @@ def main():
     n = args.steps
 
     from usv_mj.scenario.obstacles import from_tables
-    from usv_mj.obstacles import GeometricClearance, HarbourPlant, MuJoCoClearance
+    from usv_mj.obstacles.clearance import GeometricClearance, MuJoCoClearance
+    from usv_mj.plants.harbour import HarbourPlant
     from usv_mj.plants.analytic import AnalyticPlant
     from usv_mj.plants.mujoco_plant import MuJoCoPlant
     from usv_mj.scenario.spec import load_scenario

@@ -14,6 +14,10 @@ A controller is any object with
   declares :data:`FUNNEL_FIELDS` among them, and the outputs then show funnel errors and
   violations; ``diagnostic_events`` (optional) maps a 0/1 field to the event kind its episodes
   are logged as (the PPC law's ``{"s2_clamped": "s2_clamp"}``);
+- ``diagnostic_units`` (optional): a mapping from a diagnostic field to its unit, SI as the rest
+  (``{"u_error": "m/s", "integral_psi": "rad s", "switches": "-"}``; "-" dimensionless). It goes
+  into the run record's metadata, and figure 7 draws the fields one panel per unit with that unit
+  on the axis; a field without a declared unit gets a panel of its own, marked "unit not declared";
 - ``from_scenario(gains, scenario)`` (a classmethod) when it is registered in
   :data:`usv_mj.core.registry.CONTROLLERS` with its typed gains dataclass.
 
@@ -27,27 +31,10 @@ from typing import Protocol
 
 import numpy as np
 
-# Reference vector: pose, its time derivative and the reference surge speed.
-REF_FIELDS = ("x_d", "y_d", "psi_d", "x_d_dot", "y_d_dot", "r_d", "u_d")
-REF_X, REF_Y, REF_PSI, REF_XDOT, REF_YDOT, REF_R, REF_U = range(len(REF_FIELDS))
+# the shared layouts (usv_mj.core.layouts): the reference vector, the funnel block, the PPC law's diagnostics
+from usv_mj.core.layouts import (DIAG_FIELDS, FUNNEL_FIELDS, REF_FIELDS, REF_PSI, REF_R, REF_U, REF_X,  # noqa: F401
+                                 REF_XDOT, REF_Y, REF_YDOT)
 
-# The funnel block (Eqs. 9, 14): a controller that tracks in a funnel declares these among its diagnostics.
-FUNNEL_FIELDS = ("e1", "e2", "e3", "rho1", "rho2", "rho3", "z1", "z2", "z3")
-
-# The PPC law's diagnostics vector: tracking errors in the funnel (Eqs. 8-15), then the adaptive
-# states (Eqs. 19, 29, 37). Its first 13 entries (TRACKING_FIELDS) are what tracking_errors fills.
-DIAG_FIELDS = (
-    "e1", "e2", "e3",            # Eq. 14: x_bar - x_bar_d [m], y_bar - y_bar_d [m], wrap(psi - psi_a) [rad]
-    "rho1", "rho2", "rho3",      # Eq. 9 bounds
-    "z1", "z2", "z3",            # e_i / rho_i
-    "e1s", "e2s", "e3s",         # Eq. 10 transformed errors e_i*
-    "psi_a",                     # Eq. 15 [rad]
-    "u_e", "v_e", "r_e",         # Eq. 19 velocity errors
-    "alpha_u", "alpha_v", "alpha_r",  # Eq. 17 virtual controls
-    "w_u_norm", "w_v_norm", "w_r_norm",  # |W_u|, |W_v|, |W_r|
-    "s2",                        # tanh(gamma_2)
-    "s2_clamped",                # 1 when s2 hit its clamp this step
-)
 DIAG = {name: i for i, name in enumerate(DIAG_FIELDS)}
 TRACKING_FIELDS = DIAG_FIELDS[:13]
 N_DIAG = len(DIAG_FIELDS)

@@ -214,6 +214,9 @@ class LOSController:
 
     name = "los"
     diagnostic_fields = DIAGNOSTIC_FIELDS
+    diagnostic_units = {"cross_track_error": "m", "along_track_error": "m", "path_angle": "rad", "chi_d": "rad",
+                        "psi_ref": "rad", "r_ref": "rad/s", "psi_error": "rad", "r_error": "rad/s", "u_ref": "m/s",
+                        "u_error": "m/s", "integral_los": "m", "integral_psi": "rad s", "integral_u": "m"}
     #: judged on the path: after 20 s the cross-track error stays under 0.25 m, the along-track under 0.5 m
     criterion = PathTolerance(settle_time_s=20.0, cross_track_m=0.25, along_track_m=0.5)
 

@@ -19,7 +19,7 @@ manoeuvre); the record's ``heading_change`` and ``switches`` columns give the ov
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numba import njit
@@ -36,8 +36,10 @@ TURNS = {"starboard": -1.0, "port": 1.0}
 class ZigzagGains:
     """The zig-zag's inputs (module docstring)."""
 
-    tau_u: float = 53.73             # N: constant surge force (53.73: the drag at 0.6 m/s, d11(0.6) 0.6)
-    tau_r_amplitude: float = 10.0    # N m: the "rudder": yaw moment +-A (> 0; 2 N m cannot break the hull's spiral)
+    # the surge and yaw channels' values (metadata "channel"): forces on a vessel that takes forces,
+    # its own channels' units on one that does not (usv_mj.builder.check_channel_values)
+    tau_u: float = field(default=53.73, metadata={"channel": "surge"})   # N: constant surge force (the drag at 0.6 m/s, d11(0.6) 0.6)
+    tau_r_amplitude: float = field(default=10.0, metadata={"channel": "yaw"})   # N m: the "rudder": yaw moment +-A (> 0; 2 N m cannot break the hull's spiral)
     psi_switch_deg: float = 10.0     # deg: heading change at which the yaw moment reverses (> 0)
     first_turn: str = "starboard"    # "starboard" (tau_r = -A first) or "port"
 
@@ -91,6 +93,7 @@ class ZigzagController:
         "turn",            # sign of the commanded yaw moment: +1 port, -1 starboard
         "switches",        # reversals so far
     )
+    diagnostic_units = {"heading_change": "rad", "turn": "-", "switches": "-"}
     criterion = NotJudged("manoeuvre")
 
     @classmethod

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Install what usv_mj needs on a fresh Debian machine: the Mesa GL stack for headless rendering
-# (EGL, with OSMesa as the fallback; no GPU needed) and the Python package with its test extras.
+# (EGL, with OSMesa as the fallback; no GPU needed), a virtual X display (xvfb, and xauth for
+# xvfb-run) on which the tests open `usv-mj view`'s window, and the Python package with its test extras.
 # Idempotent: a second run only checks.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-SYSTEM_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6)
+SYSTEM_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri libgles2 libosmesa6 xvfb xauth)
 missing=()
 for pkg in "${SYSTEM_PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")
@@ -37,7 +38,7 @@ fi
 "$PYTHON" -c "import usv_mj, mujoco; print(f'setup: usv_mj {usv_mj.__version__} with mujoco {mujoco.__version__} ready')"
 # numba compiles the kernels and the main job's loop combinations once per checkout (about 15 s on
 # a fresh machine): done here, with a stamp per source fingerprint, so that the main job starts warm
-warm_stamp=$("$PYTHON" -c "from usv_mj.loop.compiled import _source_fingerprint, cache_dir; print(cache_dir() / ('warm-' + _source_fingerprint()))")
+warm_stamp=$("$PYTHON" -c "from usv_mj.loop.generate import _source_fingerprint, cache_dir; print(cache_dir() / ('warm-' + _source_fingerprint()))")
 if [ ! -e "$warm_stamp" ]; then
   echo "setup: compiling the simulation kernels (once per checkout)"
   warm_dir=$(mktemp -d)

@@ -95,9 +95,11 @@ def test_one_flag_name_per_concept_and_the_old_ones_still_work(capsys):
             assert {"-q", "--quiet"} <= helped, name
         assert not helped & {"--no-progress", "--video-size", "--base"}, name
         assert "``" not in (p.description or "") and "issue" not in (p.description or "").lower(), name
-    assert parser.parse_args(["render", "x.mcap", "--no-progress"]).no_progress
-    assert parser.parse_args(["render", "x.mcap", "-q"]).no_progress
-    assert parser.parse_args(["env", "track", "--video-size", "64x48"]).video_size == "64x48"
-    assert parser.parse_args(["env", "track", "--size", "64x48"]).video_size == "64x48"
+    assert parser.parse_args(["render", "x.mcap", "--no-progress"]).quiet
+    assert parser.parse_args(["render", "x.mcap", "-q"]).quiet
+    assert not parser.parse_args(["render", "x.mcap"]).quiet
+    assert parser.parse_args(["env", "track", "--video-size", "64x48"]).size == (64, 48)
+    assert parser.parse_args(["env", "track", "--size", "64x48"]).size == (64, 48)
+    assert parser.parse_args(["env", "track"]).size == (640, 360)
     assert parser.parse_args(["capability", "--load", "current", "--scenario", "paper-limited"]).base == "paper-limited"
     assert parser.parse_args(["sweep", "s.toml"]).out is None          # --out has a default now

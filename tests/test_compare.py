@@ -9,6 +9,7 @@ import os
 import numpy as np
 import pytest
 
+from usv_mj.cli import compare as compare_command
 from usv_mj.jobs import compare
 from usv_mj.scenario.spec import ScenarioError, load_scenario
 
@@ -99,11 +100,35 @@ def test_estimated_order_closed_form():
     assert compare.estimated_order(dts, [1.0, 0.0, 1.0]) is None
 
 
+def test_an_order_at_round_off_is_not_measurable():
+    """Errors at round-off give no order (before: "order -0.00", the slope of noise): the slope is fitted
+    over the errors above the round-off floor only, and with fewer than two there it is not measurable."""
+    eps = np.finfo(float).eps
+    # the floor: ROUNDOFF_ULPS ulps of the largest |x| or |y| (here 40 m), 1 m at least
+    states = np.array([[3.0, -40.0, 9.0, 0.0, 0.0, 0.0], [1.0, 2.0, -99.0, 0.0, 0.0, 0.0]])
+    floor = compare.roundoff_floor(states, states[:1] * 0.5)
+    assert floor == compare.ROUNDOFF_ULPS * eps * 40.0
+    assert compare.roundoff_floor(np.zeros((3, 6))) == compare.ROUNDOFF_ULPS * eps
+    dts = np.array([0.004, 0.002, 0.001])
+    # both plants at round-off: 3.2e-15 and 3.3e-15 m (the slope would be -0.04, printed "-0.04")
+    at_roundoff = [3.2e-15, 3.3e-15, 3.1e-15]
+    assert compare.estimated_order(dts, at_roundoff, floor) is None
+    text = compare.order_text({"plants_difference": None, "roundoff_m": floor}, "plants_difference")
+    assert text == f"not measurable (the errors are at round-off, below {floor:.0e} m)"
+    # truncation down to the floor: the order of the errors above it (2e-9 * (dt / 4 ms)^4: 2e-9, 1.25e-10,
+    # then 7.8e-12 m, taken; a fourth at 1e-15 m would not be)
+    trunc = 2e-9 * (dts / 0.004) ** 4
+    assert compare.estimated_order(dts, trunc, floor) == pytest.approx(4.0, abs=1e-12)
+    assert compare.estimated_order(np.append(dts, 0.0005), np.append(trunc, 1e-15), floor) == pytest.approx(4.0, abs=1e-12)
+    assert compare.order_text({"plants_difference": 3.987, "roundoff_m": floor}, "plants_difference") == "3.99"
+    assert compare.order_text({"plants_difference": None}, "plants_difference") == "n/a"
+
+
 def test_run_command_writes_and_rejects_bad_input(tmp_path, capsys):
     parser = argparse.ArgumentParser()
-    compare.add_arguments(parser)
+    compare_command.add_arguments(parser)
     args = parser.parse_args(["--duration", "2", "--out", str(tmp_path / "c"), "-q"])
-    assert compare.run_command(args) == 0
+    assert compare_command.run(args) == 0
     assert os.path.isfile(tmp_path / "c" / "compare.json")
     out = capsys.readouterr().out
     assert "closed loop" in out
@@ -111,11 +136,11 @@ def test_run_command_writes_and_rejects_bad_input(tmp_path, capsys):
     assert "closed loop (2 s): max position" in md and "![Closed loop](closed_loop.png)" in md
     assert next(line for line in out.splitlines() if line.startswith("closed loop (")) in md
     with pytest.raises(ScenarioError, match="duration"):
-        compare.run_command(parser.parse_args(["--duration", "-1"]))
+        compare_command.run(parser.parse_args(["--duration", "-1"]))
     with pytest.raises(ScenarioError):
-        compare.run_command(parser.parse_args(["--preset", "no-such-preset"]))
+        compare_command.run(parser.parse_args(["--preset", "no-such-preset"]))
     with pytest.raises(ScenarioError, match="disturbance"):
-        compare.run_command(parser.parse_args(["--set", "disturbance.scale=-1"]))
+        compare_command.run(parser.parse_args(["--set", "disturbance.scale=-1"]))
 
 
 def test_compare_saturated_closed_loop_case(short_compare):

@@ -234,9 +234,9 @@ def test_spiral_steps_the_rudder_and_its_steady_turn_is_shipmmgs(scenario):
 
 def test_stopping_is_refused_on_the_ruddered_vessel(scenario):
     from usv_mj.core.errors import ScenarioError
-    from usv_mj.jobs.manoeuvres.options import manoeuvre_from_table
+    from usv_mj.scenario.manoeuvre import manoeuvre_from_table
 
-    with pytest.raises(ScenarioError, match="not available on the ruddered vessel 'kvlcc2': the MMG standard "
+    with pytest.raises(ScenarioError, match="not available on the vessel 'kvlcc2': the MMG standard "
                                             "method models the propeller ahead only"):
         manoeuvre_from_table({"kind": "stopping"}, "<test>", scenario.vessel)
     assert manoeuvre_from_table({"kind": "spiral"}, "<test>", scenario.vessel).options.max_rudder_deg == 10.0
@@ -279,7 +279,8 @@ def test_both_plants_agree_open_loop():
 @pytest.mark.parametrize("plant", ["analytic", "mujoco"])
 def test_compiled_and_python_loops_give_the_same_record(plant):
     """The zig-zag (the heading switch, the rudder's rate limit, the MMG kernel) bit for bit in both loops."""
-    from usv_mj.jobs.manoeuvres.options import ManoeuvreSpec, ZigzagOptions, manoeuvre_scenario
+    from usv_mj.jobs.manoeuvres.trial import manoeuvre_scenario
+    from usv_mj.scenario.manoeuvre import ManoeuvreSpec, ZigzagOptions
     from usv_mj.loop.simulate import simulate
 
     s = kvlcc2()

@@ -122,21 +122,27 @@ def test_ppc_and_pi_run_on_the_tanker_on_both_plants():
 
 
 def test_the_video_says_what_the_channels_hold(circle_runs):
-    """The record names what its columns carry (usv_mj.builder.channels_of): a force controller's
-    run on KVLCC2 is "allocated" (tau in N, f in 1/s and rad), so the HUD's force bars get no
-    rudder-angle ticks; the open-loop manoeuvre's is "rudder"; the paper hull's "forces"."""
+    """The record names what its columns carry (usv_mj.physics.channels.RunChannels): a force
+    controller's run on KVLCC2 is allocated (tau in N, f in 1/s and rad), so the HUD's force bars get
+    no rudder-angle ticks and its text shows n_P [1/s] and delta [deg]; the open-loop manoeuvre's
+    command is n_P and delta themselves; the paper hull's are forces."""
     from usv_mj.outputs.render.planner import plan_frames
+    from usv_mj.physics.channels import FORCES, PROPELLER, RUDDER_ANGLE, RunChannels
 
     s, runs = circle_runs
     rec = runs["analytic"]
-    assert rec.metadata["channels"] == "allocated"
+    run = RunChannels.from_metadata(rec.metadata["channels"])
+    assert run.allocated and run.command == FORCES and (run.applied.surge, run.applied.yaw) == (PROPELLER, RUDDER_ANGLE)
     hud = plan_frames(rec, max_frames=2, width=320, height=180).frames[-1].hud
-    assert hud["channels"] == "allocated" and hud["tau_r_limits"] is None
+    assert hud["channels"]["allocated"] and hud["tau_r_limits"] is None
+    assert hud["channels"]["rows"] == (("tau_u", "n_P", "1/s", 1.0), ("tau_r", "delta", "deg", pytest.approx(57.29578)))
     assert hud["f_u"] == pytest.approx(rec["f_u"][hud_row(rec, hud["t"])])
     opened = simulate(s.with_overrides({"duration": 1.0}), plant_kind="analytic", controller_kind="open_loop")
-    assert opened.metadata["channels"] == "rudder"
-    assert simulate(load_scenario(preset="paper", overrides={"duration": 0.01}), plant_kind="analytic"
-                    ).metadata["channels"] == "forces"
+    run = RunChannels.from_metadata(opened.metadata["channels"])
+    assert not run.allocated and (run.command.surge, run.command.yaw) == (PROPELLER, RUDDER_ANGLE)
+    paper = simulate(load_scenario(preset="paper", overrides={"duration": 0.01}), plant_kind="analytic")
+    run = RunChannels.from_metadata(paper.metadata["channels"])
+    assert not run.allocated and run.command == FORCES
 
 
 def hud_row(record, t):
@@ -151,7 +157,8 @@ def test_the_steering_gear_stays_when_a_scenario_changes_one_actuator_key():
     assert s.actuators.max_yaw_nm == pytest.approx(DELTA_MAX) and s.actuators.max_surge_n == N_MAX
     from usv_mj.core.errors import ScenarioError
 
-    with pytest.raises(ScenarioError, match="actuators.max_yaw_nm = 3.0 is the rudder's angle limit"):
+    with pytest.raises(ScenarioError, match=r"actuators.max_yaw_nm = 3.0 is the limit of the vessel 'kvlcc2''s "
+                                            r"rudder angle \[rad\] and must be < 1.5708 rad"):
         load_scenario(preset="paper", overrides={"vessel": {"kind": "kvlcc2"}, "actuators": {"max_yaw_nm": 3.0}})
 
 

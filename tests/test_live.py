@@ -202,3 +202,77 @@ def test_env_live_serves_each_episode(tmp_path):
     for stamp, m in got["/usv/tf/hull"]:
         assert m["translation"]["x"] == x[stamp]
     assert len(got["/usv/control"]) == len(t)
+
+
+# --- the subprotocol names a viewer may offer (issue 34) ----------------------------------------------
+
+
+def _probe(offer):
+    """Connect offering ``offer`` (subprotocols), subscribe to /probe, and return (the subprotocol the
+    server chose, the serverInfo, the payload of the first message): one JSON message is logged on
+    /probe once the server has seen the subscription."""
+    import foxglove
+
+    from usv_mj.outputs.log.live import LiveServer
+
+    server = LiveServer(port=0, wait_s=TIMEOUT_S, say=lambda text: None)
+    schema = foxglove.Schema(name="Probe", encoding="jsonschema", data=b'{"type": "object"}')
+    channel = foxglove.Channel("/probe", schema=schema, message_encoding="json", context=server.context)
+
+    def publish():                       # once subscribed (a bounded wait on the server's own condition)
+        if server.wait_for_viewer():
+            channel.log(b'{"k": 42}', log_time=7)
+
+    async def client():
+        async with websockets.connect(server.url, subprotocols=offer) as ws:
+            info = json.loads(await ws.recv())
+            while True:
+                frame = await ws.recv()
+                if isinstance(frame, str):
+                    msg = json.loads(frame)
+                    if msg["op"] == "advertise":
+                        ids = [c["id"] for c in msg["channels"] if c["topic"] == "/probe"]
+                        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 9, "channelId": ids[0]}]}))
+                    continue
+                assert frame[0] == 1 and struct.unpack_from("<IQ", frame, 1) == (9, 7)
+                return ws.subprotocol, info, json.loads(frame[13:])
+
+    thread = threading.Thread(target=publish, daemon=True)
+    thread.start()
+    try:
+        return asyncio.run(asyncio.wait_for(client(), TIMEOUT_S))
+    finally:   # (a refused client leaves publish() waiting: a daemon thread, bounded by wait_s)
+        server.close()
+
+
+@pytest.mark.parametrize("offer, chosen", [
+    (["foxglove.sdk.v1"], "foxglove.sdk.v1"),                            # the Foxglove app (foxglove-sdk's name)
+    (["foxglove.websocket.v1"], "foxglove.websocket.v1"),                # Studio <= 1.87, ws-protocol clients
+    (["foxglove.websocket.v1", "foxglove.sdk.v1"], "foxglove.sdk.v1"),   # a client offering both
+])
+def test_a_viewer_offering_either_subprotocol_is_served(offer, chosen):
+    """The live server answers with a subprotocol the viewer offered, and the protocol works under it:
+    serverInfo, advertise, subscribe, and a Message Data frame (opcode 1, subscription id, log time, payload).
+    Before, foxglove-sdk's server answered a foxglove.websocket.v1 offer with HTTP 400."""
+    subprotocol, info, payload = _probe(offer)
+    assert subprotocol == chosen
+    assert info["op"] == "serverInfo" and info["name"] == "usv_mj"
+    assert payload == {"k": 42}
+
+
+@pytest.mark.parametrize("offer", [["foxglove.websocket.v2"], None])
+def test_a_viewer_offering_no_foxglove_subprotocol_gets_400(offer):
+    from usv_mj.outputs.log.live import LiveServer
+
+    server = LiveServer(port=0, wait_s=0, say=lambda text: None)
+
+    async def connect():
+        async with websockets.connect(server.url, subprotocols=offer):
+            pass
+
+    try:
+        with pytest.raises(websockets.exceptions.InvalidStatus) as err:
+            asyncio.run(asyncio.wait_for(connect(), TIMEOUT_S))
+        assert err.value.response.status_code == 400
+    finally:
+        server.close()

@@ -20,7 +20,7 @@ from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
 from usv_mj.outputs.log import RunLogReadError, RunLogWriter, read_run
-from usv_mj.cli.inspect import add_inspect_arguments, inspect_command
+from usv_mj.cli.inspect import add_arguments as add_inspect_arguments, run as inspect_command
 from usv_mj.scenario.spec import load_scenario
 from usv_mj.loop.simulate import simulate
 
@@ -228,7 +228,8 @@ def test_fuzz_cuts_and_flips_give_a_flagged_correct_prefix_or_one_line_of_error(
 
 def test_render_reads_the_notice_of_a_cut_log(logged, tmp_path, capsys):
     """``usv-mj render`` prints the notice before drawing (its log is read by load_run_log)."""
-    from usv_mj.outputs.render.video import load_run_log, run_command
+    from usv_mj.cli.render import run as run_command
+    from usv_mj.outputs.render.video import load_run_log
 
     path, main, _ = logged
     run = _cut_copy(tmp_path / "c", path, "run.mcap")
@@ -236,7 +237,7 @@ def test_render_reads_the_notice_of_a_cut_log(logged, tmp_path, capsys):
     assert mcap == run and "run.mcap: cut short" in log.notice
     import argparse
 
-    from usv_mj.outputs.render import add_arguments
+    from usv_mj.cli.render import add_arguments
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)

@@ -17,7 +17,7 @@ from usv_mj.cli.main import main
 
 def test_defaults_are_the_paper_test_froude_scaled_or_the_vessels_own():
     from usv_mj import load_scenario
-    from usv_mj.jobs.manoeuvres.options import KINDS, vessel_defaults
+    from usv_mj.scenario.manoeuvre import KINDS, vessel_defaults
 
     g, rho = 9.81, 1025.0
     paper = load_scenario(preset="paper")
@@ -125,11 +125,10 @@ def test_otter_turn_beside_the_references_own_simulation():
 
 def test_a_ruddered_vessels_rudder_is_its_angle_not_the_unused_moment():
     from usv_mj.jobs.manoeuvres.fleet import rudder_label
+    from usv_mj.physics.channels import RUDDER_ANGLE, YAW_MOMENT
 
     o = {"rudder_deg": 35.0, "angle_deg": 10.0, "yaw_moment": 10.0, "side": "starboard", "first_turn": "port"}
-    assert rudder_label({"kind": "turning", "rudder": "rudder angle delta [rad] ...", "options": o}) == \
-        "35 deg rudder starboard"
-    assert rudder_label({"kind": "zigzag", "rudder": "rudder angle delta [rad] ...", "options": o}) == \
-        "10 deg rudder starboard"
-    assert rudder_label({"kind": "turning", "rudder": "commanded yaw moment tau_r [N m]", "options": o}) == \
-        "10 N m starboard"
+    rudder, moment = RUDDER_ANGLE.to_metadata(), YAW_MOMENT.to_metadata()   # the result's "rudder_channel"
+    assert rudder_label({"kind": "turning", "rudder_channel": rudder, "options": o}) == "35 deg rudder starboard"
+    assert rudder_label({"kind": "zigzag", "rudder_channel": rudder, "options": o}) == "10 deg rudder starboard"
+    assert rudder_label({"kind": "turning", "rudder_channel": moment, "options": o}) == "10 N m starboard"

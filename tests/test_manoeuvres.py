@@ -207,7 +207,7 @@ def test_manoeuvre_table_is_validated():
 def test_approach_force_holds_the_approach_speed():
     """The paper's hull: d11(U) U (docs/model.md §1, the closed form), with Delta's 0.6 N when it is on."""
     from usv_mj import load_scenario
-    from usv_mj.jobs.manoeuvres.options import approach_force
+    from usv_mj.jobs.manoeuvres.trial import approach_force
 
     U = 0.6
     d11 = 45.6 + 67.26 * U + 10.0 * U * U

@@ -88,8 +88,9 @@ def test_an_unknown_commands_word_is_named():
 
     sc = load_scenario(preset="paper")
     problem = commands_error(sc, SimpleNamespace(commands="bogus"), "mine")
-    assert problem.startswith("the 'mine' controller declares commands = 'bogus'; a controller's commands is "
-                              "'forces'")
+    # the word is named with the ones the contract has (usv_mj.physics.channels.run_channels)
+    assert problem == ("the 'mine' controller cannot drive the vessel: a controller's commands must be one of "
+                       "'forces', 'any', 'rudder', got 'bogus'")
     assert "n_P and a rudder angle, but the vessel" not in problem
 
 

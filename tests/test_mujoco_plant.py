@@ -15,7 +15,8 @@ import pytest
 
 from usv_mj.plants import mujoco_callback as mcb
 from usv_mj.plants.analytic import AnalyticPlant
-from usv_mj.plants.mujoco_plant import MuJoCoPlant, installed_callback
+from usv_mj.plants.mujoco_callback import installed_callback
+from usv_mj.plants.mujoco_plant import MuJoCoPlant
 from usv_mj.physics.ship import PaperDisturbance, RigidBodySplit, ShipParams, body_acceleration
 
 SHIP = ShipParams()

@@ -102,7 +102,7 @@ def test_geometric_broad_phase_equals_all_pairs_on_random_scenes(seed):
 
 
 def test_mujoco_broad_phase_equals_all_pairs_with_contacts():
-    from usv_mj.obstacles import HarbourPlant
+    from usv_mj.plants.harbour import HarbourPlant
 
     rng = np.random.default_rng(5)
     obstacles = random_field(rng, 40, moving=4)
@@ -183,7 +183,7 @@ def test_a_run_with_the_broad_phase_keeps_the_minimum_its_obstacle_near_misses_a
 def test_standing_obstacles_are_posed_once_and_the_dynamics_do_not_change():
     """MuJoCo's sleeping (the hull never asleep) leaves the harbour plant's trajectory bit for bit
     what it is without it, and its static geoms are where the scenario puts them."""
-    from usv_mj.obstacles import HarbourPlant
+    from usv_mj.plants.harbour import HarbourPlant
 
     obstacles = random_field(np.random.default_rng(8), 30, moving=2)
     sc = load_scenario(preset="paper")

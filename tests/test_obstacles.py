@@ -19,8 +19,12 @@ import pytest
 import shapely
 
 from usv_mj.scenario.obstacles import from_tables
-from usv_mj.obstacles import (HULL_RADIUS, GeometricClearance, HarbourPlant, MuJoCoClearance, PlanningError,
-                              SafetyEnvelope, compose_scene, make_plan)
+from usv_mj.obstacles.clearance import GeometricClearance, MuJoCoClearance
+from usv_mj.obstacles.hooks import make_plan
+from usv_mj.plants.harbour import HarbourPlant
+from usv_mj.references.planner import PlanningError, SafetyEnvelope
+from usv_mj.scene.compose import compose_scene
+from usv_mj.scene.hull import HULL_RADIUS
 from usv_mj.references.planner import obstacle_distances
 from usv_mj.scenario.spec import ScenarioError, load_scenario
 from usv_mj.physics.ship import PaperDisturbance, ShipParams, hydrodynamic_force
@@ -431,7 +435,7 @@ def test_start_inside_an_obstacle_is_a_scenario_error():
 def _guidance_for(osc, **changes):
     from dataclasses import replace
 
-    from usv_mj.obstacles import Guidance
+    from usv_mj.references.planner import Guidance
 
     osc = replace(osc, guidance=replace(osc.guidance, **changes))
     plan = make_plan(osc)
@@ -463,7 +467,7 @@ def test_head_on_boat_gets_a_starboard_detour_that_keeps_clear():
         "duration": 80.0,
         "obstacles": [{"kind": "box", "center": [40.0, 0.0], "size": [4.0, 1.6], "velocity": [-0.5, 0.0],
                        "name": "head_on"}]})
-    from usv_mj.obstacles import Guidance
+    from usv_mj.references.planner import Guidance
 
     plan = make_plan(osc)
     guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.trajectory.speed,
@@ -495,7 +499,7 @@ def test_guided_kernel_is_evaluate_bit_for_bit_after_the_guidance_changed_the_re
     changed during the run (a head-on boat: a switched path; the crossing boat: a re-timed speed
     profile): the same 7 numbers as evaluate at every 0.01 s, before the start and past the path's
     end included; kernel_key says when a kernel's snapshot is stale."""
-    from usv_mj.obstacles import Guidance
+    from usv_mj.references.planner import Guidance
 
     if case == "detour":
         osc = load_scenario(SCENARIOS / "crossing_boat.toml", overrides={
@@ -531,7 +535,7 @@ def test_an_obstacle_that_cannot_be_avoided_is_reported():
     osc = load_scenario(SCENARIOS / "crossing_boat.toml", overrides={
         "obstacles": [{"kind": "box", "center": [30.0, 0.0], "size": [4.0, 200.0], "velocity": [-0.5, 0.0],
                        "name": "barge"}]})
-    from usv_mj.obstacles import Guidance
+    from usv_mj.references.planner import Guidance
 
     plan = make_plan(osc)
     guidance = Guidance(plan.reference, osc.obstacles, plan.envelope, osc.guidance, osc.trajectory.speed,

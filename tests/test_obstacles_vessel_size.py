@@ -12,8 +12,9 @@ import pytest
 
 from usv_mj import load_scenario
 from usv_mj.scenario.obstacles import from_tables
-from usv_mj.obstacles import GeometricClearance, HarbourPlant, MuJoCoClearance
-from usv_mj.scene.compose import HULL_RADIUS, vessel_collision_geoms, vessel_hull_radius
+from usv_mj.obstacles.clearance import GeometricClearance, MuJoCoClearance
+from usv_mj.plants.harbour import HarbourPlant
+from usv_mj.scene.hull import HULL_RADIUS, vessel_collision_geoms, vessel_hull_radius
 
 
 def test_scaled_hull_closed_forms_on_both_plants():

@@ -183,7 +183,10 @@ def test_usv_mj_kinds_lists_the_installed_plugin_with_its_options(installed, tmp
     done = _cli(["kinds", "--json"], tmp_path, [installed, REPO])
     assert done.returncode == 0, done.stderr
     table = json.loads(done.stdout)
-    assert set(table) == {"controller", "trajectory", "plant", "disturbance", "vessel"}
+    from usv_mj.core.registry import REGISTRIES
+
+    assert set(table) == set(REGISTRIES)   # every registry, the environments' tasks too
+    assert [r["kind"] for r in table["task"]["kinds"]] == list(REGISTRIES["task"].kinds())
     rows = {r["kind"]: r for r in table["trajectory"]["kinds"]}
     assert rows["lawnmower"]["source"] == "entry point usv_mj.references.trajectories (dist usv-mj-example-plugin 0.1.0)"
     options = {o["name"]: o for o in rows["lawnmower"]["options"]}

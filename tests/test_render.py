@@ -249,7 +249,7 @@ def test_mp4_decodes_with_the_expected_frame_count_and_size(tmp_path, workers):
 def test_render_command_reports_a_missing_run(tmp_path, capsys):
     import argparse
 
-    from usv_mj.outputs.render import add_arguments, run_command
+    from usv_mj.cli.render import add_arguments, run as run_command
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)
@@ -269,7 +269,7 @@ def test_render_command_replays_an_mcap_run(tmp_path, capsys):
     import imageio.v3 as iio
 
     from usv_mj import load_scenario, simulate
-    from usv_mj.outputs.render import add_arguments, run_command
+    from usv_mj.cli.render import add_arguments, run as run_command
 
     runlog = pytest.importorskip("usv_mj.outputs.log")
     scenario = load_scenario(preset="paper", overrides={"duration": 2.0, "plant": {"kind": "analytic"}})

@@ -23,7 +23,7 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 
 from usv_mj.record.run_record import COL, COLUMNS, Event, RunRecord
 from usv_mj.outputs.log import RunLogReadError, RunLogWriter, load_topic, read_run
-from usv_mj.cli.inspect import add_inspect_arguments, inspect_command
+from usv_mj.cli.inspect import add_arguments as add_inspect_arguments, run as inspect_command
 from usv_mj.outputs.log.topics import ROW_TOPICS, row_topics
 from usv_mj.scenario.spec import load_scenario
 from usv_mj.loop.simulate import make_controller, simulate

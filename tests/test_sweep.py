@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from usv_mj import load_scenario, simulate, summarize
-from usv_mj.jobs.sweep import SweepError, add_arguments, load_sweep, parse_path, plan_sweep, run_command
+from usv_mj.cli.sweep import add_arguments, run as run_command
+from usv_mj.jobs.sweep import SweepError, load_sweep, parse_path, plan_sweep
 from usv_mj.jobs.sweep.capability import run_capability, search_capability
 from usv_mj.jobs.sweep.report import wilson_interval
 from usv_mj.jobs.sweep.runner import TIMING_COLUMNS, read_results, run_sweep
@@ -339,7 +340,7 @@ def test_keep_logs_writes_one_mcap_per_run_with_the_same_run(tmp_path, client):
 
 @pytest.mark.slow
 def test_ctrl_c_keeps_the_finished_runs_and_resume_completes(tmp_path, client, monkeypatch):
-    """The real thing: SIGINT to `python -m usv_mj.jobs.sweep`, exit 1 (stopped early) with the rows so far, then resume.
+    """The real thing: SIGINT to `usv-mj sweep`, exit 1 (stopped early) with the rows so far, then resume.
 
     Runs 6-11 are held (test hook ``hold``: each says it started, then waits for a file), so the
     interrupt lands while the sweep is certainly unfinished, on a fast machine as on a slow one; it is
@@ -351,7 +352,7 @@ def test_ctrl_c_keeps_the_finished_runs_and_resume_completes(tmp_path, client, m
     release = tmp_path / "release"
     monkeypatch.setenv("USV_MJ_SWEEP_TEST_HOOKS", "1")     # the sweep file's test_hooks table is read
     env = dict(os.environ, USV_MJ_SWEEP_TEST_RELEASE=str(release))
-    cmd = [sys.executable, "-m", "usv_mj.jobs.sweep", str(path), "--out", str(out), "--workers", "1", "--no-progress"]
+    cmd = [sys.executable, "-m", "usv_mj.cli", "sweep", str(path), "--out", str(out), "--workers", "1", "--no-progress"]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     started = tmp_path / "release.started-6"
     deadline = time.monotonic() + 600
@@ -400,7 +401,7 @@ def test_capability_disturbance_bracket_checked_by_direct_runs(tmp_path, client)
 def test_capability_sea_loads_exit_2_until_the_scenario_has_them(tmp_path, capsys):
     import argparse
 
-    from usv_mj.jobs.sweep import add_capability_arguments, capability_command
+    from usv_mj.cli.capability import add_arguments as add_capability_arguments, run as capability_command
 
     parser = argparse.ArgumentParser()
     add_capability_arguments(parser)

@@ -39,10 +39,11 @@ import numpy as np
 from usv_mj.core import arguments
 from usv_mj.core.errors import ScenarioError, expected
 from usv_mj.core.registry import CONTROLLERS, PLANTS
+from usv_mj.physics.channels import RunChannels, run_channels
+from usv_mj.physics.sea.environment import run_sea
 from usv_mj.scenario.spec import Scenario
 from usv_mj.references.trajectories import make_reference
 
-REFERENCE_MARGIN_S = 1.0  # the sea and the reference are made a little past the run's end
 
 
 @dataclass
@@ -99,12 +100,7 @@ class Parts:
 
 def make_environment(scenario: Scenario, duration: float | None = None):
     """The scenario's sea (waves, current, wind; docs/sea.md), or None when it is calm."""
-    if scenario.sea.calm:
-        return None
-    from usv_mj.physics.sea import Environment
-
-    return Environment(scenario.sea, ship=scenario.ship,
-                       t_max=(scenario.duration if duration is None else duration) + REFERENCE_MARGIN_S)
+    return run_sea(scenario.sea, scenario.ship, scenario.duration if duration is None else duration)
 
 
 def make_plant(scenario: Scenario, kind: str | None = None, environment="scenario", *, control_period: float | None = None,
@@ -144,36 +140,52 @@ def make_controller(scenario: Scenario, kind: str | None = None):
     defaults otherwise."""
     kind = kind or scenario.controller.kind
     entry = CONTROLLERS.get(kind, "controller")
-    if kind == scenario.controller.kind:
-        gains = scenario.controller.gains
-    elif kind == scenario.baseline.kind:
-        gains = scenario.baseline.gains
+    section = "controller" if kind == scenario.controller.kind else "baseline" if kind == scenario.baseline.kind else None
+    if section is not None:
+        gains = getattr(scenario, section).gains
     else:
         gains = entry.gains() if entry.info.get("gains") else None
+    check_channel_values(scenario, kind, entry.obj, gains, section)
     return entry.make(gains, scenario)
+
+
+def check_channel_values(scenario: Scenario, kind: str, controller, gains, section: str | None) -> None:
+    """A controller whose numbers are the vessel's own channels (``commands = "any"``: the open-loop
+    and zig-zag inputs) declares those gains by ``metadata={"channel": "surge" | "yaw"}``; their
+    defaults are a force [N] and a moment [N m]. On a vessel whose channels are not forces (KVLCC2's
+    n_P and rudder angle) each such gain must be given in the scenario, in the channel's unit: a
+    default taken as rev/s or rad (the rudder hard over) is refused, naming the key and the unit."""
+    if getattr(controller, "commands", "forces") != "any" or gains is None or not dataclasses.is_dataclass(gains):
+        return
+    channels = scenario.vessel.model.channels
+    if channels.forces:
+        return
+    given = scenario.raw.get(section) if section else None
+    given = given if isinstance(given, dict) else {}
+    for f in dataclasses.fields(gains):
+        which = f.metadata.get("channel")
+        if which in ("surge", "yaw") and f.name not in given and getattr(gains, f.name) is not None:
+            ch = getattr(channels, which)
+            raise ScenarioError(
+                f"{scenario.source}: {section or 'controller'}.{f.name}: the {kind!r} controller's default "
+                f"{getattr(gains, f.name)!r} is a force or moment for a vessel whose channels are forces; the vessel "
+                f"{scenario.vessel.kind!r} takes the {ch.quantity} {ch.symbol} [{ch.unit}] there: give "
+                f"{section or 'controller'}.{f.name} in {ch.unit}")
 
 
 def commands_error(scenario: Scenario, controller, kind: str) -> str | None:
     """Why controller ``kind`` (an instance or its registered class) cannot drive the scenario's
-    vessel (None: it can). A controller commands a surge force and a yaw moment unless it says
-    otherwise (``commands = "any"``: its channels are plain numbers, as the open-loop and zig-zag
-    controllers'; ``commands = "rudder"``: the propeller's n_P and a rudder angle). A force
-    controller drives a ruddered vessel (``Vessel.inputs = "rudder"``, KVLCC2) through the
-    allocation of :func:`make_actuators`; a rudder controller cannot drive a vessel without one."""
-    inputs = getattr(getattr(scenario.vessel, "model", None), "inputs", "forces")
-    commands = getattr(controller, "commands", "forces")
-    if commands not in ("forces", "any", "rudder"):   # not a rudder controller: a word the contract lacks
-        return (f"the {kind!r} controller declares commands = {commands!r}; a controller's commands is 'forces' "
-                f"(the default: tau_u [N], tau_r [N m]), 'any' (plain numbers) or 'rudder' (n_P [1/s], a rudder "
-                f"angle [rad]) (controllers/base.py)")
-    if commands in ("any", inputs) or (commands == "forces" and allocation_of(scenario) is not None):
-        return None
-    if commands == "forces":   # a ruddered vessel with no MMG block to allocate through (a plug-in's)
-        return (f"the {kind!r} controller commands a surge force and a yaw moment, but the vessel "
-                f"{scenario.vessel.kind!r} takes the propeller's n_P and a rudder angle and has no allocation "
-                f"from forces (only an MMG hull has one): use a controller that commands its rudder")
-    return (f"the {kind!r} controller commands the propeller's n_P and a rudder angle, but the vessel "
-            f"{scenario.vessel.kind!r} takes a surge force and a yaw moment")
+    vessel (None: it can): :func:`usv_mj.physics.channels.run_channels` of the vessel's channels and
+    the controller's ``commands`` ("forces" unless it says otherwise; "any": its numbers are the
+    vessel's own channels, as the open-loop and zig-zag controllers'; "rudder": a ruddered ship's
+    n_P and rudder angle). A force controller drives a ruddered vessel (KVLCC2) through the
+    allocation of :func:`make_actuators`."""
+    try:
+        run_channels(scenario.vessel.model.channels, getattr(controller, "commands", "forces"),
+                     f"the vessel {scenario.vessel.kind!r}")
+    except ValueError as exc:
+        return f"the {kind!r} controller cannot drive the vessel: {exc}"
+    return None
 
 
 def check_commands(scenario: Scenario, kind: str, note: str = "") -> None:
@@ -185,34 +197,28 @@ def check_commands(scenario: Scenario, kind: str, note: str = "") -> None:
 
 def allocation_of(scenario: Scenario):
     """The packed MMG block a force command is allocated through on the scenario's vessel
-    (usv_mj.physics.actuators, Allocation), or None: a vessel whose inputs are forces needs none."""
-    model = getattr(scenario.vessel, "model", None)
-    if getattr(model, "inputs", "forces") != "rudder":
-        return None
-    return getattr(model.ship, "mmg", None) or None
+    (its channels' ``allocation``), or None: a vessel whose channels are forces needs none."""
+    return scenario.vessel.model.channels.allocation
 
 
-def make_quantizers(scenario: Scenario):
-    """The hysteresis quantizers of the surge and yaw channels (Eq. 3), from ``[quantizer]``."""
+def make_quantizers(scenario: Scenario, commands: str = "forces"):
+    """The hysteresis quantizers of the surge and yaw channels (Eq. 3), from ``[quantizer]``: on
+    when it is enabled and the command's channels are quantized (forces; a ruddered vessel's n_P
+    and rudder angle commanded as they are are not: Eq. 3 is a quantizer of forces)."""
     from usv_mj.controllers.hysteresis_quantizer import HysteresisQuantizer, QuantizerParams
 
     q = scenario.quantizer
-    return (HysteresisQuantizer(QuantizerParams(q.delta_u, q.u_min_u), q.enabled),
-            HysteresisQuantizer(QuantizerParams(q.delta_r, q.u_min_r), q.enabled))
+    on = q.enabled and channels_of(scenario, commands).command.quantized
+    return (HysteresisQuantizer(QuantizerParams(q.delta_u, q.u_min_u), on),
+            HysteresisQuantizer(QuantizerParams(q.delta_r, q.u_min_r), on))
 
 
-#: what a record's tau / q_tau and f columns hold (its metadata's ``channels``; :func:`channels_of`)
-CHANNELS = ("forces", "rudder", "allocated")
-
-
-def channels_of(scenario: Scenario, commands: str = "forces") -> str:
-    """What the run's channels carry: "forces" (tau, Q(tau) and f are a surge force [N] and a yaw
-    moment [N m]), "rudder" (all three are a ruddered vessel's n_P [1/s] and rudder angle [rad]:
-    the open-loop and zig-zag controllers there) or "allocated" (tau and Q(tau) are forces, f the
-    n_P and rudder angle they were allocated to) for a controller commanding ``commands``."""
-    if getattr(getattr(scenario.vessel, "model", None), "inputs", "forces") != "rudder":
-        return "forces"
-    return "allocated" if commands == "forces" and allocation_of(scenario) is not None else "rudder"
+def channels_of(scenario: Scenario, commands: str = "forces") -> RunChannels:
+    """What the run's channel columns hold for a controller commanding ``commands``
+    (:class:`usv_mj.physics.channels.RunChannels`: the command's channels and the applied ones; they
+    differ when a force command is allocated to a ruddered vessel's n_P and rudder angle). Its
+    ``to_metadata()`` is the record's ``metadata["channels"]``."""
+    return run_channels(scenario.vessel.model.channels, commands, f"the vessel {scenario.vessel.kind!r}")
 
 
 def allocated_force_limits(scenario: Scenario):
@@ -239,7 +245,8 @@ def make_actuators(scenario: Scenario, commands: str = "forces"):
     (:func:`allocation_of`)."""
     from usv_mj.physics.actuators import Actuators
 
-    return Actuators.from_scenario(scenario, allocation_of(scenario) if commands == "forces" else None)
+    run = channels_of(scenario, commands)
+    return Actuators.from_scenario(scenario, run.applied.allocation if run.allocated else None)
 
 
 def check_start_clear(scenario: Scenario) -> None:
@@ -342,14 +349,16 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
         if own_plant:
             plant.close()
         raise
-    return Parts(scenario, duration, plant, controller, reference, make_quantizers(scenario),
-                 make_actuators(scenario, getattr(controller, "commands", "forces")), hooks, sinks, statics, metadata, own_plant)
+    commands = getattr(controller, "commands", "forces")
+    return Parts(scenario, duration, plant, controller, reference, make_quantizers(scenario, commands),
+                 make_actuators(scenario, commands), hooks, sinks, statics, metadata, own_plant)
 
 
 def _obstacle_parts(scenario, plant, plan, duration, statics, contact):
     """The clearance monitor, the obstacle log and the online guidance as one loop hook and a sink."""
     from usv_mj.obstacles.clearance import make_clearance_monitor
-    from usv_mj.scene.compose import ContactParams, vessel_hull_radius
+    from usv_mj.scene.compose import ContactParams
+    from usv_mj.scene.hull import vessel_hull_radius
     from usv_mj.obstacles.hooks import ObstacleHook
     from usv_mj.references.planner import Guidance
     from usv_mj.obstacles.sink import ObstacleLog
@@ -380,3 +389,100 @@ def _obstacle_parts(scenario, plant, plan, duration, statics, contact):
     if monitor.note:
         metadata["note"] = monitor.note
     return (ObstacleHook(plant, monitor, log, guidance),), (log,), metadata
+
+
+# --- several vessels in one sea (scenario [[vessels]], issue 35) ------------------------------------
+
+
+@dataclass
+class VesselParts:
+    """One vessel of a fleet's build: its name, whether it is the own ship, its own scenario (the
+    scene's tables with the vessel's merged in: usv_mj.scenario.fleet), and the running parts a
+    single run of it would have (controller, reference, quantizers, actuators)."""
+
+    name: str
+    own_ship: bool
+    scenario: Scenario
+    controller: Any
+    reference: Any
+    quantizers: tuple
+    actuators: Any
+
+
+@dataclass
+class FleetParts:
+    """Everything :func:`usv_mj.simulate` needs for a run of several vessels: the shared plant (the
+    vessel index a dimension: ``reset_vessel``, ``step_vessels``, ``states``), one
+    :class:`VesselParts` per vessel in the scenario's order, the statics (the shared sea)."""
+
+    scenario: Scenario
+    duration: float
+    plant: Any
+    vessels: tuple
+    statics: Statics = field(default_factory=Statics)
+    metadata: dict = field(default_factory=dict)
+    own_plant: bool = True
+
+    def close(self) -> None:
+        if self.own_plant and self.plant is not None:
+            self.plant.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def make_fleet_plant(scenario: Scenario, kind: str | None = None, environment="scenario"):
+    """The plant of a fleet scenario: the plant kind's own fleet (the registry's ``fleet`` factory:
+    the MuJoCo plant's, every hull in one model with contacts between them), else one plant of the
+    kind per vessel (usv_mj.plants.fleet.SeparateHulls: the analytic plant's)."""
+    from usv_mj.plants.fleet import SeparateHulls
+
+    kind = kind or scenario.plant.kind
+    env = make_environment(scenario) if isinstance(environment, str) and environment == "scenario" else environment
+    factory = PLANTS.get(kind, "plant.kind").info.get("fleet")
+    if factory is not None:
+        return factory([(v.name, v.scenario) for v in scenario.vessels], environment=env,
+                       obstacles=tuple(scenario.obstacles))
+    plants = []
+    try:
+        for v in scenario.vessels:
+            plants.append(make_plant(v.scenario, kind, env))
+    except BaseException:
+        for p in plants:
+            p.close()
+        raise
+    return SeparateHulls(plants, [v.name for v in scenario.vessels])
+
+
+def build_fleet(scenario: Scenario, *, plant_kind: str | None = None, duration: float | None = None,
+                environment="scenario") -> FleetParts:
+    """The running parts of a scenario with ``[[vessels]]`` (:class:`FleetParts`): each vessel's
+    controller, reference, quantizers and actuators as its own single build makes them, and one
+    plant for all. ``plant_kind`` / ``duration`` / ``environment`` as :func:`build`'s."""
+    scenario = as_scenario(scenario, "build_fleet")
+    if not scenario.vessels:
+        raise ScenarioError(f"{scenario.source}: build_fleet: the scenario has no [[vessels]]")
+    duration = scenario.duration if duration is None else float(duration)
+    if not (math.isfinite(duration) and duration > 0):
+        raise ScenarioError(f"{scenario.source}: duration must be > 0 s, got {duration!r}")
+    if scenario.obstacles and scenario.guidance.avoid:
+        raise ScenarioError(f"{scenario.source}: [guidance] avoid plans one vessel's path around the obstacles; with "
+                            f"[[vessels]] each vessel's controller keeps clear itself: remove guidance.avoid")
+    env = make_environment(scenario, duration) if environment == "scenario" else environment
+    vessels = []
+    for v in scenario.vessels:
+        sc = v.scenario
+        controller = make_controller(sc)
+        problem = commands_error(sc, controller, sc.controller.kind)
+        if problem is not None:
+            raise ScenarioError(f"{sc.source}: {problem}")
+        commands = getattr(controller, "commands", "forces")
+        vessels.append(VesselParts(v.name, v.own_ship, sc, controller, make_reference(sc.trajectory, duration, sc),
+                                   make_quantizers(sc, commands), make_actuators(sc, commands)))
+    plant = make_fleet_plant(scenario, plant_kind, env)
+    return FleetParts(scenario, duration, plant, tuple(vessels), Statics(environment=env,
+                                                                          obstacles=tuple(scenario.obstacles)))

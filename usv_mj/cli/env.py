@@ -1,9 +1,11 @@
-"""Roll out a policy in a USV dm_control task: returns per episode, and a video of the first one.
+"""``usv-mj env TASK``: roll out a policy in a USV dm_control task (:mod:`usv_mj.envs`): returns per
+episode, and a video of the first one.
 
-Tasks: ``track`` (the paper's reference from a randomised start), ``track_waves`` (the same in the
-moderate sea with current and wind), ``harbor`` (reach a goal through a randomised harbour without
-contact). Policies: ``ppc`` (the paper's adaptive PPC law on the environment's observations) and
-``random`` (uniform actions within the thrust bounds). Observations, rewards and termination:
+Tasks: those of :data:`usv_mj.core.registry.TASKS` (a plug-in's too): ``track`` (the paper's
+reference from a randomised start), ``track_waves`` (the same in the moderate sea with current and
+wind), ``harbor`` (reach a goal through a randomised harbour without contact), ``harbor_waves``.
+Policies: ``ppc`` (the paper's adaptive PPC law on the environment's observations) and ``random``
+(uniform actions within the thrust bounds). Observations, rewards and termination:
 ``pydoc usv_mj.envs.tasks``.
 
 ``--vessel KIND`` runs the task on another hull (as ``usv-mj run --vessel``: a registered vessel
@@ -21,35 +23,47 @@ import sys
 import time
 from pathlib import Path
 
+from usv_mj.cli import args as flags
+from usv_mj.cli.commands import COMMANDS
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from usv_mj.envs import ALL_TASKS
 
-    parser.add_argument("task", choices=ALL_TASKS, help="track: the paper's reference from a randomised start; "
-                        "track_waves: the same in the moderate sea with current and wind; harbor: reach a goal "
-                        "through a randomised harbour without contact; harbor_waves: the harbour in that sea")
-    parser.add_argument("--policy", choices=("ppc", "controller", "random"), default="ppc",
-                        help="ppc: the paper's controller (docs/model.md §3) on the observations; controller: the "
-                        "scenario's [controller] kind (a plug-in's too); random: uniform actions")
-    parser.add_argument("--set", metavar="KEY=VALUE", action="append", default=[],
-                        help="override one value of the task's scenario by dotted key, e.g. --set "
-                        "controller.kind=my-pd or --set trajectory.kind=lawnmower")
-    from usv_mj.cli.args import add_vessel_argument
+def task_kind(value: str) -> str:
+    """``TASK``: a kind of :data:`usv_mj.core.registry.TASKS`, read when the value is parsed (never
+    for --help), so a task registered by a plug-in's module or entry point is one too; or
+    ``package.module:factory``. A bad one is argparse's one line listing the tasks."""
+    from usv_mj.core.errors import UnknownKindError
+    from usv_mj.core.registry import TASKS
 
-    add_vessel_argument(parser)   # the flag of usv-mj run: the hull the task runs (docs/vessels.md)
-    parser.add_argument("--episodes", type=int, default=1, help="number of episodes (default 1)")
-    parser.add_argument("--seed", type=int, default=0, help="environment (and random policy) seed (default 0)")
-    parser.add_argument("--duration", type=float, default=None, help="episode length [s] (default 30, harbor 90)")
-    parser.add_argument("--no-quantize", action="store_true", help="apply actions without the hysteresis quantizer")
-    parser.add_argument("--video", default="renders/env.mp4",
-                        help="video of the first episode (default renders/env.mp4); 'none' to skip")
-    parser.add_argument("--video-size", default="640x360", help="WIDTHxHEIGHT of the video (default 640x360)")
-    from usv_mj.outputs.outdir import add_overwrite_argument
+    if value not in TASKS.kinds() and ":" not in value:
+        raise argparse.ArgumentTypeError(f"invalid choice: {value!r} (choose from "
+                                         f"{', '.join(map(repr, TASKS.kinds()))}); or 'package.module:factory'")
+    try:
+        TASKS.get(value, "usv-mj env")
+    except UnknownKindError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return value
 
-    add_overwrite_argument(parser, "the --video file and its .png still when usv_mj wrote them")
-    from usv_mj.cli.args import add_live_arguments
 
-    add_live_arguments(parser)   # --live: each episode served to Foxglove as it ends (usv_mj.outputs.log.live)
+def add_arguments(p) -> None:
+    p.add_argument("task", metavar="TASK", type=task_kind,
+                   help="a task of usv_mj.envs (usv-mj kinds task: each one's options and tags; a plug-in's too), "
+                   "or package.module:factory. track: the paper's reference from a randomised start; track_waves: "
+                   "the same in the moderate sea with current and wind; harbor: reach a goal through a randomised "
+                   "harbour without contact; harbor_waves: the harbour in that sea")
+    p.add_argument("--policy", choices=("ppc", "controller", "random"), default="ppc",
+                   help="ppc: the paper's controller (docs/model.md §3) on the observations; controller: the "
+                   "scenario's [controller] kind (a plug-in's too); random: uniform actions")
+    flags.add_set_argument(p, "task's scenario", "controller.kind=my-pd or --set trajectory.kind=lawnmower")
+    flags.add_vessel_argument(p)   # the flag of usv-mj run: the hull the task runs (docs/vessels.md)
+    p.add_argument("--episodes", type=int, default=1, help="number of episodes (default 1)")
+    p.add_argument("--seed", type=int, default=0, help="environment (and random policy) seed (default 0)")
+    flags.add_duration_argument(p, "episode length [s] (default 30, harbor 90)")
+    p.add_argument("--no-quantize", action="store_true", help="apply actions without the hysteresis quantizer")
+    p.add_argument("--video", default="renders/env.mp4",
+                   help="video of the first episode (default renders/env.mp4); 'none' to skip")
+    flags.add_size_argument(p, (640, 360))
+    flags.add_overwrite_argument(p, "the --video file and its .png still when usv_mj wrote them")
+    flags.add_live_arguments(p)   # --live: each episode served to Foxglove as it ends (usv_mj.outputs.log.live)
 
 
 def rollout(env, policy):
@@ -74,9 +88,14 @@ def rollout(env, policy):
     return total, n, dict(task.info), rows
 
 
-def run_command(args: argparse.Namespace) -> int:
-    from usv_mj.scenario.spec import ScenarioError
-
+@COMMANDS.register(
+    "env", arguments=add_arguments,
+    help="roll out a policy (ppc, random) in a dm_control task (track, track_waves, harbor): returns and a video",
+    description="Roll out a policy (ppc: the paper's controller; random) in a dm_control task (track,\n"
+                "track_waves, harbor, harbor_waves) and print the returns; --video writes the first episode;\n"
+                "--vessel KIND runs it on another hull (as usv-mj run --vessel: plant, actuators, picture).")
+def run(args) -> int:
+    from usv_mj.core.errors import ScenarioError
     from usv_mj.envs import PPCPolicy, RandomPolicy, load
 
     if args.episodes < 1:
@@ -84,22 +103,18 @@ def run_command(args: argparse.Namespace) -> int:
         return 2
     if args.video.lower() == "none":
         args.video = None
-    if args.video is not None:  # the video's size and file are checked before any episode runs
+    if args.video is not None:  # the video's file is checked before any episode runs (its size when parsed)
         from usv_mj.outputs.outdir import check_file
-        from usv_mj.outputs.render.video import check_size, parse_size
 
         try:
-            check_size(*parse_size(args.video_size))
             check_file(args.video, args.overwrite, "--video")
-        except (ValueError, argparse.ArgumentTypeError) as exc:
+        except ValueError as exc:
             print(f"usv-mj env: error: {exc}", file=sys.stderr)
             return 2
-    options = {"quantize": not args.no_quantize}
+    options = {"quantize": False} if args.no_quantize else {}  # else the task's own default
     if args.set:
-        from usv_mj.scenario.overrides import parse_set
-
         try:
-            options["overrides"] = parse_set(args.set)
+            options["overrides"] = flags.parse_set(args.set)
         except ScenarioError as exc:
             print(f"usv-mj env: error: {exc}", file=sys.stderr)
             return 2
@@ -149,13 +164,11 @@ def run_command(args: argparse.Namespace) -> int:
 
 
 def _live_server(args):
-    from usv_mj.cli.args import live_server
-
     if getattr(args, "live", False):
         import tempfile
 
         args.live_folder = tempfile.TemporaryDirectory(prefix="usv_mj_env_live_")
-    return live_server(args)
+    return flags.live_server(args)
 
 
 def _serve_episode(live, env, rows, args, ep: int) -> None:
@@ -182,13 +195,13 @@ def _video(env, rows, args) -> None:
 
         from usv_mj.envs import episode_record
 
-        w, h = (int(v) for v in args.video_size.lower().split("x"))
+        w, h = args.size
         record = episode_record(env, rows, {"task": args.task, "policy": args.policy})
         out = Path(args.video)
         out.parent.mkdir(parents=True, exist_ok=True)
         kwargs = {}
-        if args.task.startswith("harbor"):
-            kwargs["model"] = env.physics.plant.render_model_path  # the episode's own harbour layout
+        if getattr(env.task, "episode_scenario", env.task.scenario).obstacles:
+            kwargs["model"] = env.physics.plant.render_model_path  # the episode's own layout (the harbour's)
         info = render_run(record, out, width=w, height=h, progress=False, **kwargs)
         from usv_mj.outputs.outdir import record_file
 

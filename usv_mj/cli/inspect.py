@@ -1,6 +1,5 @@
 """``usv-mj inspect RUN.mcap``: topics, message counts, duration, metadata and status of a run log.
 
-The lead wires :func:`add_inspect_arguments` and :func:`inspect_command` into ``usv_mj/cli/main.py``.
 Exit codes: 0 read (also a cut or damaged file, which is reported), 2 missing file / not an MCAP run log.
 "complete" means every check held: the footer and the closing magic are there, and the CRCs of
 every chunk, of the data section (DataEnd) and of the summary (footer) match; otherwise the file is
@@ -9,16 +8,16 @@ every chunk, of the data section (DataEnd) and of the summary (footer) match; ot
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
-from usv_mj.outputs.log.reader import RunLogReadError, companion_files, scan_summary
+from usv_mj.cli import args as flags
+from usv_mj.cli.commands import COMMANDS
 
 
-def add_inspect_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", metavar="RUN.mcap", help="a run log written by usv-mj run (or a run folder holding run.mcap)")
-    parser.add_argument("--json", action="store_true", help="print the same facts as one JSON object")
+def add_arguments(p) -> None:
+    p.add_argument("run", metavar="RUN.mcap", help="a run log written by usv-mj run (or a run folder holding run.mcap)")
+    flags.add_json_argument(p)
 
 
 def _fmt_size(n: int) -> str:
@@ -29,8 +28,15 @@ def _fmt_size(n: int) -> str:
     return str(n)
 
 
-def inspect_command(args) -> int:
+@COMMANDS.register("inspect", arguments=add_arguments,
+                   help="topics, message counts, duration and metadata of a run log (.mcap)",
+                   description="Say what a run log (.mcap) holds: its runs, topics, message counts, duration, "
+                   "status and\nmetadata, and whether the file is complete. --json prints the same as one JSON "
+                   "object.")
+def run(args) -> int:
     from pathlib import Path
+
+    from usv_mj.outputs.log.reader import RunLogReadError, companion_files, scan_summary
 
     path = Path(args.run)
     if path.is_dir() and (path / "run.mcap").is_file():

@@ -1,7 +1,7 @@
 """``usv-mj kinds``: every kind of every registry, where it comes from, and its options.
 
 For each registry of :data:`usv_mj.core.registry.REGISTRIES` (controller, trajectory, plant,
-disturbance) and each kind a scenario may name: its source ("built-in", "entry point GROUP (dist
+disturbance, vessel, manoeuvre, and the environments' tasks with their tags) and each kind: its source ("built-in", "entry point GROUP (dist
 NAME VERSION)", "module:Name", "registered at runtime (module M)"), the object that makes it, and
 its options dataclass's fields (name, type, default, unit). A kind that cannot be loaded (a broken
 entry point) is listed with its one-line error.
@@ -20,8 +20,11 @@ import inspect
 import json
 import re
 
+from usv_mj.cli import args as flags
+from usv_mj.cli.commands import COMMANDS
 from usv_mj.core.errors import UnknownKindError
 from usv_mj.core.registry import REGISTRIES
+from usv_mj.scenario.kinds import scenario_kinds, worker_imports  # noqa: F401 (re-exported)
 
 _BRACKET = re.compile(r"\[([^\[\]]+)\]")
 _NUMBERS = re.compile(r"[-+\d.,\s eE]*")
@@ -129,6 +132,8 @@ def list_kinds(sections=None) -> dict:
             rows.append({"kind": kind, "source": entry.source,
                          "object": f"{getattr(obj, '__module__', '?')}.{getattr(obj, '__qualname__', repr(obj))}",
                          "options": describe_options(entry.options_class)})
+            if "tags" in entry.info:   # an environment task's (usv_mj.core.registry.TASKS)
+                rows[-1]["tags"] = list(entry.info["tags"])
         out[section] = {"group": registry.group, "common": _common_options(section), "kinds": rows}
     return out
 
@@ -145,10 +150,16 @@ def _common_options(section: str) -> list[dict]:
 def add_arguments(p) -> None:
     p.add_argument("section", nargs="*", metavar="REGISTRY",
                    help=f"only these registries ({', '.join(REGISTRIES)}); default: all")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
+    flags.add_json_argument(p)
 
 
-def run_command(args) -> int:
+@COMMANDS.register(
+    "kinds", arguments=add_arguments,
+    help="every controller, trajectory, plant and disturbance kind: where it comes from, its options",
+    description="List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
+                "disturbance): where it comes from (built-in, an entry point's distribution, module:Name,\n"
+                "registered at runtime) and its options (name, type, default, unit). --json for one object.")
+def run(args) -> int:
     for name in args.section:
         if name not in REGISTRIES:
             import difflib
@@ -171,6 +182,8 @@ def run_command(args) -> int:
                 print(f"  {row['kind']:14s} {row['source']}: {row['error']}")
                 continue
             print(f"  {row['kind']:14s} {row['source']}  ({row['object']})")
+            if "tags" in row:
+                print(f"      tags: {', '.join(row['tags']) or '(none)'}")
             for o in row["options"]:
                 unit = f"[{o['unit']}]" if o["unit"] else ""
                 print(f"      {o['name']:18s} {o['type']:24s} {json.dumps(o['default']):24s} {unit}")
@@ -178,31 +191,3 @@ def run_command(args) -> int:
                 print("      (no options)")
         print()
     return 0
-
-
-def scenario_kinds(scenario) -> list[tuple[str, str]]:
-    """(registry section, kind) of every registered part ``scenario`` names."""
-    out = [("controller", scenario.controller.kind), ("trajectory", scenario.trajectory.kind),
-           ("plant", scenario.plant.kind)]
-    if scenario.baseline.enabled:
-        out.append(("controller", scenario.baseline.kind))
-    return out
-
-
-def worker_imports(scenario) -> tuple[str, ...]:
-    """The modules another process (a sweep's Dask worker) must import to find the kinds of
-    ``scenario`` that were registered at runtime by an importable module's decorator (built-ins,
-    entry points and ``module:Name`` kinds need none: a worker finds them by import). A kind
-    registered only in this process (in ``__main__``) raises :class:`usv_mj.core.errors.SweepError`."""
-    from usv_mj.core.errors import SweepError
-
-    modules = []
-    for section, kind in scenario_kinds(scenario):
-        registry = REGISTRIES[section]
-        problem = registry.portable(kind)
-        if problem is not None:
-            raise SweepError(f"{scenario.source}: {section}.kind: {problem}")
-        module = registry.module_to_import(kind)
-        if module and module not in modules:
-            modules.append(module)
-    return tuple(modules)

@@ -10,7 +10,7 @@
 --out/VESSEL/ and writes manoeuvre_vessels.png, vessels.json and vessels.md beside them (:mod:`.fleet`).
 
 The manoeuvre's options are ``--set manoeuvre.KEY=VALUE`` (``usv-mj kinds`` does not list them:
-:mod:`usv_mj.jobs.manoeuvres.options`); ``--duration`` sets ``manoeuvre.duration``. Writes into --out
+:mod:`usv_mj.scenario.manoeuvre`); ``--duration`` sets ``manoeuvre.duration``. Writes into --out
 (default renders/manoeuvre-KIND): manoeuvre.json (the measures and the IMO rows), report.md,
 figures/ (manoeuvre_track.png, manoeuvre_time.png, manoeuvre_spiral.png and the run's own seven),
 run.mcap, summary.json; video.mp4 with --video.
@@ -22,41 +22,31 @@ import sys
 import time
 from pathlib import Path
 
+from usv_mj.cli import args as flags
+from usv_mj.cli.args import EXIT_OK, EXIT_STOPPED
+from usv_mj.cli.commands import COMMANDS
 from usv_mj.core.errors import ScenarioError
-
-from usv_mj.jobs.manoeuvres.options import KINDS
 
 
 def add_arguments(p) -> None:
-    from usv_mj.cli.args import add_scenario_arguments, add_vessel_argument
-    from usv_mj.outputs.render import add_video_arguments
-
-    p.add_argument("kind", nargs="?", choices=tuple(KINDS), help="the manoeuvre (default: the scenario's [manoeuvre])")
-    add_scenario_arguments(p)
-    for action in p._actions:   # what the shared flags mean here
-        if "--duration" in action.option_strings:
-            action.help = "simulated time [s]: manoeuvre.duration (default: the manoeuvre's, 60 s; not the spiral)"
-        if "--sea" in action.option_strings:
-            action.help += " (with --set manoeuvre.conditions=scenario: a manoeuvre runs in calm water by default)"
-    p.add_argument("--plant", choices=("mujoco", "analytic"), help="which plant integrates the ship")
-    add_vessel_argument(p)
-    for action in p._actions:
-        if "--vessel" in action.option_strings:
-            action.help += ("; here also a list KIND,KIND,... or 'all' (every registered vessel): one run each into "
-                            "--out/KIND/, and their tracks and measures side by side")
-    p.add_argument("--out", metavar="DIR", help="output folder (default renders/manoeuvre-KIND)")
-    p.add_argument("--overwrite", action="store_true", help="replace an earlier run in --out (replaced whole)")
+    p.add_argument("kind", nargs="?", metavar="KIND", choices=flags.Choices("usv_mj.core.registry", "MANOEUVRES.kinds"),
+                   help="the manoeuvre: %(choices)s (default: the scenario's [manoeuvre])")
+    flags.add_scenario_arguments(
+        p, duration_help="simulated time [s]: manoeuvre.duration (default: the manoeuvre's, 60 s; not the spiral)",
+        sea_note=" (with --set manoeuvre.conditions=scenario: a manoeuvre runs in calm water by default)")
+    flags.add_plant_argument(p)
+    flags.add_vessel_argument(p, fleet=True)
+    flags.add_out_argument(p, "output folder (default renders/manoeuvre-KIND)")
+    flags.add_overwrite_argument(p, "--out whole when it holds an earlier usv_mj output")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--video", dest="video", action="store_true", help="also render video.mp4")
     g.add_argument("--no-video", dest="video", action="store_false", help="no video (the default)")
     p.set_defaults(video=False)
-    add_video_arguments(p)
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    flags.add_video_arguments(p)
+    flags.add_quiet_argument(p)
 
 
 def _scenario(args):
-    from usv_mj.cli.args import scenario_from_args
-
     duration, args.duration = args.duration, None   # the manoeuvre's duration, not the scenario's
     own = None
     if args.scenario:
@@ -72,7 +62,7 @@ def _scenario(args):
     if args.kind and not any(item.split("=", 1)[0].strip() == "manoeuvre.kind" for item in args.set):
         args.set = [f"manoeuvre.kind={args.kind}"] + list(args.set)  # before the kind's own --set keys
         args.implied_sets = 1   # not typed: an error is not blamed on it (usv_mj.cli.args)
-    scenario = scenario_from_args(args)
+    scenario = flags.scenario_from_args(args)
     spec = scenario.manoeuvre
     kind = spec.kind if spec is not None else None
     if kind is None:
@@ -89,13 +79,17 @@ def _scenario(args):
     return scenario.with_overrides(over), kind
 
 
-def run_command(args) -> int:
-    from usv_mj.cli.args import EXIT_OK, EXIT_STOPPED
-    from usv_mj.jobs.run import RunFailed
-
+@COMMANDS.register(
+    "manoeuvre", arguments=add_arguments,
+    help="a standard manoeuvre (turning circle, zig-zag, spiral, stopping): measures, IMO criteria, figures",
+    description="Run a standard manoeuvre of the vessel (turning circle, 10/10 or 20/20 zig-zag, Dieudonne's\n"
+                "spiral, stopping test) on either plant, and write its measures (manoeuvre.json), the IMO\n"
+                "MSC.137(76) criteria beside them, figures, report.md and run.mcap into --out (a video with\n"
+                "--video). Options: --set manoeuvre.KEY=VALUE (README, Vessels and manoeuvres).")
+def run(args) -> int:
     from usv_mj.jobs.manoeuvres import run_manoeuvre
-
     from usv_mj.jobs.manoeuvres.fleet import is_fleet
+    from usv_mj.jobs.run import RunFailed
 
     if is_fleet(args.vessel):
         return _run_fleet(args)
@@ -121,12 +115,7 @@ def run_command(args) -> int:
 
 def _outputs(args, default_name: str):
     """(the video's render options, the output folder: --out or renders/DEFAULT_NAME), checked."""
-    from usv_mj.outputs.render import video_options
-
-    try:
-        render_options = video_options(args)
-    except ValueError as exc:
-        raise ScenarioError(str(exc)) from None
+    render_options = flags.video_options(args)
     if args.out is not None and args.out.strip() == "":
         raise ScenarioError("--out '': an empty path; name the output folder")
     return render_options, (Path(args.out) if args.out is not None else Path("renders") / default_name)
@@ -136,10 +125,8 @@ def _run_fleet(args) -> int:
     """``--vessel A,B,...`` / ``--vessel all``: the manoeuvre on each vessel (:mod:`.fleet`)."""
     import copy
 
-    from usv_mj.cli.args import EXIT_OK, EXIT_STOPPED
-    from usv_mj.jobs.run import RunFailed
-
     from usv_mj.jobs.manoeuvres.fleet import run_fleet, table_lines, vessel_list
+    from usv_mj.jobs.run import RunFailed
 
     kinds = vessel_list(args.vessel)
     found = {}

@@ -14,30 +14,37 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from usv_mj.cli import args as flags
+from usv_mj.cli.commands import COMMANDS
 from usv_mj.core.errors import ScenarioError
 
 
 def add_arguments(p) -> None:
-    from usv_mj.cli.args import add_scenario_arguments
-
-    add_scenario_arguments(p)
-    p.add_argument("--out", metavar="FILE", default="scene.xml", help="the MJCF file to write (default scene.xml)")
-    p.add_argument("--plant", choices=("mujoco",), default="mujoco", help="the scene is the MuJoCo plant's (the only choice)")
+    flags.add_scenario_arguments(p)
+    flags.add_out_argument(p, "the MJCF file to write (default scene.xml)", default="scene.xml", metavar="FILE")
+    flags.add_plant_argument(p, default="mujoco", help="the scene is the MuJoCo plant's (the only choice)")
 
 
-def run_command(args) -> int:
+@COMMANDS.register(
+    "scene", arguments=add_arguments,
+    help="write the scenario's MuJoCo scene (obstacles included) as one MJCF file",
+    description="Write the MuJoCo scene the scenario runs in (the hull, the harbour and its obstacles, the\n"
+                "time step and the hull's inertial) as one MJCF file. MuJoCo alone sees no water in it:\n"
+                "usv_mj.attach_hydrodynamics(model, data, scenario=...) attaches the hull forces and the sea.")
+def run(args) -> int:
     from usv_mj.builder import build
-    from usv_mj.cli.args import scenario_from_args
 
+    flags.only_mujoco(args.plant, "the scene is the MuJoCo plant's")
     out = Path(args.out)
     if not str(args.out).strip() or out.is_dir():
         raise ScenarioError(f"--out {args.out!r}: name an .xml file to write")
     if out.suffix.lower() != ".xml":
         raise ScenarioError(f"--out {args.out!r}: an MJCF file ends in .xml")
-    scenario = scenario_from_args(args)
+    scenario = flags.scenario_from_args(args)
     with build(scenario, duration=min(scenario.duration, 1.0)) as parts:
         text = parts.plant.scene_xml()
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(text)
     print(f"usv-mj scene: wrote {out} (the {scenario.source} scene; no water until usv_mj.attach_hydrodynamics)")
     return 0
+

@@ -1,187 +1,51 @@
-"""``usv-mj view`` (or ``python -m usv_mj.cli.view``): MuJoCo's interactive viewer on a running scenario.
-
-The scenario is built once (:func:`usv_mj.build`, the MuJoCo plant: the hull of ``models/usv.xml``
-or the harbour with its obstacles, the hydrodynamic callback and the sea acting) and run by the
-project's own loop (:func:`usv_mj.simulate`) with the controller in it; a loop hook hands the
-plant's ``mjData`` to ``mujoco.viewer.launch_passive`` every frame (1/60 s of wall time) and holds
-the simulated time to ``--speed`` times the wall clock. Closing the window ends the run (recorded
-as interrupted). With ``--manual`` the controller is replaced by the keyboard (open loop):
-
-    arrow up / down      surge force tau_u + / - SURGE_STEP_N
-    arrow left / right   yaw moment tau_r + / - YAW_STEP_NM (left turns to port, counter-clockwise)
-    space                both back to 0
-
-(the loop's quantizers and actuator limits act on these commands as on any controller's).
-Without a display (no ``DISPLAY`` / ``WAYLAND_DISPLAY``, or the viewer failing to open) it says so
-in one line and exits 3.
+"""``usv-mj view`` (or ``python -m usv_mj.cli.view``): MuJoCo's interactive viewer on a running scenario
+(:mod:`usv_mj.jobs.view`), ``--manual`` driven by the arrow keys. Without a display it says so in one
+line and exits 3.
 """
 
 from __future__ import annotations
 
-import os
 import sys
-import threading
-import time
 
-import numpy as np
-
-from usv_mj.record.criteria import NotJudged
-from usv_mj.core.errors import ScenarioError
+from usv_mj.cli import args as flags
+from usv_mj.cli.commands import COMMANDS
 
 EXIT_NO_DISPLAY = 3
-SURGE_STEP_N = 10.0     # N per key press
-YAW_STEP_NM = 1.0       # N m per key press
-FRAME_S = 1.0 / 60.0    # wall time between two viewer syncs [s]
-KEY_UP, KEY_DOWN, KEY_LEFT, KEY_RIGHT, KEY_SPACE = 265, 264, 263, 262, 32   # GLFW key codes
 
-
-class NoDisplay(RuntimeError):
-    """No desktop to open the viewer on (the CLI prints it in one line, exit 3)."""
-
-
-def check_display(environ=os.environ) -> None:
-    if not (environ.get("DISPLAY") or environ.get("WAYLAND_DISPLAY")):
-        raise NoDisplay("no display (DISPLAY and WAYLAND_DISPLAY are unset): MuJoCo's viewer needs a desktop; "
-                        "`usv-mj run` writes a video instead")
-
-
-def probe_glfw() -> None:
-    """NoDisplay unless GLFW (MuJoCo's viewer) opens the display: the viewer's own thread ends the
-    process when it cannot (exit 1, "could not initialize GLFW")."""
-    import warnings
-
-    import glfw
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ok = glfw.init()
-    if not ok:
-        where = os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-        raise NoDisplay(f"the viewer cannot open the display {where!r} (GLFW failed to initialize); "
-                        "`usv-mj run` writes a video instead")
-    glfw.terminate()
-
-
-class ManualController:
-    """Open-loop surge force and yaw moment set from the keyboard (module docstring); the loop's
-    controller interface as :class:`usv_mj.controllers.open_loop.OpenLoopController`."""
-
-    name = "manual"
-    diagnostic_fields = ()
-    criterion = NotJudged("manual driving")
-
-    def __init__(self):
-        self.lock = threading.Lock()
-        self.tau = [0.0, 0.0]   # [N, N m]
-        self._diag = np.zeros(0)
-
-    def reset(self) -> None:
-        with self.lock:
-            self.tau = [0.0, 0.0]
-
-    def key(self, keycode: int) -> None:
-        """The viewer's key callback (its own thread)."""
-        step = {KEY_UP: (SURGE_STEP_N, 0.0), KEY_DOWN: (-SURGE_STEP_N, 0.0),
-                KEY_LEFT: (0.0, YAW_STEP_NM), KEY_RIGHT: (0.0, -YAW_STEP_NM)}.get(keycode)
-        with self.lock:
-            if keycode == KEY_SPACE:
-                self.tau = [0.0, 0.0]
-            elif step is not None:
-                self.tau = [self.tau[0] + step[0], self.tau[1] + step[1]]
-
-    def __call__(self, t, state, reference):
-        with self.lock:
-            return self.tau[0], self.tau[1], self._diag
-
-
-class ViewerHook:
-    """The loop hook that shows the plant in the viewer and paces the run (module docstring)."""
-
-    def __init__(self, viewer, speed: float):
-        import mujoco
-
-        self.viewer, self.speed, self._mj = viewer, speed, mujoco
-        self._wall0 = None
-        self._next = 0.0
-        self.frames = 0
-
-    def __call__(self, t, k, plant):
-        now = time.monotonic()
-        if self._wall0 is None:
-            self._wall0 = now - t / self.speed
-        if now < self._next:
-            return
-        if not self.viewer.is_running():
-            raise KeyboardInterrupt("closing the viewer")
-        with self.viewer.lock():
-            self._mj.mj_kinematics(plant.model, plant.data)
-        self.viewer.sync()
-        self.frames += 1
-        ahead = t / self.speed - (time.monotonic() - self._wall0)
-        if ahead > 0:
-            time.sleep(ahead)
-        self._next = time.monotonic() + FRAME_S
-
-
-def _wait_closed(viewer, threads, timeout_s: float = 5.0) -> None:
-    """Let the viewer's render thread end (``threads``: those launch_passive started) before the
-    model and data it draws are freed: a process that exits while it runs crashes in GLFW."""
-    end = time.monotonic() + timeout_s
-    while viewer.is_running() and time.monotonic() < end:
-        time.sleep(0.01)
-    for thread in threads:
-        thread.join(max(0.0, end - time.monotonic()))
-
-
-def add_arguments(p) -> None:
-    from usv_mj.cli.args import add_scenario_arguments
-
-    add_scenario_arguments(p)
-    p.add_argument("--plant", choices=("mujoco",), default="mujoco", help="the viewer shows the MuJoCo plant")
-    p.add_argument("--manual", action="store_true",
-                   help="drive it yourself: arrows up/down surge, left/right yaw, space zero (open loop)")
-    p.add_argument("--speed", type=float, default=1.0, metavar="X", help="X times real time (default 1)")
-
-
-def run_command(args) -> int:
-    from usv_mj.builder import build
-    from usv_mj.cli.args import scenario_from_args
-    from usv_mj.loop.simulate import simulate
-
-    if not (args.speed > 0 and args.speed < float("inf")):
-        raise ScenarioError(f"--speed {args.speed!r}: must be a finite number > 0 (1 = real time)")
-    scenario = scenario_from_args(args)
-    try:
-        check_display()
-        probe_glfw()
-        import mujoco.viewer
-    except (NoDisplay, ImportError) as exc:
-        print(f"usv-mj view: {exc}", file=sys.stderr)
-        return EXIT_NO_DISPLAY
-    manual = ManualController() if args.manual else None
-    with build(scenario, controller=manual) as parts:
-        before = set(threading.enumerate())
-        try:
-            viewer = mujoco.viewer.launch_passive(parts.plant.model, parts.plant.data,
-                                                  key_callback=manual.key if manual is not None else None)
-        except Exception as exc:  # noqa: BLE001 - GLFW reports no display in several ways
-            print(f"usv-mj view: the viewer did not open ({type(exc).__name__}: {exc}); it needs a desktop "
-                  f"(MUJOCO_GL={os.environ.get('MUJOCO_GL', 'unset')})", file=sys.stderr)
-            return EXIT_NO_DISPLAY
-        threads = [t for t in threading.enumerate() if t not in before]
-        hook = ViewerHook(viewer, args.speed)
-        try:
-            record = simulate(parts, hooks=[hook])
-        finally:
-            viewer.close()
-            _wait_closed(viewer, threads)
-    x = record.data[record.n_rows - 1] if record.n_rows else None
-    where = f"; at t = {x[0]:.2f} s the hull is at ({x[1]:.2f}, {x[2]:.2f}) m" if x is not None else ""
-    print(f"usv-mj view: {record.status} after {hook.frames} frames{where}")
-    return 0 if record.status in ("completed", "interrupted") else 1
-
-
-if __name__ == "__main__":
+if __name__ == "__main__":   # python -m usv_mj.cli.view: the registered command (this module, imported by name)
     from usv_mj.cli.main import main
 
     sys.exit(main(["view", *sys.argv[1:]]))
+
+
+def add_arguments(p) -> None:
+    flags.add_scenario_arguments(p)
+    flags.add_vessel_argument(p)   # as `usv-mj run --vessel` (README: view takes run's scenario flags)
+    flags.add_plant_argument(p, default="mujoco", help="the viewer shows the MuJoCo plant (the only choice)")
+    p.add_argument("--manual", action="store_true",
+                   help="drive it yourself: arrows up/down surge, left/right yaw, space zero (open loop)")
+    flags.add_speed_argument(p, default=1.0, help="X times real time (default 1)")
+
+
+@COMMANDS.register(
+    "view", arguments=add_arguments,
+    help="MuJoCo's viewer on the scenario: water, sea and controller acting; --manual drives with the arrows",
+    description="Open MuJoCo's interactive viewer on the scenario's scene with the hydrodynamics, the sea and\n"
+                "the controller acting (needs a display; exit 3 without one). --manual: drive it yourself,\n"
+                "arrow keys up/down for surge, left/right for yaw, space to zero the thrust.")
+def run(args) -> int:
+    from usv_mj.jobs.view import NoDisplay, check_speed, view
+
+    flags.only_mujoco(args.plant, "the viewer shows the MuJoCo plant")
+    check_speed(args.speed)   # before the scenario is read, as any bad flag
+    scenario = flags.scenario_from_args(args)
+    try:
+        record, frames = view(scenario, manual=args.manual, speed=args.speed)
+    except NoDisplay as exc:
+        print(f"usv-mj view: {exc}", file=sys.stderr)
+        return EXIT_NO_DISPLAY
+    x = record.data[record.n_rows - 1] if record.n_rows else None
+    where = f"; at t = {x[0]:.2f} s the hull is at ({x[1]:.2f}, {x[2]:.2f}) m" if x is not None else ""
+    print(f"usv-mj view: {record.status} after {frames} frames{where}")
+    return 0 if record.status in ("completed", "interrupted") else 1
+

@@ -33,6 +33,24 @@ class SweepError(ScenarioError):
     """A sweep file (its base scenario, a varied path, a distribution) is wrong."""
 
 
+class WorkerError(UsvMjError, RuntimeError):
+    """A sweep's or a benchmark's Dask workers could not do their part (a run that cannot be set up on
+    its worker, every worker gone): the job stops with the runs done so far written; exit 1."""
+
+
+class WorkerSetupError(WorkerError):
+    """Run ``run_id`` could not be set up on its worker: ``stage`` ("importing M", "unpickling its
+    scenario", "building it") failed with ``cause`` (one line)."""
+
+    def __init__(self, run_id: int, stage: str, cause: str, worker: str = ""):
+        super().__init__(run_id, stage, cause, worker)   # the args rebuild it when it is unpickled
+        self.run_id, self.stage, self.cause, self.worker = run_id, stage, cause, worker
+
+    def __str__(self) -> str:
+        where = f" on worker {self.worker}" if self.worker else ""
+        return f"run {self.run_id} could not be set up{where} ({self.stage}): {self.cause}"
+
+
 class UnknownKindError(ScenarioError):
     """A ``kind`` names no registered plant, controller, trajectory or disturbance."""
 

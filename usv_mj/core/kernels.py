@@ -37,7 +37,7 @@ pose"). Allowed below the kernel's class, because the kernel is made from the ob
 plain data attributes under a new name or of :data:`LABELS` (``kind = "wavy"``, ``name``, ``criterion``;
 a class, such as an options dataclass, under a new name), the constructors ``__init__``, ``from_spec``, ``from_scenario``, and the names a class lists in its own ``KERNEL_NEUTRAL`` (a frozenset): methods
 the kernel does not stand in for, which both loops call alike or neither calls (not the methods
-the kernel replaces, nor anything they call; e.g. :class:`usv_mj.scene.compose.HarbourPlant`'s
+the kernel replaces, nor anything they call; e.g. :class:`usv_mj.plants.harbour.HarbourPlant`'s
 ``rangefinders``, ``move_obstacles``, called by the Python hook in both loops, and ``close``). A
 declaration holds for that name in every class below too. A data attribute that takes the place
 of one the kernel's class (or a class above it) defines, with another value, keeps the Python loop

@@ -53,6 +53,7 @@ MOVED = {
     "usv_mj.gymnasium_hook": "usv_mj.envs.gymnasium_hook",
     "usv_mj.main_job": "usv_mj.jobs.run",
     "usv_mj.compare": "usv_mj.jobs.compare",
+    "usv_mj.manoeuvres.options": "usv_mj.scenario.manoeuvre",
     "usv_mj.manoeuvres": "usv_mj.jobs.manoeuvres",
     "usv_mj.sweep": "usv_mj.jobs.sweep",
     "usv_mj.bench": "usv_mj.jobs.bench",

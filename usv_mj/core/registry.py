@@ -1,4 +1,5 @@
-"""Registries of the parts a scenario names by ``kind``: plants, controllers, trajectories, disturbances, vessels.
+"""Registries of the parts a scenario names by ``kind``: plants, controllers, trajectories, disturbances, vessels,
+manoeuvres; and of the environments' tasks (:data:`TASKS`, :class:`TaskRegistry`).
 
 As in dm_control's suite, a part registers itself where it is defined::
 
@@ -156,11 +157,15 @@ class Registry:
     registers it on import; ``group``: the entry-point group searched for kinds not found.
     """
 
-    def __init__(self, what: str, builtins: dict[str, str], group: str, returns: tuple = ()):
+    def __init__(self, what: str, builtins: dict[str, str], group: str, files: tuple[str, str] | None = None,
+                 returns: tuple = ()):
         self.what = what
         self.group = group
         self.returns = tuple(returns)   # the attributes a part must have (checked on a plug-in's)
         self._builtins = dict(builtins)  # kind -> module that registers it on import
+        # (suffix, "module:function"): a kind ending in the suffix is a data file, registered under its
+        # path by that function (imported by name: looking a file kind up is the registry's business)
+        self._files = files
         self._entries: dict[str, Entry] = {}
         self._entry_points = None        # name -> importlib.metadata.EntryPoint, read once
         self._ep_notes: dict = {}        # name -> why an entry point of that name is not (or not alone) used
@@ -252,6 +257,9 @@ class Registry:
             return self._entries[kind]
         if kind in self._builtins:
             importlib.import_module(self._builtins[kind])
+        elif self._files is not None and kind.endswith(self._files[0]):
+            module_name, _, function = self._files[1].partition(":")
+            getattr(importlib.import_module(module_name), function)(kind)
         elif ":" in kind:
             self._load_module_name(kind, where)
         elif kind in self._eps():
@@ -438,7 +446,7 @@ def _importable(module: str) -> bool:
         return False
 
 
-PLANTS = Registry("plant", {"analytic": "usv_mj.plants.analytic", "mujoco": "usv_mj.plants.mujoco_plant"},
+PLANTS = Registry("plant", {"analytic": "usv_mj.plants.analytic", "mujoco": "usv_mj.plants.harbour"},
                   "usv_mj.plants", returns=("name", "control_period", "reset", "step", "state", "time"))
 CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "usv_mj.controllers.pi_baseline",
                                       "los": "usv_mj.controllers.los", "open_loop": "usv_mj.controllers.open_loop",
@@ -452,7 +460,75 @@ DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"},
 VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_mj.vessels.clarke83",
                               "kvlcc2": "usv_mj.vessels.kvlcc2",
                               "cybership2": "usv_mj.vessels.datafile", "otter": "usv_mj.vessels.datafile"},
-                   "usv_mj.vessels", returns=("kind", "ship", "split", "dimensions"))
-#: every registry by its scenario section (``usv-mj kinds`` lists them)
+                   "usv_mj.vessels", files=(".toml", "usv_mj.vessels.datafile:register_file"),
+                   returns=("kind", "ship", "split", "dimensions"))
+#: the standard manoeuvres (docs/manoeuvres.md): a kind's object is its options dataclass, as a
+#: disturbance's (the ``[manoeuvre]`` table's keys); the job that runs them is usv_mj.jobs.manoeuvres
+MANOEUVRES = Registry("manoeuvre", {k: "usv_mj.scenario.manoeuvre" for k in ("turning", "zigzag", "spiral", "stopping")},
+                      "usv_mj.manoeuvres")
+
+
+class TaskRegistry(Registry):
+    """The environments' tasks (:mod:`usv_mj.envs`), registered as dm_control's suite registers its
+    own: by a decorator on the task's factory, with its typed options and its tags::
+
+        @TASKS.register("my_task", options=MyOptions, tags=("waves",), scenario={"sea": {...}})
+        def my_task(options, scenario, *, random, environment_kwargs): ...   # -> the environment
+
+    ``options``: the dataclass of the task's keyword options of ``usv_mj.envs.load`` (its
+    ``duration`` [s] and ``preview_times`` [s] fields, when it has them, set the episode's length
+    and how far the scenario's reference reaches); ``tags``: words that say what the task holds
+    ("waves": the task's own sea; "obstacles": a harbour), read by :meth:`tagged`; ``scenario``:
+    the scenario tables the task sets, under the user's overrides. The factory's contract is in
+    :mod:`usv_mj.envs.suite`. The built-in tasks come first in :meth:`kinds`, in their declared
+    order; :meth:`on_register` calls a function with every entry registered from then on (the
+    Gymnasium ids of a task registered at runtime). It imports no dm_control: a built-in's module
+    is imported when its kind is looked up."""
+
+    def __init__(self, what: str, builtins: dict[str, str], group: str):
+        super().__init__(what, builtins, group)
+        self._listeners = []
+
+    def kinds(self) -> tuple[str, ...]:
+        """The built-in tasks in their declared order, then the others (registered, entry points) sorted."""
+        others = (set(self._entries) | set(self._eps())) - set(self._builtins)
+        return tuple(self._builtins) + tuple(sorted(others))
+
+    def tagged(self, *tags: str) -> tuple[str, ...]:
+        """The kinds (in :meth:`kinds` order) whose entry has every one of ``tags`` (loads the entries)."""
+        want = set(tags)
+        entries = {e.kind: e for e in self.entries()}
+        return tuple(k for k in self.kinds() if k in entries and want <= set(entries[k].tags))
+
+    def on_register(self, listener) -> None:
+        """Call ``listener(entry)`` after each registration from now on (not for the earlier ones)."""
+        if listener not in self._listeners:
+            self._listeners.append(listener)
+
+    def _decorator(self, kind, options, info, source, replace):
+        info = dict(info)
+        tags = info.get("tags", ())
+        if isinstance(tags, str) or not all(isinstance(t, str) and t for t in tags):
+            raise ValueError(f"{self.what} {kind!r}: tags must be a tuple of words, got {tags!r}")
+        info["tags"] = tuple(tags)
+        tables = info.get("scenario")
+        if tables is not None and not isinstance(tables, dict):
+            raise ValueError(f"{self.what} {kind!r}: scenario must be a dict of scenario tables, got {tables!r}")
+        info["scenario"] = dict(tables or {})
+        register = super()._decorator(kind, options, info, source, replace)
+
+        def deco(obj):
+            out = register(obj)
+            for listener in list(self._listeners):
+                listener(self._entries[kind])
+            return out
+
+        return deco
+
+
+#: the environments' tasks (usv_mj.envs.load, the Gymnasium ids, usv-mj env): :class:`TaskRegistry`
+TASKS = TaskRegistry("task", {k: "usv_mj.envs.suite" for k in ("track", "track_waves", "harbor", "harbor_waves")},
+                     "usv_mj.tasks")
+#: every registry by its scenario section (``usv-mj kinds`` lists them), and the environments' tasks
 REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES,
-              "vessel": VESSELS}
+              "vessel": VESSELS, "manoeuvre": MANOEUVRES, "task": TASKS}

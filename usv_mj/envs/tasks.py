@@ -13,7 +13,7 @@ unlimited, the command itself), exactly as in :func:`usv_mj.loop.simulate.simula
 force is held over the control period: ``n_sub_steps`` = ``plant.substeps`` RK4 steps of the
 plant's time step. The action bounds are each channel's own range; a twin hull cannot reach both
 ends at once (full surge leaves no yaw moment), and its allocation decides as in a run
-(``priority``). On a ruddered vessel (``Vessel.inputs == "rudder"``, KVLCC2) the actuators
+(``priority``). On a ruddered vessel (its channels n_P and the rudder angle, KVLCC2) the actuators
 allocate the action to the propeller's n_P and the rudder angle at the state (usv_mj.physics.mmg.mmg_allocate),
 as a force controller's command in a run; its bounds are that allocation's reach at the vessel's
 approach speed (:func:`action_bounds`).
@@ -81,6 +81,8 @@ from dm_env import specs
 from usv_mj.builder import make_actuators, make_quantizers
 from usv_mj.controllers.performance_funnel import funnels_of
 from usv_mj.loop.simulate import make_reference, which_limit
+from usv_mj.loop.step import C_F_U, C_Q_U, C_S_U, C_TAU_U, ControlStep
+from usv_mj.record.run_record import N_CORE
 
 from usv_mj.envs import native
 from usv_mj.envs.physics import USVPhysics
@@ -243,17 +245,16 @@ class TrackTask(base.Task):
         self._ref_rows = None       # the last evaluation's reference rows (at _ref_t first)
         self.reference = reference if reference is not None else make_reference(scenario)
         self.funnel_xy, self.funnel_psi = funnels_of(scenario)
-        q_u, q_r = make_quantizers(scenario)
-        self._qp = ((q_u.params.delta, q_u.params.u_min), (q_r.params.delta, q_r.params.u_min))
-        self._act_p = np.array([*self._bounds_t, *self._qp[0], *self._qp[1]], dtype=np.float64)
-        self._k = np.zeros(2, dtype=np.int64)  # the quantizers' signed level indices
+        # the control step of every loop (usv_mj.loop.step): clip to the action bounds, quantize (Eq. 3),
         # the vessel's actuator model (the Otter's twin propellers and their shaft-speed lag; the
-        # paper's: unlimited, the command itself), as the closed loop applies it after the quantizer
+        # paper's: unlimited, the command itself), into a record row's control columns
         self.actuators = make_actuators(scenario)
-        self.last_action = np.zeros(2)      # clipped action [N, N m]
-        self.last_command = np.zeros(2)     # after the quantizer: the command the actuators get
-        self.last_thrust = np.zeros(2)      # after the actuators: the force the plant got [N, N m]
-        self.last_saturated = np.zeros(2)   # 1 where the actuators cut that channel's command (sat_u, sat_r)
+        self.control = ControlStep(make_quantizers(scenario), self.actuators, self._bounds_t)
+        self._row = np.zeros(N_CORE)
+        self.last_action = self._row[C_TAU_U:C_TAU_U + 2]      # clipped action [N, N m]
+        self.last_command = self._row[C_Q_U:C_Q_U + 2]         # after the quantizer: the command the actuators get
+        self.last_thrust = self._row[C_F_U:C_F_U + 2]          # after the actuators: the force the plant got [N, N m]
+        self.last_saturated = self._row[C_S_U:C_S_U + 2]       # 1 where the actuators cut that channel's command
         self.termination_reason: str | None = None
         self.termination_kind: str | None = None
         self.episode_scenario = scenario  # what the plant was built from (harbor: with the layout's obstacles)
@@ -265,7 +266,6 @@ class TrackTask(base.Task):
         self._ev = None             # the last evaluation, for the state ...
         self._ev_key = None         # ... (state array, time, physics, reference)
         self._ev_handed = False     # its observation vector was handed out (the next one gets a copy)
-        self._act_of = (None, None)  # (physics, act_kernel's arguments with its data.ctrl)
         self._fused = None          # the fused step's kernels (fused_kernels)
         self._views = None          # observation_views, once made
         TrackTask._fill_params(self, self._params)
@@ -280,15 +280,11 @@ class TrackTask(base.Task):
         return np.array([ref[0] + d[0], ref[1] + d[1], ref[2] + d[2]]), np.zeros(3)
 
     def initialize_episode(self, physics):
-        self._k[:] = 0
-        self.actuators.reset()
+        self.control.reset()
         self._ref_t = None
         self._ev = None
         self._fill_params(self._params)
-        self.last_action[:] = 0.0
-        self.last_command[:] = 0.0
-        self.last_thrust[:] = 0.0
-        self.last_saturated[:] = 0.0
+        self._row[:] = 0.0
         self.termination_reason = None
         self.termination_kind = None
         eta0, nu0 = self.start_pose()
@@ -301,12 +297,19 @@ class TrackTask(base.Task):
         self._act(action, physics)
 
     def _act(self, action, physics):
-        """Check the action, clip it, quantize it (Eq. 3), pass it through the vessel's actuators
-        and write last_action, last_command, last_thrust, last_saturated and ``ctrl`` (one native
-        call); returns the force the plant gets (f_u [N], f_r [N m])."""
+        """Check the action, then the control step (usv_mj.loop.step: clip, quantize (Eq. 3), the
+        vessel's actuators, into last_action, last_command, last_thrust, last_saturated) and the
+        force into ``ctrl`` (what the physics' step holds); returns it (f_u [N], f_r [N m])."""
         a0, a1 = self._checked(action)
         self._ev = None  # the state is about to change
-        return native.act_kernel(a0, a1, physics.state, *self._act_args(physics))
+        f_u, f_r = self._control(a0, a1, physics.state)
+        ctrl = physics.plant.data.ctrl
+        ctrl[0], ctrl[1] = f_u, f_r
+        return f_u, f_r
+
+    def _control(self, a0, a1, x):
+        self.control.quantize = self.quantize
+        return self.control(a0, a1, x, self._row)
 
     def _checked(self, action) -> tuple[float, float]:
         a = np.asarray(action, dtype=np.float64)
@@ -317,16 +320,6 @@ class TrackTask(base.Task):
         if not (math.isfinite(a0) and math.isfinite(a1)):
             raise ValueError(f"{type(self).__name__}: action must be finite, got {a.tolist()}")
         return a0, a1
-
-    def _act_args(self, physics) -> tuple:
-        """:func:`native.act_kernel`'s arguments after the action (``ctrl`` of this physics)."""
-        of, args = self._act_of
-        if of is not physics or args[1] != self.quantize:
-            act = self.actuators
-            args = (self._act_p, self.quantize, self._k, self.last_action, self.last_command, bool(act.unlimited),
-                    act.params, act.state, act.mmg, self.last_thrust, self.last_saturated, physics.plant.data.ctrl)
-            self._act_of = (physics, args)
-        return args
 
     def after_step(self, physics):
         self._check(physics, None)
@@ -429,7 +422,8 @@ class TrackTask(base.Task):
 
     def _native_step(self, step, a0, a1, physics, k, t, plant_args) -> _Step:
         ev = self._evaluator
-        return _Step._make(step(a0, a1, self._act_args(physics), k, physics.state, t, plant_args, ev.preview,
+        self.control.quantize = self.quantize
+        return _Step._make(step(a0, a1, self._row, self.control.args(), k, physics.state, t, plant_args, ev.preview,
                                 self._params, self._n_obs, ev.ref_args))
 
     def _before_physics(self, physics) -> None:
@@ -711,8 +705,9 @@ class HarbourTask(TrackTask):
 
     def _native_step(self, step, a0, a1, physics, k, t, plant_args):
         ev = self._evaluator
+        self.control.quantize = self.quantize
         return self._with_contacts(_HarbourStep._make(step(
-            a0, a1, self._act_args(physics), k, physics.state, t, plant_args, ev.preview, self._params,
+            a0, a1, self._row, self.control.args(), k, physics.state, t, plant_args, ev.preview, self._params,
             self._n_obs + 3 + self.n_rays, ev.ref_args, self._sense_args(physics))))
 
     def _with_contacts(self, ev):

@@ -21,7 +21,10 @@ exactly the same input signal) and compares each with a fine-step reference (the
 dt = 5/8 ms, whose own error is 8^4 = 4096 times smaller than the finest study step); its
 ``max_position_m`` is the difference between the plants, and ``mujoco_vs_reference_m`` /
 ``analytic_vs_reference_m`` are each plant's error. The estimated order is the least-squares slope
-of log(error) against log(dt) (4 expected). The paper's damping has |u| u, |v| r, |r| v terms
+of log(error) against log(dt) (4 expected), over the errors above round-off (:func:`roundoff_floor`:
+ROUNDOFF_ULPS units in the last place of the largest coordinate the runs reach); with fewer than
+two of them the order is not measurable there and is reported so (None in compare.json, its
+``roundoff_m`` beside it), not as the slope of round-off noise. The paper's damping has |u| u, |v| r, |r| v terms
 (docs/model.md §1) whose second derivatives jump where a velocity crosses zero; the rich inputs make u, v, r
 cross zero, which lowers RK4's order against the exact solution for both plants alike (about 1.8
 seen), while the plants' difference still shrinks as dt^4. The same study with one-signed inputs
@@ -85,7 +88,10 @@ import time
 
 import numpy as np
 
-from usv_mj.builder import make_environment, make_plant
+from usv_mj.builder import channels_of, make_environment, make_plant, make_quantizers
+from usv_mj.core.registry import CONTROLLERS
+from usv_mj.loop.step import C_F_R, C_F_U, C_S_R, C_S_U, ControlStep
+from usv_mj.record.run_record import N_CORE
 from usv_mj.scenario.spec import Scenario
 
 SWITCH_GRID_S = 0.2            # inputs change only at multiples of this time [s]
@@ -96,6 +102,7 @@ OPEN_REFERENCE_DIVISOR = 8
 OPEN_CONVERGENCE_HORIZON_S = 20.0
 CLOSED_CONVERGENCE_DTS = (0.004, 0.002, 0.001)
 CLOSED_CONVERGENCE_HORIZON_S = 30.0
+ROUNDOFF_ULPS = 100            # a position difference below this many ulps of the largest coordinate is round-off
 SENSITIVITY_OFFSET_M = 1e-12   # the twin's start offset (in a sea) [m]
 SENSITIVITY_FACTOR = 10.0      # plants' difference <= factor x twin departure + SENSITIVITY_FLOOR_M
 SENSITIVITY_FLOOR_M = 1e-9
@@ -137,8 +144,8 @@ def vessel_inputs(scenario: Scenario, duration: float, dt: float, one_signed: bo
     switching times are the same: surge -60..220 N -> n_P over :data:`RUDDER_RPS_RANGE` x its
     ``nominal_rps``, yaw level y [N m] -> delta = y / 11 x :data:`RUDDER_SIGNAL_DEG` (30 deg at
     the largest level, within KVLCC2's 35 deg)."""
-    model = getattr(scenario.vessel, "model", None)
-    if getattr(model, "inputs", "forces") != "rudder":
+    model = scenario.vessel.model
+    if model.channels.forces:
         return open_loop_inputs(duration, dt, one_signed=one_signed, scale=input_scale(scenario))
     raw = open_loop_inputs(duration, dt, one_signed=one_signed)
     lo, hi = RUDDER_RPS_RANGE
@@ -186,20 +193,23 @@ def open_loop_inputs(duration: float, dt: float, seed: int = 2024, one_signed: b
 
 def realized_inputs(scenario: Scenario, inputs: np.ndarray, dt: float) -> tuple[np.ndarray, dict]:
     """The forces the scenario's actuators (:mod:`usv_mj.physics.actuators`) realize of ``inputs`` at ``dt``
-    (the same for both plants), and the fraction of steps saturated per channel. Unlimited: the
-    inputs themselves. (The convergence studies keep the raw inputs: a lag or rate limit discretized
-    at each dt would give each dt another signal.)"""
+    (the same for both plants): the control step of every loop (:mod:`usv_mj.loop.step`) with the
+    quantizer off, and the fraction of steps saturated per channel. Unlimited: the inputs
+    themselves. (The convergence studies keep the raw inputs: a lag or rate limit discretized at
+    each dt would give each dt another signal.)"""
     from usv_mj.physics.actuators import Actuators
 
     act = Actuators(scenario.actuators, dt)
     if act.unlimited:
         return inputs, {"u": 0.0, "r": 0.0}
-    act.reset()
-    out = np.empty_like(inputs)
-    sat = np.zeros((len(inputs), 2))
+    step = ControlStep(make_quantizers(scenario.with_overrides({"quantizer": {"enabled": False}})), act)
+    step.reset()
+    rows = np.zeros((len(inputs), N_CORE))
+    no_state = np.zeros(6)   # no allocation here: the actuators do not read the state
     for k in range(len(inputs)):
-        out[k, 0], out[k, 1], sat[k, 0], sat[k, 1] = act.apply(inputs[k, 0], inputs[k, 1])
-    frac = sat.mean(axis=0) if len(inputs) else np.zeros(2)
+        step(inputs[k, 0], inputs[k, 1], no_state, rows[k])
+    out = rows[:, [C_F_U, C_F_R]]
+    frac = rows[:, [C_S_U, C_S_R]].mean(axis=0) if len(inputs) else np.zeros(2)
     return out, {"u": float(frac[0]), "r": float(frac[1])}
 
 
@@ -230,12 +240,33 @@ def state_differences(a: np.ndarray, b: np.ndarray) -> dict:
     }
 
 
-def estimated_order(dts, errors) -> float | None:
-    """Least-squares slope of log(error) against log(dt); None if an error is 0 or not finite."""
+def estimated_order(dts, errors, floor: float = 0.0) -> float | None:
+    """Least-squares slope of log(error) against log(dt) over the errors above ``floor`` [m] (round-off:
+    :func:`roundoff_floor`); None if an error is 0 or not finite, or fewer than two are above ``floor``
+    (the order is not measurable there)."""
     dts, errors = np.asarray(dts, float), np.asarray(errors, float)
     if len(dts) < 2 or not np.all(np.isfinite(errors)) or np.any(errors <= 0):
         return None
-    return float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
+    above = errors > floor
+    if np.count_nonzero(above) < 2:
+        return None
+    return float(np.polyfit(np.log(dts[above]), np.log(errors[above]), 1)[0])
+
+
+def roundoff_floor(*states) -> float:
+    """[m] The position difference that round-off alone makes between runs of these state histories
+    (x, y, ...): ROUNDOFF_ULPS units in the last place of the largest |x| or |y| they reach (1 m at least)."""
+    scale = max([1.0] + [float(np.max(np.abs(np.asarray(x)[:, :2]))) for x in states if len(x)])
+    return ROUNDOFF_ULPS * float(np.finfo(float).eps) * scale
+
+
+def order_text(order: dict, key: str) -> str:
+    """An order of compare.json as printed: "4.01", or why it is not there."""
+    value = order.get(key)
+    if value is not None:
+        return f"{value:.2f}"
+    floor = order.get("roundoff_m")
+    return "n/a" if floor is None else f"not measurable (the errors are at round-off, below {floor:.0e} m)"
 
 
 def _say(progress: bool, text: str) -> None:
@@ -270,7 +301,8 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
     dt = scenario.control_period
     eta0, nu0 = scenario.initial.eta, scenario.initial.nu
     scale = input_scale(scenario)
-    ruddered = getattr(scenario.vessel.model, "inputs", "forces") == "rudder"
+    channels = scenario.vessel.model.channels   # the open loop's inputs are the vessel's own channels
+    ruddered = not channels.forces
     inputs, saturated = realized_inputs(scenario, vessel_inputs(scenario, scenario.duration, dt), dt)
     env = sea_environment(scenario)
     _say(progress, f"open loop, {scenario.duration:g} s at dt = {dt * 1e3:g} ms on both plants"
@@ -292,7 +324,7 @@ def compare_open_loop(scenario: Scenario, progress: bool = True) -> tuple[dict, 
                             "" if scale == (1.0, 1.0) else
                             f", surge and yaw scaled by {scale[0]:.4g} and {scale[1]:.4g} to the vessel "
                             f"(m11, m33 against the paper's)"), "wall_time_s": wall,
-              "actuators": scenario.actuators.describe(ruddered), "saturated_fraction": saturated}
+              "actuators": scenario.actuators.describe(channels), "saturated_fraction": saturated}
     if env is not None:
         _say(progress, f"open loop: the analytic plant from a start moved by {SENSITIVITY_OFFSET_M:g} m "
              "(the sea's sensitivity)")
@@ -415,16 +447,19 @@ def _open_convergence(scenario: Scenario, horizon: float, one_signed: bool, envi
         a, m = a[::stride], m[::stride]
         rows.append({"dt": h, "max_position_m": state_differences(m, a)["max_position_m"],
                      "mujoco_vs_reference_m": state_differences(m, r)["max_position_m"],
-                     "analytic_vs_reference_m": state_differences(a, r)["max_position_m"]})
+                     "analytic_vs_reference_m": state_differences(a, r)["max_position_m"],
+                     "roundoff_m": roundoff_floor(m, a, r)})
     dts = [row["dt"] for row in rows]
+    floor = max(row["roundoff_m"] for row in rows)
     return {
         "rows": rows,
         "reference": f"analytic plant at dt = {dt_ref:g} s",
         "order": {
-            "plants_difference": estimated_order(dts, [row["max_position_m"] for row in rows]),
-            "mujoco_vs_reference": estimated_order(dts, [row["mujoco_vs_reference_m"] for row in rows]),
-            "analytic_vs_reference": estimated_order(dts, [row["analytic_vs_reference_m"] for row in rows]),
+            "plants_difference": estimated_order(dts, [row["max_position_m"] for row in rows], floor),
+            "mujoco_vs_reference": estimated_order(dts, [row["mujoco_vs_reference_m"] for row in rows], floor),
+            "analytic_vs_reference": estimated_order(dts, [row["analytic_vs_reference_m"] for row in rows], floor),
             "expected": 4,
+            "roundoff_m": floor,
         },
         "zero_crossings_of_reference": _zero_crossings(ref),
     }
@@ -521,12 +556,12 @@ def compare_closed_loop_saturated(scenario: Scenario, progress: bool = True) -> 
     convergence study): the plants' difference, the saturated fraction of each run (must be > 0 for
     the case to mean anything) and the funnel check."""
     sat = saturated_scenario(scenario)
-    rudder = getattr(sat.vessel.model, "inputs", "forces") == "rudder"
-    _say(progress, f"closed loop with saturating actuators ({sat.actuators.describe(rudder)}), {sat.duration:g} s")
+    applied = channels_of(sat, getattr(CONTROLLERS.get(sat.controller.kind).obj, "commands", "forces")).applied
+    _say(progress, f"closed loop with saturating actuators ({sat.actuators.describe(applied)}), {sat.duration:g} s")
     runs = _closed_loop_pair(sat)
     xa, xm = _record_states(runs["analytic"]), _record_states(runs["mujoco"])
     n = min(len(xa), len(xm))
-    result = {"duration_s": sat.duration, "actuators": sat.actuators.describe(rudder), **state_differences(xm[:n], xa[:n])}
+    result = {"duration_s": sat.duration, "actuators": sat.actuators.describe(applied), **state_differences(xm[:n], xa[:n])}
     result["status"] = {k: r.status for k, r in runs.items()}
     result["saturated_fraction"] = {k: {ch: float(np.mean(r[f"sat_{ch}"] > 0.5)) for ch in ("u", "r")}
                                     for k, r in runs.items()}
@@ -565,12 +600,14 @@ def compare_closed_loop(scenario: Scenario, progress: bool = True) -> tuple[dict
         stride = int(round(coarse / h))
         q = {kind: int(pair[kind]["q_tau_u"].size and np.sum(np.diff(pair[kind]["k_u"]) != 0)) for kind in pair}
         rows.append({"dt": h, "max_position_m": state_differences(m[:k:stride], a[:k:stride])["max_position_m"],
-                     "quantizer_switches_u": q})
+                     "quantizer_switches_u": q, "roundoff_m": roundoff_floor(m[:k], a[:k])})
     result["convergence"] = rows
     result["convergence_horizon_s"] = horizon
+    floor = max(r["roundoff_m"] for r in rows)
     result["convergence_order"] = {
-        "plants_difference": estimated_order([r["dt"] for r in rows], [r["max_position_m"] for r in rows]),
+        "plants_difference": estimated_order([r["dt"] for r in rows], [r["max_position_m"] for r in rows], floor),
         "expected": 4,
+        "roundoff_m": floor,
     }
     t = runs["analytic"]["t"][:n]
     ref = np.stack([runs["analytic"]["x_d"][:n], runs["analytic"]["y_d"][:n]], axis=1)
@@ -641,9 +678,9 @@ def _plot_convergence(path: str, open_loop: dict, closed_loop: dict) -> None:
             ax.loglog(dts, err, "d-.", label="MuJoCo - reference, one-signed inputs")
         anchor = max(rows[0]["max_position_m"], 1e-18)
         ax.loglog(dts, anchor * (dts / dts[0]) ** 4, color="0.5", lw=1, label="slope 4")
-        order = res["convergence_order"]["plants_difference"]
-        ax.set_title(f"{title}: max position difference vs dt (order {order:.2f})" if order is not None
-                     else f"{title}: max position difference vs dt")
+        order = order_text(res["convergence_order"], "plants_difference")
+        ax.set_title(f"{title}: max position difference vs dt (order {order})" if order != "n/a"
+                     else f"{title}: max position difference vs dt", fontsize=9 if len(order) > 8 else None)
         ax.set_xlabel("dt [s]")
         ax.set_ylabel("max position difference [m]")
         ax.legend(fontsize=8, loc="lower right")
@@ -759,63 +796,7 @@ def _json_default(obj):
     raise TypeError(f"not JSON serializable: {type(obj).__name__}")
 
 
-def add_arguments(parser) -> None:
-    """Arguments of ``usv-mj compare``: the scenario options of ``usv-mj run`` (--preset, --scenario,
-    --set, --duration), --out and -q."""
-    from usv_mj.cli.args import add_scenario_arguments, add_vessel_argument
-
-    add_scenario_arguments(parser)
-    add_vessel_argument(parser)
-    parser.add_argument("--out", metavar="DIR", default=None, help="output folder (default renders/compare-<name>)")
-    from usv_mj.outputs.outdir import add_overwrite_argument
-
-    add_overwrite_argument(parser, "--out whole when it holds an earlier usv_mj output")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
-
-
-def run_command(args) -> int:
-    """``usv-mj compare``: 0 when every check of ``compare.json`` passes, 1 otherwise.
-
-    Bad scenario input raises :class:`usv_mj.scenario.spec.ScenarioError` (the CLI prints it, exit 2).
-    """
-    from usv_mj.cli.args import scenario_from_args
-    from usv_mj.scenario.spec import ScenarioError
-
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        raise ScenarioError(f"--duration must be a number of seconds > 0, got {args.duration!r}")
-    scenario = scenario_from_args(args)
-    name = os.path.splitext(os.path.basename(args.scenario))[0] if args.scenario else (args.preset or "paper")
-    if getattr(args, "vessel", None):
-        name += "-" + os.path.splitext(os.path.basename(args.vessel))[0]
-    out = args.out or os.path.join("renders", f"compare-{name}")
-    from usv_mj.outputs.outdir import Staging, check_folder
-
-    check_folder(out, args.overwrite)
-    stage = Staging(out)
-    try:
-        result = compare_plants(scenario, str(stage.path), progress=not args.quiet)
-    except CompareInterrupted as exc:  # compare.json (passed: false, what stopped) is put in place
-        stage.commit()
-        print(f"usv-mj compare: {exc}; nothing was judged (compare.json says passed: false)", file=sys.stderr)
-        return 1
-    except BaseException:
-        stage.discard()
-        raise
-    lines = _report_lines(result)
-    for line in lines:
-        print(line)
-    try:
-        _write_markdown(os.path.join(str(stage.path), "compare.md"), scenario, lines)
-    except OSError as exc:
-        stage.discard()
-        print(f"usv-mj compare: cannot write {out}/compare.md: {exc.strerror or exc}", file=sys.stderr)
-        return 1
-    stage.commit()
-    print(f"written to {out}/compare.json, compare.md (+ open_loop.png, closed_loop.png, convergence.png)")
-    return 0 if result["passed"] else 1
-
-
-def _write_markdown(path: str, scenario: Scenario, lines: list[str]) -> None:
+def write_markdown(path: str, scenario: Scenario, lines: list[str]) -> None:
     """compare.md: the lines the command prints, and the three figures."""
     text = [f"# usv-mj compare: preset `{scenario.preset}`, {scenario.duration:g} s at "
             f"dt = {scenario.control_period * 1e3:g} ms", "", "```"] + lines + ["```", ""]
@@ -826,7 +807,7 @@ def _write_markdown(path: str, scenario: Scenario, lines: list[str]) -> None:
         fh.write("\n".join(text))
 
 
-def _report_lines(result: dict) -> list[str]:
+def report_lines(result: dict) -> list[str]:
     """What ``usv-mj compare`` prints about a finished comparison (also the body of compare.md)."""
     lines = []
     say = lines.append
@@ -844,15 +825,15 @@ def _report_lines(result: dict) -> list[str]:
               f"{ad['sensitivity_max_position_m']:.1e} m)")
     say(f"open loop   ({ol['duration_s']:g} s): max position {ol['max_position_m']:.3e} m, heading "
           f"{ol['max_heading_rad']:.3e} rad, velocity {ol['max_velocity']:.3e}; order "
-          f"{_fmt(ol['convergence_order']['plants_difference'])} (plants), "
-          f"{_fmt(ol['convergence_order']['mujoco_vs_reference'])} (MuJoCo vs reference), "
-          f"{_fmt(ol['convergence_one_signed_inputs']['order']['mujoco_vs_reference'])} (MuJoCo vs reference, "
-          f"one-signed inputs)")
+          f"{order_text(ol['convergence_order'], 'plants_difference')} (plants), "
+          f"{order_text(ol['convergence_order'], 'mujoco_vs_reference')} (MuJoCo vs reference), "
+          f"{order_text(ol['convergence_one_signed_inputs']['order'], 'mujoco_vs_reference')} (MuJoCo vs "
+          f"reference, one-signed inputs)")
     say(f"closed loop ({cl['duration_s']:g} s): max position {cl['max_position_m']:.3e} m, heading "
         f"{cl['max_heading_rad']:.3e} rad, velocity {cl['max_velocity']:.3e}; "
         + (f"inside funnels {cl['inside_funnels']}" if "inside_funnels" in cl else
            f"passed ({cl['criterion']}) {cl['passed_criterion']}")
-        + f"; order {_fmt(cl['convergence_order']['plants_difference'])}")
+        + f"; order {order_text(cl['convergence_order'], 'plants_difference')}")
     cs = result["closed_loop_saturated"]
     say(f"closed loop saturated ({cs['actuators']}): max position {cs['max_position_m']:.3e} m; saturated "
           f"fraction {cs['saturated_fraction']}")
@@ -867,6 +848,3 @@ def _report_lines(result: dict) -> list[str]:
         say(f"  {'ok  ' if ok else 'FAIL'} {check}")
     return lines
 
-
-def _fmt(x) -> str:
-    return "n/a" if x is None else f"{x:.2f}"

@@ -27,6 +27,10 @@ from usv_mj.core.errors import PluginContractError, Terminated, message_line
 from usv_mj.core.kernels import diag_contract, diag_mismatch
 from usv_mj.physics.limits import within_limits
 from usv_mj.builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
+from usv_mj.builder import FleetParts, build_fleet
+from usv_mj.loop.fleet import simulate_fleet
+from usv_mj.loop.step import ControlStep
+from usv_mj.record.events import detect_events, json_number as _json_number  # noqa: F401 (detect_events: API)
 from usv_mj.record.run_record import COL, N_CORE, SL_REF, SL_STATE, Event, RunRecord
 from usv_mj.scenario.spec import Scenario
 from usv_mj.references import trajectories
@@ -105,6 +109,8 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
     duration = arguments.seconds("simulate", "duration", duration)
     if reference is not None:
         arguments.having("simulate", "reference", reference, ("evaluate",), "a reference trajectory")
+    if isinstance(scenario, FleetParts) or (isinstance(scenario, Scenario) and scenario.vessels):
+        return _simulate_fleet(scenario, plant_kind, duration, progress, block)
     if not isinstance(scenario, Parts):
         from usv_mj.builder import as_scenario
 
@@ -119,6 +125,24 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
                     use_compiled=loop == "auto", store=store, stream_above=stream_above)
     finally:
         parts.close()
+
+
+def _simulate_fleet(scenario, plant_kind, duration, progress, block):
+    """A scenario with [[vessels]] (or the parts of one): usv_mj.loop.fleet's loop over its vessels."""
+    parts = scenario if isinstance(scenario, FleetParts) else build_fleet(scenario, plant_kind=plant_kind,
+                                                                            duration=duration)
+    try:
+        return simulate_fleet(parts, progress, block)
+    finally:
+        parts.close()
+
+
+def _diagnostic_units(controller, fields: tuple) -> dict:
+    """``{"diagnostic_units": {field: unit}}`` of the controller's declared units of its diagnostic
+    fields (:mod:`usv_mj.controllers.base`), for the figures; {} when it declares none."""
+    units = getattr(controller, "diagnostic_units", None) or {}
+    units = {str(k): str(v) for k, v in dict(units).items() if k in fields}
+    return {"diagnostic_units": units} if units else {}
 
 
 def _new_record(rows: int, block: int, store, metadata: dict, fields: tuple, events,
@@ -145,8 +169,8 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     duration = parts.duration
     dt = scenario.control_period
     n = int(round(duration / dt))
-    quant_u, quant_r = parts.quantizers
     actuators = parts.actuators if parts.actuators is not None else make_actuators(scenario, getattr(controller, "commands", "forces"))
+    step = ControlStep(parts.quantizers, actuators)   # clip -> quantize -> actuators -> the row (usv_mj.loop.step)
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
     problem = diag_contract(controller)   # before anything runs: a kernel's diag against the fields
@@ -160,9 +184,10 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     record = _new_record(n + 1, block, store, {
         "preset": scenario.preset, "plant": plant.name, "controller": controller.name,
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
-        "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **parts.metadata, **loop,
+        "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **_diagnostic_units(controller, fields),
+        **parts.metadata, **loop,
         "criterion": criterion_to_dict(criterion_of(controller)),  # how the outputs judge the run (usv_mj.record.criteria)
-        "channels": channels_of(scenario, getattr(controller, "commands", "forces")),  # what tau and f hold
+        "channels": channels_of(scenario, getattr(controller, "commands", "forces")).to_metadata(),  # what tau and f hold
     }, fields, getattr(controller, "diagnostic_events", None), stream_above)
     record.statics = parts.statics
     for sink in sinks:
@@ -171,22 +196,18 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             sink.scene(plant.scene_xml())
     plant.reset(scenario.initial.eta, scenario.initial.nu, 0.0)
     controller.reset()
-    quant_u.reset()
-    quant_r.reset()
-    actuators.reset()
+    step.reset()
     data = record.buffer   # the rows from record.base on (all of them when in memory)
     base = 0
     sl_diag = slice(len(COL), len(COL) + len(fields))
     n_fields = len(fields)
     c_t = COL["t"]
-    c_tau_u, c_tau_r, c_q_u, c_q_r, c_k_u, c_k_r, c_f_u, c_f_r, c_s_u, c_s_r = (COL[c] for c in (
-        "tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r", "f_u", "f_r", "sat_u", "sat_r"))
     flush = _Flusher(record, sinks, progress)
     wall0 = time.perf_counter()
     k = 0
     try:
         if compiled is not None:
-            compiled, _ = kernels_of(parts, hooks)  # again after the resets: the kernels' state is theirs
+            compiled, _ = kernels_of(parts, hooks, step)  # again after the resets: the kernels' state is theirs
             k = _run_compiled(record, parts, compiled, block, flush, limits, dt, n, hooks)
             raise _Done
         x = plant.state
@@ -208,24 +229,12 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
                                data, k - base, x, ref, diag, sl_diag)
                 k += 1
                 break
-            q_u = quant_u.step(tau_u)
-            q_r = quant_r.step(tau_r)
-            f_u, f_r, s_u, s_r = actuators.apply(q_u, q_r, x)
             row = data[k - base]
             row[c_t] = t
             row[SL_STATE] = x
             row[SL_REF] = ref
             row[sl_diag] = diag
-            row[c_tau_u] = tau_u  # scalar stores: cheaper than building an array per step
-            row[c_tau_r] = tau_r
-            row[c_q_u] = q_u
-            row[c_q_r] = q_r
-            row[c_k_u] = quant_u.k
-            row[c_k_r] = quant_r.k
-            row[c_f_u] = f_u
-            row[c_f_r] = f_r
-            row[c_s_u] = s_u
-            row[c_s_r] = s_r
+            f_u, f_r = step(tau_u, tau_r, x, row)   # clip -> quantize -> actuators, the row's control columns
             k += 1
             record.n_rows = k
             if k - flush.mark >= block:
@@ -252,14 +261,14 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         cause = interrupt_in_chain(exc)
         if cause is not None:  # a signal that landed in compiled code surfaces as SystemError
             _interrupted(record, cause, k * dt)
-            _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
+            _finish_run(record, sinks, flush, wall0, step)
             return record
         record.status = "failed"
         record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {message_line(exc)}"
         record.events.append(Event(k * dt, "failed", record.stop_reason))
-        _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
+        _finish_run(record, sinks, flush, wall0, step)
         raise
-    _finish_run(record, sinks, flush, wall0, quant_u, quant_r)
+    _finish_run(record, sinks, flush, wall0, step)
     return record
 
 
@@ -341,12 +350,6 @@ def _state_diverged(record: RunRecord, t_next: float, x, ex: float, ey: float, l
     record.stop_reason = record.events[-1].message
 
 
-def _json_number(v) -> float | None:
-    """A float for an event's values, None where it is not finite (the log stores null)."""
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
 def which_limit(x, ex, ey, limits) -> str:
     """Name the first state value that is not finite or over its limit (for the divergence event)."""
     checks = (("surge speed u", x[3], limits.max_speed, "limits.max_speed", "m/s"),
@@ -405,9 +408,9 @@ class _Flusher:
             self.progress(n)
 
 
-def _finish_run(record, sinks, flush, wall0, quant_u, quant_r):
+def _finish_run(record, sinks, flush, wall0, step):
     with _signals_held():
-        _finish_sinks(record, sinks, flush, wall0, quant_u, quant_r)
+        _finish_sinks(record, sinks, flush, wall0, step)
 
 
 def _signals_held():
@@ -431,7 +434,7 @@ def _signals_held():
     return held()
 
 
-def _finish_sinks(record, sinks, flush, wall0, quant_u, quant_r):
+def _finish_sinks(record, sinks, flush, wall0, step):
     flush(record.n_rows)
     record.events.sort(key=lambda e: e.t)
     wall = time.perf_counter() - wall0
@@ -439,64 +442,8 @@ def _finish_sinks(record, sinks, flush, wall0, quant_u, quant_r):
     record.metadata.update({
         "status": record.status, "stop_reason": record.stop_reason, "wall_time_s": wall,
         "realtime_factor": sim_t / wall if wall > 0 else float("inf"),
-        "quantizer_switches": {"u": quant_u.switches, "r": quant_r.switches},
+        "quantizer_switches": dict(zip(("u", "r"), step.switches)),
     })
     record.finish_store()   # a streamed record's last rows, headers and record.json, before the sinks end
     for sink in sinks:
         sink.finish(record)
-
-
-def detect_events(record: RunRecord, lo: int, hi: int) -> list[Event]:
-    """Episodes that start in rows [lo, hi) (vectorised): funnel violations and recoveries when the
-    controller declared the funnel block, actuator saturation per channel (start and end, from
-    sat_u / sat_r: "actuator_saturation" with values channel, state), and the episodes of its declared 0/1 event fields (the
-    PPC law's s2 clamps)."""
-    events = []
-    col = record.col
-    data = record.buffer[lo - record.base - (1 if lo > 0 else 0):hi - record.base]  # from the row before lo
-    lo, hi = (1, hi - lo + 1) if lo > 0 else (0, hi - lo)    # rows of ``data`` from here on
-    t = data[lo:hi, COL["t"]]
-    if record.has_funnel:
-        for axis in (1, 2, 3):
-            cz = col[f"z{axis}"]
-            z = data[lo:hi, cz]
-            bad = ~(np.abs(z) < 1.0)
-            prev = bool(lo > 0 and not abs(data[lo - 1, cz]) < 1.0)
-            starts = np.flatnonzero(bad & ~np.concatenate(([prev], bad[:-1])))
-            ends = np.flatnonzero(~bad & np.concatenate(([prev], bad[:-1])))
-            for i in starts:
-                e = data[lo + i, col[f"e{axis}"]]
-                rho = data[lo + i, col[f"rho{axis}"]]
-                events.append(Event(float(t[i]), "funnel_violation",
-                                    f"e{axis} = {e:.4g} left the funnel |e{axis}| < rho{axis} = {rho:.4g} "
-                                    f"(z{axis} = {z[i]:.4g})", {"axis": axis, "e": _json_number(e),
-                                                                 "rho": _json_number(rho), "z": _json_number(z[i])}))
-            for i in ends:
-                events.append(Event(float(t[i]), "funnel_recovered", f"e{axis} is back inside its funnel",
-                                    {"axis": axis}))
-    for ch, what, unit in (("u", "surge force", "N"), ("r", "yaw moment", "N m")):  # the actuators' limits
-        cs = COL[f"sat_{ch}"]
-        flag = data[lo:hi, cs] > 0.5
-        prev = bool(lo > 0 and data[lo - 1, cs] > 0.5)
-        shifted = np.concatenate(([prev], flag[:-1]))
-        for i in np.flatnonzero(flag & ~shifted):
-            q, f = data[lo + i, COL[f"q_tau_{ch}"]], data[lo + i, COL[f"f_{ch}"]]
-            events.append(Event(float(t[i]), "actuator_saturation",
-                                f"the {what} command Q = {q:.4g} {unit} is cut to {f:.4g} {unit} by the actuators",
-                                {"channel": ch, "state": "start", "command": _json_number(q),
-                                 "applied": _json_number(f)}))
-        for i in np.flatnonzero(~flag & shifted):
-            events.append(Event(float(t[i]), "actuator_saturation", f"the {what} is back within the actuators' limits",
-                                {"channel": ch, "state": "end"}))
-    for name, kind in record.diagnostic_events.items():
-        c = col[name]
-        flag = data[lo:hi, c] > 0.5
-        prev = bool(lo > 0 and data[lo - 1, c] > 0.5)
-        for i in np.flatnonzero(flag & ~np.concatenate(([prev], flag[:-1]))):
-            values = {"field": name}
-            message = f"{name} was set (a {kind} episode starts)"
-            if kind == "s2_clamp" and "s2" in col:  # the PPC law's clamp names the value it held
-                values["s2"] = _json_number(data[lo + i, col["s2"]])
-                message = f"s2 = tanh(gamma_2) was clamped at its limit after ({data[lo + i, col['s2']]:.9f})"
-            events.append(Event(float(t[i]), kind, message, values))
-    return events

@@ -1,17 +1,19 @@
-"""Obstacles with real contact physics and guidance that keeps clear.
+"""Obstacles: what a run measures of them and logs, step by step.
 
-- the ``[[obstacles]]`` / ``[guidance]`` tables are the scenario's (:mod:`usv_mj.scenario.obstacles`).
-- :mod:`.compose`: the harbour model composed with dm_control.mjcf, :class:`HarbourPlant`.
-- :mod:`.clearance`: per-step signed distances and contacts (:class:`MuJoCoClearance`,
-  :class:`GeometricClearance`).
-- :mod:`.planner`: :func:`plan_reference` (visibility graph + smoothing, verified against the funnel),
-  :class:`GuidedReference`, :class:`Guidance` (re-timing / detours for moving obstacles), :class:`SafetyEnvelope`.
-- :mod:`.sink`: :class:`ObstacleLog` (RunSink; clearance per step, events, summary).
-- :mod:`.display`: obstacles for figures, Foxglove scenes and the ``/usv/obstacles`` topic.
-- :mod:`.hooks`: :func:`make_plan`, :class:`ObstacleHook` (assembled into a run by :func:`usv_mj.build`).
+- :mod:`.clearance`: per-step signed distances and contacts (:class:`MuJoCoClearance` on the MuJoCo
+  plant, :class:`GeometricClearance` from the footprint); :mod:`.broad_phase`, :mod:`.footprint_kernels`;
+- :mod:`.sink`: :class:`ObstacleLog` (a run sink: clearance per step, events, summary);
+- :mod:`.hooks`: :func:`make_plan`, :class:`ObstacleHook` (assembled into a run by :func:`usv_mj.build`);
+  :mod:`.native_step`: the hook's step as a kernel of the compiled loop.
 
-Names are imported lazily, so that importing the package does not pull in
-MuJoCo, dm_control, shapely or networkx.
+Elsewhere: the ``[[obstacles]]`` / ``[guidance]`` tables are the scenario's
+(:mod:`usv_mj.scenario.obstacles`); the harbour's MJCF is the scene's (:mod:`usv_mj.scene.compose`,
+the hull's shape :mod:`usv_mj.scene.hull`, the display data :mod:`usv_mj.scene.display`); the plant
+on it is :class:`usv_mj.plants.harbour.HarbourPlant`; the guidance around obstacles is a reference
+(:mod:`usv_mj.references.planner`, :mod:`usv_mj.references.guided`).
+
+Names are imported lazily, so that importing the package does not pull in MuJoCo, dm_control,
+shapely or networkx.
 """
 
 from __future__ import annotations
@@ -20,12 +22,7 @@ from usv_mj.core.lazy_names import lazy_names
 
 __getattr__, __dir__, _ = lazy_names(__name__, {
     "GeometricClearance": ".clearance", "MuJoCoClearance": ".clearance", "make_clearance_monitor": ".clearance",
-    "HULL_RADIUS": "usv_mj.scene.compose", "ContactParams": "usv_mj.scene.compose", "HarbourPlant": "usv_mj.scene.compose", "compose_scene": "usv_mj.scene.compose",
-    "export_scene": "usv_mj.scene.compose", "hull_footprint": "usv_mj.scene.compose", "place_moving_obstacles": "usv_mj.scene.compose",
-    "Guidance": "usv_mj.references.planner", "GuidedReference": "usv_mj.references.guided", "Plan": "usv_mj.references.planner", "PlanningError": "usv_mj.references.planner",
-    "SafetyEnvelope": "usv_mj.references.planner", "plan_reference": "usv_mj.references.planner",
     "ObstacleHook": ".hooks", "make_plan": ".hooks",
     "ObstacleLog": ".sink",
-    "draw_obstacles": "usv_mj.scene.display", "scene_entities": "usv_mj.scene.display", "obstacles_message": "usv_mj.scene.display",
 })
 __all__ = sorted(_)

@@ -6,12 +6,12 @@ signed distance [m] per obstacle, negative = penetration) plus the attributes ``
 contact) and ``in_contact`` (bool per obstacle):
 
 - :class:`MuJoCoClearance`: MuJoCo's own distance query, ``mujoco.mj_geomDistance``, between each of
-  the hull's collision geoms and each obstacle geom of a :class:`~usv_mj.scene.compose.HarbourPlant`
+  the hull's collision geoms and each obstacle geom of a :class:`~usv_mj.plants.harbour.HarbourPlant`
   (the minimum over the hull geoms), after ``mj_kinematics`` so that the poses are those of the
   current state; contacts from ``d.contact`` with ``mujoco.mj_contactForce``.
 - :class:`GeometricClearance`: the same quantity from the geometry (shapely) for plants without
   contact physics (the analytic plant): the hull's collision footprint
-  (:func:`~usv_mj.scene.compose.hull_footprint`) at the plant's pose against each obstacle's
+  (:func:`~usv_mj.scene.hull.hull_footprint`) at the plant's pose against each obstacle's
   section. Separated: the exact polygon distance (circles exactly: distance to the centre minus
   the radius; the kernels of usv_mj.obstacles.footprint_kernels). Overlapping: minus an estimate of the penetration depth (the deepest vertex of one
   shape inside the other, circles exactly), so the sign is right and the magnitude is indicative.
@@ -48,10 +48,10 @@ from numba import njit, types
 from numba.extending import intrinsic
 from shapely import affinity
 
-from usv_mj.plants.mujoco_callback import call_model_data, mujoco_function_address
+from usv_mj.support.native_mujoco import call_model_data, mujoco_function_address
 
 from usv_mj.obstacles.broad_phase import StandingGrid, grid_candidates
-from usv_mj.scene.compose import hull_footprint, vessel_collision_geoms, vessel_hull_radius
+from usv_mj.scene.hull import hull_footprint, vessel_collision_geoms, vessel_hull_radius
 from usv_mj.obstacles.footprint_kernels import footprint_clearances, footprint_clearances_broad, scatter_clearances
 
 ANALYTIC_NOTE = ("the analytic plant has no contact physics: clearance is computed from the geometry, "
@@ -462,7 +462,7 @@ class GeometricClearance:
 
 def make_clearance_monitor(plant, obstacles, dimensions=None):
     """The monitor that fits ``plant``: :class:`MuJoCoClearance` when it has ``obstacle_geoms``
-    (a :class:`~usv_mj.scene.compose.HarbourPlant`), :class:`GeometricClearance` of the
+    (a :class:`~usv_mj.plants.harbour.HarbourPlant`), :class:`GeometricClearance` of the
     vessel's ``dimensions`` otherwise; both with the broad phase (a run's monitor: its log's far
     entries are NaN, module docstring)."""
     if hasattr(plant, "obstacle_geoms"):

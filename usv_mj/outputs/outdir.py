@@ -352,13 +352,6 @@ def check_file(out, overwrite: bool = False, flag: str = "--out", *, suffix: str
     return out
 
 
-def add_overwrite_argument(parser, what: str) -> None:
-    """The ``--overwrite`` flag, worded the same in every command."""
-    parser.add_argument("--overwrite", action="store_true",
-                        help=f"replace {what} (listed in its folder's {MANIFEST}); anything usv_mj did not "
-                             "write is never replaced: such an output is refused")
-
-
 def record_file(out, companions: tuple[str, ...] = (".png",)) -> None:
     """After :func:`check_file`'s output was written: list it (and its companions) in its folder's manifest."""
     out = Path(out)

@@ -24,6 +24,87 @@ def _fmt(v, digits=3):
     return f"{v:.{digits}f}"
 
 
+def adaptation_section(record) -> str | None:
+    """``## Adaptation`` of report.md for a run whose controller adapts network weights with the paper's
+    sigma-modification law W_i_dot = Gamma_i (i_e S_i - theta_i W_i) (docs/model.md §3, step 11; the
+    record has ``w_u_norm``... and ``u_e``...; Gamma_i, theta_i and the node count from its scenario):
+    per network, |W_i| at the end and its growth over the last fifth of the run, the leakage's rate
+    Gamma_i theta_i and time constant, and the bound the law guarantees: d/dt |W|^2 / 2 =
+    Gamma (i_e S.W - theta |W|^2) < 0 while |W| > |i_e| |S| / theta, and |S| <= sqrt(N) (N Gaussian
+    nodes, each at most 1), so after t_s |W| <= max(|W(t_s)|, sqrt(N) max |i_e| / theta). None for a
+    run without them."""
+    import math
+
+    import numpy as np
+
+    nets = ("u", "v", "r")
+    cols = [f"w_{i}_norm" for i in nets] + [f"{i}_e" for i in nets]
+    if not all(c in record for c in cols) or len(record) < 3:
+        return None
+    gains = ((record.metadata.get("scenario") or {}).get("controller") or {}).get("gains") or {}
+    try:
+        nodes = int(gains["rbf_nodes"])
+        rates = {i: (float(gains[f"gamma_{i}"]), float(gains[f"theta_{i}"])) for i in nets}
+    except (KeyError, TypeError, ValueError):
+        return None
+    n = len(record)
+    dt = float(record.metadata.get("control_period_s") or 0.001)
+    t_end = (n - 1) * dt
+    t_s = 20.0 if t_end >= 40.0 else 0.0     # after the transient, as the report's largest errors
+    k_s, k_f = int(round(t_s / dt)), int(round(0.8 * (n - 1)))
+    peak = {}
+    for i in nets:   # max |i_e| after t_s, chunk by chunk
+        m, lo = 0.0, 0
+        for chunk in record.column_chunks(f"{i}_e"):
+            part = np.abs(chunk[max(0, k_s - lo):])
+            if len(part):
+                m = max(m, float(np.max(part)))
+            lo += len(chunk)
+        peak[i] = m
+    lines = ["## Adaptation (network weights, figure 7)", "",
+             f"The weights follow the paper's sigma-modification law W_i_dot = Gamma_i (i_e S_i - theta_i W_i) "
+             f"(docs/model.md §3, step 11), with {nodes} Gaussian nodes (each S_ij in (0, 1], so |S_i| <= "
+             f"sqrt({nodes}) = {math.sqrt(nodes):.2f}). What the paper's leakage theta_i guarantees is that the "
+             f"weights stay bounded, not that they settle: |W_i| can only shrink while |W_i| > |i_e| |S_i| / "
+             f"theta_i, so after t = {t_s:g} s it stays below max(|W_i({t_s:g} s)|, sqrt({nodes}) max |i_e| / "
+             f"theta_i) (the bound below).", "",
+             f"| network | \\|W\\| at {t_end:g} s | growth over the last {t_end - k_f * dt:.0f} s | Gamma theta [1/s] "
+             f"| leakage time constant | max \\|i_e\\| after {t_s:g} s | bound on \\|W\\| |",
+             "|---|---|---|---|---|---|---|"]
+    words = []
+    for i in nets:
+        w_end, w_f, w_s = (record.value(f"w_{i}_norm", k) for k in (n - 1, k_f, k_s))
+        gamma, theta = rates[i]
+        leak = gamma * theta
+        tau = math.inf if leak <= 0 else 1.0 / leak
+        bound = math.inf if theta <= 0 else max(w_s, math.sqrt(nodes) * peak[i] / theta)
+        unit = "m/s" if i != "r" else "rad/s"
+        tau_text = "none" if not math.isfinite(tau) else (f"{tau:.3g} s" + (f" ({tau / 3600:.3g} h)" if tau >= 3600 else ""))
+        lines.append(f"| W_{i} | {w_end:.3g} | {w_end - w_f:+.3g} | {leak:.3g} | {tau_text} | {peak[i]:.3g} {unit} "
+                     f"| {bound:.3g} |")
+        # growing: rising at every one of the last five of ten samples after t_s, and by 2 % over the last fifth
+        samples = record.take(f"w_{i}_norm", np.linspace(k_s, n - 1, 10).round().astype(int))
+        growing = bool(np.all(np.diff(samples[-5:]) > 0)) and w_end - w_f > 0.02 * max(w_end, 1e-12)
+        last = record.take(f"w_{i}_norm", np.linspace(k_f, n - 1, 50).round().astype(int))
+        if not growing:
+            words.append(f"|W_{i}| shows no trend over the last fifth of the run (between {last.min():.3g} and "
+                         f"{last.max():.3g}), inside its bound {bound:.3g}.")
+        else:
+            words.append(
+                f"|W_{i}| is still growing at the end ({w_f:.3g} at {k_f * dt:.0f} s, {w_end:.3g} at {t_end:g} s): "
+                f"with Gamma_{i} = {gamma:g} and theta_{i} = {theta:g} the leakage pulls W_{i} back at "
+                f"{leak:.3g} 1/s, a time constant of {tau_text}, "
+                + (f"far longer than this {t_end:g} s run, so the law integrates {i}_e S_{i} almost without "
+                   f"leakage and |W_{i}| grows for as long as {i}_e keeps a sign against S_{i} (|{i}_e| is at most "
+                   f"{peak[i]:.3g} {unit} after {t_s:g} s). " if tau > t_end else "")
+                + f"It is {bound / max(w_end, 1e-300):.2g} times below the law's bound {bound:.3g}: bounded, "
+                f"as the paper's argument needs, but not converged; it would level off only over the leakage's "
+                f"time constant, or sooner where {i}_e S_{i} averages out.")
+    for w in words:
+        lines += ["", w]
+    return "\n".join(lines)
+
+
 def write_report(path, summary: dict, baseline_summary: dict | None = None, step_check: dict | None = None,
                  extra_sections: list[str] | None = None) -> Path:
     """Write ``report.md`` at ``path`` (figures are linked as ``figures/<name>``)."""

@@ -1,1 +1,1 @@
-"""Physics: every formula of the hull, the MMG, the disturbances, the actuators and the sea, written once (knows no integrator, no MuJoCo, no scenario file)."""
+"""Physics: every formula of the hull, the MMG, the disturbances, the actuators and the sea, and the geometry and COLREGs rules of vessel encounters, written once (knows no integrator, no MuJoCo, no scenario file)."""

@@ -76,6 +76,7 @@ import numpy as np
 from numba import njit
 from numba.extending import register_jitable
 
+from usv_mj.physics.channels import FORCES, Channels
 from usv_mj.physics.mmg import mmg_allocate
 
 ACTUATOR_KINDS = ("unlimited", "box", "twin")
@@ -159,18 +160,15 @@ class ActuatorSpec:
         return (self.kind == "unlimited" and self.time_constant_s == 0.0 and self.shaft_time_constant_s == 0.0
                 and math.isinf(self.surge_rate_n_s) and math.isinf(self.yaw_rate_nm_s))
 
-    def describe(self, rudder: bool = False) -> str:
-        """One line for reports: the kind and its limits; ``rudder``: the channels are a ruddered
-        vessel's n_P [1/s] and rudder angle [rad] (usv_mj.builder.channels_of), not forces."""
+    def describe(self, channels: Channels = FORCES) -> str:
+        """One line for reports: the kind and its limits, in the units of the ``channels`` they act
+        on (:mod:`usv_mj.physics.channels`: forces, or a ruddered vessel's n_P [1/s] and rudder
+        angle [rad])."""
         if self.unlimited:
             return "unlimited (the paper's reading: the plant receives the quantized command Q(tau))"
         lo_u, hi_u, lo_r, hi_r = self.generalized_limits()
-        if rudder:
-            parts = [f"{self.kind}: n_P [{lo_u:g}, {hi_u:g}] 1/s, rudder angle [{lo_r:g}, {hi_r:g}] rad"]
-            if math.isfinite(self.surge_rate_n_s) or math.isfinite(self.yaw_rate_nm_s):
-                parts.append(f"rate limits {self.surge_rate_n_s:g} 1/s^2, {self.yaw_rate_nm_s:g} rad/s")
-            return "; ".join(parts)
-        parts = [f"{self.kind}: surge [{lo_u:g}, {hi_u:g}] N, yaw [{lo_r:g}, {hi_r:g}] N m"]
+        s, y = channels.surge, channels.yaw
+        parts = [f"{self.kind}: {s.name} [{lo_u:g}, {hi_u:g}] {s.unit}, {y.name} [{lo_r:g}, {hi_r:g}] {y.unit}"]
         if self.kind == "twin":
             parts.append(f"two thrusters {self.separation_m:g} m apart, each [-{self.thruster_reverse_n:g}, "
                          f"{self.thruster_forward_n:g}] N, {self.priority} priority")
@@ -180,7 +178,7 @@ class ActuatorSpec:
             parts.append(f"shaft-speed lag T_n = {self.shaft_time_constant_s:g} s, thrust k n|n| (k "
                          f"{self.thrust_coeff_forward:g} / {self.thrust_coeff_reverse:g})")
         if math.isfinite(self.surge_rate_n_s) or math.isfinite(self.yaw_rate_nm_s):
-            parts.append(f"rate limits {self.surge_rate_n_s:g} N/s, {self.yaw_rate_nm_s:g} N m/s")
+            parts.append(f"rate limits {self.surge_rate_n_s:g} {s.rate}, {self.yaw_rate_nm_s:g} {y.rate}")
         return "; ".join(parts)
 
     def generalized_limits(self) -> tuple[float, float, float, float]:

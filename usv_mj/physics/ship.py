@@ -138,6 +138,12 @@ class ShipParams:
         """Do & Pan's offset of the controlled point, eps = m23/m22 [m] (:func:`do_pan_offset`)."""
         return do_pan_offset(self.m22, self.m23)
 
+    #: the plant's input channels are the generalized forces (tau_u [N], tau_r [N m]) themselves;
+    #: False: the hull makes its force from them (MMGShipParams: n_P and the rudder angle)
+    inputs_are_forces = True
+    #: the hull's model holds in calm water only (MMGShipParams: the MMG standard method's)
+    calm_water_only = False
+
     def as_array(self) -> np.ndarray:
         """Pack into the float64 vector that the kernels of this module take."""
         p = np.zeros(N_SHIP_PARAMS)
@@ -180,6 +186,9 @@ class MMGShipParams(ShipParams):
     """
 
     mmg: tuple = ()
+
+    inputs_are_forces = False
+    calm_water_only = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -530,12 +539,14 @@ def kinetic_energy(ship: ShipParams, nu) -> float:
     return 0.5 * float(nu @ ship.mass_matrix() @ nu)
 
 
-@vectorize(["float64(float64)"], cache=True)
+@vectorize(cache=True)
 def wrap_angle(a):
     """Wrap an angle (or array of angles) to [-pi, pi): the one angle wrap of usv_mj.
 
     A numba ufunc: takes scalars, lists and arrays from Python and is callable from ``njit`` kernels
-    (the controllers' e3, the planner, the reference)."""
+    (the controllers' e3, the planner, the reference). Compiled for an input type when first called
+    with it (a float64 loop for the float64 angles of every caller), not when this module is
+    imported: importing the physics does not start numba's compiler (``usv-mj --help``, a bad input)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 

@@ -15,7 +15,7 @@ from numba import njit
 
 from usv_mj.core.registry import PLANTS
 from usv_mj.physics.sea.dynamics import calm_rk4_advance, sea_rk4_advance
-from usv_mj.physics.ship import PaperDisturbance, ShipParams, is_mmg
+from usv_mj.physics.ship import PaperDisturbance, ShipParams
 
 from usv_mj.plants.base import PlantBase
 
@@ -79,8 +79,8 @@ class AnalyticPlant(PlantBase):
         self._k = 0
         self._calm_args = None
         self.environment = environment if environment is not None and not environment.calm else None
-        if self.environment is not None and is_mmg(ship):
-            raise ValueError("AnalyticPlant: the MMG vessel (KVLCC2) runs in calm water only (no [sea])")
+        if self.environment is not None and ship.calm_water_only:
+            raise ValueError("AnalyticPlant: this hull's model holds in calm water only (no [sea])")
 
     def reset(self, eta0, nu0, t0: float = 0.0) -> None:
         self._x = np.concatenate([np.asarray(eta0, float), np.asarray(nu0, float)])

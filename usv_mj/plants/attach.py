@@ -56,6 +56,9 @@ import weakref
 import mujoco
 import numpy as np
 
+from usv_mj.core.errors import expected
+from usv_mj.physics.sea.environment import run_sea
+from usv_mj.physics.ship import RigidBodySplit
 from usv_mj.plants import mujoco_callback as mcb
 
 N_USERDATA = mcb.N_USERDATA
@@ -235,13 +238,11 @@ _OWNER_LOCK = threading.Lock()
 def _release(handle_id, data_address, userdata):
     """Finalizer (``detach`` or garbage collection): unmark the mjData only if it still holds this
     handle's water (a later attach on the same mjData took it over), then unregister the handle."""
-    from usv_mj.plants.mujoco_plant import REGISTRY
-
     with _OWNER_LOCK:
         if _OWNER.get(data_address) == handle_id:
             del _OWNER[data_address]
             userdata[mcb.U_MAGIC] = 0.0
-    REGISTRY.remove(handle_id, data_address)
+    mcb.CALLBACKS.remove(handle_id, data_address)
 
 
 class Hydrodynamics:
@@ -257,10 +258,9 @@ class Hydrodynamics:
     callback = "native"  # what the callback registry of the MuJoCo plant reads
 
     def __init__(self, model, data, body: int, ship, disturbance, split, environment, horizon: float):
-        from usv_mj.physics.ship import is_mmg
-
-        if is_mmg(ship):  # its inputs are ctrl = (n_P, delta) on gearless motors: the MuJoCo plant's build
-            raise ValueError("attach_hydrodynamics: an MMG hull (KVLCC2) runs on usv_mj's MuJoCo plant only")
+        if not ship.inputs_are_forces:  # its inputs are ctrl = (n_P, delta) on gearless motors: the MuJoCo plant's build
+            raise ValueError("attach_hydrodynamics: a hull whose inputs are not forces (the MMG's KVLCC2) runs on "
+                             "usv_mj's MuJoCo plant only")
         self.model, self.data, self.body = model, data, body
         self.ship, self.disturbance, self.split = ship, disturbance, split
         self.environment = environment if environment is not None and not environment.calm else None
@@ -281,9 +281,7 @@ class Hydrodynamics:
             data.userdata[mcb.U_LAYOUT] = mcb.LAYOUT_FREE
         if self.environment is not None:
             self._extend(horizon)
-        from usv_mj.plants.mujoco_plant import REGISTRY
-
-        REGISTRY.add(self)
+        mcb.CALLBACKS.add(self)
         with _OWNER_LOCK:   # the mjData's water is this handle's now (an earlier one is superseded)
             _OWNER[data._address] = id(self)
         self._finalizer = weakref.finalize(self, _release, id(self), data._address, data.userdata)
@@ -332,7 +330,7 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
     scenario:
         A :class:`usv_mj.scenario.spec.Scenario`, a preset name or a scenario TOML path (None: the paper
         preset): its ``[ship]``, ``[disturbance]`` and ``[sea]`` are used (through
-        :func:`usv_mj.builder.make_environment`, the build's own sea).
+        :func:`usv_mj.physics.sea.environment.run_sea`, the build's own sea).
     horizon:
         Plant time [s] up to which a sea's slowly varying parts (the OU grids of current and wind
         gusts) are made at once (calm: unused); past it they hold their last value (the waves go
@@ -340,10 +338,7 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
 
     Returns the :class:`Hydrodynamics` handle; keep it while stepping (``handle.detach()`` ends it).
     """
-    from usv_mj.builder import make_environment
-    from usv_mj.core.errors import expected
     from usv_mj.scenario.spec import Scenario, load_scenario, preset_names
-    from usv_mj.physics.ship import RigidBodySplit
 
     if not isinstance(model, mujoco.MjModel):
         raise expected("attach_hydrodynamics", "model", "a mujoco.MjModel (mujoco.MjModel.from_xml_path(...))", model)
@@ -363,5 +358,5 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
         raise ValueError(f"attach_hydrodynamics: horizon must be a finite number of seconds > 0, got {horizon!r}")
     bid = hull_body(model, body)
     data = mujoco.MjData(model) if data is None else data
-    env = make_environment(scenario, float(horizon))
+    env = run_sea(scenario.sea, scenario.ship, float(horizon))
     return Hydrodynamics(model, data, bid, scenario.ship, scenario.disturbance, RigidBodySplit(), env, horizon)

@@ -57,22 +57,21 @@ from __future__ import annotations
 import ctypes
 import functools
 import math
-import os
+import threading
+import weakref
 
 import mujoco
+
 import numpy as np
-from llvmlite import ir as llvmlite_ir
 from numba import carray, cfunc, njit, types
-from numba.extending import intrinsic
 
 from usv_mj.physics.sea.dynamics import sea_terms
 from usv_mj.physics.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
 from usv_mj.physics.mmg import N_MMG_PARAMS, mmg_terms
 from usv_mj.physics.ship import MODEL_MMG, N_DIST_PARAMS, N_SHIP_PARAMS, P_MODEL, hull_terms
 
-from usv_mj.support.assets import models_dir
-
-MODELS_DIR = str(models_dir())  # the installed usv_mj.models (the checkout's models/)
+from usv_mj.support.native_mujoco import (MODELS_DIR, _f64_ptr, _i64_ptr, _libmujoco,  # noqa: F401 (re-exported)
+                                         call_model_data, check_offsets, mujoco_function_address, struct_offsets)
 
 # --- d.userdata layout --------------------------------------------------------------------------
 MAGIC = 6.0221e23 + 1.0e9 * math.pi  # "this mjData belongs to a usv_mj plant"
@@ -101,7 +100,13 @@ U_LAYOUT = U_SEA_ON + 8     # LAYOUT_PLANAR (0: slide x, slide y, hinge yaw; the
 U_HOLD = U_LAYOUT + 1       # 10: z0 [m], then (lock inertia, stiffness, damping) for heave [kg, N/m, N s/m],
 #                             roll and pitch [kg m^2, N m/rad, N m s/rad] (held_free_body_terms)
 U_FREE_SCRATCH = U_HOLD + 10  # 6 doubles: the planar (x, y, psi) and (x_dot, y_dot, r) read off the free joint
-N_USERDATA = U_FREE_SCRATCH + 6
+# several hulls in one model (a fleet, usv_mj.plants.fleet): one block of this layout per hull, each
+# its own parameters; the callback walks them (0 in each: one hull, the plant's layout as it was)
+U_NEXT = U_FREE_SCRATCH + 6   # words from this block to the next hull's (0: the last)
+U_QADR = U_NEXT + 1           # the hull's first dof in qpos / qvel / qfrc_passive (its x, y, yaw)
+U_MADR = U_NEXT + 2           # its first entry in d.M (the 6 of its dense 3x3 lower triangle)
+U_CADR = U_NEXT + 3           # its first motor in ctrl (surge, yaw)
+N_USERDATA = U_NEXT + 4
 LAYOUT_PLANAR = 0.0
 LAYOUT_FREE = 1.0
 # an MMG hull (usv_mj.physics.mmg; ud[U_P + P_MODEL] = MODEL_MMG) has its N_MMG_PARAMS constants after the
@@ -122,48 +127,6 @@ STATUS_MESSAGES = {
 
 class HydrodynamicCallbackError(RuntimeError):
     """The passive-force callback failed during a step (raised by the plant after ``mj_step``)."""
-
-
-# --- raw pointers (numba intrinsics) ------------------------------------------------------------
-
-
-@intrinsic
-def _f64_ptr(typingctx, address):
-    """Reinterpret an integer address as ``double*`` (numba intrinsic)."""
-    sig = types.CPointer(types.float64)(types.int64)
-
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
-
-    return sig, codegen
-
-
-@intrinsic
-def _i64_ptr(typingctx, address):
-    """Reinterpret an integer address as ``int64*`` (numba intrinsic)."""
-    sig = types.CPointer(types.int64)(types.int64)
-
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
-
-    return sig, codegen
-
-
-@intrinsic
-def call_model_data(typingctx, fn_address, m_addr, d_addr):
-    """Call the C function ``void f(const mjModel*, mjData*)`` at ``fn_address`` (numba intrinsic).
-
-    The address is an argument, not a ctypes global, so that functions calling it can be cached."""
-    sig = types.void(types.int64, types.int64, types.int64)
-
-    def codegen(context, builder, signature, args):
-        i64 = context.get_value_type(types.int64)
-        fnty = llvmlite_ir.FunctionType(llvmlite_ir.VoidType(), [i64, i64])
-        fn = builder.inttoptr(args[0], fnty.as_pointer())
-        builder.call(fn, [args[1], args[2]])
-        return context.get_dummy_value()
-
-    return sig, codegen
 
 
 # --- the physics, shared by the native and the Python callback ----------------------------------
@@ -326,127 +289,7 @@ def held_free_body_terms(ud, t, qpos, qvel, qfrc, mass):
     return STATUS_OK
 
 
-# --- locating mjData / mjModel fields in native memory ------------------------------------------
-
-_PROBE_XML = """
-<mujoco><size nuserdata="{n}"/><worldbody><body><joint type="slide" axis="1 0 0"/>
-<joint type="slide" axis="0 1 0"/><joint type="hinge" axis="0 0 1"/>
-<inertial pos="0.1 0 0" mass="1" diaginertia="1 1 1"/></body>
-<body mocap="true"><geom size="0.1" contype="0" conaffinity="0"/></body></worldbody>
-<actuator><general joint="yaw" dyntype="filter" dynprm="0.1"/></actuator></mujoco>
-""".replace('joint="yaw"', 'joint="j3"').replace('type="hinge"', 'type="hinge" name="j3"')
-
-_DATA_ARRAYS = ("qpos", "qvel", "ctrl", "M", "qfrc_passive", "userdata")
-
-
-def _read(address: int, n: int, ctype) -> np.ndarray:
-    return np.ctypeslib.as_array((ctype * n).from_address(address)).copy()
-
-
-def _first_hit(address: int, value, ctype, start_word: int = 0, max_words: int = 1 << 20) -> int:
-    """Index of the first word equal to ``value`` from ``start_word`` on, reading forward in chunks."""
-    step = 64
-    for start in range(start_word, start_word + max_words, step):
-        chunk = _read(address + start * ctypes.sizeof(ctype), step, ctype)
-        idx = np.flatnonzero(chunk == value)
-        if idx.size:
-            return int(start + idx[0])
-    raise RuntimeError(f"struct field with value {value!r} not found")
-
-
-def _candidate_offsets(model: mujoco.MjModel) -> dict[str, set[int]]:
-    """All byte offsets in a fresh mjData of ``model`` that could hold each field of interest."""
-    d = mujoco.MjData(model)
-    out: dict[str, set[int]] = {}
-    times = set()
-    for value in (1.2345678901234567e-3, -9.87654321e5):
-        d.time = value
-        times.add(_first_hit(d._address, value, ctypes.c_double) * 8)
-    d.time = 0.0
-    if len(times) != 1:
-        raise RuntimeError(f"cannot locate mjData.time (offsets {sorted(times)})")
-    out["time"] = times
-    t_word = next(iter(times)) // 8
-    addresses = {name: getattr(d, name).ctypes.data for name in _DATA_ARRAYS}
-    first = {name: _first_hit(d._address, a, ctypes.c_int64, t_word + 1) for name, a in addresses.items()}
-    window = _read(d._address + (t_word + 1) * 8, max(first.values()) - t_word + 16, ctypes.c_int64)
-    for name, a in addresses.items():
-        out[name] = {int(t_word + 1 + i) * 8 for i in np.flatnonzero(window == a)}
-    return out
-
-
-_OFFSETS: dict[str, int] | None = None
-
-
-def struct_offsets() -> dict[str, int]:
-    """Byte offsets of ``time`` and the arrays of :data:`_DATA_ARRAYS` in mjData, ``nuserdata`` in mjModel.
-
-    Found once per process by comparing memory: ``time`` is where a sentinel double written through
-    the bindings appears (two sentinels must agree); a pointer field is a slot after ``time`` that
-    holds the address of the bindings' numpy view. Zero-sized arrays can share an address with their
-    neighbour (and the first array shares the buffer's address), so the candidates of two
-    structurally different models (the hull of models/usv.xml and a probe with activation and
-    mocap) are intersected and the last remaining slot is taken (arrays are laid out in struct
-    order and the fields used here are never empty).
-    ``nuserdata`` is the one mjModel word that equals 1009 in one probe and 1013 in the other.
-    :func:`check_offsets` re-checks the result on every plant's own mjData.
-    """
-    global _OFFSETS
-    if _OFFSETS is not None:
-        return _OFFSETS
-    hull = mujoco.MjModel.from_xml_path(os.path.join(MODELS_DIR, "usv.xml"))
-    m1 = mujoco.MjModel.from_xml_string(_PROBE_XML.format(n=1009))
-    m2 = mujoco.MjModel.from_xml_string(_PROBE_XML.format(n=1013))
-    c1, c2 = _candidate_offsets(hull), _candidate_offsets(m1)
-    off: dict[str, int] = {}
-    for name in c1:
-        both = c1[name] & c2[name]
-        if not both:
-            raise RuntimeError(f"cannot locate mjData.{name} (candidates {sorted(c1[name])} and {sorted(c2[name])})")
-        # arrays are laid out in struct order, so a slot before the field (the buffer start, a
-        # zero-sized array) may share its address, never one after it (our fields are non-empty)
-        off[name] = max(both)
-    w1 = _read(m1._address, 512, ctypes.c_int64)
-    w2 = _read(m2._address, 512, ctypes.c_int64)
-    idx = np.flatnonzero((w1 == 1009) & (w2 == 1013))
-    if idx.size != 1:
-        raise RuntimeError(f"cannot locate mjModel.nuserdata (candidates {idx.tolist()})")
-    off["nuserdata"] = int(idx[0]) * 8
-    _OFFSETS = off
-    return off
-
-
-def check_offsets(model: mujoco.MjModel, data: mujoco.MjData) -> None:
-    """Raise if the located offsets do not hold ``data``'s fields (a MuJoCo layout change, say)."""
-    off = struct_offsets()
-    words = {name: int(_read(data._address + off[name], 1, ctypes.c_int64)[0]) for name in _DATA_ARRAYS}
-    for name in _DATA_ARRAYS:
-        if words[name] != getattr(data, name).ctypes.data:
-            raise RuntimeError(f"mjData.{name} is not at byte offset {off[name]} in this MuJoCo build")
-    if float(_read(data._address + off["time"], 1, ctypes.c_double)[0]) != data.time:
-        raise RuntimeError(f"mjData.time is not at byte offset {off['time']} in this MuJoCo build")
-    if int(_read(model._address + off["nuserdata"], 1, ctypes.c_int64)[0]) != model.nuserdata:
-        raise RuntimeError(f"mjModel.nuserdata is not at byte offset {off['nuserdata']} in this MuJoCo build")
-
-
 # --- native callback ----------------------------------------------------------------------------
-
-
-@functools.cache
-def _libmujoco() -> ctypes.CDLL:
-    folder = os.path.dirname(mujoco.__file__)
-    names = sorted(f for f in os.listdir(folder) if f.startswith("libmujoco.so"))
-    if not names:
-        raise RuntimeError(f"libmujoco.so not found next to the mujoco package in {folder}")
-    # the same file the bindings loaded: dlopen returns the already-loaded library
-    return ctypes.CDLL(os.path.join(folder, names[-1]))
-
-
-@functools.cache
-def mujoco_function_address(name: str) -> int:
-    """Address of the C function ``name`` of this process's libmujoco, for kernels that call MuJoCo
-    natively (found once per process: loading the library through ctypes costs about 1 ms)."""
-    return int(ctypes.cast(getattr(_libmujoco(), name), ctypes.c_void_p).value)
 
 
 @njit(cache=True)
@@ -483,6 +326,7 @@ def native_callback():
     n_ud, magic = N_USERDATA, MAGIC
     u_scratch = U_SCRATCH
     u_layout = U_LAYOUT
+    u_next, u_qadr, u_madr, u_cadr = U_NEXT, U_QADR, U_MADR, U_CADR
 
     @cfunc(types.void(types.int64, types.int64), error_model="numpy")
     def hydrodynamic_passive(m_addr, d_addr):
@@ -501,20 +345,30 @@ def native_callback():
             if record_call(ud, status, t):
                 factor_m(m_addr, d_addr)
             return
-        qpos = carray(_f64_ptr(dw[o_qpos]), (3,))
-        qvel = carray(_f64_ptr(dw[o_qvel]), (3,))
-        frc = carray(_f64_ptr(dw[o_frc]), (3,))
-        mm = carray(_f64_ptr(dw[o_m]), (6,))
-        ctrl = carray(_f64_ptr(dw[o_ctrl]), (2,))
-        qf = ud[u_scratch + 6:u_scratch + 9]
-        ma = ud[u_scratch + 9:u_scratch + 15]
-        if not record_call(ud, passive_terms(ud, t, qpos, qvel, ctrl, qf, ma), t):
-            return
-        for i in range(3):
-            frc[i] += qf[i]
-        for i in range(6):
-            mm[i] += ma[i]
-        factor_m(m_addr, d_addr)
+        added = False
+        base = 0
+        while True:   # one block per hull (U_NEXT: a fleet's next; 0 in the last, the single hull's)
+            blk = ud[base:]
+            qa, ma_, ca = np.int64(blk[u_qadr]), np.int64(blk[u_madr]), np.int64(blk[u_cadr])
+            qpos = carray(_f64_ptr(dw[o_qpos] + 8 * qa), (3,))
+            qvel = carray(_f64_ptr(dw[o_qvel] + 8 * qa), (3,))
+            frc = carray(_f64_ptr(dw[o_frc] + 8 * qa), (3,))
+            mm = carray(_f64_ptr(dw[o_m] + 8 * ma_), (6,))
+            ctrl = carray(_f64_ptr(dw[o_ctrl] + 8 * ca), (2,))
+            qf = blk[u_scratch + 6:u_scratch + 9]
+            ma = blk[u_scratch + 9:u_scratch + 15]
+            if record_call(blk, passive_terms(blk, t, qpos, qvel, ctrl, qf, ma), t):
+                for i in range(3):
+                    frc[i] += qf[i]
+                for i in range(6):
+                    mm[i] += ma[i]
+                added = True
+            nxt = np.int64(blk[u_next])
+            if nxt <= 0 or base + nxt + n_ud > ud.shape[0] or ud[base + nxt] != magic:
+                break
+            base += nxt
+        if added:
+            factor_m(m_addr, d_addr)
 
     _NATIVE = hydrodynamic_passive
     return _NATIVE
@@ -566,3 +420,62 @@ def kernel_constants() -> tuple:
     off = struct_offsets()
     words = tuple(off[name] // 8 for name in ("time", "qpos", "qvel", "ctrl", "userdata"))
     return words + (max(words[1:]) + 1, mujoco_function_address("mj_step"))
+
+
+# --- which callback MuJoCo's global mjcb_passive holds -------------------------------------------
+
+class _CallbackRegistry:
+    """Which plants are alive, and which callback MuJoCo's global ``mjcb_passive`` holds."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.live: dict[int, weakref.ref] = {}        # id(plant) -> plant
+        self.python: dict[int, weakref.ref] = {}      # mjData address -> python-mode plant
+        self.previous = None
+        self.installed = None                          # "native" | "python" | None
+
+    def _dispatch(self, m, d):
+        """The Python passive callback: never lets an exception reach MuJoCo (it would abort)."""
+        ref = self.python.get(d._address)
+        plant = ref() if ref is not None else None
+        if plant is None:
+            native = native_callback()
+            native.ctypes(m._address, d._address)
+            return
+        plant._python_passive(m, d)
+
+    def _update(self):
+        want = "python" if self.python else ("native" if self.live else None)
+        if want == self.installed:
+            return
+        if self.installed is None:
+            self.previous = mujoco.get_mjcb_passive()
+        if want is None:
+            mujoco.set_mjcb_passive(self.previous)
+            self.previous = None
+        elif want == "native":
+            mujoco.set_mjcb_passive(native_callback().ctypes)
+        else:
+            mujoco.set_mjcb_passive(self._dispatch)
+        self.installed = want
+
+    def add(self, plant) -> None:
+        with self.lock:
+            self.live[id(plant)] = weakref.ref(plant)
+            if plant.callback == "python":
+                self.python[plant.data._address] = weakref.ref(plant)
+            self._update()
+
+    def remove(self, plant_id: int, data_address: int) -> None:
+        with self.lock:
+            self.live.pop(plant_id, None)
+            self.python.pop(data_address, None)
+            self._update()
+
+
+CALLBACKS = _CallbackRegistry()
+
+
+def installed_callback() -> str | None:
+    """Which passive callback usv_mj has installed: "native", "python" or None (none of ours)."""
+    return CALLBACKS.installed

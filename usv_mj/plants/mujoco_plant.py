@@ -25,18 +25,17 @@ from __future__ import annotations
 import math
 import os
 import re
-import threading
 import weakref
 
 import mujoco
 import numpy as np
 
-from usv_mj.core.registry import PLANTS
-from usv_mj.physics.ship import PaperDisturbance, RigidBodySplit, ShipParams, is_mmg
+from usv_mj.physics.ship import PaperDisturbance, RigidBodySplit, ShipParams
 
 from usv_mj.plants import attach
 from usv_mj.plants import mujoco_callback as mcb
 from usv_mj.plants.base import PlantBase
+from usv_mj.scene.hull import scale_hull
 
 DEFAULT_MODEL = os.path.join(mcb.MODELS_DIR, "usv.xml")
 
@@ -47,62 +46,10 @@ CTRL_OPEN = 1e10  # ctrlrange of a side without a limit [N, N m] (past limits.ma
 SEA_HORIZON_AHEAD_S = 120.0  # the environment's OU grids are kept this far ahead of the plant time [s]
 
 
-class _CallbackRegistry:
-    """Which plants are alive, and which callback MuJoCo's global ``mjcb_passive`` holds."""
-
-    def __init__(self):
-        self.lock = threading.Lock()
-        self.live: dict[int, weakref.ref] = {}        # id(plant) -> plant
-        self.python: dict[int, weakref.ref] = {}      # mjData address -> python-mode plant
-        self.previous = None
-        self.installed = None                          # "native" | "python" | None
-
-    def _dispatch(self, m, d):
-        """The Python passive callback: never lets an exception reach MuJoCo (it would abort)."""
-        ref = self.python.get(d._address)
-        plant = ref() if ref is not None else None
-        if plant is None:
-            native = mcb.native_callback()
-            native.ctypes(m._address, d._address)
-            return
-        plant._python_passive(m, d)
-
-    def _update(self):
-        want = "python" if self.python else ("native" if self.live else None)
-        if want == self.installed:
-            return
-        if self.installed is None:
-            self.previous = mujoco.get_mjcb_passive()
-        if want is None:
-            mujoco.set_mjcb_passive(self.previous)
-            self.previous = None
-        elif want == "native":
-            mujoco.set_mjcb_passive(mcb.native_callback().ctypes)
-        else:
-            mujoco.set_mjcb_passive(self._dispatch)
-        self.installed = want
-
-    def add(self, plant) -> None:
-        with self.lock:
-            self.live[id(plant)] = weakref.ref(plant)
-            if plant.callback == "python":
-                self.python[plant.data._address] = weakref.ref(plant)
-            self._update()
-
-    def remove(self, plant_id: int, data_address: int) -> None:
-        with self.lock:
-            self.live.pop(plant_id, None)
-            self.python.pop(data_address, None)
-            self._update()
-
-
-REGISTRY = _CallbackRegistry()
-
-
 def _release(plant_id, data_address, userdata):
     """Finalizer: unmark the mjData (the callback then ignores it) and unregister the plant."""
     userdata[mcb.U_MAGIC] = 0.0
-    REGISTRY.remove(plant_id, data_address)
+    mcb.CALLBACKS.remove(plant_id, data_address)
 
 
 def _check_actuator_limits(limits):
@@ -116,12 +63,6 @@ def _check_actuator_limits(limits):
     return limits
 
 
-def installed_callback() -> str | None:
-    """Which passive callback usv_mj has installed: "native", "python" or None (none of ours)."""
-    return REGISTRY.installed
-
-
-@PLANTS.register("mujoco", rangefinders=True)
 class MuJoCoPlant(PlantBase):
     """The ship of docs/model.md §1 integrated by MuJoCo (RK4) with a hydrodynamic passive-force callback.
 
@@ -165,7 +106,7 @@ class MuJoCoPlant(PlantBase):
         the paper's: the file as it is. ``from_scenario`` passes the scenario's vessel's, and its
         rigid body as ``split``.
 
-    An MMG hull (``usv_mj.physics.ship.is_mmg(ship)``: KVLCC2) loads with the motors' gear set to zero and
+    A hull whose inputs are not forces (``ship.inputs_are_forces`` False: the MMG's KVLCC2) loads with the motors' gear set to zero and
     ``nuserdata`` >= ``N_USERDATA_MMG``: ``ctrl`` = (n_P [1/s], delta [rad]) is then the actuator
     input and the callback makes the propeller's and the rudder's force from it (usv_mj.physics.mmg).
 
@@ -201,8 +142,8 @@ class MuJoCoPlant(PlantBase):
             raise TypeError(f"MuJoCoPlant: environment must be a usv_mj.physics.sea.Environment or None, "
                             f"got {type(environment).__name__}")
         self.environment = environment if environment is not None and not environment.calm else None
-        if self.environment is not None and is_mmg(ship):
-            raise ValueError("MuJoCoPlant: the MMG vessel (KVLCC2) runs in calm water only (no [sea])")
+        if self.environment is not None and ship.calm_water_only:
+            raise ValueError("MuJoCoPlant: this hull's model holds in calm water only (no [sea])")
         self._sea_arrays = None        # the packed arrays whose addresses are in d.userdata
         self._sea_horizon = math.inf   # plant time up to which they are valid [s]
         self.model_path = os.path.abspath(model_path or DEFAULT_MODEL)
@@ -220,7 +161,7 @@ class MuJoCoPlant(PlantBase):
         # native stepping (no Python between mj_step and the state) with the native callback
         self._native_step = callback == "native" and bool(native_step)
         self._step_x = np.zeros(6)  # mujoco_kernel's (unused) state argument
-        REGISTRY.add(self)
+        mcb.CALLBACKS.add(self)
         self._finalizer = weakref.finalize(self, _release, id(self), self.data._address, self._userdata)
         self.reset((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
 
@@ -231,10 +172,10 @@ class MuJoCoPlant(PlantBase):
             raise FileNotFoundError(f"MuJoCoPlant: model file not found: {path}")
         spec = mujoco.MjSpec.from_file(path)
         scale_hull(spec, self.dimensions)
-        need = mcb.N_USERDATA_MMG if is_mmg(self.ship) else mcb.N_USERDATA
+        need = mcb.N_USERDATA + len(self.ship.as_array()) - mcb.N_SHIP_PARAMS   # the packed hull's own words too
         if spec.nuserdata < need:
             spec.nuserdata = need
-        if is_mmg(self.ship):  # the motors carry (n_P [1/s], delta [rad]); the callback makes the force
+        if not self.ship.inputs_are_forces:  # the motors carry the hull's channels (n_P, delta); the callback makes the force
             for act in spec.actuators:
                 act.gear = [0.0] * 6
         self._set_ctrlrange(spec)
@@ -463,23 +404,14 @@ class MuJoCoPlant(PlantBase):
         return np.array((c * qa[0] + s * qa[1] + r * v, -s * qa[0] + c * qa[1] - r * u, qa[2]))
 
     @classmethod
-    def from_scenario(cls, options, scenario, environment=None, obstacles=(), contact=None, safety_radii=None,
-                      rangefinders=()):
-        """The MuJoCo plant of ``scenario`` (``options``: None, it has none): the hull of ``models/usv.xml`` in open water, or the scene
-        composed from the hull and ``obstacles`` (with its contact model) when there are any or
-        when ``rangefinders`` (body-frame ray angles [rad]) asks for range sensors on the hull; the
-        sea ``environment`` acts on the hull in both."""
-        limits = scenario.actuators.generalized_limits()
+    def from_scenario(cls, options, scenario, environment=None, **_):
+        """The MuJoCo plant of ``scenario`` in open water (``options``: None, it has none): the hull
+        of ``models/usv.xml`` sized to the vessel, the sea ``environment`` acting on it. The plant
+        kind "mujoco" (:func:`usv_mj.plants.harbour.mujoco_plant`) makes this or, with obstacles or
+        rangefinders, a :class:`usv_mj.plants.harbour.HarbourPlant`."""
         vessel = scenario.vessel.model  # its rigid body and dimensions (scenario.ship: its packed hull)
-        if len(obstacles) or len(rangefinders):
-            from usv_mj.scene.compose import ContactParams, HarbourPlant
-
-            return HarbourPlant(scenario.ship, scenario.disturbance, obstacles, scenario.control_period,
-                                scenario.plant.substeps, contact or ContactParams(), safety_radii,
-                                split=vessel.split, environment=environment, actuator_limits=limits,
-                                rangefinders=rangefinders, dimensions=vessel.dimensions)
         return cls(scenario.ship, scenario.disturbance, scenario.control_period, scenario.plant.substeps,
-                   split=vessel.split, environment=environment, actuator_limits=limits,
+                   split=vessel.split, environment=environment, actuator_limits=scenario.actuators.generalized_limits(),
                    dimensions=vessel.dimensions)
 
     def close(self) -> None:
@@ -537,43 +469,6 @@ class MuJoCoPlant(PlantBase):
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError("MuJoCoPlant: the plant is closed")
-
-
-def scale_hull(spec, dimensions) -> None:
-    """Scale body "hull" of ``spec`` (its geoms, sites and cameras, children included) from the
-    model file's hull (:data:`usv_mj.vessels.PAPER_DIMENSIONS`: L, B, T) to ``dimensions``: positions
-    and box/ellipsoid half-sizes by (L, B, T) ratios, radii by the smaller ratio of their section,
-    cameras uniformly by the length ratio. The geoms have no mass (the inertial is set from the
-    vessel), so only what is drawn and what collides changes. None or the file's own: unchanged."""
-    from usv_mj.vessels import PAPER_DIMENSIONS as ref
-
-    if dimensions is None or (dimensions.L, dimensions.B, dimensions.T) == (ref.L, ref.B, ref.T):
-        return
-    k = np.array([dimensions.L / ref.L, dimensions.B / ref.B, dimensions.T / ref.T])
-    hull = spec.body("hull")
-    if hull is None:
-        return
-    stack = [hull]
-    while stack:
-        body = stack.pop()
-        stack.extend(body.bodies)
-        for g in body.geoms:
-            g.pos = np.asarray(g.pos) * k
-            if not math.isnan(g.fromto[0]):
-                g.fromto = np.asarray(g.fromto) * np.r_[k, k]
-            size = np.array(g.size, dtype=float)
-            if g.type in (mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_ELLIPSOID):
-                size = size * k
-            elif g.type in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
-                size[0] *= min(k[0], k[1], k[2])
-                size[1] *= k[2]
-            elif g.type == mujoco.mjtGeom.mjGEOM_SPHERE:
-                size[0] *= min(k)
-            g.size = size
-        for site in body.sites:
-            site.pos = np.asarray(site.pos) * k
-        for cam in body.cameras:
-            cam.pos = np.asarray(cam.pos) * k[0]
 
 
 def _vector3(value, name: str) -> np.ndarray:

@@ -48,6 +48,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from usv_mj.core.errors import PluginContractError, ScenarioError
+from usv_mj.record.tracking import pose_errors
 
 
 def _finite(v) -> float | None:
@@ -154,7 +155,6 @@ class PoseTolerance:
     def errors(self, record) -> dict:
         """The judged errors at every row: ``position`` sqrt((x - x_d)^2 + (y - y_d)^2) [m] and
         ``heading`` |wrap(psi - psi_d)| [rad] (from :func:`usv_mj.record.summary.pose_errors`)."""
-        from usv_mj.record.summary import pose_errors
 
         e = pose_errors(record)
         return {"position": np.hypot(e["x"], e["y"]), "heading": np.abs(e["psi"])}
@@ -205,7 +205,6 @@ class PathTolerance:
         (psi_d where the reference speed is below ``still_speed``) and (ex, ey) = (x - x_d, y - y_d),
         ``along`` = cos(chi) ex + sin(chi) ey (> 0: ahead of the reference point) and
         ``cross`` = -sin(chi) ex + cos(chi) ey (> 0: left of the path, the z-up frame)."""
-        from usv_mj.record.summary import pose_errors
 
         e = pose_errors(record)
         xd, yd = record["x_d_dot"], record["y_d_dot"]
@@ -405,7 +404,7 @@ def criterion_of(controller):
     declared = getattr(controller, "criterion", None)
     if declared is not None:
         check_criterion(declared, f"controller {getattr(controller, 'name', '?')!r}")
-    from usv_mj.controllers.base import FUNNEL_FIELDS
+    from usv_mj.core.layouts import FUNNEL_FIELDS
 
     has_funnel = set(FUNNEL_FIELDS) <= set(getattr(controller, "diagnostic_fields", ()))
     if declared is not None:

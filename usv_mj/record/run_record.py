@@ -22,10 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from usv_mj.controllers.base import DIAG_FIELDS, FUNNEL_FIELDS, REF_FIELDS
+from usv_mj.core.layouts import DIAG_FIELDS, FUNNEL_FIELDS, REF_FIELDS, STATE_FIELDS
 from usv_mj.record.store import CHUNK_ROWS
 
-STATE_FIELDS = ("x", "y", "psi", "u", "v", "r")
 CONTROL_FIELDS = ("tau_u", "tau_r", "q_tau_u", "q_tau_r", "k_u", "k_r", "f_u", "f_r", "sat_u", "sat_r")
 CORE_COLUMNS = ("t",) + STATE_FIELDS + REF_FIELDS + CONTROL_FIELDS
 #: the core's indices (the same in every record: the core comes first)

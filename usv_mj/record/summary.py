@@ -13,6 +13,9 @@ import math
 import numpy as np
 
 from usv_mj.record.run_record import RunRecord
+from usv_mj.record.tracking import pose_errors, pose_errors_at  # noqa: F401 (the summary's API)
+from usv_mj.physics.actuators import ActuatorSpec
+from usv_mj.physics.channels import RunChannels
 from usv_mj.physics.ship import wrap_angle
 
 CHECK_TIMES = (5.0, 10.0, 20.0)
@@ -21,18 +24,6 @@ CHECK_TIMES = (5.0, 10.0, 20.0)
 def _finite(v):
     v = float(v)
     return v if math.isfinite(v) else None
-
-
-def pose_errors(record: RunRecord) -> dict:
-    """x - x_d [m], y - y_d [m] and wrap(psi - psi_d) [rad] at every row (the paper's Table 1 errors)."""
-    return {"x": record["x"] - record["x_d"], "y": record["y"] - record["y_d"],
-            "psi": wrap_angle(record["psi"] - record["psi_d"])}
-
-
-def pose_errors_at(record: RunRecord, k: int) -> dict:
-    """The pose errors of :func:`pose_errors` at row ``k`` only (floats; a single read of each column)."""
-    v = {c: record.value(c, k) for c in ("x", "x_d", "y", "y_d", "psi", "psi_d")}
-    return {"x": v["x"] - v["x_d"], "y": v["y"] - v["y_d"], "psi": float(wrap_angle(v["psi"] - v["psi_d"]))}
 
 
 def column_chunks(record: RunRecord, names) -> "iter":
@@ -61,16 +52,16 @@ def _episodes(record: RunRecord, name: str) -> tuple[int, int, int]:
     return total, episodes, longest
 
 
-def actuator_description(table, channels: str = "forces") -> dict | None:
+def actuator_description(table, channels="forces") -> dict | None:
     """The ``[actuators]`` of a run as the summary gives it: kind, the one-line description and the
     generalized limits (None: open); None when the metadata has no scenario. ``channels``: the
-    record's (usv_mj.builder.channels_of): on a ruddered vessel the limits are n_P's and the rudder's."""
+    record's ``metadata["channels"]`` (:class:`usv_mj.physics.channels.RunChannels`): the limits act
+    on the applied channels (on a ruddered vessel, n_P's and the rudder's)."""
     if not table:
         return None
-    from usv_mj.physics.actuators import ActuatorSpec
-
     spec = ActuatorSpec(**table)
-    return {"kind": spec.kind, "unlimited": spec.unlimited, "description": spec.describe(channels != "forces"),
+    applied = RunChannels.from_metadata(channels).applied
+    return {"kind": spec.kind, "unlimited": spec.unlimited, "description": spec.describe(applied),
             "limits": dict(zip(("tau_u_min_n", "tau_u_max_n", "tau_r_min_nm", "tau_r_max_nm"),
                                (_finite(v) for v in spec.generalized_limits())))}
 

@@ -7,7 +7,7 @@ The PPC law keeps the tracking errors of the controlled point inside the funnel:
 |e2| < rho(t) (Eqs. 8-10), where e = p_bar - p_bar_d, p_bar = p + eps h(psi), p_bar_d = p_d + eps
 h(psi_d), h(a) = (cos a, sin a) and eps = m23/m22 (docs/model.md §3, Do & Pan's offset). Each axis is
 bounded separately, so |p_bar - p_bar_d| < sqrt(2) rho(t). Every point q of the hull is within the
-hull radius R of the body origin p (:data:`usv_mj.scene.compose.HULL_RADIUS`). Hence
+hull radius R of the body origin p (:data:`usv_mj.scene.hull.HULL_RADIUS`). Hence
 
     |q - p_d(t)| <= |q - p| + |p - p_bar| + |p_bar - p_bar_d| + |p_bar_d - p_d|
                  <  R + |eps| + sqrt(2) rho(t) + |eps|  =: G(t)
@@ -64,7 +64,7 @@ from usv_mj.record.run_record import Event
 from usv_mj.scenario.spec import ScenarioError
 from usv_mj.physics.ship import wrap_angle
 
-from usv_mj.scene.compose import HULL_RADIUS
+from usv_mj.scene.hull import HULL_RADIUS
 from usv_mj.references.guided import (GuidedReference, PathTable, SpeedProfile, guided_kernel, guided_pose,  # noqa: F401 (re-exported)
                      retimed_pieces)
 from usv_mj.scenario.obstacles import GuidanceSpec, ObstacleSpec
@@ -119,7 +119,7 @@ class SafetyEnvelope:
     @classmethod
     def from_scenario(cls, scenario, margin: float) -> "SafetyEnvelope":
         f = scenario.funnel
-        from usv_mj.scene.compose import vessel_hull_radius
+        from usv_mj.scene.hull import vessel_hull_radius
 
         radius = vessel_hull_radius(scenario.vessel.model.dimensions)   # the vessel's (the paper's: HULL_RADIUS)
         return cls(PerformanceFunnel(f.rho_xy[0], f.rho_xy[1], f.rate), scenario.ship.eps, radius, margin)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from usv_mj.controllers.base import REF_FIELDS
+from usv_mj.core.layouts import REF_FIELDS
 from usv_mj.core.registry import TRAJECTORIES
 from usv_mj.physics.ship import wrap_angle
 

@@ -30,11 +30,15 @@ from typing import Any
 
 from usv_mj.physics.actuators import ActuatorSpec
 from usv_mj.core.errors import ScenarioError, SeaSettingsError, TooManyStepsError
+from usv_mj.scenario.fleet import vessels_from_tables
+from usv_mj.scenario.manoeuvre import manoeuvre_from_table
 from usv_mj.scenario.obstacles import GuidanceSpec, from_tables, guidance_from_table
 from usv_mj.core.registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES, VESSELS
 from usv_mj.physics.sea.settings import SeaSettings, merge_sea_tables, sea_preset_table
 from usv_mj.physics.ship import PaperDisturbance, ShipParams
-from usv_mj.support.toml_values import coerce, read_toml
+from usv_mj.support.toml_values import read_toml
+from usv_mj.scenario.tables import (KindOptions, build_table, construct, convert, merge_tables, to_plain,  # noqa: F401
+                                    unknown_key)  # (merge_tables, build_table: the loader's API, used by the jobs)
 
 __all__ = ["Scenario", "ScenarioError", "load_scenario", "from_dict", "preset_names"]
 
@@ -47,21 +51,8 @@ class InitialState:
     nu: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
-class _KindOptions:
-    """A ``[section]`` of ``kind`` plus the kind's own options dataclass (``options``); the options
-    read as attributes of the spec too (``scenario.trajectory.speed``, ``.points``)."""
-
-    def __getattr__(self, name):
-        if name.startswith("_") or name == "options":
-            raise AttributeError(name)
-        try:
-            return getattr(self.options, name)
-        except AttributeError:
-            raise AttributeError(f"{type(self).__name__}: kind {self.kind!r} has no option {name!r}") from None
-
-
 @dataclass(frozen=True)
-class TrajectorySpec(_KindOptions):
+class TrajectorySpec(KindOptions):
     """The reference path (see :mod:`usv_mj.references.trajectories`).
 
     Attributes
@@ -137,7 +128,7 @@ class FunnelSpec:
 
 
 @dataclass(frozen=True)
-class PlantSpec(_KindOptions):
+class PlantSpec(KindOptions):
     """Which plant integrates the ship.
 
     Attributes
@@ -159,7 +150,7 @@ class PlantSpec(_KindOptions):
 
 
 @dataclass(frozen=True)
-class VesselSpec(_KindOptions):
+class VesselSpec(KindOptions):
     """The hull (docs/vessels.md): ``[vessel] kind`` names a registered vessel
     (:data:`usv_mj.core.registry.VESSELS`: "paper", "cybership2", "otter", "clarke83", a data file's path
     or a plug-in's) whose options dataclass validates the other keys; ``[ship]`` is the paper
@@ -270,7 +261,8 @@ class Scenario:
     sea: SeaSettings = field(default_factory=SeaSettings)
     obstacles: tuple = ()  # ObstacleSpec per [[obstacles]] table (usv_mj.scenario.obstacles)
     guidance: GuidanceSpec = field(default_factory=GuidanceSpec)  # [guidance]
-    manoeuvre: Any = None  # [manoeuvre]: a ManoeuvreSpec (usv_mj.jobs.manoeuvres.options), None: no manoeuvre
+    manoeuvre: Any = None  # [manoeuvre]: a ManoeuvreSpec (usv_mj.scenario.manoeuvre), None: no manoeuvre
+    vessels: tuple = ()  # [[vessels]]: a VesselEntry per vessel (usv_mj.scenario.fleet); (): one vessel, this one
     source: str = field(default="", compare=False)
     raw: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -302,7 +294,7 @@ class Scenario:
 
     def to_dict(self) -> dict:
         """Every parameter as plain data (for metadata and summaries)."""
-        return _to_plain(self)
+        return to_plain(self)
 
 
 # --- loading ------------------------------------------------------------------------------------
@@ -335,15 +327,6 @@ def _parsed_preset(name: str, chain: tuple) -> dict:
     return data
 
 
-def merge_tables(base: dict, over: dict) -> dict:
-    """``base`` with ``over`` merged in, tables recursively (``over`` wins); neither is changed."""
-    out = dict(base)
-    for key, value in over.items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = merge_tables(out[key], value)
-        else:
-            out[key] = value
-    return out
 
 
 def load_scenario(path: str | Path | None = None, preset: str | None = None, overrides: dict | None = None) -> Scenario:
@@ -425,25 +408,27 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True, own_tab
     known = {f.name for f in dataclasses.fields(Scenario)} - {"source", "raw"}
     for key in data:
         if key not in known:
-            _unknown(source, "", key, known)
+            unknown_key(source, "", key, known)
     if "vessel" in data or "ship" in data:
         top["vessel"] = _build_vessel(data.get("vessel", {}), data.get("ship"), source)
         top["ship"] = top["vessel"].model.ship
         own = top["vessel"].model.actuators
         if own is not None and not own_actuators:
             data["actuators"] = dict(own)  # the vessel's, unless the scenario's own
-        elif own is not None and top["vessel"].model.inputs == "rudder" and own_table is not None:
-            # a ruddered vessel's steering gear and n_P cap are its own: the scenario's keys change them
-            # one by one (--set actuators.yaw_rate_nm_s=...), they do not take them away
+        elif own is not None and top["vessel"].model.actuators_merged and own_table is not None:
+            # a steering gear that is the ship's own (a ruddered vessel's, with its n_P cap): the
+            # scenario's keys change it one by one (--set actuators.yaw_rate_nm_s=...), never take it away
             data["actuators"] = {**own, **own_table}
-            angle = data["actuators"].get("max_yaw_nm", 0.0)
-            if isinstance(angle, (int, float)) and not angle < math.pi / 2:
-                raise ScenarioError(f"{source}: actuators.max_yaw_nm = {angle!r} is the rudder's angle limit on the vessel "
-                                    f"{top['vessel'].kind!r} [rad] and must be < pi/2 (its steering gear: "
-                                    f"vessel.max_rudder_deg)")
+        channels = top["vessel"].model.channels
+        for key, channel in (("max_surge_n", channels.surge), ("max_yaw_nm", channels.yaw)):
+            limit = data.get("actuators", {}).get(key) if isinstance(data.get("actuators"), dict) else None
+            if isinstance(limit, (int, float)) and not limit < channel.largest_limit:
+                raise ScenarioError(f"{source}: actuators.{key} = {limit!r} is the limit of the vessel "
+                                    f"{top['vessel'].kind!r}'s {channel.quantity} [{channel.unit}] and must be < "
+                                    f"{channel.largest_limit:.6g} {channel.unit}")
     for key in ("duration", "control_period"):
         if key in data:
-            top[key] = _convert(source, key, data[key], 0.0)
+            top[key] = convert(source, key, data[key], 0.0)
     top["preset"] = data["preset"]
     for key, cls in _SECTIONS.items():
         if key in data:
@@ -471,19 +456,21 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True, own_tab
     if "sea" in data:
         top["sea"] = _build_sea(data["sea"], source)
         vessel = getattr(top.get("vessel"), "model", None)
-        if getattr(vessel, "inputs", "forces") == "rudder" and not top["sea"].calm:
-            raise ScenarioError(f"{source}: [sea]: the vessel {top['vessel'].kind!r} (the MMG model) runs in calm "
-                                f"deep water only; remove the sea (docs/vessels.md)")
+        why = getattr(vessel, "limitations", {}).get("sea")
+        if why and not top["sea"].calm:
+            raise ScenarioError(f"{source}: [sea]: the vessel {top['vessel'].kind!r} cannot run in a sea: {why}; "
+                                f"remove the sea (docs/vessels.md)")
     if "obstacles" in data or "guidance" in data:
         top["obstacles"] = from_tables(data.get("obstacles"), source)
         top["guidance"] = guidance_from_table(data.get("guidance"), source)
     if "manoeuvre" in data:
-        from usv_mj.jobs.manoeuvres.options import manoeuvre_from_table
-
         vessel = top.get("vessel")
         top["manoeuvre"] = manoeuvre_from_table(data["manoeuvre"], source,
                                                 vessel.model if vessel is not None else None)
-    scenario = _construct(Scenario, top, source, "")
+    if "vessels" in data:
+        top["vessels"] = vessels_from_tables(data["vessels"], {k: v for k, v in data.items() if k != "vessels"},
+                                             source, from_dict)
+    scenario = construct(Scenario, top, source, "")
     return dataclasses.replace(scenario, source=source, raw=data)
 
 
@@ -503,14 +490,12 @@ def _build_vessel(table: Any, ship: Any, source: str) -> VesselSpec:
         raise ScenarioError(f"{source}: vessel.kind must be a string, got {kind!r}")
     kwargs = {}
     if "model_mismatch" in table:
-        kwargs["model_mismatch"] = _convert(source, "vessel.model_mismatch", table.pop("model_mismatch"), 1.0)
-    if kind.endswith(".toml"):
-        from usv_mj.vessels.datafile import register_file
-
+        kwargs["model_mismatch"] = convert(source, "vessel.model_mismatch", table.pop("model_mismatch"), 1.0)
+    if kind.endswith(".toml"):   # a data file: relative to the scenario's folder, else to the working one
         here = os.path.join(os.path.dirname(source), kind) if os.path.isfile(source) else kind
-        path = os.path.abspath(here if os.path.isfile(here) else kind)
+        kind = os.path.abspath(here if os.path.isfile(here) else kind)
         try:
-            kind = register_file(path, os.path.abspath(path))
+            VESSELS.get(kind)    # registered under its absolute path (usv_mj.vessels.datafile)
         except ScenarioError as exc:
             raise ScenarioError(f"{source}: vessel.kind: {exc}") from None
     if ship:
@@ -531,7 +516,7 @@ def _build_vessel(table: Any, ship: Any, source: str) -> VesselSpec:
         model = entry.make(options, None)
     except ValueError as exc:
         raise ScenarioError(f"{source}: vessel {kind!r}: {exc}") from None
-    return _construct(VesselSpec, {"kind": kind, "options": options, "model": model, **kwargs}, source, "vessel")
+    return construct(VesselSpec, {"kind": kind, "options": options, "model": model, **kwargs}, source, "vessel")
 
 
 def _controller_spec(table: Any, source: str, section: str, default_kind: str) -> ControllerSpec:
@@ -567,7 +552,7 @@ def _kind_spec(spec_cls, registry, table: Any, source: str, section: str, defaul
         raise ScenarioError(f"{source}: {section}.kind must be a string, got {kind!r}")
     own = {k: v for k, v in table.items() if k not in common}
     defaults = spec_cls.__dataclass_fields__
-    kwargs = {k: _convert(source, f"{section}.{k}", table[k], defaults[k].default) for k in common if k in table}
+    kwargs = {k: convert(source, f"{section}.{k}", table[k], defaults[k].default) for k in common if k in table}
     if own or kind not in registry.builtin_kinds() or spec_cls is TrajectorySpec:
         options_cls = registry.get(kind, f"{source}: {section}.kind").options_class
         if options_cls is None:
@@ -577,7 +562,7 @@ def _kind_spec(spec_cls, registry, table: Any, source: str, section: str, defaul
                                     + f", got {', '.join(sorted(own))}")
         else:
             kwargs["options"] = build_table(options_cls, own, source, section, extra_known={"kind", *common})
-    return _construct(spec_cls, {"kind": kind, **kwargs}, source, section)
+    return construct(spec_cls, {"kind": kind, **kwargs}, source, section)
 
 
 def _build_disturbance(table: Any, source: str):
@@ -607,57 +592,12 @@ def _build_sea(table, source: str) -> SeaSettings:
         raise ScenarioError(msg if msg.startswith(source) else f"{source}: {msg}") from None
 
 
-def _unknown(source, section, key, known):
-    hint = difflib.get_close_matches(key, sorted(known), n=1)
-    where = f"{section}.{key}" if section else key
-    raise ScenarioError(
-        f"{source}: unknown key {where!r}" + (f" (did you mean {hint[0]!r}?)" if hint else "")
-        + f"; known keys{' of [' + section + ']' if section else ''}: {', '.join(sorted(known))}")
-
-
-def _convert(source: str, where: str, value: Any, default: Any) -> Any:
-    return coerce(source, where, value, default, ScenarioError)
-
-
-def build_table(cls, table: Any, source: str, section: str, extra_known: set | None = None):
-    """The dataclass ``cls`` from the scenario table ``[section]``: each key converted to its field's
-    type and validated (ScenarioError naming ``source`` and the key; an unknown key with "did you
-    mean"); keys in ``extra_known`` are skipped, the fields not given keep their defaults."""
-    if not isinstance(table, dict):
-        raise ScenarioError(f"{source}: [{section}] must be a table, got {table!r}")
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    defaults = cls()
-    kwargs = {}
-    for key, value in table.items():
-        if extra_known and key in extra_known:
-            continue
-        if key not in fields:
-            _unknown(source, section, key, set(fields) | (extra_known or set()))
-        kwargs[key] = _convert(source, f"{section}.{key}", value, getattr(defaults, key))
-    return _construct(cls, kwargs, source, section)
-
-
-def _construct(cls, kwargs, source, section):
-    try:
-        return cls(**kwargs)
-    except ValueError as exc:
-        msg = str(exc)
-        prefix = f"{section}." if section else ""
-        if prefix and msg.startswith(prefix):
-            prefix = ""
-        # the type is kept (TooManyStepsError), the message gets its place
-        raise (type(exc) if isinstance(exc, ScenarioError) else ScenarioError)(f"{source}: {prefix}{msg}") from None
-
-
-def _to_plain(obj):
-    if isinstance(obj, _KindOptions):  # as its TOML table: kind, the common keys, the kind's own keys
-        out = {f.name: _to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)
-               if f.name not in ("options", "model")}
-        out.update(_to_plain(obj.options) if obj.options is not None else {})
-        return out
-    if dataclasses.is_dataclass(obj):
-        return {f.name: _to_plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)
-                if f.name not in ("raw",)}
-    if isinstance(obj, (tuple, list)):
-        return [_to_plain(v) for v in obj]
-    return obj
+def vessel_of_table(table):
+    """The :class:`usv_mj.vessels.Vessel` of a scenario's ``to_dict()`` (a run's metadata
+    ``scenario``): its ``[vessel]`` resolved (with ``[ship]``, the paper kind's options, for the paper
+    kind only: to_dict writes the packed hull under ``ship`` beside every vessel); None when the
+    table names no vessel."""
+    if not isinstance(table, dict) or not isinstance(table.get("vessel"), dict):
+        return None
+    kinds = ("vessel", "ship") if table["vessel"].get("kind", "paper") == "paper" else ("vessel",)
+    return from_dict({k: table[k] for k in kinds if k in table}, source="<metadata>").vessel.model

@@ -26,13 +26,14 @@ unchanged by the mirror y -> -y (usv_mj.physics.ship), so their derivatives are 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from usv_mj.physics.channels import FORCES, Channels
 from usv_mj.physics.ship import RigidBodySplit, ShipParams
 
-__all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS", "register_file", "of_table"]
+__all__ = ["Dimensions", "Vessel", "from_derivatives", "PAPER_DIMENSIONS"]
 
 
 @dataclass(frozen=True)
@@ -71,16 +72,21 @@ class Vessel:
     actuators: an ``[actuators]`` table (usv_mj.physics.actuators.ActuatorSpec keys) or None (the scenario's).
     source: where its numbers come from (one line; docs/vessels.md has the full citation).
     notes: what its model leaves out or approximates (one line each).
-    inputs: "forces" (the input channels are the surge force tau_u [N] and yaw moment tau_r [N m])
-        or "rudder" (a ruddered ship, usv_mj.physics.mmg: propeller revolutions n_P [1/s] and rudder angle
-        delta [rad], positive to port).
+    channels: the two input channels the plant receives (:class:`usv_mj.physics.channels.Channels`):
+        the surge force tau_u [N] and yaw moment tau_r [N m] (:data:`~usv_mj.physics.channels.FORCES`),
+        or a ruddered ship's propeller revolutions n_P [1/s] and rudder angle delta [rad] (positive
+        to port) with the allocation a force command reaches them through (usv_mj.physics.mmg).
+    limitations: what the vessel's model cannot do, {feature: why} (features: "sea", and a
+        manoeuvre's kind such as "stopping"); a scenario that asks for one is refused with the reason.
+    actuators_merged: a scenario's ``[actuators]`` keys change the vessel's own ``actuators`` one by
+        one (a steering gear that belongs to the ship) instead of replacing the table.
     scale: the model's scale 1:scale of a full-scale ship (IMO's criteria then apply to that ship), or None.
     nominal_rps: a ruddered vessel's propeller revolutions near its service speed [1/s] (where the
         manoeuvres' search for the n_P that holds the approach speed starts).
     manoeuvre: the vessel's own defaults of the standard manoeuvres' options ({key: value}, e.g.
         approach_speed, yaw_moment; a data file's ``[manoeuvre]`` table), each applied to every manoeuvre
         that has the option, and {manoeuvre kind: {key: value}} for one kind only (these win), or None: the paper hull's
-        Froude-scaled to its length (usv_mj.jobs.manoeuvres.options.vessel_defaults).
+        Froude-scaled to its length (usv_mj.scenario.manoeuvre.vessel_defaults).
     """
 
     kind: str
@@ -90,7 +96,9 @@ class Vessel:
     actuators: dict | None = None
     source: str = ""
     notes: tuple = ()
-    inputs: str = "forces"
+    channels: Channels = FORCES
+    limitations: dict = field(default_factory=dict)
+    actuators_merged: bool = False
     scale: float | None = None
     nominal_rps: float | None = None
     manoeuvre: dict | None = None
@@ -144,22 +152,3 @@ def from_derivatives(m, x_g, I_z, X_udot, Y_vdot, Y_rdot, N_vdot, N_rdot,
         coriolis_masses={"full": None, "rigid": (m, m, m * x_g), "none": (0.0, 0.0, 0.0)}[coriolis],
         crossflow=(crossflow_k, crossflow_L, strips) if crossflow_k > 0 else (0.0, 0.0, 0.0))
     return ship, split
-
-
-def of_table(table) -> Vessel | None:
-    """The vessel of a scenario's ``to_dict()`` (a run's metadata ``scenario``): its ``[vessel]``
-    resolved (with ``[ship]``, the paper kind's options, for the paper kind only: to_dict writes
-    the packed hull under ``ship`` beside every vessel); None when the table names no vessel."""
-    if not isinstance(table, dict) or not isinstance(table.get("vessel"), dict):
-        return None
-    from usv_mj.scenario.spec import from_dict
-
-    kinds = ("vessel", "ship") if table["vessel"].get("kind", "paper") == "paper" else ("vessel",)
-    return from_dict({k: table[k] for k in kinds if k in table}, source="<metadata>").vessel.model
-
-
-def register_file(path) -> str:
-    """Register the vessel data file ``path`` (docs/vessels.md) under its path as given; returns the kind."""
-    from usv_mj.vessels.datafile import register_file as _register
-
-    return _register(path)

@@ -23,7 +23,7 @@ or by naming it in a scenario: ``[vessel] kind = "path/to/boat.toml"``. A file::
     kind = "twin"
     [manoeuvre]                  # optional: its own defaults of the manoeuvres' options
     approach_speed = 2.34        # m/s (otherwise the paper hull's test Froude-scaled to L:
-    yaw_moment = 15.8            # N m  usv_mj.jobs.manoeuvres.options.vessel_defaults)
+    yaw_moment = 15.8            # N m  usv_mj.scenario.manoeuvre.vessel_defaults)
 
 Every number of ``[derivatives]``, ``[dimensions]`` and ``[crossflow]`` is an option of the kind,
 so a scenario may change one (``[vessel] kind = "otter"``, ``m = 90.0``); the options dataclass of
@@ -39,7 +39,7 @@ from importlib import resources
 from typing import Any
 
 from usv_mj.core.errors import ScenarioError
-from usv_mj.core.registry import VESSELS
+from usv_mj.core.registry import MANOEUVRES, VESSELS
 from usv_mj.support.toml_values import read_toml
 
 from usv_mj.vessels import CORIOLIS, Dimensions, Vessel, from_derivatives
@@ -59,7 +59,18 @@ UNITS = {"m": "kg", "x_g": "m", "I_z": "kg m^2", "X_udot": "kg", "Y_vdot": "kg",
 
 
 class _DataOptions:
-    """Base of a data file's options dataclass: every number finite (checked at construction)."""
+    """Base of a data file's options dataclass: every number finite (checked at construction).
+
+    An instance pickles as the file's kind, its contents and the values (:func:`_data_options`), not
+    by its class's name: the class is made at runtime by the process that read the file, so another
+    process (a sweep's Dask worker) has no such class until it registers the kind from those contents.
+    """
+
+    _datafile = ("", {})   # (kind, contents of read_file): set on each file's class
+
+    def __reduce__(self):
+        kind, contents = type(self)._datafile
+        return _data_options, (kind, contents, {f.name: getattr(self, f.name) for f in dataclasses.fields(self)})
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -131,12 +142,11 @@ def read_file(path) -> dict:
     if manoeuvre is not None:
         if not isinstance(manoeuvre, dict):
             raise ScenarioError(f"{path}: [manoeuvre] must be a table, got {manoeuvre!r}")
-        from usv_mj.jobs.manoeuvres.options import KINDS
-
-        known = {f.name for cls in KINDS.values() for f in dataclasses.fields(cls)}
-        items = [(k, v) for k, v in manoeuvre.items() if not (k in KINDS and isinstance(v, dict))]
-        for kind in (k for k, v in manoeuvre.items() if k in KINDS and isinstance(v, dict)):
-            own = {f.name for f in dataclasses.fields(KINDS[kind])}   # [manoeuvre.KIND]: that kind's options
+        kinds = {e.kind: e.options_class for e in MANOEUVRES.entries()}   # the manoeuvres' options, by kind
+        known = {f.name for cls in kinds.values() for f in dataclasses.fields(cls)}
+        items = [(k, v) for k, v in manoeuvre.items() if not (k in kinds and isinstance(v, dict))]
+        for kind in (k for k, v in manoeuvre.items() if k in kinds and isinstance(v, dict)):
+            own = {f.name for f in dataclasses.fields(kinds[kind])}   # [manoeuvre.KIND]: that kind's options
             for key, value in manoeuvre[kind].items():
                 if key not in own:
                     raise ScenarioError(f"{path}: unknown key manoeuvre.{kind}.{key!r}; the {kind} options are "
@@ -172,6 +182,7 @@ class DataVessel:
         self.kind = kind
         self.contents = contents
         self.options = _options_class(kind, contents["options"])
+        self.options._datafile = (kind, contents)
         self.__doc__ = contents["description"] or f"vessel data file {kind}"
         self.__qualname__ = f"DataVessel({os.path.basename(kind)})"
 
@@ -187,16 +198,34 @@ class DataVessel:
 
 def register_file(path, kind: str | None = None, replace: bool = False) -> str:
     """Register the data file ``path`` as a vessel kind (``kind``: default the path as given);
-    returns the kind. A kind already registered from the same file is kept."""
+    returns the kind. A kind already registered from the same file is kept. The registry calls it
+    for a kind that ends in ``.toml`` (:data:`usv_mj.core.registry.VESSELS`: the scenario's
+    ``[vessel] kind``, resolved to an absolute path)."""
     kind = kind or str(path)
     entry = VESSELS._entries.get(kind)
     if entry is not None and not replace and isinstance(entry.obj, DataVessel):
         return kind  # read once per process (edit a file, then start again or pass replace=True)
     if not os.path.isfile(path):
         raise ScenarioError(f"vessel.kind: no vessel data file {str(path)!r}")
-    factory = DataVessel(kind, read_file(path))
-    VESSELS._decorator(kind, factory.options, {"doc": factory.__doc__}, _source(kind), True)(factory)
+    _register(kind, read_file(path))
     return kind
+
+
+def _register(kind: str, contents: dict) -> DataVessel:
+    factory = DataVessel(kind, contents)
+    VESSELS._decorator(kind, factory.options, {"doc": factory.__doc__}, _source(kind), True)(factory)
+    return factory
+
+
+def _data_options(kind: str, contents: dict, values: dict):
+    """An unpickled data-file options instance (:meth:`_DataOptions.__reduce__`): the kind registered
+    in this process from the contents that came with it (the same contents already registered: kept),
+    so that a worker needs neither the file nor the process that read it."""
+    entry = VESSELS._entries.get(kind)
+    factory = entry.obj if entry is not None else None
+    if not isinstance(factory, DataVessel) or factory.contents != contents:
+        factory = _register(kind, contents)
+    return factory.options(**values)
 
 
 def _source(kind: str) -> str:

@@ -29,6 +29,7 @@ from usv_mj.physics.mmg import (N_MMG_PARAMS, Q_AH, Q_C1, Q_C2M, Q_C2P, Q_DP, Q_
                         Q_XB, Q_XRR, Q_XVR, Q_XVV, Q_XVVVV, Q_YR, Q_YRRR, Q_YV, Q_YVRR, Q_YVVR, Q_YVVV,
                         WAKE_EXPONENTIAL, WAKE_YASUKAWA)
 from usv_mj.core.registry import VESSELS
+from usv_mj.physics.channels import rudder_channels
 from usv_mj.physics.ship import MMGShipParams, RigidBodySplit
 
 from usv_mj.vessels import Dimensions, Vessel
@@ -236,4 +237,8 @@ def kvlcc2_vessel(options, scenario=None) -> Vessel:
                   ("3 DOF: roll (and the heel in a turn), heave and pitch are left out",
                    "inputs: tau_u is n_P [1/s], tau_r is the rudder angle delta [rad] (positive to port)",
                    f"the wake model is {o.wake_model!r}; calm deep water only (no [sea])"),
-                  inputs="rudder", manoeuvre=manoeuvres, scale=SCALE, nominal_rps=o.propeller_rps)
+                  channels=rudder_channels(ship.mmg), manoeuvre=manoeuvres, scale=SCALE, nominal_rps=o.propeller_rps,
+                  limitations={"sea": "the MMG standard method's hull runs in calm deep water only",
+                               "stopping": "the MMG standard method models the propeller ahead only (no astern "
+                                           "revolutions for the crash stop)"},
+                  actuators_merged=True)

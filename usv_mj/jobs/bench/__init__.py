@@ -17,17 +17,17 @@ the missing ones. Every episode is seeded by its task and index, so the metrics 
     from usv_mj.jobs.bench import load_suite, run_bench
     suite = load_suite()                          # the default suite, drawn and validated
     result = run_bench(suite, "renders/bench", workers=2)   # results.parquet, report.md, figures/
+
+The command ``usv-mj bench`` is :mod:`usv_mj.cli.bench`.
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
 from pathlib import Path
 
-from usv_mj.core.errors import ScenarioError, SweepError
+from usv_mj.core.errors import SweepError
 
-__all__ = ["load_suite", "run_bench", "compare", "add_arguments", "run_command"]
+__all__ = ["load_suite", "run_bench", "compare", "compare_table"]
 
 
 def load_suite(path=None):
@@ -109,89 +109,3 @@ def compare_table(result: list[dict], a: str, b: str) -> str:
         lines.append(f"| {r['metric']} | {r['pairs']} | {r['median_a']:.4g} | {r['median_b']:.4g} | "
                      f"{r['median_diff']:+.4g} | {p} | {r['verdict']} |")
     return "\n".join(lines)
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of ``usv-mj bench``."""
-    parser.add_argument("suite", nargs="?", default=None,
-                        help="the suite file (TOML: tasks, conditions, controllers; usv_mj.jobs.bench.suite); "
-                             "default: the suite shipped in the package")
-    parser.add_argument("--out", metavar="DIR", default=None,
-                        help="output folder for results.parquet, report.md, leaderboard.json, figures/ "
-                             "(default renders/bench-<suite name>)")
-    parser.add_argument("--scheduler", default=None,
-                        help="address of a running Dask scheduler (tcp://host:8786); default: a local cluster")
-    parser.add_argument("--jobqueue", default=None, metavar="SYSTEM",
-                        help="run on a batch system through dask-jobqueue (slurm, pbs, sge, lsf, ...)")
-    parser.add_argument("--jobs", type=int, default=1, help="--jobqueue: number of batch jobs (default 1)")
-    parser.add_argument("--workers", type=int, default=None,
-                        help="local cluster: worker processes (default: the number of cores)")
-    parser.add_argument("--resume", action="store_true", help="run only the episodes missing from DIR/results.parquet")
-    from usv_mj.outputs.outdir import add_overwrite_argument
-
-    add_overwrite_argument(parser, "--out whole when it holds an earlier usv_mj output (the new benchmark is "
-                                   "staged: the old one stays until it ends)")
-    parser.add_argument("--max-runs", type=int, default=None,
-                        help="run at most N episodes now, then stop (--resume continues)")
-    parser.add_argument("--compare", nargs=2, metavar=("A", "B"), default=None,
-                        help="do not run: test whether controller A beats B per metric over the paired episodes "
-                             "of DIR/results.parquet (Wilcoxon signed-rank)")
-    parser.add_argument("--no-figures", action="store_true", help="report.md and leaderboard.json without figures")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-def run_command(args: argparse.Namespace) -> int:
-    """``usv-mj bench``: 0 done, 2 bad input, 1 interrupted."""
-    try:
-        from usv_mj.jobs.bench.suite import describe
-        from usv_mj.jobs.bench.suite import load_suite as _load
-
-        suite = _load(args.suite)
-        out = args.out or str(Path("renders") / f"bench-{suite.name}")
-        if args.compare:
-            from usv_mj.jobs.sweep.runner import RESULTS_FILE, read_results
-
-            path = Path(out) / RESULTS_FILE
-            if not path.is_file():
-                raise SweepError(f"--compare: {path} does not exist: run the suite first (usv-mj bench --out {out})")
-            rows, fingerprint = read_results(path)
-            if fingerprint != suite.plan.fingerprint:
-                raise SweepError(f"--compare: {path} holds the results of another suite than {suite.source}")
-            a, b = args.compare
-            result = compare(rows, a, b)
-            print(f"{a} vs {b}: paired over the episodes of {path} ({len(rows)} of {len(suite.plan.runs)} "
-                  f"episodes in), Wilcoxon signed-rank, two-sided, 5 %")
-            print(compare_table(result, a, b))
-            return 0
-        from usv_mj.outputs.outdir import check_folder, results_folder
-
-        if args.resume and args.overwrite:
-            raise SweepError("--resume continues the benchmark in --out, --overwrite replaces it: give one of them")
-        check_folder(out, args.overwrite, resume=args.resume)   # new, empty, this benchmark's (--resume) or --overwrite
-        for name in ("workers", "max_runs"):
-            v = getattr(args, name)
-            if v is not None and v < 1:
-                raise SweepError(f"--{name.replace('_', '-')} must be >= 1, got {v}")
-        print(describe(suite), flush=True)
-        with results_folder(out, args.resume) as folder:   # staged when it replaces an earlier output
-            result = run_bench(suite, folder, scheduler=args.scheduler, workers=args.workers,
-                               resume=args.resume, progress=not args.no_progress, max_runs=args.max_runs,
-                               jobqueue=args.jobqueue, jobs=args.jobs, draw=not args.no_figures)
-    except ScenarioError as exc:  # SweepError and the output checks
-        print(f"usv-mj bench: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"\nusv-mj bench: interrupted: the episodes finished so far are in {out}/results.parquet; "
-              f"run the same command with --resume to finish", file=sys.stderr)
-        return 1
-    if not result.complete:
-        print(f"{len(result.rows)} of {len(suite.plan.runs)} episodes in {out}/results.parquet; run again with "
-              f"--resume for the rest")
-        return 0
-    from usv_mj.jobs.bench.report import aggregate, printed_leaderboard
-
-    print("\n".join(printed_leaderboard(aggregate(result.rows), [c.name for c in suite.controllers],
-                                        suite.vessels != [""])))
-    print(f"{len(result.rows)} episodes ({result.ran} run now), {result.failed} not ok; {out}/report.md, "
-          f"{out}/leaderboard.json, {out}/figures/")
-    return 0

@@ -26,9 +26,11 @@ import numpy as np
 from dataclasses import asdict, replace
 from pathlib import Path
 
+from usv_mj.physics.channels import FORCES, RUDDER_ANGLE
 from usv_mj.jobs.manoeuvres import imo
 from usv_mj.jobs.manoeuvres.measures import spiral_measures, stopping_measures, turning_measures, zigzag_measures
-from usv_mj.jobs.manoeuvres.options import KINDS, ManoeuvreSpec, execute_time, manoeuvre_from_table, manoeuvre_scenario
+from usv_mj.scenario.manoeuvre import KINDS, ManoeuvreSpec, manoeuvre_from_table
+from usv_mj.jobs.manoeuvres.trial import execute_time, manoeuvre_scenario
 
 __all__ = ["run_manoeuvre", "turning_circle", "zigzag", "spiral", "stopping", "measure", "vessel_length",
            "record_outputs", "spec_of_record",
@@ -51,7 +53,7 @@ def vessel_model(scenario):
     metadata: its ``[vessel]`` table; ``[ship]`` only for the paper vessel, whose options it is), or
     None for a table that names no vessel (an older log)."""
     if isinstance(scenario, dict):
-        from usv_mj.vessels import of_table
+        from usv_mj.scenario.spec import vessel_of_table as of_table
 
         return of_table(scenario)
     return getattr(getattr(scenario, "vessel", None), "model", None)
@@ -107,7 +109,7 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
     o = spec.options
     t = record["t"]
     vessel = vessel_model(record.metadata.get("scenario") or {})
-    ruddered = getattr(vessel, "inputs", "forces") == "rudder"
+    ruddered = getattr(vessel, "channels", FORCES).yaw == RUDDER_ANGLE   # its "rudder" is a rudder, not a moment
     scale = getattr(vessel, "scale", None)
     early = ended_before_execute(record, spec)
     if early is not None:
@@ -145,7 +147,8 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
     return {"kind": spec.kind, "options": asdict(o), "length_m": length, "plant": record.metadata.get("plant"),
             "saturated_fraction": saturated, **({"ended_before_execute": True} if early is not None else {}),
             "status": record.status, "simulated_s": float(t[-1]) if len(t) else 0.0,
-            "rudder": rudder, "measures": m, "imo": crit}
+            "rudder": rudder, "rudder_channel": getattr(vessel, "channels", FORCES).yaw.to_metadata(),
+            "measures": m, "imo": crit}
 
 
 def _fmt(v, unit=""):

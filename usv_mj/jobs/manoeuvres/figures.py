@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from usv_mj.physics.channels import RUDDER_ANGLE, YAW_MOMENT, Channel
 from usv_mj.record.decimate import decimate
 from usv_mj.outputs.figures import save_figure, plt
 
@@ -28,16 +29,23 @@ def _track(ax, rec, execute: float, k: int):
     ax.grid(alpha=0.3)
 
 
+def rudder_channel(measures: dict) -> Channel:
+    """The channel the manoeuvre's "rudder" was in (usv_mj.jobs.manoeuvres.measure): a yaw moment, or
+    a ruddered vessel's rudder angle."""
+    d = measures.get("rudder_channel")
+    return Channel.from_metadata(d) if isinstance(d, dict) else YAW_MOMENT
+
+
 def ruddered(measures: dict) -> bool:
-    """True when the manoeuvre's "rudder" is a rudder angle (a ruddered vessel, usv_mj.jobs.manoeuvres.measure)."""
-    return str(measures.get("rudder", "")).startswith("rudder angle")
+    """True when the manoeuvre's "rudder" is a rudder angle (a ruddered vessel)."""
+    return rudder_channel(measures) == RUDDER_ANGLE
 
 
 def draw_manoeuvre_figures(record, kind: str, measures: dict, out_dir, execute: float, label: str) -> list[Path]:
     """Write the manoeuvre's figures into ``out_dir`` and return their paths (module docstring)."""
     # the tau_r channel: a yaw moment [N m], or a ruddered vessel's rudder angle [rad], drawn in deg
-    k_r, applied = (180.0 / math.pi, "rudder angle applied [deg]") if ruddered(measures) else \
-        (1.0, "yaw moment applied [N m]")
+    ch = rudder_channel(measures)
+    k_r, applied = ch.shown_factor, f"{ch.quantity} applied [{ch.display_unit}]"
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     m = measures["measures"]

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from usv_mj.core.errors import ScenarioError
+from usv_mj.jobs.manoeuvres.figures import ruddered
 
 #: the measures of each kind in the table: (key without _m/_L, heading, has an L form)
 TABLE = {
@@ -84,7 +85,7 @@ def rudder_label(result: dict) -> str:
     """The "rudder" a vessel ran with, from its options: a yaw moment, or whatever its own path uses."""
     o = result.get("options", {})
     side = o.get("side") or o.get("first_turn") or ""
-    if str(result.get("rudder", "")).startswith("rudder angle"):   # a ruddered vessel: an angle, not a moment
+    if ruddered(result):   # a ruddered vessel: an angle, not a moment
         key = {"turning": "rudder_deg", "zigzag": "angle_deg", "spiral": "max_rudder_deg"}.get(result.get("kind"))
         angle = o.get(key) if key is not None else None
         if angle is not None:

@@ -45,9 +45,6 @@ with its reason (exit code 2), where a diverged run counts as the criterion lost
 
 from __future__ import annotations
 
-from usv_mj.core.errors import ScenarioError
-
-import argparse
 import json
 import math
 import sys
@@ -55,33 +52,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from usv_mj.jobs.sweep.loads import LOADS, LoadKind  # noqa: F401 (the loads' table, named here too)
 from usv_mj.jobs.sweep.spec import RunSpec, SweepError, load_base, apply_values
-
-
-@dataclass(frozen=True)
-class LoadKind:
-    """A load the capability search can scale: its scenario path(s), unit and default range."""
-
-    name: str
-    path: str
-    direction_path: str | None
-    unit: str
-    spacing: str  # "log" or "linear"
-    default_min: float
-    default_max: float
-    label: str
-
-
-LOADS = {
-    "disturbance": LoadKind("disturbance", "disturbance.scale", None, "", "log", 1e-6, 1.0,
-                            "disturbance scale s (docs/model.md §1)"),
-    "current": LoadKind("current", "sea.current.speed", "sea.current.direction_deg", "m/s", "linear", 0.0, 2.0,
-                        "current speed [m/s]"),
-    "wind": LoadKind("wind", "sea.wind.speed", "sea.wind.direction_deg", "m/s", "linear", 0.0, 30.0,
-                     "mean wind speed [m/s]"),
-    "waves": LoadKind("waves", "sea.waves.hs", "sea.waves.direction_deg", "m", "linear", 0.0, 1.0,
-                      "significant wave height Hs [m]"),
-}
 
 
 @dataclass
@@ -276,30 +248,6 @@ def draw_polar(results: list[DirectionResult], load: LoadKind, path: Path, title
     plt.close(fig)
 
 
-def add_capability_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of ``usv-mj capability``."""
-    parser.add_argument("--load", required=True, choices=sorted(LOADS),
-                        help="what to scale: disturbance (d(t) scale s), current, wind or waves (need the sea state)")
-    parser.add_argument("--base", default="paper", help="preset name or scenario file (default: paper)")
-    parser.add_argument("--duration", type=float, default=None, help="run length in s (default: the base's)")
-    parser.add_argument("--plant", choices=("analytic", "mujoco"), default=None,
-                        help="default: the base's (current, wind and waves need a plant that takes the sea state)")
-    parser.add_argument("--step", type=float, default=15.0, help="direction step in degrees (default 15)")
-    parser.add_argument("--min", dest="load_min", type=float, default=None, help="lower end of the search")
-    parser.add_argument("--max", dest="load_max", type=float, default=None, help="upper end of the search")
-    parser.add_argument("--tol", type=float, default=0.05,
-                        help="stop when (fails - holds) <= tol * fails (default 0.05)")
-    parser.add_argument("--out", metavar="DIR", default=None,
-                        help="output folder for capability.md, capability.png, capability.json "
-                             "(default renders/capability-<load>)")
-    from usv_mj.outputs.outdir import add_overwrite_argument
-
-    add_overwrite_argument(parser, "--out whole when it holds an earlier usv_mj output")
-    parser.add_argument("--scheduler", default=None, help="address of a running Dask scheduler")
-    parser.add_argument("--workers", type=int, default=None, help="local cluster: worker processes")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
 def run_capability(load_name: str, *, base: str = "paper", duration: float | None = None,
                    plant: str | None = None, step: float = 15.0, load_min: float | None = None,
                    load_max: float | None = None, tol: float = 0.05, out: str | Path = "capability",
@@ -444,37 +392,3 @@ def _write_outputs(out, results, load, scenario, heading, lo, hi, tol, rows, cri
         "runs": [{k: row.get(k) for k in ("direction_deg", "load", "status", "reason", "passed",
                                           "criterion.violations", "criterion.first_violation_s")} for row in rows],
     }, indent=1))
-
-
-def capability_command(args: argparse.Namespace) -> int:
-    """``usv-mj capability``: 0 on success, 2 on bad input or a load not available yet, 1 when interrupted."""
-    if args.out is None:
-        args.out = str(Path("renders") / f"capability-{args.load}")
-    try:
-        from usv_mj.outputs.outdir import Staging, check_folder
-
-        check_folder(args.out, args.overwrite)
-        if args.workers is not None and args.workers < 1:
-            raise SweepError(f"--workers must be >= 1, got {args.workers}")
-        stage = Staging(Path(args.out))
-        try:
-            results = run_capability(args.load, base=args.base, duration=args.duration, plant=args.plant,
-                                     step=args.step, load_min=args.load_min, load_max=args.load_max, tol=args.tol,
-                                     out=stage.path, scheduler=args.scheduler, workers=args.workers,
-                                     progress=not args.no_progress)
-        except BaseException:
-            stage.discard()
-            raise
-        stage.commit()
-    except ScenarioError as exc:  # SweepError and the output checks
-        print(f"usv-mj capability: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("\nusv-mj capability: interrupted", file=sys.stderr)
-        return 1
-    for r in results:
-        d = "any direction" if r.direction_deg is None else f"{r.direction_deg:g} deg"
-        what = r.noun[4:] if r.noun.startswith("the ") else r.noun
-        print(f"{d}: {what} holds up to {r.holds}, lost at {r.fails}" + (f" ({'; '.join(r.notes)})" if r.notes else ""))
-    print(f"{args.out}/capability.md, {args.out}/capability.png")
-    return 0

@@ -1,7 +1,12 @@
 """Running a sweep on Dask: one task per run, results streamed to ``DIR/results.parquet``.
 
 - :func:`run_one` is the task: it simulates one scenario and returns its summary row; it never
-  raises for a run that fails (the row says ``failed`` and why).
+  raises for a run that fails (the row says ``failed`` and why), only for a run that cannot be set
+  up on its worker (:class:`WorkerSetupError`: its plug-in modules do not import there, its
+  scenario does not unpickle there, or it does not build there), which stops the sweep.
+- The scenario travels to the worker as pickled bytes (:func:`pack`) and is unpickled inside the
+  task: a scenario that Dask itself had to unpickle while reading the scheduler's message would, on
+  failing, leave the worker's link to the scheduler broken and the sweep waiting without end.
 - :func:`open_client` gives a ``distributed.Client``: on an existing scheduler (``--scheduler
   ADDRESS``, any Dask cluster, e.g. one made by ``dask-jobqueue`` on a batch system, see
   :func:`jobqueue_cluster`), or on a ``LocalCluster`` with one single-threaded worker process per core.
@@ -28,6 +33,7 @@ import importlib
 import json
 import math
 import os
+import pickle
 import sys
 import time
 import uuid
@@ -36,6 +42,7 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
+from usv_mj.core.errors import WorkerError, WorkerSetupError
 from usv_mj.jobs.sweep.spec import RunSpec, SweepError, SweepPlan
 
 RESULTS_FILE = "results.parquet"
@@ -96,6 +103,54 @@ def transient_errors(record, transient: float) -> dict:
     return out
 
 
+def pack(scenario) -> bytes:
+    """``scenario`` as the bytes a task carries (:func:`run_one` unpickles them on the worker)."""
+    try:
+        return pickle.dumps(scenario, protocol=pickle.HIGHEST_PROTOCOL)
+    except Exception:   # a part defined in __main__ or a lambda (a worker that shares this process)
+        import cloudpickle
+
+        return cloudpickle.dumps(scenario, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _worker_address() -> str:
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except Exception:   # not on a Dask worker (a run in this process)
+        return ""
+
+
+def set_up(run_id: int, scenario, options: dict, build_it: bool = True):
+    """On the worker: import the run's plug-in modules, unpickle its scenario (bytes from :func:`pack`)
+    and build it; returns ``(scenario, parts or None)``. Any failure raises
+    :class:`usv_mj.core.errors.WorkerSetupError`: every run would fail the same way there, so the sweep
+    stops on it (the run is left out of the results: ``--resume`` runs it again)."""
+    stage = "importing"
+    try:
+        for module in options.get("imports", ()):
+            stage = f"importing {module}"
+            importlib.import_module(module)
+        if isinstance(scenario, (bytes, bytearray)):
+            stage = "unpickling its scenario"
+            scenario = pickle.loads(scenario)
+        parts = None
+        if build_it:
+            stage = "building it"
+            from usv_mj.builder import build
+
+            parts = build(scenario)
+        return scenario, parts
+    except Exception as exc:
+        raise WorkerSetupError(int(run_id), stage, _one_line(exc), _worker_address()) from None
+
+
 def failed_row(run_id: int, values: dict, reason: str, wall: float | None = None) -> dict:
     """The row of a run that produced no record (raised, or its worker died)."""
     row = {"run_id": int(run_id)}
@@ -105,11 +160,13 @@ def failed_row(run_id: int, values: dict, reason: str, wall: float | None = None
 
 
 def run_one(run_id: int, scenario, values: dict, options: dict | None = None) -> dict:
-    """Simulate one run of a sweep and return its row (see the module docstring).
+    """Simulate one run of a sweep and return its row (see the module docstring). ``scenario``: a
+    Scenario, or its bytes (:func:`pack`); raises :class:`WorkerSetupError` when the run cannot be set
+    up here (:func:`set_up`), returns a ``failed`` row when it fails once running.
 
     ``options``: ``transient`` [s]; ``log_path`` (write an MCAP log there through
     ``usv_mj.outputs.log.RunLogWriter``); ``imports`` (modules that register the run's kinds at
-    runtime: imported first, :func:`usv_mj.cli.kinds.worker_imports`); ``episode_fn``
+    runtime: imported first, :func:`usv_mj.scenario.kinds.worker_imports`); ``episode_fn``
     (``"module:function"``, ``fn(scenario, options) -> RunRecord`` runs the episode instead of
     :func:`usv_mj.loop.simulate.simulate`: a learned policy, :mod:`usv_mj.jobs.bench.policy`); ``row_hook``
     (``"module:function"``, ``fn(record, options) -> dict`` of columns added to the row: the
@@ -125,6 +182,8 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
     options = options or {}
     wall0 = time.perf_counter()
     hooks = options.get("hooks") or {}
+    # a WorkerSetupError goes to the parent (the sweep stops); the run's own failures make its row
+    scenario, parts = set_up(run_id, scenario, options, build_it=not options.get("episode_fn"))
     try:
         if hooks and os.environ.get("USV_MJ_SWEEP_TEST_HOOKS") == "1":
             if run_id in hooks.get("exit_worker", ()):
@@ -136,8 +195,6 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
                 Path(f"{release}.started-{run_id}").touch()
                 while not os.path.exists(release):
                     time.sleep(0.01)
-        for module in options.get("imports", ()):
-            importlib.import_module(module)
         sinks = []
         writer = None
         if options.get("log_path"):
@@ -152,7 +209,8 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
             if options.get("episode_fn"):
                 record = resolve(options["episode_fn"])(scenario, options)
             else:
-                record = simulate(scenario, sinks=sinks)
+                ready, parts = parts, None
+                record = simulate(ready, sinks=sinks)   # it closes the parts, however it ends
         except BaseException:
             if writer is not None:
                 with contextlib.suppress(Exception):
@@ -163,6 +221,10 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
         summary = summarize(record)
     except Exception as exc:  # the sweep goes on: the row says why
         return failed_row(run_id, values, f"{type(exc).__name__}: {exc}", time.perf_counter() - wall0)
+    finally:
+        if parts is not None:   # built, but a hook or the log writer failed before the run
+            with contextlib.suppress(Exception):
+                parts.close()
     status = {"completed": "ok", "diverged": "diverged"}.get(record.status, "failed")
     row = {"run_id": int(run_id)}
     row.update({f"vary.{p}": v for p, v in values.items()})
@@ -202,6 +264,8 @@ def warm_up(scenario, steps: int = 5) -> dict:
     try:
         from usv_mj.loop.simulate import simulate
 
+        if isinstance(scenario, (bytes, bytearray)):   # on a worker (:func:`pack`)
+            scenario = pickle.loads(scenario)
         if scenario.obstacles:
             import usv_mj.obstacles.hooks  # noqa: F401
             return {"loop": "per run", "loop_reason": "not warmed up: obstacles (the build composes the harbour)",
@@ -220,7 +284,7 @@ def warm_workers(client, scenario) -> dict:
     A worker that joins later pays its warm-up in its first task."""
     t0 = time.perf_counter()
     try:
-        done = client.run(warm_up, scenario, on_error="return")
+        done = client.run(warm_up, pack(scenario), on_error="return")
     except Exception as exc:  # no workers yet, a scheduler that went away: the tasks will say
         return {"seconds": time.perf_counter() - t0, "loops": {}, "error": f"{type(exc).__name__}: {exc}"}
     loops = {w: (r.get("loop") or r.get("error")) if isinstance(r, dict) else f"{type(r).__name__}: {r}"
@@ -460,18 +524,69 @@ def _workers_share_this_process(client) -> bool:
     return bool(pids) and all(pid == os.getpid() for pid in pids.values())
 
 
+LOST_WORKERS_S = 60.0
+"""[s] How long a sweep waits, with runs still to do, on a cluster whose every worker has gone
+(none came back): then it stops (:class:`usv_mj.core.errors.WorkerError`) instead of waiting without end."""
+
+
+def _waiting(ac, watch: Callable[[], None], poll: float = 0.1, every: float = 1.0) -> Iterator[Any]:
+    """The futures of ``ac`` (a ``distributed.as_completed``) as they complete, calling ``watch()``
+    about every ``every`` seconds while none does (it raises to stop the wait)."""
+    last = time.monotonic()
+    while not ac.is_empty():
+        if ac.has_ready():
+            last = time.monotonic()
+            yield next(ac)
+            continue
+        with ac.thread_condition:   # notified as each future completes (as as_completed's own wait)
+            ac.thread_condition.wait(timeout=poll)
+        if time.monotonic() - last >= every:
+            watch()
+            last = time.monotonic()
+
+
+class _WorkerWatch:
+    """Raises :class:`WorkerError` once the cluster, which had workers, has had none for ``limit`` s."""
+
+    def __init__(self, client, limit: float | None):
+        self.client, self.limit = client, limit
+        self.seen = False
+        self.gone_since: float | None = None
+
+    def __call__(self) -> None:
+        if self.limit is None:
+            return
+        try:
+            n = len(self.client.nthreads())
+        except Exception:   # the scheduler does not answer: no worker can be reached either
+            n = 0
+        now = time.monotonic()
+        if n:
+            self.seen, self.gone_since = True, None
+        elif self.seen:
+            self.gone_since = self.gone_since or now
+            if now - self.gone_since >= self.limit:
+                raise WorkerError(f"every Dask worker has been gone for {self.limit:g} s and none came back "
+                                  f"(a worker that dies at start, a batch job that ended, a scheduler that "
+                                  f"went away)")
+
+
 def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict], None],
-                key_prefix: str = "usv-run") -> None:
+                key_prefix: str = "usv-run", lost_workers_s: float | None = LOST_WORKERS_S) -> None:
     """Submit ``(run, options)`` pairs as one task each and call ``on_row(row)`` as each finishes.
 
+    Each task carries its scenario as bytes (:func:`pack`), unpickled by :func:`run_one` on the worker.
     A task whose worker died more often than the scheduler's ``allowed-failures`` (Dask's
-    ``KilledWorker``) or that could not be run at all gives a ``failed`` row with the reason. On an
-    exception (Ctrl-C) the futures not yet done are cancelled and the exception goes on.
+    ``KilledWorker``) or that could not be run at all gives a ``failed`` row with the reason. A run
+    that cannot be set up on its worker raises :class:`usv_mj.core.errors.WorkerSetupError` here, and
+    a cluster left without workers for ``lost_workers_s`` seconds (None: no limit) raises
+    :class:`usv_mj.core.errors.WorkerError`. On an exception (those, Ctrl-C) the futures not yet
+    done are cancelled and the exception goes on.
     """
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
-    from usv_mj.cli.kinds import worker_imports
+    from usv_mj.scenario.kinds import worker_imports
 
     token = uuid.uuid4().hex[:8]
     futures = {}
@@ -487,14 +602,16 @@ def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict
             imports = ()
         if imports:
             options = {**(options or {}), "imports": imports}
-        fut = client.submit(run_one, run.run_id, run.scenario, run.values, options,
+        fut = client.submit(run_one, run.run_id, pack(run.scenario), run.values, options,
                             key=f"{key_prefix}-{run.run_id}-{token}", pure=False, retries=0)
         futures[fut] = run
     try:
-        for fut in as_completed(list(futures)):
+        for fut in _waiting(as_completed(list(futures)), _WorkerWatch(client, lost_workers_s)):
             run = futures[fut]
             try:
                 row = fut.result()
+            except WorkerSetupError:
+                raise   # every run would fail the same way on that worker: the sweep stops here
             except KilledWorker as exc:
                 row = failed_row(run.run_id, run.values, f"worker died: the task was tried on a worker that "
                                  f"died, too many times (Dask KilledWorker: {exc})")
@@ -536,7 +653,8 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
               resume: bool = False, keep_logs: bool = False, progress: bool = True, flush_every: float = 2.0,
               client=None, echo: Callable[[str], None] | None = print, report: bool = True,
               max_runs: int | None = None, jobqueue: str | None = None, jobs: int = 1,
-              retry_failed: bool = False, log_rate: float | None = None) -> SweepResult:
+              retry_failed: bool = False, log_rate: float | None = None,
+              lost_workers_s: float | None = LOST_WORKERS_S) -> SweepResult:
     """Run the plan's missing runs on Dask, streaming rows into ``out/results.parquet``; then the report.
 
     ``client``: an existing ``distributed.Client`` (else one is opened by :func:`open_client`).
@@ -544,9 +662,11 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     ``jobqueue``, ``jobs``: run on a batch system through dask-jobqueue (see :func:`open_client`).
     ``retry_failed``: with ``resume``, run the ``failed`` rows again too (a worker that died of a
     lack of memory, say); diverged runs are results and stay. ``log_rate`` [Hz]: with ``keep_logs``,
-    each log holds every n-th control step (``RunLogWriter.sink(log_every=n)``).
+    each log holds every n-th control step (``RunLogWriter.sink(log_every=n)``). ``lost_workers_s``:
+    how long to wait on a cluster that lost every worker (see :func:`gather_rows`).
     Raises :class:`SweepError` when ``out`` already holds results and ``resume`` is False, or holds
-    results of another plan. KeyboardInterrupt propagates after the rows so far are written.
+    results of another plan. KeyboardInterrupt and :class:`usv_mj.core.errors.WorkerError` (a run that
+    cannot be set up on its worker, a cluster without workers) propagate after the rows so far are written.
     """
     echo = echo or (lambda s: None)
     out = Path(out)
@@ -635,7 +755,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
                            file=sys.stderr)
             t_runs = time.perf_counter()
             try:
-                gather_rows(cl, tasks, on_row)
+                gather_rows(cl, tasks, on_row, lost_workers_s=lost_workers_s)
             finally:
                 timing["runs_s"] = time.perf_counter() - t_runs  # first submission to last result
 

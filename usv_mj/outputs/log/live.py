@@ -13,6 +13,18 @@ Pacing: ``speed`` = None logs as fast as the run makes rows (each viewer has a d
 is always written in full); ``speed`` = X holds log time / X to the wall clock (1: real time).
 The first chunk waits for a viewer to subscribe (up to ``wait_s``; None: until one does), so that a
 viewer opened after the command sees the run from its start. Loopback (127.0.0.1) only by default.
+
+Subprotocols: a viewer names the protocol in its WebSocket handshake. foxglove-sdk's server accepts
+``foxglove.sdk.v1`` only, and answers any other offer with HTTP 400 (its handshake,
+``rust/foxglove/src/websocket/handshake.rs``, a constant the Python API cannot change): what the
+Foxglove app offers since the SDK (and foxglove_bridge 3) came. Foxglove Studio up to 1.87, Lichtblick
+before its ``foxglove.sdk.v1`` support and other ``@foxglove/ws-protocol`` clients offer
+``foxglove.websocket.v1`` only: the same protocol under its first name (the ws-protocol
+specification; Foxglove's own word is that the two are identical for now). So the port the user
+names is a small loopback relay (:class:`_SubprotocolRelay`) in front of the SDK's server: a
+handshake offering ``foxglove.websocket.v1`` without ``foxglove.sdk.v1`` is passed on as
+``foxglove.sdk.v1`` and answered with the name the viewer offered; every byte after the handshake is
+passed on as it is. :data:`SUBPROTOCOLS` are the names accepted; any other offer still gets HTTP 400.
 """
 
 from __future__ import annotations
@@ -30,6 +42,11 @@ SETTLE_S = 0.3           # after the first subscription, wait until none came fo
 _MESSAGE = 0x05
 _HEAD = struct.Struct("<BQHIQQ")   # opcode, record length, channel, sequence, log time, publish time
 INSTALL_HINT = 'live viewing needs the foxglove-sdk package: pip install "usv_mj[live]"'
+SDK_SUBPROTOCOL = "foxglove.sdk.v1"              # the only name foxglove-sdk's server accepts
+OLD_SUBPROTOCOL = "foxglove.websocket.v1"        # the ws-protocol specification's name of the same protocol
+SUBPROTOCOLS = (SDK_SUBPROTOCOL, OLD_SUBPROTOCOL)
+HANDSHAKE_LIMIT = 64 * 1024                      # bytes of an HTTP upgrade request or response head
+HANDSHAKE_S = 10.0                               # s to receive a handshake before the connection is dropped
 
 
 def layout_path() -> str:
@@ -75,6 +92,140 @@ class _Listener:
             self.changed.notify_all()
 
 
+def _head(sock, limit: int = HANDSHAKE_LIMIT) -> tuple[bytes, bytes]:
+    """Read an HTTP head (to its blank line) from ``sock``: (head with its blank line, bytes after it)."""
+    buf = b""
+    while b"\r\n\r\n" not in buf:
+        if len(buf) > limit:
+            raise OSError("handshake too long")
+        data = sock.recv(4096)
+        if not data:
+            raise OSError("closed during the handshake")
+        buf += data
+    end = buf.index(b"\r\n\r\n") + 4
+    return buf[:end], buf[end:]
+
+
+def _protocol_lines(head: bytes) -> tuple[list, list]:
+    """(the head's lines, the tokens of its Sec-WebSocket-Protocol headers)."""
+    lines = head[:-4].split(b"\r\n")
+    tokens = []
+    for line in lines[1:]:
+        name, _, value = line.partition(b":")
+        if name.strip().lower() == b"sec-websocket-protocol":
+            tokens += [t.strip().decode("latin-1") for t in value.split(b",") if t.strip()]
+    return lines, tokens
+
+
+def _with_protocol(lines: list, protocol: str) -> bytes:
+    """The head of ``lines`` with one Sec-WebSocket-Protocol header, ``protocol``."""
+    kept = [l for l in lines if l.partition(b":")[0].strip().lower() != b"sec-websocket-protocol"]
+    return b"\r\n".join(kept + [b"Sec-WebSocket-Protocol: " + protocol.encode()]) + b"\r\n\r\n"
+
+
+class _SubprotocolRelay:
+    """The TCP port viewers connect to, passing every connection on to the SDK's server on
+    ``inner_port`` (127.0.0.1), with the handshake of a ``foxglove.websocket.v1`` viewer renamed
+    (module docstring). A thread accepts; two threads a connection copy bytes until either side closes."""
+
+    def __init__(self, host: str, port: int, inner_port: int):
+        import socket
+
+        self.inner_port = inner_port
+        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        self.listener = socket.create_server((host, port), family=family)
+        self.port = self.listener.getsockname()[1]
+        self._open: set = set()
+        self._lock = threading.Lock()
+        self._closed = False
+        threading.Thread(target=self._accept, name="usv_mj-live-relay", daemon=True).start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                client, _ = self.listener.accept()
+            except OSError:   # closed
+                return
+            threading.Thread(target=self._serve, args=(client,), daemon=True).start()
+
+    def _track(self, *socks) -> bool:
+        with self._lock:
+            if self._closed:
+                return False
+            self._open.update(socks)
+            return True
+
+    def _serve(self, client) -> None:
+        import socket
+
+        upstream = None
+        try:
+            if not self._track(client):
+                client.close()
+                return
+            client.settimeout(HANDSHAKE_S)
+            head, rest = _head(client)
+            lines, offered = _protocol_lines(head)
+            alias = OLD_SUBPROTOCOL if OLD_SUBPROTOCOL in offered and SDK_SUBPROTOCOL not in offered else None
+            if alias:
+                head = _with_protocol(lines, SDK_SUBPROTOCOL)
+            upstream = socket.create_connection(("127.0.0.1", self.inner_port), timeout=HANDSHAKE_S)
+            if not self._track(upstream):
+                return
+            upstream.sendall(head + rest)
+            head, rest = _head(upstream)
+            if alias:
+                lines, chosen = _protocol_lines(head)
+                if chosen == [SDK_SUBPROTOCOL]:
+                    head = _with_protocol(lines, alias)
+            client.sendall(head + rest)
+            client.settimeout(None)
+            upstream.settimeout(None)
+            back = threading.Thread(target=self._pipe, args=(upstream, client), daemon=True)
+            back.start()
+            self._pipe(client, upstream)
+            back.join()
+        except OSError:
+            pass
+        finally:
+            for sock in (client, upstream):
+                if sock is not None:
+                    with self._lock:
+                        self._open.discard(sock)
+                    sock.close()
+
+    @staticmethod
+    def _pipe(src, dst) -> None:
+        import socket
+
+        try:
+            while True:
+                data = src.recv(65536)
+                if not data:
+                    break
+                dst.sendall(data)
+        except OSError:
+            pass
+        for sock in (dst, src):   # one side ended: end the other, so its pipe ends too
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def close(self) -> None:
+        import socket
+
+        with self._lock:
+            self._closed = True
+            socks = list(self._open)
+        self.listener.close()
+        for sock in socks:
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+
 class LiveServer:
     """A Foxglove WebSocket server fed with MCAP chunks (module docstring).
 
@@ -94,12 +245,17 @@ class LiveServer:
         self._say = say or (lambda text: print(text, file=sys.stderr, flush=True))
         self.context = foxglove.Context()
         self.listener = _Listener()
-        try:
-            self.server = foxglove.start_server(name="usv_mj", host=host, port=port, context=self.context,
+        try:   # the SDK's server on a free loopback port, behind the relay on the user's (module docstring)
+            self.server = foxglove.start_server(name="usv_mj", host="127.0.0.1", port=0, context=self.context,
                                                 server_listener=self.listener, message_backlog_size=BACKLOG)
         except Exception as exc:  # noqa: BLE001 - the SDK raises its own error types
+            raise ScenarioError(f"--live-port {port}: cannot start the Foxglove server ({exc})") from None
+        try:
+            self.relay = _SubprotocolRelay(host, port, int(self.server.port))
+        except OSError as exc:
+            self.server.stop()
             raise ScenarioError(f"--live-port {port}: cannot serve on {host}:{port} ({exc})") from None
-        self.host, self.port = host, int(self.server.port)
+        self.host, self.port = host, int(self.relay.port)
         self._channels: dict = {}      # (id of the file writer, MCAP channel id) -> foxglove.Channel
         self._waited = False
         self._clock: dict = {}         # per file: (wall [s], log time [ns]) of its first message paced
@@ -223,4 +379,5 @@ class LiveServer:
         for ch in self._channels.values():
             ch.close()
         self._channels.clear()
+        self.relay.close()
         self.server.stop()

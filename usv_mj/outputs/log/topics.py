@@ -81,7 +81,7 @@ from __future__ import annotations
 
 import json
 
-from usv_mj.controllers.base import FUNNEL_FIELDS, REF_FIELDS
+from usv_mj.core.layouts import FUNNEL_FIELDS, REF_FIELDS
 from usv_mj.record.run_record import COLUMNS, CONTROL_FIELDS, CORE_COLUMNS, STATE_FIELDS
 from usv_mj.outputs.log.protobuf_rows import Message, file_descriptor_set, flat_message
 

@@ -10,17 +10,22 @@ simulating again. Public API::
 
 ``RenderWorkers(...)`` starts the rendering processes ahead of time (they warm up while the run is
 simulated); pass it as ``render_run(..., pool=workers)``. ``check_gl()`` returns the backend in use ("egl" or "osmesa") or raises RuntimeError saying which
-Debian packages to install. ``add_arguments(parser)`` / ``run_command(args)`` make ``usv-mj render
-RUN``; ``add_video_arguments(parser)`` / ``video_options(args)`` give ``usv-mj run`` the same options.
+Debian packages to install. The command ``usv-mj render RUN`` and the video flags of ``usv-mj run``
+are :mod:`usv_mj.cli.render` and :mod:`usv_mj.cli.args` (the defaults and limits they show are
+:mod:`usv_mj.outputs.render.defaults`).
 
-Importing this package does not import mujoco (the backend must be chosen first).
+Importing this package imports neither numpy nor mujoco (the names below load on first use; the
+backend must be chosen before mujoco is imported).
 """
 
-from usv_mj.outputs.render.gl_backend import GLUnavailableError, install_message, select_backend
-from usv_mj.outputs.render.planner import LAYERS, FrameSpec, TopView, plan_frames
-from usv_mj.outputs.render.video import (RenderWorkers, add_arguments, add_video_arguments, check_gl, load_run_record, render_frames,
-                    render_run, run_command, video_options)
+from usv_mj.core.lazy_names import lazy_names
 
-__all__ = ["render_run", "RenderWorkers", "render_frames", "check_gl", "add_arguments", "add_video_arguments", "video_options",
-           "run_command", "load_run_record", "plan_frames", "FrameSpec", "TopView", "LAYERS",
-           "GLUnavailableError", "install_message", "select_backend"]
+_WHERE = {
+    "GLUnavailableError": "gl_backend", "install_message": "gl_backend", "select_backend": "gl_backend",
+    "LAYERS": "planner", "FrameSpec": "planner", "TopView": "planner", "plan_frames": "planner",
+    "RenderWorkers": "video", "check_gl": "video", "load_run_record": "video", "render_frames": "video",
+    "render_run": "video",
+}
+__getattr__, __dir__, _ = lazy_names(__name__, {name: "." + module for name, module in _WHERE.items()})
+__all__ = ["render_run", "RenderWorkers", "render_frames", "check_gl", "load_run_record", "plan_frames", "FrameSpec",
+           "TopView", "LAYERS", "GLUnavailableError", "install_message", "select_backend"]

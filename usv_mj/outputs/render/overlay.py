@@ -8,15 +8,20 @@ What it shows (values of one record row, see :mod:`usv_mj.record.run_record`):
   |z_i| < 0.8, amber below 1, red at or beyond the funnel (|z_i| >= 1, a violation). e1, e2 in m,
   e3 in degrees;
 - the controls: the law's output tau (outline), the quantized command Q(tau) (a thin marker) and
-  the force the actuators realized, which the plant received (filled bar; red while saturated),
-  for surge tau_u [N] and yaw tau_r [N m], on a symmetric scale ``tau_*_scale`` fixed for the whole
-  video (the planner's 99th percentile of |tau|, or 1.25 x the actuators' limit when they have one;
-  a clipped bar ends in a triangle); the actuators' limits ``tau_*_limits`` are red ticks;
-  On a ruddered vessel (``values["channels"]``, usv_mj.builder.channels_of) the rows are the
-  propeller's n_P [1/s] and the rudder angle [deg]: "rudder" (the open-loop and zig-zag controllers:
-  every bar is n_P / delta) or "allocated" (a force controller: the bars are its force and moment,
-  the text the n_P and delta they were allocated to);
-- a legend of the 3-D layers (wake trail, reference path ahead, ghost hull, funnel box).
+  the force the actuators realized, which the plant received (filled bar; red while saturated; its
+  value printed after the bar as "applied"), for surge tau_u [N] and yaw tau_r [N m], on a
+  symmetric scale ``tau_*_scale`` fixed for the whole video (the planner's 99th percentile of
+  |tau|, or 1.25 x the actuators' limit when they have one; a clipped bar ends in a triangle); the
+  actuators' limits ``tau_*_limits`` are red ticks;
+  each row is named by its command channel and says the applied value f in the applied channel's
+  unit (``values["channels"]``: the planner's rows from the record's channels,
+  :class:`usv_mj.physics.channels.RunChannels`): on a ruddered vessel the propeller's n_P [1/s] and
+  the rudder angle [deg]; a force command allocated to them (``allocated``) has bars of its force
+  and moment, the text the n_P and delta they were allocated to;
+- a legend of the 3-D layers (wake trail, reference path ahead, ghost hull, funnel box, and the
+  obstacles' safety boundaries when the run has one: ``values["safety_boundary"]``);
+- in the top view (``values["view_half_m"]``: the half height of the picture [m]) a scale bar,
+  bottom right: a round length (1, 2 or 5 x 10^k m) near a fifth of the frame's width.
 
 A run without a funnel (``values["funnel"]`` False) shows its pose errors x - x_d, y - y_d and
 wrap(psi - psi_d) with no bound, and no funnel in the legend.
@@ -34,7 +39,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from usv_mj.outputs.render.planner import FUNNEL_OK_RGBA, GHOST_RGBA, PATH_RGBA, TRAIL_RGBA
+from usv_mj.outputs.render.planner import FUNNEL_OK_RGBA, GHOST_RGBA, PATH_RGBA, SAFETY_LINE_RGBA, TRAIL_RGBA
 
 TEXT = (235, 240, 245)
 DIM = (150, 160, 170)
@@ -131,9 +136,9 @@ def _tau_bar(draw, x, y, w, h, tau, q, scale, f=None, limits=None, saturated=Fal
             draw.rectangle(box, fill=colour)
         else:
             draw.rectangle(box, outline=colour, width=2)
-        if abs(v) > 1.0:  # clipped: an arrow head at the end
+        if abs(v) > 1.0:  # clipped: an arrow head at the end, pointing out, inside the bar's frame
             s = 1 if v > 0 else -1
-            draw.polygon([(xe, y), (xe, y + h), (xe + s * h * 0.6, y + h / 2)], fill=colour)
+            draw.polygon([(xe - s * h * 0.6, y), (xe - s * h * 0.6, y + h), (xe, y + h / 2)], fill=colour)
     if f is not None:  # the transmitted command, where it differs from what was applied
         try:
             vq = float(q) / scale
@@ -164,8 +169,47 @@ def draw_hud(frame: np.ndarray, values: dict, *, hud: bool = True, legend: bool 
     if hud:
         _draw_panel(frame, values, s)
     if legend:
-        _draw_legend(frame, s, values.get("funnel", True))
+        _draw_legend(frame, s, values.get("funnel", True), bool(values.get("safety_boundary")))
+        half = values.get("view_half_m")
+        if half is not None and math.isfinite(float(half)) and float(half) > 0:
+            draw_scale_bar(frame, 2.0 * float(half) / H)
     return frame
+
+
+def scale_bar_length(m_per_px: float, target_px: float) -> tuple[float, int]:
+    """The scale bar's length: the round length (1, 2 or 5 x 10^k m) nearest ``target_px`` pixels at
+    ``m_per_px``, and its length in pixels."""
+    target_m = target_px * m_per_px
+    k = math.floor(math.log10(target_m))
+    best = min((f * 10.0 ** e for e in (k - 1, k, k + 1) for f in (1, 2, 5)),
+               key=lambda L: abs(math.log(L / target_m)))
+    return best, int(round(best / m_per_px))
+
+
+def draw_scale_bar(frame: np.ndarray, m_per_px: float) -> tuple[float, int]:
+    """A scale bar bottom right of ``frame`` (a top-down view, ``m_per_px`` metres a pixel): a white bar
+    with end ticks and its length in m; returns (length [m], length [px])."""
+    H, W = frame.shape[:2]
+    s = H / 720.0
+    length_m, length_px = scale_bar_length(m_per_px, 0.2 * W)
+    pad, m = int(round(14 * s)), int(round(12 * s))
+    font = hud_font(round(15 * s))
+    w, h = length_px + 2 * m, int(46 * s)
+    x1, y1 = W - pad, H - pad
+    x0, y0 = max(0, x1 - w), max(0, y1 - h)
+    if x1 - x0 < length_px or y1 - y0 < 10:
+        return length_m, length_px
+    img = _darken(frame, x0, y0, x1, y1)
+    d = ImageDraw.Draw(img)
+    yb = h - int(12 * s)
+    thick = max(2, int(round(3 * s)))
+    d.rectangle([m, yb - thick // 2, m + length_px - 1, yb + thick // 2], fill=TEXT)
+    for xe in (m, m + length_px - 1):
+        d.line([xe, yb - int(7 * s), xe, yb + int(4 * s)], fill=TEXT, width=max(1, thick // 2))
+    text = f"{length_m:g} m"
+    d.text((m + length_px / 2 - d.textlength(text, font=font) / 2, int(4 * s)), text, font=font, fill=TEXT)
+    frame[y0:y1, x0:x1] = np.asarray(img)
+    return length_m, length_px
 
 
 def _draw_panel(frame, values, s):
@@ -208,40 +252,55 @@ def _draw_panel(frame, values, s):
         y += int(27 * s)
     y += int(4 * s)
     applied = values.get("f_u") is not None
-    channels = values.get("channels", "forces")
-    d.text((m, y), "control: tau (outline), applied (filled), limit (red)" if applied and channels != "allocated" else
+    channels = values.get("channels") or DEFAULT_CHANNELS
+    allocated = bool(channels.get("allocated"))
+    d.text((m, y), "control: tau (outline), applied f (filled), limit (red)" if applied and not allocated else
            "control: tau (outline), Q(tau) (filled); allocated to" if applied else
            "control: law tau (outline), Q(tau) (filled)", font=tiny, fill=DIM)
     y += int(20 * s)
-    rows = (("tau_u", "u", "N", 1.0, "F"), ("tau_r", "r", "Nm", 1.0, "F"))
-    if channels == "rudder":
-        rows = (("n_P", "u", "1/s", 1.0, "n"), ("delta", "r", "deg", 180.0 / math.pi, "d"))
-    elif channels == "allocated":
-        rows = (("tau_u", "u", "1/s", 1.0, "n_P"), ("tau_r", "r", "deg", 180.0 / math.pi, "delta"))
+    rows = [(label, key, unit, k, tag if allocated else "applied")
+            for (label, tag, unit, k), key in zip(channels["rows"], ("u", "r"))]
     for label, key, unit, k, tag in rows:
         tau, q, f = values.get(f"tau_{key}"), values.get(f"q_tau_{key}"), values.get(f"f_{key}")
         sat = bool(values.get(f"sat_{key}") or 0.0)
         d.text((m, y), label, font=small, fill=TEXT)
         # allocated: the bar is the force (the law's and the transmitted command), f is not a force
-        bar_f = None if channels == "allocated" else f
+        bar_f = None if allocated else f
         _tau_bar(d, m + label_w, y + int(2 * s), bar_w, bar_h, tau, q, values.get(f"tau_{key}_scale"), bar_f,
                  values.get(f"tau_{key}_limits"), sat)
         if f is None:
             d.text((m + label_w + bar_w + int(10 * s), y), f"Q {_fmt(q, '+8.3g')} {unit}", font=tiny, fill=QUANT)
         else:
-            fv = None if f is None else float(f) * k
-            d.text((m + label_w + bar_w + int(10 * s), y),
-                   f"{tag} {_fmt(fv, '+8.3g')} {unit}{' SAT' if sat else ''}", font=tiny, fill=BAD if sat else QUANT)
+            d.text((m + label_w + bar_w + int(10 * s), y), control_text(tag, f, k, unit, sat), font=tiny,
+                   fill=BAD if sat else QUANT)
         y += int(27 * s)
     frame[y0:y1, x0:x1] = np.asarray(img)
 
 
+#: the rows of a run whose channels are forces (a HUD made without the planner's channels)
+DEFAULT_CHANNELS = {"allocated": False, "rows": (("tau_u", "tau_u", "N", 1.0), ("tau_r", "tau_r", "N m", 1.0))}
+
+
+def control_text(tag: str, f, k: float, unit: str, sat: bool) -> str:
+    """The words after a control bar: what the plant received, named ("applied", or the quantity an
+    allocated force became), its value times ``k`` in ``unit``, and SAT while an actuator limit cut it."""
+    fv = None if f is None else float(f) * k
+    return f"{tag} {_fmt(fv, '+8.3g')} {unit}{' SAT' if sat else ''}"
+
+
 LEGEND = (("wake trail", TRAIL_RGBA), ("reference path ahead", PATH_RGBA), ("reference (ghost hull)", GHOST_RGBA),
           ("funnel |e1|<rho1, |e2|<rho2", FUNNEL_OK_RGBA))
+SAFETY_ENTRY = ("obstacle safety boundary", SAFETY_LINE_RGBA)
 
 
-def _draw_legend(frame, s, funnel: bool = True):
-    entries = LEGEND if funnel else LEGEND[:-1]  # the funnel box is the last entry
+def legend_entries(funnel: bool = True, safety_boundary: bool = False) -> tuple:
+    """The legend's (label, RGBA) entries: the funnel box only for a run judged by the funnel, the
+    obstacles' safety boundary only for a run that has one."""
+    return (LEGEND if funnel else LEGEND[:-1]) + ((SAFETY_ENTRY,) if safety_boundary else ())
+
+
+def _draw_legend(frame, s, funnel: bool = True, safety_boundary: bool = False):
+    entries = legend_entries(funnel, safety_boundary)
     H, W = frame.shape[:2]
     pad = int(round(14 * s))
     w, h = int(300 * s), int(len(entries) * 22 * s + 14 * s)
@@ -312,3 +371,16 @@ def draw_sea_arrows(frame: np.ndarray, current_xy, wind_speed: float, wind_direc
         d.text((cx + size // 2 + int(8 * s), cy - int(2 * s)), _fmt(speed, ".2f", " m/s"), font=small, fill=TEXT)
     frame[y0:y1, x0:x1] = np.asarray(img)
     return frame
+
+
+def draw_labels(frame: np.ndarray, labels) -> None:
+    """Each (text, pixel x, pixel y, rgb) of ``labels`` written onto ``frame`` (a fleet's vessel names
+    beside their hulls), with a dark outline so that it reads on the water."""
+    h, w = frame.shape[:2]
+    font = hud_font(max(12, round(16 * h / 720)))
+    img = Image.fromarray(frame)
+    d = ImageDraw.Draw(img)
+    for text, x, y, rgb in labels:
+        if 0 <= x < w and 0 <= y < h:
+            d.text((x, y), text, font=font, fill=tuple(rgb), stroke_width=2, stroke_fill=(10, 20, 30))
+    frame[:] = np.asarray(img)

@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from usv_mj.physics.channels import RunChannels
+
 #: Colours (RGBA, 0..1) of the 3-D layers, shared with the overlay's legend.
 TRAIL_RGBA = (1.0, 1.0, 1.0, 0.85)
 PATH_RGBA = (1.0, 0.84, 0.10, 0.95)
@@ -35,6 +37,8 @@ GHOST_RGBA = (0.35, 0.95, 1.0, 0.38)
 FUNNEL_OK_RGBA = (0.25, 0.95, 0.45, 0.95)
 FUNNEL_BAD_RGBA = (1.0, 0.25, 0.2, 0.95)
 FUNNEL_FILL_ALPHA = 0.12
+#: an obstacle's inflated safety boundary: magenta, apart from the path's yellow (they shared it: issue 34)
+SAFETY_LINE_RGBA = (1.0, 0.3, 0.85, 0.9)
 
 #: What can be drawn: 3-D layers, then the 2-D overlay ("hud" panel, "legend").
 LAYERS = ("trail", "path", "ghost", "funnel", "hud", "legend")
@@ -75,6 +79,10 @@ class FrameSpec:
     view: TopView | None = None
     hud: dict = field(default_factory=dict)
     world: object = None                             # usv_mj.outputs.render.world.RenderWorld (sea, obstacles) or None
+    # the other vessels of a fleet (add_fleet): (name, pose (x, y, psi), trail (n, 2), rgba, (L, B) [m])
+    others: tuple = ()
+    own_name: str = ""                               # the own ship's name (a fleet's; "" for a single run)
+    domain: float = 0.0                              # the own ship's safety domain radius [m] (0: none drawn)
 
 
 @dataclass
@@ -360,9 +368,12 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
     trail_xy = np.stack([_take(record, "x", trail_rows), _take(record, "y", trail_rows)], axis=-1)
     path_xy = np.stack([_take(record, "x_d", path_rows), _take(record, "y_d", path_rows)], axis=-1)
     md = getattr(record, "metadata", {}) or {}
-    channels = md.get("channels", "forces")   # usv_mj.builder.channels_of
-    # allocated: the actuators' limits are n_P's and the rudder's, not the force bars'
-    lim_u, lim_r = _actuator_limits(md) if channels != "allocated" else (None, None)
+    run = RunChannels.from_metadata(md.get("channels"))   # what tau and f hold (usv_mj.physics.channels)
+    # the bars are the command's (tau, Q(tau)); the text beside them the applied f in its own unit
+    channels = {"allocated": run.allocated,
+                "rows": tuple((c.symbol, a.symbol, a.display_unit, a.shown_factor) for c, a in zip(run.command, run.applied))}
+    # allocated: the actuators' limits are the applied channels' (n_P's, the rudder's), not the bars'
+    lim_u, lim_r = _actuator_limits(md) if not run.allocated else (None, None)
     scale_u = _bar_scale(lim_u, tau["tau_u"], tau["q_tau_u"])
     scale_r = _bar_scale(lim_r, tau["tau_r"], tau["q_tau_r"])
     vessel = ((md.get("scenario") or {}).get("vessel") or {}).get("kind", "paper")
@@ -379,6 +390,8 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
         obstacle_table = np.array([(*o["center"], *o["velocity"], _bounding_radius(o))
                                    for o in json.loads(world.obstacles)], float).reshape(-1, 5)
 
+    # the legend names the safety boundary when one is drawn (an obstacle with an inflation > 0)
+    safety = world is not None and any(math.isfinite(v) and v > 0 for v in world.inflation or ())
     frames = []
     for j in range(len(rows)):
         k = j   # the frame's row in ``sub``
@@ -407,6 +420,8 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
             pts += _obstacles_near(obstacle_table, float(t[k]), float(x[k]), float(y[k]))
         view = top_view(np.array(pts, float), aspect, min_half)
         hud = {"t": float(t[k]), "t_end": t1, "speedup": played, "title": title, "camera": camera, "funnel": funnel,
+               "safety_boundary": safety,
+               "view_half_m": view.half_height if camera == "top" else None,
                "e": tuple(float(e[i][k]) for i in range(3)), "rho": tuple(float(rho[i][k]) for i in range(3)),
                "tau_u": float(tau["tau_u"][k]), "q_tau_u": float(tau["q_tau_u"][k]),
                "tau_r": float(tau["tau_r"][k]), "q_tau_r": float(tau["q_tau_r"][k]),
@@ -417,3 +432,47 @@ def plan_frames(record, *, fps: float = 30.0, speedup: float | None = None, widt
         frames.append(FrameSpec(j, float(t[k]), (float(x[k]), float(y[k]), float(psi[k])), ref, fc, fh, ok,
                                 trail, path, view, hud, world))
     return Plan(frames, rows, t0, t1, sp, played, float(fps), eps)
+
+
+#: the other vessels' colours in a fleet's video (the own ship is the model's hull)
+VESSEL_RGBA = ((0.95, 0.55, 0.10, 0.95), (0.55, 0.35, 0.85, 0.95), (0.15, 0.70, 0.45, 0.95),
+               (0.90, 0.25, 0.45, 0.95), (0.30, 0.60, 0.95, 0.95), (0.75, 0.75, 0.20, 0.95))
+
+
+def add_fleet(plan: Plan, fleet, width: int, height: int, trail_s: float | None = None, segments: int = 48,
+              domain: float = 0.0) -> Plan:
+    """The frames of ``plan`` (made from the own ship's record of ``fleet``, a
+    :class:`usv_mj.record.fleet.FleetRecord`) with every other vessel at the frame's row: its pose,
+    its wake trail, its colour (:data:`VESSEL_RGBA`) and size, the own ship's safety domain
+    (``domain`` [m]) and a top view that holds every vessel."""
+    own = fleet.own_record
+    n = valid_rows(own)
+    trail_s = max(10.0, 3.0 * plan.played_speedup) if trail_s is None else float(trail_s)
+    aspect = width / height
+    others = [name for name in fleet.names if name != fleet.own]
+    dims = {}
+    for name in fleet.names:
+        from usv_mj.outputs.render.world import hull_dimensions
+
+        hull = hull_dimensions(fleet[name])
+        dims[name] = (hull[0], hull[1]) if hull is not None else (1.98, 0.76)
+    for j, spec in enumerate(plan.frames):
+        k = int(plan.rows[j])
+        items, pts = [], [spec.pose[:2]]
+        trail_rows, _ = frame_rows(own, n, np.array([k]), trail_s, 0.0, segments)
+        for c, name in enumerate(others):
+            rec = fleet[name]
+            pose = tuple(float(rec[col][k]) for col in ("x", "y", "psi"))
+            trail = np.stack([_take(rec, "x", trail_rows[0]), _take(rec, "y", trail_rows[0])], axis=-1)
+            items.append((name, pose, trail, VESSEL_RGBA[c % len(VESSEL_RGBA)], dims[name]))
+            if all(math.isfinite(v) for v in pose[:2]):
+                pts.append(pose[:2])
+        if spec.view is not None and len(pts) > 1:
+            # every vessel in the picture, never closer than the own ship's own view
+            spec.view = top_view(np.array(pts + [(spec.view.cx, spec.view.cy)], float), aspect,
+                                 spec.view.half_height)
+        spec.others = tuple(items)
+        spec.own_name = fleet.own
+        spec.domain = float(domain)
+        spec.hud["title"] = f"{len(fleet.names)} vessels / " + spec.hud.get("title", "")
+    return plan

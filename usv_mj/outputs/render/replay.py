@@ -44,9 +44,7 @@ import numpy as np
 import mujoco
 
 from usv_mj.outputs.render.planner import (FUNNEL_BAD_RGBA, FUNNEL_FILL_ALPHA, FUNNEL_OK_RGBA, GHOST_RGBA, LAYERS, PATH_RGBA,
-                      TRAIL_RGBA, FrameSpec, TopView)
-
-SAFETY_LINE_RGBA = (1.0, 0.8, 0.1, 0.9)   # inflated safety boundary (as the Foxglove scene's)
+                      SAFETY_LINE_RGBA, TRAIL_RGBA, FrameSpec, TopView)
 from usv_mj.support.assets import models_dir
 
 REPO_MODELS = models_dir()
@@ -180,12 +178,12 @@ def build_replay_model(model_path=None, *, width: int = 1280, height: int = 720,
     conaffinity = 0) of SEA_NODES x SEA_NODES nodes that :meth:`FrameRenderer.update_sea` shows,
     re-centres, fills and uploads per frame when the run had a sea.
     ``hull``: the vessel's (L, B, T) [m] (:func:`usv_mj.outputs.render.world.hull_dimensions`): the model file's hull scaled to it
-    by the MuJoCo plant's own :func:`usv_mj.plants.mujoco_plant.scale_hull` (what the plant
+    by the MuJoCo plant's own :func:`usv_mj.scene.hull.scale_hull` (what the plant
     simulates is what is drawn); None: the file's hull (the paper's).
     """
     spec, label = load_scene_spec(model_path)
     if hull is not None:
-        from usv_mj.plants.mujoco_plant import scale_hull
+        from usv_mj.scene.hull import scale_hull
         from usv_mj.vessels import Dimensions
 
         scale_hull(spec, Dimensions(*hull))
@@ -469,6 +467,10 @@ class FrameRenderer:
             from usv_mj.outputs.render.overlay import draw_hud
 
             frame = draw_hud(frame, spec.hud, hud="hud" in self.layers, legend="legend" in self.layers)
+        if getattr(spec, "others", ()) and self.camera_name == "top" and spec.view is not None:
+            from usv_mj.outputs.render.overlay import draw_labels
+
+            draw_labels(frame, self._vessel_labels(spec))
         env = self.world.environment if self.world is not None else None
         if env is not None and "hud" in self.layers:
             from usv_mj.outputs.render.overlay import draw_sea_arrows
@@ -478,6 +480,15 @@ class FrameRenderer:
             draw_sea_arrows(frame, (float(current[0]), float(current[1])), speed, direction,
                             top_down=self.camera_name == "top")
         return frame
+
+    def _vessel_labels(self, spec: FrameSpec) -> list:
+        """(text, pixel x, pixel y, rgb) of each vessel's name beside its hull, in the top camera's picture."""
+        view, h, w = spec.view, self.height, self.width
+        scale = (h / 2.0) / view.half_height     # pixels per metre
+        out = [(spec.own_name or "own", spec.pose[0], spec.pose[1], (235, 235, 230))]
+        out += [(name, pose[0], pose[1], tuple(int(255 * c) for c in rgba[:3])) for name, pose, _, rgba, _ in spec.others]
+        return [(text, w / 2.0 + (x - view.cx) * scale + 12, h / 2.0 - (y - view.cy) * scale - 12, rgb)
+                for text, x, y, rgb in out if math.isfinite(x) and math.isfinite(y)]
 
     # --- user geoms --------------------------------------------------------------------------
 
@@ -555,6 +566,35 @@ class FrameRenderer:
                     fill.pos[:] = (cx, cy, z)
         if self.world is not None and self.world.obstacles:
             self._add_obstacle_outlines(spec, z, w)
+        if getattr(spec, "others", ()):
+            self._add_vessels(spec, z, w)
+
+    def _add_vessels(self, spec: FrameSpec, z: float, w: float) -> None:
+        """The other vessels of a fleet (planner.add_fleet): each hull as a box and a bow ellipsoid of
+        its length and beam (the model's hull shape, in its colour) at its pose, its wake trail, and
+        the own ship's safety domain as a circle about the own hull."""
+        for name, (x, y, psi), trail, rgba, (length, beam) in spec.others:
+            if "trail" in self.layers:
+                self._polyline(trail, z + 0.004, w, (*rgba[:3], 0.7), fade=True)
+            if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(psi)):
+                continue
+            c, s = math.cos(psi), math.sin(psi)
+            rot = np.array([c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0])
+            half_l, half_b = 0.5 * length, 0.5 * beam
+            for gtype, size, ahead in ((mujoco.mjtGeom.mjGEOM_BOX, (0.7 * half_l, half_b, 0.15 * half_b), -0.28 * half_l),
+                                       (mujoco.mjtGeom.mjGEOM_ELLIPSOID, (0.58 * half_l, half_b, 0.15 * half_b),
+                                        0.42 * half_l)):
+                g = self._new_geom(gtype, rgba)
+                if g is None:
+                    return
+                g.size[:] = size
+                g.pos[:] = (x + c * ahead, y + s * ahead, self.z_water + 0.05)
+                g.mat[:] = rot.reshape(3, 3)
+        if getattr(spec, "domain", 0.0) > 0:
+            x, y = spec.pose[0], spec.pose[1]
+            a = np.linspace(0.0, 2.0 * math.pi, 73)
+            self._polyline(np.c_[x + spec.domain * np.cos(a), y + spec.domain * np.sin(a)], z + 0.008, w,
+                           (1.0, 0.25, 0.2, 0.8))
 
     def close(self) -> None:
         """Free the GL resources, with this renderer's own context current (freeing one while

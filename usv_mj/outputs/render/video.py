@@ -1,4 +1,4 @@
-"""Rendering a finished run to an H.264 mp4 and a PNG still, on all cores, and the ``render`` command.
+"""Rendering a finished run to an H.264 mp4 and a PNG still, on all cores.
 
 Pipeline: the parent process plans the frames (:mod:`usv_mj.outputs.render.planner`, numpy only), a pool of
 worker processes each owning one GL context and one :class:`~usv_mj.outputs.render.replay.FrameRenderer` draws
@@ -14,7 +14,6 @@ mujoco the frames are drawn in the parent itself.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -23,13 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
-from usv_mj.outputs.render.gl_backend import GLUnavailableError, in_process_backend, renderer_name, select_backend
-from usv_mj.outputs.render.planner import LAYERS, Plan, plan_frames
-
-DEFAULT_WIDTH, DEFAULT_HEIGHT, DEFAULT_FPS = 1280, 720, 30
-CAMERAS_HELP = ("top (follows ship and reference from above, north up), chase (behind the hull), overview (fixed, "
-                "looking north over the start), chart (fixed, straight down over the origin: north up, east "
-                "right), or another camera of the model")
+from usv_mj.outputs.render.defaults import CAMERAS_HELP, MAX_FPS  # noqa: F401 (the renderer's limits, read here too)
+from usv_mj.outputs.render.defaults import DEFAULT_FPS, DEFAULT_HEIGHT, DEFAULT_WIDTH, check_size
+from usv_mj.outputs.render.gl_backend import GLUnavailableError  # noqa: F401 (what render_run raises)
+from usv_mj.outputs.render.gl_backend import in_process_backend, renderer_name, select_backend
+from usv_mj.outputs.render.planner import LAYERS, Plan, add_fleet, plan_frames
 
 
 # --- workers -------------------------------------------------------------------------------------
@@ -197,14 +194,6 @@ def check_camera(camera: str, model=None) -> None:
         raise ValueError(f"camera {camera!r} is not in the render model; choose one of {', '.join(names)}")
 
 
-def check_size(width, height):
-    for name, v in (("width", width), ("height", height)):
-        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 16 or v > 8192:
-            raise ValueError(f"{name} = {v!r}: the video size must be an integer number of pixels in [16, 8192]")
-        if v % 2:
-            raise ValueError(f"{name} = {v}: H.264 with yuv420p needs an even number of pixels")
-
-
 def _default_workers(n_frames: int) -> int:
     try:
         cores = len(os.sched_getaffinity(0))
@@ -219,17 +208,21 @@ def _default_workers(n_frames: int) -> int:
 def render_frames(record, *, width: int = 320, height: int = 240, camera: str = "top", rows=None,
                   fps: float = DEFAULT_FPS, speedup: float | None = None, max_frames: int | None = None,
                   layers=LAYERS, views=None, workers: int = 1, gl: str | None = None, model=None,
-                  shadows: bool = False, samples: int = 0, hull="record") -> list[np.ndarray]:
+                  shadows: bool = False, samples: int = 0, hull="record", fleet=None,
+                  domain: float = 0.0) -> list[np.ndarray]:
     """Frames of ``record`` as (height, width, 3) uint8 arrays, without writing a video.
 
     ``rows``: draw exactly these record rows (one frame each) instead of the video's time mapping.
     ``views``: a :class:`~usv_mj.outputs.render.planner.TopView` (or one per frame) to pin the top camera.
     ``hull``: the drawn hull's (L, B, T) [m]; "record" (default): the record's vessel's
     (:func:`usv_mj.outputs.render.world.hull_dimensions`); None: the model file's hull.
+    ``fleet``, ``domain``: every other vessel of a fleet too, as :func:`render_run` draws them.
     """
     check_size(width, height)
     plan = _plan(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera, max_frames=max_frames,
                  rows=rows)
+    if fleet is not None:
+        plan = add_fleet(plan, fleet, width, height, domain=domain)
     specs = plan.frames
     if views is not None:
         views = list(views) if isinstance(views, (list, tuple)) else [views] * len(specs)
@@ -261,7 +254,7 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
                workers: int | None = None, progress: bool = True, gl: str | None = None, model=None,
                shadows: bool = False, samples: int = 0, layers=LAYERS, crf: int = 23, preset: str = "ultrafast",
                max_frames: int | None = None, segment_frames: int = 120, pool: "RenderWorkers | None" = None,
-               hull="record") -> dict:
+               hull="record", fleet=None, domain: float = 0.0) -> dict:
     """Render ``record`` (a finished :class:`~usv_mj.record.run_record.RunRecord`) to an mp4 and a PNG of its last frame.
 
     Parameters
@@ -283,6 +276,9 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
         MuJoCo plant scales it (:func:`usv_mj.outputs.render.world.hull_dimensions`); None: the model file's.
     samples: multisampling. crf, preset: libx264 quality and speed (ultrafast: about 15 ms of CPU a
         720p frame, veryfast about 35 ms). max_frames: cap (tests).
+    fleet: the :class:`usv_mj.record.fleet.FleetRecord` whose own ship ``record`` is: every other
+        vessel drawn too (its hull, trail and name; :func:`usv_mj.outputs.render.planner.add_fleet`),
+        with the own ship's safety domain of ``domain`` [m] (0: none).
 
     Returns a dict: frames, fps (frames rendered and encoded per wall second, planning and start-up
     included), wall_s, mp4, png, width, height, video_fps, video_s, speedup (as played), camera,
@@ -316,6 +312,8 @@ def render_run(record, out_path, *, width: int = DEFAULT_WIDTH, height: int = DE
         backend = select_backend(gl)
     plan = plan_frames(record, fps=fps, speedup=speedup, width=width, height=height, camera=camera,
                        max_frames=max_frames)
+    if fleet is not None:
+        plan = add_fleet(plan, fleet, width, height, domain=domain)
     n = len(plan.frames)
     workers = _default_workers(n) if workers is None else max(1, min(int(workers), n))
     encoder = {"preset": preset, "crf": crf}
@@ -489,52 +487,6 @@ def check_gl(gl: str | None = None) -> str:
     return select_backend(gl)
 
 
-# --- command line --------------------------------------------------------------------------------
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """'1280x720' -> (1280, 720); argparse type."""
-    try:
-        w, h = (int(v) for v in str(text).lower().replace("*", "x").split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 1280x720") from None
-    try:
-        check_size(w, h)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"--size {text!r}: {exc}") from None
-    return w, h
-
-
-def _positive(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
-    return v
-
-
-MAX_FPS = 240.0  # frames per video second: more is no video a player shows, and the frames fill memory
-
-
-def _frame_rate(text: str) -> float:
-    v = _positive(text)
-    if v > MAX_FPS:
-        raise argparse.ArgumentTypeError(f"{text!r} is over {MAX_FPS:g} frames per second")
-    return v
-
-
-def _worker_count(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
-    return v
-
-
 def _remove_dead_render_folders(folder: Path) -> None:
     """The segment folders (``.render-PID-*``) that a killed render left in ``folder``."""
     import shutil
@@ -547,44 +499,6 @@ def _remove_dead_render_folders(folder: Path) -> None:
             shutil.rmtree(p, ignore_errors=True)
         except (ValueError, PermissionError, OSError):
             continue
-
-
-def add_video_arguments(parser: argparse.ArgumentParser) -> None:
-    """The video options shared by ``usv-mj run`` and ``usv-mj render`` (see :func:`video_options`)."""
-    g = parser.add_argument_group("video")
-    g.add_argument("--size", type=parse_size, default=(DEFAULT_WIDTH, DEFAULT_HEIGHT), metavar="WxH",
-                   help="video size in pixels (default 1280x720)")
-    g.add_argument("--fps", type=_frame_rate, default=DEFAULT_FPS, help="video frame rate, up to 240 (default 30)")
-    g.add_argument("--speedup", type=_positive, default=None,
-                   help="run seconds per video second (default: the run's duration / 30 s, at least 1)")
-    g.add_argument("--camera", default="top", help=CAMERAS_HELP + " (default top)")
-    g.add_argument("--workers", type=_worker_count, default=None, help="rendering processes (default: all cores)")
-    g.add_argument("--gl", choices=("auto", "egl", "osmesa", "glfw"), default=None,
-                   help="OpenGL backend (default: $MUJOCO_GL, else EGL, else OSMesa)")
-    g.add_argument("--shadows", action="store_true", help="draw shadows (about 2x slower on Mesa)")
-
-
-def video_options(args: argparse.Namespace) -> dict:
-    """Keyword arguments of :func:`render_run` from parsed :func:`add_video_arguments` options."""
-    w, h = args.size
-    return {"width": w, "height": h, "fps": args.fps, "speedup": args.speedup, "camera": args.camera,
-            "workers": args.workers, "gl": args.gl, "shadows": args.shadows}
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Arguments of ``usv-mj render RUN``."""
-    parser.add_argument("run", metavar="RUN", help="a run directory (holding run.mcap) or an .mcap file")
-    parser.add_argument("--out", default=None,
-                        help="the .mp4 to write, or a folder that exists (the video goes in it as run.mp4, or "
-                             "<stem>.mp4 for an .mcap file; default: beside the run)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    from usv_mj.outputs.outdir import add_overwrite_argument
-
-    add_overwrite_argument(parser, "the .mp4 and its .png still when usv_mj wrote them")
-    add_video_arguments(parser)
-    from usv_mj.cli.args import add_live_arguments
-
-    add_live_arguments(parser)   # --live: replay the log to Foxglove instead of drawing a video
 
 
 def load_run_record(path: str | os.PathLike):
@@ -640,53 +554,3 @@ def output_path(out, run_path, mcap_path: Path) -> Path:
         return default
     p = Path(out)
     return p / default.name if p.is_dir() else p
-
-
-def run_command(args: argparse.Namespace) -> int:
-    """``usv-mj render RUN``: 0 on success, 2 on bad input, 3 when no OpenGL backend starts."""
-    try:
-        stored = stored_record(args.run) if not getattr(args, "live", False) else None
-        if stored is not None:   # a long run's record on disk: read lazily, only the rows drawn
-            record, mcap = stored
-            log = None
-        else:
-            log, mcap = load_run_log(args.run)
-            record = log.record
-    except (FileNotFoundError, ValueError, RuntimeError) as exc:
-        print(f"usv-mj render: error: {exc}", file=sys.stderr)
-        return 2
-    if log is None and record.status != "completed":
-        print(f"usv-mj render: warning: the run's record says {record.status}: {record.stop_reason}", file=sys.stderr)
-    elif log is not None and log.notice:
-        print(f"usv-mj render: warning: the log is incomplete, the video shows what was recovered: {log.notice}",
-              file=sys.stderr)
-    if getattr(args, "live", False):
-        from usv_mj.cli.args import live_server
-
-        live = live_server(args)
-        n = live.replay(mcap)
-        live.finish()
-        print(f"usv-mj render: served {n} messages of {mcap} live")
-        return 0
-    out = output_path(args.out, args.run, mcap)
-    try:
-        from usv_mj.outputs.outdir import check_file, record_file
-
-        check_file(out, args.overwrite)
-    except ValueError as exc:
-        print(f"usv-mj render: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        result = render_run(record, out, progress=not args.no_progress, **video_options(args))
-        record_file(out)
-    except GLUnavailableError as exc:
-        print(f"usv-mj render: {exc}", file=sys.stderr)
-        return 3
-    except ValueError as exc:
-        print(f"usv-mj render: error: {exc}", file=sys.stderr)
-        return 2
-    print(f"video {result['mp4']} ({result['frames']} frames, {result['width']}x{result['height']} at "
-          f"{result['video_fps']:g} fps, {result['speedup']:.3g}x) and still {result['png']}")
-    print(f"rendered {result['fps']:.1f} frames/s in {result['wall_s']:.1f} s on {result['workers']} "
-          f"worker(s), GL {result['gl']} ({result['gl_renderer'] or 'unknown renderer'})")
-    return 0

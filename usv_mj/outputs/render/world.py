@@ -85,7 +85,7 @@ def hull_dimensions(source) -> tuple[float, float, float] | None:
     if vessel is None:
         md = getattr(source, "metadata", None)
         from usv_mj.core.errors import ScenarioError
-        from usv_mj.vessels import of_table
+        from usv_mj.scenario.spec import vessel_of_table as of_table
 
         try:
             model = of_table(md.get("scenario") if isinstance(md, dict) else source)

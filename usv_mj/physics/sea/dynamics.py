@@ -25,14 +25,8 @@ from numba import njit
 from usv_mj.physics.ship import P_M11, P_M22, P_M23, P_M33, array3, derivative_into, hull_terms
 
 from usv_mj.physics.sea.environment import environment_loads
-from usv_mj.physics.sea.layout import (E_CURRENT_ON, E_WAVES_ON, E_WIND_ON, L_DRIFT, L_NU_C, L_NU_C_DOT, L_WAVE1,
-                     L_WIND, N_ENV_PARAMS, N_WAVE_COLS)
-
-
-@njit(cache=True)
-def is_calm(ep):
-    """True when the packed environment ``ep`` has no waves, current or wind (the sea's terms absent)."""
-    return ep[E_WAVES_ON] == 0.0 and ep[E_CURRENT_ON] == 0.0 and ep[E_WIND_ON] == 0.0
+from usv_mj.physics.sea.layout import (L_DRIFT, L_NU_C, L_NU_C_DOT, L_WAVE1, L_WIND, N_ENV_PARAMS, N_WAVE_COLS,
+                                       is_calm)
 
 
 @njit(cache=True)

@@ -232,9 +232,8 @@ class Environment:
     @property
     def calm(self) -> bool:
         """True when no load is on (the dynamics then equal usv_mj.physics.ship's bit for bit)."""
-        from usv_mj.physics.sea.dynamics import is_calm  # the kernels' own test (dynamics imports this module)
 
-        return bool(is_calm(self._ep))
+        return bool(lay.is_calm(self._ep))
 
     @property
     def amplitude_bound(self) -> float:
@@ -375,3 +374,16 @@ class Environment:
         self._check_time(ts)
         return environment_loads_record(self._ep, self._waves, self._current_grid, self._wind_grid,
                                         ts, etas, nus)
+
+
+#: a run's sea is made a little past the run's end [s] (its slowly varying grids reach it)
+RUN_MARGIN_S = 1.0
+
+
+def run_sea(settings: SeaSettings, ship: ShipParams, duration: float):
+    """The sea of a run of ``duration`` [s] on ``ship`` (its OU grids made to ``duration`` +
+    :data:`RUN_MARGIN_S`), or None when ``settings`` is calm: what every plant of a run gets
+    (:func:`usv_mj.builder.make_environment`, :func:`usv_mj.attach_hydrodynamics`)."""
+    if settings.calm:
+        return None
+    return Environment(settings, ship=ship, t_max=float(duration) + RUN_MARGIN_S)

@@ -20,6 +20,9 @@ Past the end of a grid the kernels hold the last value (slope 0): call
 ``Environment.ensure_horizon(t_end)`` before taking the arrays for a run.
 """
 
+from numba import njit
+
+
 # --- ep: environment scalars ----------------------------------------------------------------------
 E_LENGTH = 0          # L [m]
 E_BEAM = 1            # B [m]
@@ -61,3 +64,9 @@ L_WIND = 6            # tau_wind (3) [N, N, N m]
 L_WAVE1 = 9           # s(t) tau_wave1 (3), ramp applied
 L_DRIFT = 12          # s(t)^2 tau_drift (3), ramp applied
 N_LOADS = 15
+
+
+@njit(cache=True)
+def is_calm(ep):
+    """True when the packed environment ``ep`` has no waves, current or wind (the sea's terms absent)."""
+    return ep[E_WAVES_ON] == 0.0 and ep[E_CURRENT_ON] == 0.0 and ep[E_WIND_ON] == 0.0

@@ -1,4 +1,8 @@
-"""The options of the standard manoeuvres (``[manoeuvre] kind = ...``) and the scenario each one runs.
+"""The ``[manoeuvre]`` table: the options of the standard manoeuvres, typed and validated.
+
+Each kind's options dataclass is registered in :data:`usv_mj.core.registry.MANOEUVRES` (the kind's
+object is the dataclass, as a disturbance's); the run each manoeuvre is (its controller, the
+approach force) is the job's: :mod:`usv_mj.jobs.manoeuvres.trial`.
 
 A manoeuvre is an ordinary run of the scenario with its controller replaced by an open-loop or a
 heading-switching input (``controllers/open_loop.py``, ``controllers/zigzag.py``), started on a
@@ -15,7 +19,8 @@ through its ``[actuators]``); positive tau_r turns to port (README, Conventions)
     side = "starboard"
 
 The approach is held by the constant surge force that balances the hull's drag at the approach
-speed (:func:`approach_force`, found on the scenario's analytic plant: any vessel it integrates).
+speed (:func:`usv_mj.jobs.manoeuvres.trial.approach_force`, found on the scenario's analytic plant: any
+vessel it integrates).
 
 ``conditions = "calm"`` (the default) runs the test as trials are run: calm water, no d(t), no
 Delta (its side force 0.2 u^2 would turn the hull by itself), no quantizer (so that the commanded
@@ -30,6 +35,8 @@ import math
 from dataclasses import dataclass, fields
 
 from usv_mj.core.errors import ScenarioError
+from usv_mj.core.registry import MANOEUVRES
+from usv_mj.physics.channels import FORCES
 
 SIDES = {"starboard": -1.0, "port": 1.0}
 CONDITIONS = ("calm", "scenario")
@@ -170,6 +177,13 @@ class StoppingOptions:
 
 
 KINDS = {"turning": TurningOptions, "zigzag": ZigzagOptions, "spiral": SpiralOptions, "stopping": StoppingOptions}
+for _kind, _cls in KINDS.items():
+    MANOEUVRES.register(_kind, options=_cls, doc=(_cls.__doc__ or "").strip().splitlines()[0])(_cls)
+
+
+def options_of(kind: str, where: str = "manoeuvre.kind"):
+    """The options dataclass of manoeuvre ``kind`` (:data:`usv_mj.core.registry.MANOEUVRES`)."""
+    return MANOEUVRES.get(kind, where).options_class
 
 
 @dataclass(frozen=True)
@@ -180,10 +194,11 @@ class ManoeuvreSpec:
     options: object = None
 
     def __post_init__(self):
-        if self.kind not in KINDS:
-            raise ScenarioError(f"manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {self.kind!r}")
+        if self.kind not in MANOEUVRES:
+            raise ScenarioError(f"manoeuvre.kind must be one of {', '.join(map(repr, MANOEUVRES.kinds()))}, "
+                                f"got {self.kind!r}")
         if self.options is None:
-            object.__setattr__(self, "options", KINDS[self.kind]())
+            object.__setattr__(self, "options", options_of(self.kind)())
 
     def __getattr__(self, name):
         if name.startswith("_") or name == "options":
@@ -210,13 +225,13 @@ def vessel_defaults(kind: str, vessel_model=None) -> dict:
     hull's are :data:`KINDS`'s exactly (an empty dict). Only keys ``kind``'s options have."""
     if vessel_model is None:
         return {}
-    names = {f.name for f in fields(KINDS[kind])}
+    names = {f.name for f in fields(options_of(kind))}
     dims = getattr(vessel_model, "dimensions", None)
     out = {}
     # a ruddered vessel's "rudder" is an angle, not a moment: nothing of the paper's test scales to it
-    if dims is not None and float(dims.L) != PAPER_LENGTH_M and getattr(vessel_model, "inputs", "forces") != "rudder":
+    if dims is not None and float(dims.L) != PAPER_LENGTH_M and getattr(vessel_model, "channels", FORCES).forces:
         lam = float(dims.L) / PAPER_LENGTH_M
-        base = KINDS[kind]()
+        base = options_of(kind)()
         out = {k: getattr(base, k) * lam ** p for k, p in FROUDE_POWERS.items() if k in names}
     own = getattr(vessel_model, "manoeuvre", None) or {}
     out.update({k: v for k, v in own.items() if k in names and not isinstance(v, dict)})
@@ -227,25 +242,26 @@ def vessel_defaults(kind: str, vessel_model=None) -> dict:
 def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> ManoeuvreSpec:
     """A validated :class:`ManoeuvreSpec` from a ``[manoeuvre]`` table (every key checked); a key the
     table does not give takes the vessel's default (:func:`vessel_defaults`), then the kind's."""
-    from usv_mj.scenario.spec import build_table
+    from usv_mj.scenario.tables import build_table
 
     if not isinstance(table, dict):
         raise ScenarioError(f"{source}: [manoeuvre] must be a table, got {table!r}")
     table = dict(table)
     kind = table.pop("kind", "turning")
-    if kind not in KINDS:
-        raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, KINDS))}, got {kind!r}")
+    if not isinstance(kind, str) or kind not in MANOEUVRES:
+        raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, MANOEUVRES.kinds()))}, "
+                            f"got {kind!r}")
     vessel_model = getattr(vessel_model, "model", vessel_model)   # a scenario's VesselSpec or its Vessel
     given = table
     defaults = vessel_defaults(kind, vessel_model)
     table = {**defaults, **table}
-    if getattr(vessel_model, "inputs", "forces") == "rudder" and kind == "stopping":
-        raise ScenarioError(f"{source}: manoeuvre 'stopping' is not available on the ruddered vessel "
-                            f"{vessel_model.kind!r}: the MMG standard method models the propeller ahead only (no "
-                            f"astern revolutions for the crash stop); turning, zigzag and spiral are "
-                            f"(docs/manoeuvres.md)")
+    why = getattr(vessel_model, "limitations", {}).get(kind)
+    if why:
+        possible = [k for k in MANOEUVRES.kinds() if k not in vessel_model.limitations]
+        raise ScenarioError(f"{source}: manoeuvre {kind!r} is not available on the vessel {vessel_model.kind!r}: {why}; "
+                            f"{', '.join(possible)} are (docs/manoeuvres.md)")
     try:
-        options = build_table(KINDS[kind], table, source, "manoeuvre", extra_known={"kind"})
+        options = build_table(options_of(kind), table, source, "manoeuvre", extra_known={"kind"})
     except ScenarioError as exc:
         msg = str(exc)
         msg = msg if msg.startswith(source) else f"{source}: {msg}"
@@ -255,7 +271,7 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> Ma
         blamed = {k: defaults[k] for k in own if k not in given}
         if blamed:   # the table alone is fine: the vessel's own [manoeuvre] values are what does not fit
             try:
-                build_table(KINDS[kind], given, source, "manoeuvre", extra_known={"kind"})
+                build_table(options_of(kind), given, source, "manoeuvre", extra_known={"kind"})
             except ScenarioError:
                 blamed = {}
         if blamed:
@@ -265,139 +281,3 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> Ma
                                 f"file) do not fit the {kind}: {msg.removeprefix(source + ': ')}") from None
         raise ScenarioError(msg) from None
     return ManoeuvreSpec(kind, options)
-
-
-def approach_force(scenario, speed: float) -> float:
-    """The constant surge force [N] that holds ``speed`` [m/s] on a straight course, from the
-    scenario's own analytic plant (the one build's :func:`usv_mj.builder.make_plant`, calm water):
-    the F for which one integrator step from nu = (U, 0, 0) leaves the surge speed unchanged, by
-    secant iteration (the step is affine in F but for terms of order dt^2). A step of RK4 leaves a
-    state unchanged exactly where the vessel's acceleration is zero, so this is the equilibrium of
-    whatever hull the plant integrates (the paper's: d11(U) U - s 0.6, docs/model.md §1), with the
-    scenario's Delta included when it is on (d(t), a time-varying load, is not part of the drag:
-    left out)."""
-    import dataclasses
-
-    from usv_mj.builder import make_plant
-
-    vessel = getattr(getattr(scenario, "vessel", None), "model", None)
-    guess = getattr(vessel, "nominal_rps", None)   # a ruddered vessel: the force channel is n_P [1/s]
-    if hasattr(scenario.disturbance, "scale"):
-        scenario = dataclasses.replace(scenario, disturbance=dataclasses.replace(scenario.disturbance, scale=0.0))
-    plant = make_plant(scenario, "analytic", environment=None)
-    try:
-        def gain(force):
-            plant.reset((0.0, 0.0, 0.0), (speed, 0.0, 0.0), 0.0)
-            plant.step(force, 0.0)
-            return float(plant.state[3]) - speed
-
-        f0, f1 = (float(guess), 1.02 * float(guess)) if guess else (0.0, 1.0)
-        g0, g1 = gain(f0), gain(f1)
-        for _ in range(30):
-            if g1 == g0:
-                break
-            f0, f1, g0 = f1, f1 - g1 * (f1 - f0) / (g1 - g0), g1
-            g1 = gain(f1)
-            if abs(f1 - f0) <= 1e-12 * max(1.0, abs(f1)):
-                break
-    finally:
-        plant.close()
-    if not math.isfinite(f1):
-        raise ScenarioError(f"{scenario.source}: no constant surge force holds manoeuvre.approach_speed = {speed!r}")
-    return float(f1)
-
-
-def _no_delta(scenario) -> dict:
-    """The override that takes the paper's Delta off the scenario's vessel: ``[ship]`` for the paper
-    vessel, its ``[vessel]`` key for a vessel that has one (none: it has no Delta)."""
-    vessel = getattr(scenario, "vessel", None)
-    if vessel is None or vessel.kind == "paper":
-        return {"ship": {"uncertainty_scale": 0.0}}
-    options = vessel.options
-    if dataclasses.is_dataclass(options) and any(f.name == "uncertainty_scale" for f in dataclasses.fields(options)):
-        return {"vessel": {"uncertainty_scale": 0.0}}
-    return {}
-
-
-def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
-    """The scenario overrides that make ``scenario`` run manoeuvre ``spec`` (module docstring)."""
-    o = spec.options
-    calm = o.conditions == "calm"
-    over = {"baseline": {"enabled": False}, "control_period": o.control_period,
-            "initial": {"eta": [0.0, 0.0, 0.0], "nu": [o.approach_speed, 0.0, 0.0]}}
-    if calm:
-        over.update(disturbance={"scale": 0.0}, quantizer={"enabled": False}, **_no_delta(scenario))
-        scenario = scenario.with_overrides(over)  # the drag with the test's Delta (none)
-    limits = scenario.limits
-    if not o.approach_speed < limits.max_speed:   # the run would stop as diverged at its first step
-        raise ScenarioError(f"{scenario.source}: manoeuvre.approach_speed = {o.approach_speed!r} m/s is not below "
-                            f"limits.max_speed = {limits.max_speed!r} m/s, where a run counts as diverged")
-    force = approach_force(scenario, o.approach_speed)
-    if not abs(force) < limits.max_force:
-        raise ScenarioError(f"{scenario.source}: manoeuvre.approach_speed = {o.approach_speed!r} m/s takes a surge "
-                            f"force of {force:.6g} N, not below limits.max_force = {limits.max_force!r} N")
-    # a ruddered vessel (usv_mj.physics.mmg): the channels are (n_P [1/s], delta [rad]); its [actuators]
-    # limit the rudder's angle and rate (docs/manoeuvres.md §2)
-    ruddered = getattr(getattr(getattr(scenario, "vessel", None), "model", None), "inputs", "forces") == "rudder"
-    if ruddered:   # a rudder angle beyond the steering gear's would be held at its limit, measured as asked
-        key = {"turning": "rudder_deg", "zigzag": "angle_deg", "spiral": "max_rudder_deg"}.get(spec.kind)
-        limit = math.degrees(scenario.actuators.generalized_limits()[3])
-        if key is not None and getattr(o, key) > limit + 1e-9:
-            raise ScenarioError(f"{scenario.source}: manoeuvre.{key} = {getattr(o, key)!r} deg is beyond the rudder of "
-                                f"the vessel {scenario.vessel.kind!r}, {limit:g} deg")
-    if spec.kind == "turning":
-        sign = SIDES[o.side]
-        rudder = math.radians(o.rudder_deg) if ruddered else o.yaw_moment
-        ctrl = {"kind": "open_loop", "times": [0.0, o.approach_s], "tau_u": force,
-                "tau_r": [0.0, sign * rudder], "interpolation": "step"}
-        duration = o.duration
-    elif spec.kind == "zigzag":
-        rudder = math.radians(o.angle_deg) if ruddered else o.yaw_moment   # the 10/10: 10 deg of rudder
-        ctrl = {"kind": "zigzag", "tau_u": force, "tau_r_amplitude": rudder, "psi_switch_deg": o.angle_deg,
-                "first_turn": o.first_turn}
-        duration = o.duration
-    elif spec.kind == "spiral":
-        cmds = o.commands(math.radians(o.max_rudder_deg) if ruddered else None)
-        ctrl = {"kind": "open_loop", "times": [i * o.hold_s for i in range(len(cmds))], "tau_u": force,
-                "tau_r": [c for c, _ in cmds], "interpolation": "step"}
-        duration = o.duration
-    else:
-        ctrl = {"kind": "open_loop", "times": [0.0, o.approach_s], "tau_u": [force, o.astern_force],
-                "tau_r": 0.0, "interpolation": "step"}
-        duration = o.duration
-    over["controller"] = ctrl
-    over["duration"] = duration
-    # the reference (the original course) runs on at the approach speed while the vessel turns: a
-    # manoeuvre is not judged on it, so its distance limit must not end a long one (a spiral)
-    reach = 2.0 * o.approach_speed * duration + 100.0
-    if reach > scenario.limits.max_distance:
-        over["limits"] = {"max_distance": reach}
-    return over
-
-
-def manoeuvre_scenario(scenario, spec: ManoeuvreSpec | None = None):
-    """``scenario`` made to run manoeuvre ``spec`` (default: its own ``[manoeuvre]``), validated
-    again; its ``[controller]`` is replaced whole by the manoeuvre's input and its ``[trajectory]``
-    by the original course (a line from the start at the approach speed)."""
-    from usv_mj.scenario.spec import from_dict, merge_tables
-
-    spec = spec if spec is not None else scenario.manoeuvre
-    if spec is None:
-        raise ScenarioError(f"{scenario.source}: no [manoeuvre] to run (give its kind)")
-    over = manoeuvre_overrides(scenario, spec)
-    ctrl = over.pop("controller")
-    raw = {k: v for k, v in scenario.raw.items() if k not in ("controller", "trajectory")}
-    if spec.options.conditions == "calm":
-        raw.pop("sea", None)
-    data = merge_tables(raw, over)
-    data["controller"] = ctrl
-    # the reference: the original course at the approach speed (what the run's figures and video
-    # show the track against; a manoeuvre is not judged on it)
-    data["trajectory"] = {"kind": "line", "speed": spec.options.approach_speed, "start": [0.0, 0.0], "heading_deg": 0.0}
-    data["manoeuvre"] = {"kind": spec.kind, **{f.name: getattr(spec.options, f.name) for f in fields(spec.options)}}
-    return from_dict(data, source=scenario.source or "<manoeuvre>")
-
-
-def execute_time(spec: ManoeuvreSpec) -> float:
-    """When the "rudder" (or the engine order) is put over [s]."""
-    return getattr(spec.options, "approach_s", 0.0)

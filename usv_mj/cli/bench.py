@@ -1,0 +1,95 @@
+"""``usv-mj bench [SUITE.toml]``: the controller benchmark (:mod:`usv_mj.jobs.bench`), or --compare A B."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from usv_mj.cli import args as flags
+from usv_mj.cli.commands import COMMANDS
+from usv_mj.core.errors import ScenarioError, SweepError, WorkerError
+
+
+def add_arguments(p) -> None:
+    p.add_argument("suite", nargs="?", default=None,
+                   help="the suite file (TOML: tasks, conditions, controllers; usv_mj.jobs.bench.suite); "
+                        "default: the suite shipped in the package")
+    flags.add_out_argument(p, "output folder for results.parquet, report.md, leaderboard.json, figures/ "
+                              "(default renders/bench-<suite name>)")
+    flags.add_cluster_arguments(p)
+    flags.add_resume_arguments(p, "episodes")
+    flags.add_overwrite_argument(p, "--out whole when it holds an earlier usv_mj output (the new benchmark is "
+                                    "staged: the old one stays until it ends)")
+    p.add_argument("--compare", nargs=2, metavar=("A", "B"), default=None,
+                   help="do not run: test whether controller A beats B per metric over the paired episodes "
+                        "of DIR/results.parquet (Wilcoxon signed-rank)")
+    p.add_argument("--no-figures", action="store_true", help="report.md and leaderboard.json without figures")
+    flags.add_quiet_argument(p)
+
+
+@COMMANDS.register(
+    "bench", arguments=add_arguments,
+    help="the controller benchmark: every controller on the same tasks, seas and actuators, one leaderboard",
+    description="Score controllers on a suite of tasks (trajectories, a harbour transit) in calm water, a\n"
+                "moderate sea with current and with thrust limits, the same episodes for each; default: the\n"
+                "suite shipped in the package. Episodes run on the sweep's Dask cluster and stream into\n"
+                "results.parquet (--resume finishes); report.md is the leaderboard with 95 % intervals and\n"
+                "figures. --compare A B tests A against B per metric (paired Wilcoxon). docs/metrics.md.")
+def run(args) -> int:
+    """0 done, 2 bad input, 1 interrupted."""
+    from usv_mj.jobs.bench import compare, compare_table, run_bench
+
+    try:
+        from usv_mj.jobs.bench.suite import describe, load_suite
+
+        suite = load_suite(args.suite)
+        out = args.out or str(Path("renders") / f"bench-{suite.name}")
+        if args.compare:
+            from usv_mj.jobs.sweep.runner import RESULTS_FILE, read_results
+
+            path = Path(out) / RESULTS_FILE
+            if not path.is_file():
+                raise SweepError(f"--compare: {path} does not exist: run the suite first (usv-mj bench --out {out})")
+            rows, fingerprint = read_results(path)
+            if fingerprint != suite.plan.fingerprint:
+                raise SweepError(f"--compare: {path} holds the results of another suite than {suite.source}")
+            a, b = args.compare
+            result = compare(rows, a, b)
+            print(f"{a} vs {b}: paired over the episodes of {path} ({len(rows)} of {len(suite.plan.runs)} "
+                  f"episodes in), Wilcoxon signed-rank, two-sided, 5 %")
+            print(compare_table(result, a, b))
+            return 0
+        from usv_mj.outputs.outdir import check_folder, results_folder
+
+        if args.resume and args.overwrite:
+            raise SweepError("--resume continues the benchmark in --out, --overwrite replaces it: give one of them")
+        check_folder(out, args.overwrite, resume=args.resume)   # new, empty, this benchmark's (--resume) or --overwrite
+        if args.max_runs is not None and args.max_runs < 1:
+            raise SweepError(f"--max-runs must be >= 1, got {args.max_runs}")
+        print(describe(suite), flush=True)
+        with results_folder(out, args.resume) as folder:   # staged when it replaces an earlier output
+            result = run_bench(suite, folder, scheduler=args.scheduler, workers=args.workers,
+                               resume=args.resume, progress=not args.quiet, max_runs=args.max_runs,
+                               jobqueue=args.jobqueue, jobs=args.jobs, draw=not args.no_figures)
+    except ScenarioError as exc:  # SweepError and the output checks
+        print(f"usv-mj bench: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"\nusv-mj bench: interrupted: the episodes finished so far are in {out}/results.parquet; "
+              f"run the same command with --resume to finish", file=sys.stderr)
+        return 1
+    except WorkerError as exc:
+        print(f"usv-mj bench: stopped: {exc}; the episodes finished so far are in {out}/results.parquet "
+              f"(--resume runs the rest)", file=sys.stderr)
+        return 1
+    if not result.complete:
+        print(f"{len(result.rows)} of {len(suite.plan.runs)} episodes in {out}/results.parquet; run again with "
+              f"--resume for the rest")
+        return 0
+    from usv_mj.jobs.bench.report import aggregate, printed_leaderboard
+
+    print("\n".join(printed_leaderboard(aggregate(result.rows), [c.name for c in suite.controllers],
+                                        suite.vessels != [""])))
+    print(f"{len(result.rows)} episodes ({result.ran} run now), {result.failed} not ok; {out}/report.md, "
+          f"{out}/leaderboard.json, {out}/figures/")
+    return flags.report_failed(result.rows, "usv-mj bench", "episode")

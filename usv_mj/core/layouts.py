@@ -1,0 +1,35 @@
+"""The array layouts every layer shares: the state, the reference vector, the funnel block, the
+paper law's diagnostics.
+
+They are data layouts, not behaviour: the record's columns, the run log's topics, the controllers'
+inputs and the references' outputs are laid out by these names, so each is written once here.
+
+- the state ``(x, y, psi, u, v, r)`` [m, m, rad, m/s, m/s, rad/s] (README, Conventions);
+- the reference vector ``(x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d)``: the pose, its time
+  derivative and the reference surge speed [m, m, rad, m/s, m/s, rad/s, m/s];
+- the funnel block (paper Eqs. 9, 14): a controller that tracks in a funnel declares these among
+  its diagnostics, and the outputs then show funnel errors and violations;
+- the paper's PPC law's diagnostics (Eqs. 8-37), the record's layout when no other is declared.
+"""
+
+STATE_FIELDS = ("x", "y", "psi", "u", "v", "r")
+
+REF_FIELDS = ("x_d", "y_d", "psi_d", "x_d_dot", "y_d_dot", "r_d", "u_d")
+REF_X, REF_Y, REF_PSI, REF_XDOT, REF_YDOT, REF_R, REF_U = range(len(REF_FIELDS))
+
+FUNNEL_FIELDS = ("e1", "e2", "e3", "rho1", "rho2", "rho3", "z1", "z2", "z3")
+
+# The PPC law's diagnostics vector: tracking errors in the funnel (Eqs. 8-15), then the adaptive
+# states (Eqs. 19, 29, 37). Its first 13 entries (TRACKING_FIELDS) are what tracking_errors fills.
+DIAG_FIELDS = (
+    "e1", "e2", "e3",            # Eq. 14: x_bar - x_bar_d [m], y_bar - y_bar_d [m], wrap(psi - psi_a) [rad]
+    "rho1", "rho2", "rho3",      # Eq. 9 bounds
+    "z1", "z2", "z3",            # e_i / rho_i
+    "e1s", "e2s", "e3s",         # Eq. 10 transformed errors e_i*
+    "psi_a",                     # Eq. 15 [rad]
+    "u_e", "v_e", "r_e",         # Eq. 19 velocity errors
+    "alpha_u", "alpha_v", "alpha_r",  # Eq. 17 virtual controls
+    "w_u_norm", "w_v_norm", "w_r_norm",  # |W_u|, |W_v|, |W_r|
+    "s2",                        # tanh(gamma_2)
+    "s2_clamped",                # 1 when s2 hit its clamp this step
+)

@@ -1,0 +1,222 @@
+"""The closed loop of several vessels in one sea: each control period, every vessel's reference,
+controller and control step, then one plant step for all (issue 35).
+
+For every vessel the order is the single run's (:mod:`usv_mj.loop.simulate`): the reference at t,
+the controller on the vessel's state, its row (time, state, reference, diagnostics), the force check,
+the control step (:class:`usv_mj.loop.step.ControlStep`: clip, quantize, actuators, the row's control
+columns); then the plant holds every vessel's force over the period (``plant.step_vessels``) and each
+state is checked against its own limits. A controller that sees the traffic (a collision-avoidance
+law) has a ``traffic(t, states, index, lengths)`` method, called before it, with every vessel's state
+(rows of (x, y, psi, u, v, r)), its own row and every hull's length [m]. The contact force between
+each pair of hulls is recorded every row (:class:`usv_mj.record.fleet.FleetRecord`).
+
+A vessel that diverges or whose controller fails stops the run for all (the record says which);
+Ctrl-C stops it as a single run's.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from usv_mj.builder import channels_of
+from usv_mj.core.errors import PluginContractError, message_line
+from usv_mj.core.kernels import diag_contract, diag_mismatch
+from usv_mj.loop.step import ControlStep
+from usv_mj.physics.limits import within_limits
+from usv_mj.record.criteria import criterion_of, criterion_to_dict
+from usv_mj.record.events import detect_events
+from usv_mj.record.fleet import FleetRecord
+from usv_mj.record.run_record import COL, SL_REF, SL_STATE, Event, RunRecord
+
+
+def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None = None) -> FleetRecord:
+    """Run the fleet of ``parts`` (:class:`usv_mj.builder.FleetParts`) in closed loop; returns the
+    :class:`FleetRecord`. ``progress(n)`` is called with the number of new steps every ``block``;
+    ``sinks``: {vessel name: [RunSink, ...]} (a run log's sink per vessel) get each vessel's record
+    as a single run's sinks get it (start, rows every block, finish)."""
+    scenario, plant, vessels = parts.scenario, parts.plant, parts.vessels
+    dt = scenario.control_period
+    n = int(round(parts.duration / dt))
+    limits = scenario.limits
+    names = [v.name for v in vessels]
+    own = next(v.name for v in vessels if v.own_ship)
+    for v in vessels:   # before anything runs: a kernel's diag against the fields (as a single run's)
+        problem = diag_contract(v.controller)
+        if problem is not None:
+            raise PluginContractError(f"vessel {v.name!r}: {problem}")
+    records, steps, fields = {}, [], []
+    for v in vessels:
+        f = tuple(getattr(v.controller, "diagnostic_fields", ()))
+        fields.append(f)
+        records[v.name] = RunRecord(n + 1, metadata={
+            "preset": v.scenario.preset, "plant": plant.name, "controller": v.controller.name, "vessel_name": v.name,
+            "own_ship": v.own_ship, "length_m": float(v.scenario.vessel.model.dimensions.L),
+            "duration_s": parts.duration, "control_period_s": dt, "source": v.scenario.source,
+            "scenario": v.scenario.to_dict(), "diagnostic_fields": list(f), "loop": "python",
+            "loop_reason": "a run of several vessels runs the Python loop",
+            "criterion": criterion_to_dict(criterion_of(v.controller)),
+            "channels": channels_of(v.scenario, getattr(v.controller, "commands", "forces")).to_metadata(),
+        }, diagnostic_fields=f, diagnostic_events=getattr(v.controller, "diagnostic_events", None))
+        steps.append(ControlStep(v.quantizers, v.actuators))
+    record = FleetRecord(names, records, own, n + 1, metadata={
+        "vessels": names, "own_ship": own, "plant": plant.name, "duration_s": parts.duration, "control_period_s": dt,
+        "source": scenario.source, "loop": "python"})
+    record.statics = parts.statics
+    for r in records.values():
+        r.statics = parts.statics
+    lengths = np.array([v.scenario.vessel.model.dimensions.L for v in vessels])
+    for i, v in enumerate(vessels):
+        plant.reset_vessel(i, v.scenario.initial.eta, v.scenario.initial.nu, 0.0)
+        v.controller.reset()
+        steps[i].reset()
+    sinks = {name: list((sinks or {}).get(name, ())) for name in names}
+    flush = _FleetFlusher(record, sinks)
+    seers = [getattr(v.controller, "traffic", None) for v in vessels]
+    X = np.array(plant.states)
+    F = np.zeros((len(vessels), 2))
+    bufs = [records[v.name].buffer for v in vessels]
+    sl_diag = [slice(len(COL), len(COL) + len(f)) for f in fields]
+    wall0 = time.perf_counter()
+    k = 0
+    counted = 0
+    try:
+        while True:
+            t = k * dt
+            refs = []
+            for i, v in enumerate(vessels):
+                if seers[i] is not None:
+                    seers[i](t, X.copy(), i, lengths)
+                ref = v.reference.evaluate(t)
+                x = X[i].copy()   # its own copy: the row and the actuators keep X[i]
+                tau_u, tau_r, diag = v.controller(t, x, ref)
+                n_diag = _length(diag)   # the diag's length before the row takes it (a 1-long one would broadcast)
+                if n_diag != len(fields[i]):
+                    raise PluginContractError(f"vessel {v.name!r}: {diag_mismatch(v.controller, n_diag)}")
+                row = bufs[i][k]
+                row[COL["t"]] = t
+                row[SL_STATE] = X[i]
+                row[SL_REF] = ref[:7]
+                row[sl_diag[i]] = diag
+                records[v.name].n_rows = k + 1
+                if not (abs(tau_u) < limits.max_force and abs(tau_r) < limits.max_force):
+                    _stop(record, "diverged", t, f"vessel {v.name!r}: control force out of limits or not finite: "
+                                                 f"tau_u = {tau_u!r}, tau_r = {tau_r!r}")
+                    raise _Stop
+                F[i] = steps[i](tau_u, tau_r, X[i], row)
+                refs.append(ref)
+            record.contacts[k] = plant.contacts()
+            k += 1
+            if k - flush.mark >= block:
+                flush(k)
+            if progress is not None and k - counted >= block:
+                progress(k - counted)
+                counted = k
+            if k > n:
+                break
+            plant.step_vessels(F)
+            X = np.array(plant.states)
+            for i, v in enumerate(vessels):
+                ex, ey = X[i, 0] - refs[i][0], X[i, 1] - refs[i][1]
+                lim = v.scenario.limits
+                if not within_limits(X[i], ex, ey, lim.max_speed, lim.max_yaw_rate, lim.max_distance):
+                    _stop(record, "diverged", k * dt, f"vessel {v.name!r}: the state left its limits at "
+                                                      f"t = {k * dt:.3f} s")
+                    raise _Stop
+        record.status = "completed"
+    except _Stop:
+        pass
+    except KeyboardInterrupt as exc:
+        who = str(exc) or "the user (Ctrl-C)"
+        _stop(record, "interrupted", k * dt, f"interrupted by {who} at t = {k * dt:.3f} s")
+    except Exception as exc:
+        _stop(record, "failed", k * dt, f"{type(exc).__name__} at t = {k * dt:.3f} s: {message_line(exc)}")
+        _finish(record, steps, wall0, flush)
+        raise
+    if progress is not None and k > counted:
+        progress(k - counted)
+    _finish(record, steps, wall0, flush)
+    return record
+
+
+def _length(diag) -> int:
+    """The number of entries of a controller's diagnostics vector (-1: not a vector)."""
+    try:
+        return len(diag)
+    except TypeError:
+        return -1
+
+
+#: a contact force above this [N] between two hulls is a collision (MuJoCo's solver leaves tiny forces at rest)
+CONTACT_EVENT_N = 1e-6
+
+
+class _FleetFlusher:
+    """Every ``block`` rows: each vessel's new events (usv_mj.record.events) and the contact episodes
+    between hulls (a "vessel_contact" event in both vessels' records and the fleet's), then each
+    vessel's sinks get the rows."""
+
+    def __init__(self, record: FleetRecord, sinks: dict):
+        self.record, self.sinks = record, sinks
+        self.mark = 0
+        self.started = False
+
+    def start(self) -> None:
+        for name in self.record.names:
+            for s in self.sinks[name]:
+                s.start(self.record.records[name])
+        self.started = True
+
+    def __call__(self, hi: int) -> None:
+        if not self.started:
+            self.start()
+        lo, rec = self.mark, self.record
+        if hi <= lo:
+            return
+        for name in rec.names:
+            r = rec.records[name]
+            r.events.extend(detect_events(r, lo, hi))
+        c = rec.contacts
+        dt = rec.metadata["control_period_s"]
+        for p, (i, j) in enumerate(rec.pairs):
+            on = c[lo:hi, p] > CONTACT_EVENT_N
+            before = bool(lo > 0 and c[lo - 1, p] > CONTACT_EVENT_N)
+            edges = np.diff(np.concatenate(([before], on)).astype(np.int8))
+            for k in np.flatnonzero(edges == 1):
+                t = (lo + k) * dt
+                a, b = rec.names[i], rec.names[j]
+                event = Event(t, "vessel_contact", f"the hulls of {a!r} and {b!r} touch ({c[lo + k, p]:.4g} N)",
+                              {"pair": [a, b], "force_N": float(c[lo + k, p]), "state": "start"})
+                rec.events.append(event)
+                rec.records[a].events.append(event)
+                rec.records[b].events.append(event)
+        for name in rec.names:
+            for s in self.sinks[name]:
+                s.rows(rec.records[name], lo, hi)
+        self.mark = hi
+
+
+class _Stop(Exception):
+    """The fleet's run stopped early (recorded)."""
+
+
+def _stop(record: FleetRecord, status: str, t: float, message: str) -> None:
+    record.status = status
+    record.stop_reason = message
+    record.events.append(Event(t, "divergence" if status == "diverged" else status, message))
+
+
+def _finish(record: FleetRecord, steps, wall0: float, flush) -> None:
+    wall = time.perf_counter() - wall0
+    flush(record.n_rows)
+    for (name, r), step in zip(record.records.items(), steps):
+        r.events.sort(key=lambda e: e.t)
+        r.status = record.status
+        r.stop_reason = record.stop_reason
+        r.metadata.update({"status": record.status, "stop_reason": record.stop_reason, "wall_time_s": wall,
+                           "quantizer_switches": dict(zip(("u", "r"), step.switches))})
+    record.metadata.update({"status": record.status, "stop_reason": record.stop_reason, "wall_time_s": wall})
+    for name in record.names:
+        for s in flush.sinks[name]:
+            s.finish(record.records[name])
