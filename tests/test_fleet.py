@@ -179,3 +179,22 @@ def test_plot_and_render_of_a_fleet_log_redraw_the_fleet(tmp_path, monkeypatch):
     assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "v.mp4"), "--quiet"]) == 0
     assert seen["own"] == "own" and seen["fleet"].names == ("own", "target")
     assert seen["domain"] == pytest.approx(3 * 1.98)   # the own ship's safety domain: 3 hull lengths
+
+
+def test_each_contact_is_reported_with_its_own_peak():
+    """Two touches, 0.3 s and 0.1 s long, with peaks 500 N then 200 N: the summary lists them apart
+    (the second's peak is its own, not the first's), counts 2 and 0.4 s in contact; the report's cell
+    says so in one line."""
+    from usv_mj.outputs.fleet_report import _contacts
+    from usv_mj.record.encounters import encounter_summary
+
+    record = simulate(fleet("analytic", APART, duration=2.0))
+    dt = 0.01
+    record.contacts[:] = 0.0
+    record.contacts[100:130, 0] = np.linspace(100.0, 500.0, 30)      # t = 1.00-1.29 s
+    record.contacts[150:160, 0] = 200.0                              # t = 1.50-1.59 s
+    pair = encounter_summary(record)["pairs"]["own-far"]
+    assert [c["t_s"] for c in pair["contacts"]] == pytest.approx([1.0, 1.5])
+    assert [c["max_force_N"] for c in pair["contacts"]] == pytest.approx([500.0, 200.0])
+    assert pair["n_contacts"] == 2 and pair["in_contact_s"] == pytest.approx(40 * dt)
+    assert _contacts(pair) == "from t = 1.0 s: 2 touches, 0.4 s in all, up to 500 N"

@@ -62,8 +62,10 @@ class PluginImportError(UnknownKindError):
 
 class PluginContractError(ScenarioError):
     """A plug-in (a part named by ``package.module:Name``, an entry point, a class registered at
-    runtime or handed to the API) breaks the contract of its sort: the message names the plug-in,
-    the contract and the fix. Bad input of the user's (exit 2), not a defect of usv_mj."""
+    runtime or handed to the API) breaks the contract of its sort (a factory that cannot take its
+    arguments, a disturbance whose kernel is not a ``numba.njit`` function or whose ``as_array()`` is
+    too long, ...): the message names the plug-in, the contract and the fix. Bad input of the user's
+    (exit 2), not a defect of usv_mj."""
 
 
 class ArgumentTypeError(UsvMjError, TypeError):
