@@ -59,7 +59,7 @@ def _bad_boat(tmp_path) -> Path:
 def test_a_bad_manoeuvre_default_of_a_data_file_names_the_vessel(tmp_path, capsys):
     from usv_mj.cli.main import main
     from usv_mj.core.registry import VESSELS
-    from usv_mj.jobs.manoeuvres.options import manoeuvre_from_table
+    from usv_mj.scenario.manoeuvre import manoeuvre_from_table
 
     path = _bad_boat(tmp_path)
     try:
@@ -187,10 +187,11 @@ def test_a_plugin_printing_at_import_leaves_kinds_json_whole(tmp_path, monkeypat
 
 def test_a_ruddered_spiral_is_labelled_by_its_rudder_angle():
     from usv_mj.jobs.manoeuvres.fleet import rudder_label
+    from usv_mj.physics.channels import RUDDER_ANGLE
 
     o = {"max_rudder_deg": 20.0, "max_yaw_moment": 10.0, "steps": 5}
-    assert rudder_label({"kind": "spiral", "rudder": "rudder angle delta [rad] ...", "options": o}) == \
-        "+-20 deg rudder"
+    rudder = RUDDER_ANGLE.to_metadata()   # the result's "rudder_channel" (usv_mj.jobs.manoeuvres.measure)
+    assert rudder_label({"kind": "spiral", "rudder_channel": rudder, "options": o}) == "+-20 deg rudder"
 
 
 def test_a_single_controller_bench_says_there_is_no_ranking(tmp_path):
@@ -225,7 +226,7 @@ def test_a_goal_inside_an_inflated_obstacle_names_it_and_the_file():
 
 
 def test_a_stop_speed_over_the_approach_is_refused():
-    from usv_mj.jobs.manoeuvres.options import StoppingOptions
+    from usv_mj.scenario.manoeuvre import StoppingOptions
 
     with pytest.raises(ScenarioError, match=r"manoeuvre.stop_speed = 0.7 m/s must be below manoeuvre.approach_speed "
                                             r"= 0.6 m/s"):
@@ -242,9 +243,9 @@ def test_every_vessel_runs_the_stopping_test_that_can(tmp_path):
     fleet = run_fleet(scenario_for, ["kvlcc2", "paper"], "stopping", tmp_path / "o", plant_kind="analytic",
                       skip_refused=True)
     assert [r["vessel"] for r in fleet["rows"]] == ["paper"]
-    assert fleet["skipped"][0][0] == "kvlcc2" and "not available on the ruddered vessel" in fleet["skipped"][0][1]
+    assert fleet["skipped"][0][0] == "kvlcc2" and "not available on the vessel 'kvlcc2'" in fleet["skipped"][0][1]
     assert "kvlcc2" in (tmp_path / "o" / "vessels.md").read_text()
-    with pytest.raises(ScenarioError, match="not available on the ruddered vessel 'kvlcc2'"):
+    with pytest.raises(ScenarioError, match="not available on the vessel 'kvlcc2'"):
         run_fleet(scenario_for, ["kvlcc2", "paper"], "stopping", tmp_path / "o2", plant_kind="analytic")
 
 

@@ -62,7 +62,7 @@ def test_the_cli_says_it_in_one_line_and_exit_2(tmp_path, capsys):
 
 
 def test_a_manoeuvre_that_does_not_pass_its_approach_is_refused():
-    from usv_mj.jobs.manoeuvres.options import SpiralOptions, StoppingOptions, TurningOptions, ZigzagOptions
+    from usv_mj.scenario.manoeuvre import SpiralOptions, StoppingOptions, TurningOptions, ZigzagOptions
 
     with pytest.raises(ScenarioError, match=r"manoeuvre.duration = 1 s does not pass the approach: the execute is "
                                             r"at manoeuvre.approach_s = 5.0 s"):
@@ -78,7 +78,7 @@ def test_a_manoeuvre_that_does_not_pass_its_approach_is_refused():
 
 def test_an_approach_the_limits_call_divergence_is_refused():
     from usv_mj.jobs.manoeuvres import run_manoeuvre
-    from usv_mj.jobs.manoeuvres.options import manoeuvre_from_table
+    from usv_mj.scenario.manoeuvre import manoeuvre_from_table
     from usv_mj.scenario.spec import load_scenario
 
     sc = load_scenario(preset="paper")
@@ -92,7 +92,7 @@ def test_an_approach_the_limits_call_divergence_is_refused():
 
 def test_a_run_that_ends_before_the_execute_has_nothing_to_measure():
     from usv_mj.jobs.manoeuvres import run_manoeuvre
-    from usv_mj.jobs.manoeuvres.options import manoeuvre_from_table
+    from usv_mj.scenario.manoeuvre import manoeuvre_from_table
     from usv_mj.scenario.spec import load_scenario
 
     # with the scenario's d(t) the hull yaws at once: a yaw-rate limit of 1e-6 rad/s ends the run
