@@ -11,12 +11,14 @@ the kernel stands for ``__call__`` and declares ``n_diag``, and at every row bef
 
 from __future__ import annotations
 
+import dataclasses
 import textwrap
 
 import numpy as np
 import pytest
 
 import usv_mj
+from usv_mj.builder import build_fleet
 from usv_mj.controllers.los import DIAGNOSTIC_FIELDS, LOSController
 from usv_mj.controllers.ppc import PPCController
 from usv_mj.core.errors import PluginContractError
@@ -143,3 +145,45 @@ def test_data_no_kernel_reads_keeps_the_kernel():
     c = _controller(LOSController, sc)
     c.criterion = PathTolerance(settle_time_s=1.0, cross_track_m=2.0)   # set on the object, as from_scenario may
     assert kernel_blocker(c) is None
+
+
+# --- the loop over vessels (usv_mj.loop.fleet): the same contract, the vessel named ------------------------
+
+FLEET = [{"name": "own", "steer": "keep", "initial": {"eta": [0.0, 0.0, 0.0], "nu": [0.5, 0.0, 0.0]}},
+         {"name": "far", "steer": "keep", "initial": {"eta": [0.0, 300.0, 0.0], "nu": [0.5, 0.0, 0.0]}}]
+
+
+class OneOfTwo:
+    """A Python controller (no kernel) that declares 2 fields and returns 1: numpy would broadcast it."""
+    name = "one_of_two"
+    diagnostic_fields = ("a", "b")
+
+    def reset(self):
+        pass
+
+    def __call__(self, t, state, reference):
+        return 0.0, 0.0, np.array([7.0])
+
+
+def _fleet_with(plant, make):
+    """The two-vessel fleet with the vessel "far"'s controller replaced by ``make(its scenario)``."""
+    sc = load_scenario(preset="paper", overrides={"duration": 0.5, "plant": {"kind": plant}, "vessels": FLEET})
+    parts = build_fleet(sc)
+    parts.vessels = tuple(dataclasses.replace(v, controller=make(v.scenario)) if v.name == "far" else v
+                          for v in parts.vessels)
+    return parts
+
+
+@pytest.mark.parametrize("plant", ["analytic", "mujoco"])
+def test_a_shrunk_subclass_in_a_fleet_is_refused_before_the_run(plant):
+    parts = _fleet_with(plant, lambda sc: _controller(ShortLOS, sc))
+    with pytest.raises(PluginContractError, match=rf"^vessel 'far': controller .*ShortLOS returns {N_LOS} "
+                                                  r"diagnostics but declares 2 diagnostic_fields"):
+        usv_mj.simulate(parts)
+
+
+def test_a_short_diag_in_a_fleet_is_stopped_at_its_first_row():
+    parts = _fleet_with("analytic", lambda sc: OneOfTwo())
+    with pytest.raises(PluginContractError, match=r"^vessel 'far': controller .*OneOfTwo returns 1 diagnostics "
+                                                  r"but declares 2 diagnostic_fields \('a', 'b'\)"):
+        usv_mj.simulate(parts)

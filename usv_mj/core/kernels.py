@@ -171,6 +171,20 @@ def diag_mismatch(controller, n_returned: int) -> str | None:
             f"__call__ to return a vector of your own fields")
 
 
+def diag_row_problem(controller, diag, n_fields: int) -> str | None:
+    """At every row (the single run's Python loop and the fleet's): the contract error of
+    :func:`diag_mismatch` when the ``diag`` the controller just returned does not have ``n_fields``
+    entries (its ``diagnostic_fields``), checked before the row takes it (a 1-long diag would
+    broadcast into the row); a diag that is not a vector counts as -1 entries. None when it fits."""
+    try:
+        if len(diag) == n_fields:
+            return None
+        n = len(diag)
+    except TypeError:
+        n = -1
+    return diag_mismatch(controller, n)
+
+
 def diag_contract(controller) -> str | None:
     """Before a run (both loops): when ``controller``'s kernel stands for its ``__call__`` (no class
     below the kernel's and no instance attribute replaces ``__call__``) and declares the length of

@@ -22,7 +22,7 @@ import numpy as np
 
 from usv_mj.builder import channels_of
 from usv_mj.core.errors import PluginContractError, message_line
-from usv_mj.core.kernels import diag_contract, diag_mismatch
+from usv_mj.core.kernels import diag_contract, diag_row_problem
 from usv_mj.loop.step import ControlStep
 from usv_mj.physics.limits import within_limits
 from usv_mj.record.criteria import criterion_of, criterion_to_dict
@@ -91,9 +91,9 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
                 ref = v.reference.evaluate(t)
                 x = X[i].copy()   # its own copy: the row and the actuators keep X[i]
                 tau_u, tau_r, diag = v.controller(t, x, ref)
-                n_diag = _length(diag)   # the diag's length before the row takes it (a 1-long one would broadcast)
-                if n_diag != len(fields[i]):
-                    raise PluginContractError(f"vessel {v.name!r}: {diag_mismatch(v.controller, n_diag)}")
+                problem = diag_row_problem(v.controller, diag, len(fields[i]))   # before the row takes it
+                if problem is not None:
+                    raise PluginContractError(f"vessel {v.name!r}: {problem}")
                 row = bufs[i][k]
                 row[COL["t"]] = t
                 row[SL_STATE] = X[i]
@@ -138,14 +138,6 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
         progress(k - counted)
     _finish(record, steps, wall0, flush)
     return record
-
-
-def _length(diag) -> int:
-    """The number of entries of a controller's diagnostics vector (-1: not a vector)."""
-    try:
-        return len(diag)
-    except TypeError:
-        return -1
 
 
 #: a contact force above this [N] between two hulls is a collision (MuJoCo's solver leaves tiny forces at rest)

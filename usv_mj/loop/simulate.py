@@ -24,7 +24,7 @@ import numpy as np
 
 from usv_mj.core import arguments
 from usv_mj.core.errors import PluginContractError, Terminated, message_line
-from usv_mj.core.kernels import diag_contract, diag_mismatch
+from usv_mj.core.kernels import diag_contract, diag_mismatch, diag_row_problem
 from usv_mj.physics.limits import within_limits
 from usv_mj.builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from usv_mj.builder import FleetParts, build_fleet
@@ -47,14 +47,6 @@ class RunSink(Protocol):
     def rows(self, record: RunRecord, lo: int, hi: int) -> None: ...
 
     def finish(self, record: RunRecord) -> None: ...
-
-
-def _length(diag) -> int:
-    """The number of entries of a controller's diagnostics vector (-1: not a vector)."""
-    try:
-        return len(diag)
-    except TypeError:
-        return -1
 
 
 def make_reference(scenario: Scenario, duration: float | None = None):
@@ -217,12 +209,9 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
                 hook(t, k, plant)
             ref = reference.evaluate(t)
             tau_u, tau_r, diag = controller(t, x.copy(), ref)  # its own copy: the row and the actuators keep x
-            try:   # the diag's length before the row takes it (a 1-long one would broadcast)
-                ok = len(diag) == n_fields
-            except TypeError:
-                ok = False
-            if not ok:
-                raise PluginContractError(diag_mismatch(controller, _length(diag)))
+            problem = diag_row_problem(controller, diag, n_fields)   # before the row takes it
+            if problem is not None:
+                raise PluginContractError(problem)
             if not (abs(tau_u) < limits.max_force and abs(tau_r) < limits.max_force):
                 _stop_diverged(record, t, f"control force out of limits or not finite: tau_u = {tau_u!r}, "
                                f"tau_r = {tau_r!r}", {"tau_u": _json_number(tau_u), "tau_r": _json_number(tau_r)},
