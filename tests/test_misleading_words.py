@@ -5,8 +5,6 @@ hidden behind a consequence."""
 from __future__ import annotations
 
 import json
-import math
-import shutil
 import sys
 import textwrap
 import warnings
@@ -279,16 +277,15 @@ def test_a_reference_near_the_float_range_does_not_hide_the_divergence(tmp_path)
     assert len(figures) == 7 and "fig1_trajectory.png" in figures
 
 
-def test_a_figure_beyond_the_drawable_span_is_a_note():
+def test_a_figure_beyond_the_drawable_span_is_a_note(tmp_path):
     from usv_mj.outputs.figures import DRAWABLE, plt, save_figure
 
     fig, ax = plt.subplots()
     ax.plot([0.0, 1.0], [0.0, 1e308])
     ax.set_title("huge")
-    path = Path(__import__("tempfile").mkdtemp()) / "f.png"
+    path = tmp_path / "f.png"
     save_figure(fig, path)
     assert path.stat().st_size > 0 and 1e308 > DRAWABLE
-    shutil.rmtree(path.parent)
 
 
 # --- a KeyboardInterrupt of a plug-in is not a user's Ctrl-C -------------------------------------------
