@@ -33,6 +33,7 @@ import os
 import signal
 import sys
 import threading
+import warnings
 
 
 def _signal_while_starting(signum, frame):
@@ -62,7 +63,7 @@ from pathlib import Path  # noqa: E402
 
 from usv_mj.cli.args import EXIT_BAD_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_STOPPED  # noqa: E402,F401 (re-exported)
 from usv_mj.cli.commands import CommandUnavailable, load, names  # noqa: E402
-from usv_mj.core.errors import ScenarioError  # noqa: E402
+from usv_mj.core.errors import PluginWarning, ScenarioError, one_line  # noqa: E402
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
@@ -117,7 +118,18 @@ def short_usage() -> str:
             "  usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples")
 
 
+_PYTHON_WARNING = warnings.formatwarning
+
+
+def _one_line_warning(message, category, filename, lineno, line=None):
+    """usv_mj's own warnings (a plug-in's entry point not used) as one line, others as Python's."""
+    if issubclass(category, PluginWarning):
+        return f"usv-mj: warning: {message}\n"
+    return _PYTHON_WARNING(message, category, filename, lineno, line)
+
+
 def main(argv: list[str] | None = None) -> int:
+    warnings.formatwarning = _one_line_warning
     if threading.current_thread() is threading.main_thread():
         # until a command installs its own handlers: SIGTERM / SIGHUP end it as Ctrl-C would (exit 1)
         for sig in (signal.SIGTERM, signal.SIGHUP):
@@ -167,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
         while where is not None and where.tb_next is not None:
             where = where.tb_next
         at = f" at {Path(where.tb_frame.f_code.co_filename).name}:{where.tb_lineno}" if where is not None else ""
-        print(f"usv-mj {args.command}: internal error: {type(exc).__name__}: {' '.join(str(exc).split())}{at} "
+        print(f"usv-mj {args.command}: internal error: {one_line(exc)}{at} "
               "(a defect of usv_mj; USV_MJ_DEBUG=1 shows the traceback)", file=sys.stderr)
         return EXIT_STOPPED
 

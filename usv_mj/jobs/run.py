@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -219,7 +220,7 @@ class _OutLock:
         return False
 
 
-from usv_mj.core.errors import Terminated  # noqa: E402  (SIGTERM / SIGHUP as Ctrl-C)
+from usv_mj.core.errors import Terminated, compiler_summary, expected, plain_text  # noqa: E402  (Terminated: SIGTERM / SIGHUP as Ctrl-C)
 
 
 class _Signals:
@@ -323,10 +324,15 @@ def _one_line(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.strerror:
         where = exc.filename or ""
         return f"{where}: {exc.strerror}" if where else exc.strerror
-    text = str(exc).strip().splitlines()
+    summary = compiler_summary(str(exc))   # numba's dozens of highlighted lines: what failed, and where
+    if summary is not None:
+        return f"{type(exc).__name__}: {summary}"
+    text = [line.strip() for line in plain_text(exc).strip().splitlines() if line.strip()]
     if type(exc).__name__ in ("RunLogError", "RenderWorkerError") and text:
         return text[-1]
-    return f"{type(exc).__name__}: {text[-1] if text else ''}".rstrip(": ")
+    # every line: a message's first line is often its reason (MuJoCo's "Error: mass and inertia of
+    # moving bodies must be larger than mjMINVAL", then "Element name 'hull', id 1, line 54")
+    return f"{type(exc).__name__}: {'; '.join(text)}".rstrip(": ")
 
 
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
@@ -352,6 +358,10 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     from usv_mj.jobs.preflight import check_run
     from usv_mj.outputs.log.writer import log_every
 
+    if not isinstance(scenario, Scenario):
+        raise expected("run_job", "scenario", "a Scenario (usv_mj.load_scenario)", scenario)
+    if not isinstance(out_dir, (str, os.PathLike)):
+        raise expected("run_job", "out_dir", "the output folder's path (str or pathlib.Path)", out_dir)
     log_every(log_rate, scenario.control_period)   # a bad rate is refused before anything is written
     from usv_mj.outputs.outdir import Staging
 
@@ -364,6 +374,11 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     check_commands(scenario, scenario.controller.kind)
     if run_baseline and scenario.baseline.kind != scenario.controller.kind:
         check_commands(scenario, scenario.baseline.kind, " (it is the baseline: --no-baseline skips it)")
+    from usv_mj.jobs.preflight import check_controller
+
+    check_controller(scenario)   # a plug-in's contracts, before anything is written
+    if run_baseline and scenario.baseline.kind != scenario.controller.kind:
+        check_controller(scenario, scenario.baseline.kind)
     with _OutLock(out), _Signals() as signals:
         stage = Staging(out)
         try:
@@ -634,6 +649,9 @@ class _StagedJob:
         if self.fault:
             stopped, fault = self.stopped, self.fault
             message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
+            rec = self.record
+            if rec is not None and rec.status in ("diverged", "failed"):   # the run's own end first: not hidden
+                message = f"the run {rec.status}: {rec.stop_reason}; then {message}"
             raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),
                             final_out, self.summary_out)
         return JobResult(out, self.record, self.summary_out, self.base_rec, self.base_summary, self.check, files,

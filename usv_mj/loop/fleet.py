@@ -21,9 +21,11 @@ import time
 import numpy as np
 
 from usv_mj.builder import channels_of
+from usv_mj.core.errors import PluginContractError, message_line
+from usv_mj.core.kernels import diag_contract, diag_row_problem
 from usv_mj.loop.step import ControlStep
 from usv_mj.physics.limits import within_limits
-from usv_mj.record.criteria import criterion_of
+from usv_mj.record.criteria import criterion_of, criterion_to_dict
 from usv_mj.record.events import detect_events
 from usv_mj.record.fleet import FleetRecord
 from usv_mj.record.run_record import COL, SL_REF, SL_STATE, Event, RunRecord
@@ -40,6 +42,10 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
     limits = scenario.limits
     names = [v.name for v in vessels]
     own = next(v.name for v in vessels if v.own_ship)
+    for v in vessels:   # before anything runs: a kernel's diag against the fields (as a single run's)
+        problem = diag_contract(v.controller)
+        if problem is not None:
+            raise PluginContractError(f"vessel {v.name!r}: {problem}")
     records, steps, fields = {}, [], []
     for v in vessels:
         f = tuple(getattr(v.controller, "diagnostic_fields", ()))
@@ -50,7 +56,7 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
             "duration_s": parts.duration, "control_period_s": dt, "source": v.scenario.source,
             "scenario": v.scenario.to_dict(), "diagnostic_fields": list(f), "loop": "python",
             "loop_reason": "a run of several vessels runs the Python loop",
-            "criterion": criterion_of(v.controller).to_dict(),
+            "criterion": criterion_to_dict(criterion_of(v.controller)),
             "channels": channels_of(v.scenario, getattr(v.controller, "commands", "forces")).to_metadata(),
         }, diagnostic_fields=f, diagnostic_events=getattr(v.controller, "diagnostic_events", None))
         steps.append(ControlStep(v.quantizers, v.actuators))
@@ -83,8 +89,11 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
                 if seers[i] is not None:
                     seers[i](t, X.copy(), i, lengths)
                 ref = v.reference.evaluate(t)
-                x = X[i].copy()
+                x = X[i].copy()   # its own copy: the row and the actuators keep X[i]
                 tau_u, tau_r, diag = v.controller(t, x, ref)
+                problem = diag_row_problem(v.controller, diag, len(fields[i]))   # before the row takes it
+                if problem is not None:
+                    raise PluginContractError(f"vessel {v.name!r}: {problem}")
                 row = bufs[i][k]
                 row[COL["t"]] = t
                 row[SL_STATE] = X[i]
@@ -122,7 +131,7 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
         who = str(exc) or "the user (Ctrl-C)"
         _stop(record, "interrupted", k * dt, f"interrupted by {who} at t = {k * dt:.3f} s")
     except Exception as exc:
-        _stop(record, "failed", k * dt, f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}")
+        _stop(record, "failed", k * dt, f"{type(exc).__name__} at t = {k * dt:.3f} s: {message_line(exc)}")
         _finish(record, steps, wall0, flush)
         raise
     if progress is not None and k > counted:
