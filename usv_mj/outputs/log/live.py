@@ -11,8 +11,10 @@ one's bytes on a ``foxglove.Channel`` made from the file's own channel and schem
 Pacing: ``speed`` = None logs as fast as the run makes rows (each viewer has a deep buffer,
 :data:`BACKLOG`; when a viewer falls further behind, its oldest messages are dropped, the log file
 is always written in full); ``speed`` = X holds log time / X to the wall clock (1: real time).
-The first chunk waits for a viewer to subscribe (up to ``wait_s``; None: until one does), so that a
-viewer opened after the command sees the run from its start. Loopback (127.0.0.1) only by default.
+The server waits for a viewer to subscribe (up to ``wait_s`` [s], a finite number >= 0; None: until
+one does) once the first run's channels are in the file (:meth:`LiveServer.ready`, before the run's
+first step), so that a viewer opened after the command sees the run from its start; Ctrl-C or
+SIGTERM stops the wait (and the run). Loopback (127.0.0.1) only by default.
 
 Subprotocols: a viewer names the protocol in its WebSocket handshake. foxglove-sdk's server accepts
 ``foxglove.sdk.v1`` only, and answers any other offer with HTTP 400 (its handshake,
@@ -237,6 +239,9 @@ class LiveServer:
                  wait_s: float | None = None, say=None):
         if speed is not None and not (speed > 0 and speed < float("inf")):
             raise ScenarioError(f"--speed {speed!r}: must be a finite number > 0 (1 = real time)")
+        if wait_s is not None and not (isinstance(wait_s, (int, float)) and 0 <= wait_s < float("inf")):
+            raise ScenarioError(f"--live-wait {wait_s!r}: must be a finite number of seconds >= 0 (leave it out "
+                                "to wait until a viewer comes)")
         if not (isinstance(port, int) and 0 <= port < 65536):
             raise ScenarioError(f"--live-port {port!r}: must be a TCP port, 0 to 65535")
         foxglove = import_foxglove()
@@ -280,14 +285,20 @@ class LiveServer:
             self._channels[key] = ch
         return ch
 
+    def ready(self, writer) -> None:
+        """Advertise the channels of the MCAP file ``writer`` (a
+        :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`) and, the first time it has any, wait
+        for a viewer (:meth:`wait_for_viewer`; a KeyboardInterrupt, Ctrl-C or SIGTERM, ends the wait)."""
+        for cid in writer.channels:      # every channel is advertised before its first message
+            self._channel(writer, cid)
+        if not self._waited and writer.channels:
+            self._waited = True
+            self.wait_for_viewer()
+
     def chunk(self, writer, parts) -> None:
         """Log every message of one uncompressed chunk (``parts``: its bytes / uint8 arrays in order)
         of the MCAP file ``writer`` (a :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`)."""
-        for cid in writer.channels:      # every channel is advertised before its first message
-            self._channel(writer, cid)
-        if not self._waited:
-            self._waited = True
-            self.wait_for_viewer()
+        self.ready(writer)
         data = memoryview(b"".join(bytes(p) for p in parts))
         pos, end, head = 0, len(data), _HEAD.size
         while pos < end:

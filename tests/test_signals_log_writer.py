@@ -1,0 +1,223 @@
+"""Issue 38, signals and the log writer (causes 2, 3, 11, 19): a signal to the whole process group
+(a terminal's Ctrl-C or hang-up, ``timeout``, ``kill -TERM -PGID``) leaves a run log that holds
+exactly what its end record and summary.json say; a live server waiting for a viewer stops on
+Ctrl-C or SIGTERM; the benchmark's cluster start stops quietly.
+
+Every test starts the program in its own process group (as a terminal does) and signals the group.
+Each waits for a condition the program reports (rows in the staging folder's log, a line on
+stderr, worker processes in the group), with a bound, never a fixed time, and asserts one outcome.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+BOUND_S = 300.0          # the longest any condition may take on a loaded two-core machine
+
+
+class Group:
+    """``python -m usv_mj.cli.main ARGS`` as the leader of its own process group (a terminal's job),
+    its stderr read line by line as it comes."""
+
+    def __init__(self, args, cwd: Path, env: dict | None = None):
+        self.proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", *map(str, args)], cwd=cwd,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     env={**os.environ, "PYTHONPATH": str(ROOT), **(env or {})},
+                                     start_new_session=True)
+        self.lines: queue.Queue = queue.Queue()
+        self.err: list[str] = []
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.proc.stderr:
+            self.err.append(line)
+            self.lines.put(line)
+        self.lines.put(None)
+
+    def wait_for_line(self, text: str, timeout: float = BOUND_S) -> str:
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                line = self.lines.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                self.kill()
+                pytest.fail(f"no line with {text!r} in {timeout} s: {''.join(self.err)}")
+            if line is None:
+                pytest.fail(f"the program ended before a line with {text!r}: {''.join(self.err)}")
+            if text in line:
+                return line
+
+    def wait_until(self, condition, what: str, timeout: float = BOUND_S) -> None:
+        deadline = time.monotonic() + timeout
+        while not condition():
+            if self.proc.poll() is not None:
+                pytest.fail(f"the program ended before {what}: {''.join(self.err)}")
+            if time.monotonic() > deadline:
+                self.kill()
+                pytest.fail(f"{what}: not in {timeout} s")
+            time.sleep(0.02)          # a poll interval, not a wait for the outcome
+
+    def signal_group(self, sig) -> None:
+        os.killpg(self.proc.pid, sig)
+
+    def finish(self, timeout: float = 120.0) -> tuple[int | None, str, str]:
+        """The exit code (None: it did not end in ``timeout`` s and was killed), stdout, stderr."""
+        try:
+            out, _ = self.proc.communicate(timeout=timeout)
+            code = self.proc.returncode
+        except subprocess.TimeoutExpired:
+            self.kill()
+            out, _ = self.proc.communicate()
+            code = None
+        deadline = time.monotonic() + 10
+        while self.lines.get(timeout=max(0.0, deadline - time.monotonic())) is not None:
+            pass
+        return code, out, "".join(self.err)
+
+    def kill(self) -> None:
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def rows_in_staging_log(folder: Path, name: str = "out", at_least: int = 1) -> bool:
+    """The run writes its log into ``.NAME.staging-PID/run.mcap``: True once it holds ``at_least``
+    complete chunks' worth of /usv/state messages (the loop is running)."""
+    from usv_mj.outputs.log.reader import RunLogReadError, scan_summary
+
+    for log in folder.glob(f".{name}.staging-*/run.mcap"):
+        try:
+            if scan_summary(log)["topics"].get("/usv/state", {}).get("count", 0) >= at_least:
+                return True
+        except (RunLogReadError, OSError):   # the header not written yet
+            pass
+    return False
+
+
+def assert_log_holds_what_it_says(out: Path) -> None:
+    """run.mcap is complete, holds every row the run simulated (summary.json's simulated_s is its
+    last row's t) and its end record counts exactly the rows it holds."""
+    from usv_mj.outputs.log import read_run
+
+    summary = json.loads((out / "summary.json").read_text())
+    log = read_run(out / "run.mcap")
+    assert log.complete, log.notice
+    assert log.notice == ""
+    record = log.record
+    assert record.value("t", -1) == summary["simulated_s"]
+    dt = record.metadata["control_period_s"]
+    assert len(record) == round(summary["simulated_s"] / dt) + 1
+    end = log.metadata["runs"]["main"]["end"]
+    assert int(end["rows"]) == len(record)
+
+
+# --- cause 3: SIGTERM or SIGHUP to the process group ------------------------------------------------
+
+
+RUN = ["run", "--plant", "analytic", "--no-video", "--no-baseline", "-q", "--duration", "3000"]
+
+
+@pytest.mark.parametrize("sig, name", [(signal.SIGTERM, "SIGTERM"), (signal.SIGHUP, "SIGHUP")])
+def test_a_signal_to_the_process_group_leaves_the_whole_log(tmp_path, sig, name):
+    """Before: the background writer died of the signal: run.mcap cut 2-4 s short of the run and
+    without its footer while summary.json said ``missing_outputs: []``; SIGHUP added the resource
+    tracker's KeyError tracebacks and "leaked" warnings."""
+    prog = Group([*RUN, "--out", tmp_path / "out"], tmp_path)
+    prog.wait_until(lambda: rows_in_staging_log(tmp_path), "the run writing rows into its log")
+    prog.signal_group(sig)
+    code, _, err = prog.finish()
+    assert code == 1, err
+    assert "Traceback" not in err and "leak" not in err and "resource_tracker" not in err, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and name in summary["stop_reason"]
+    assert "job_stopped" not in summary, summary.get("job_stopped")
+    assert_log_holds_what_it_says(tmp_path / "out")
+
+
+def test_a_hang_up_to_a_manoeuvre_leaves_the_whole_log(tmp_path):
+    """The same writer serves ``manoeuvre``: before, its log was cut as ``run``'s."""
+    prog = Group(["manoeuvre", "turning", "--plant", "analytic", "-q", "--duration", "3000",
+                  "--out", tmp_path / "out"], tmp_path)
+    prog.wait_until(lambda: rows_in_staging_log(tmp_path), "the manoeuvre writing rows into its log")
+    prog.signal_group(signal.SIGHUP)
+    code, _, err = prog.finish()
+    assert code == 1, err
+    assert "Traceback" not in err and "leak" not in err, err
+    assert_log_holds_what_it_says(tmp_path / "out")
+
+
+# --- cause 2: Ctrl-C to a live run ------------------------------------------------------------------
+
+
+def test_ctrl_c_to_a_paced_live_run_loses_no_rows(tmp_path):
+    """``run --live --speed 1``: Ctrl-C lands while the live server paces a chunk. Before: the
+    block being written was dropped from run.mcap (6000 rows in the file) while its end record and
+    ``inspect`` said 8000 and complete."""
+    pytest.importorskip("foxglove", reason='pip install "usv_mj[live]"')
+    prog = Group(["run", "--plant", "analytic", "--no-video", "--no-baseline", "-q", "--duration", "120",
+                  "--live", "--live-port", "0", "--live-wait", "0", "--speed", "1", "--out", tmp_path / "out"],
+                 tmp_path)
+    prog.wait_until(lambda: rows_in_staging_log(tmp_path, at_least=2000), "the live run writing rows")
+    prog.signal_group(signal.SIGINT)
+    code, _, err = prog.finish()
+    assert code == 1, err
+    assert "Traceback" not in err, err
+    assert_log_holds_what_it_says(tmp_path / "out")
+
+
+# --- cause 11: a live server waiting for its viewer -------------------------------------------------
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_live_run_waiting_for_a_viewer_stops_on_a_signal(tmp_path, sig):
+    """Before: "Ctrl-C stops" was printed, but Ctrl-C and SIGTERM were held until a viewer came
+    (the compiled loop held them over its first block, which includes the first flush); only
+    SIGKILL ended it, leaving the lock and the staging folder."""
+    pytest.importorskip("foxglove", reason='pip install "usv_mj[live]"')
+    prog = Group(["run", "--plant", "analytic", "--no-video", "--no-baseline", "-q", "--duration", "30",
+                  "--live", "--live-port", "0", "--out", tmp_path / "out"], tmp_path)
+    prog.wait_for_line("live: waiting for a viewer")
+    prog.signal_group(sig)
+    code, _, err = prog.finish(timeout=60)
+    assert code == 1, err
+    assert "Traceback" not in err, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "interrupted"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]     # no lock, no staging folder left
+
+
+@pytest.mark.parametrize("wait", ["nan", "-1", "inf"])
+def test_a_live_wait_that_is_not_a_finite_time_is_refused(tmp_path, capsys, wait):
+    """Before: ``--live-wait nan`` was accepted and waited for ever (the deadline now + nan is never
+    reached)."""
+    pytest.importorskip("foxglove", reason='pip install "usv_mj[live]"')
+    from usv_mj.cli.main import main
+
+    assert main(["run", "--plant", "analytic", "--no-video", "-q", "--duration", "1", "--live", "--live-port", "0",
+                 "--live-wait", wait, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"--live-wait {float(wait)!r}" in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_live_server_refuses_a_wait_that_is_not_a_finite_time():
+    pytest.importorskip("foxglove", reason='pip install "usv_mj[live]"')
+    from usv_mj.core.errors import ScenarioError
+    from usv_mj.outputs.log.live import LiveServer
+
+    for wait in (math.nan, -0.5, math.inf, "5"):
+        with pytest.raises(ScenarioError, match="--live-wait"):
+            LiveServer(port=0, wait_s=wait)
