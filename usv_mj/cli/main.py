@@ -19,10 +19,12 @@
     usv-mj view [--manual]             MuJoCo's viewer on the scenario: water, sea, controller (or the arrow keys)
     usv-mj manoeuvre turning           a standard manoeuvre: turning, zigzag, spiral, stopping (IMO measures)
 
-Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
-recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
-message names the Debian packages to install; --no-video skips the video; `usv-mj view`: no display);
-141 the output pipe closed.
+Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted, or the file system refused
+a write, such as a full disk: the reason and the path are printed and recorded); 2 bad input (the
+message names the key and the file; an output folder that cannot be written, when that is known
+before anything is written, is bad input too); 3 no OpenGL for the video (the message names the
+Debian packages to install; --no-video skips the video; `usv-mj view`: no display); 141 the output
+pipe closed.
 An --out that holds an earlier output is refused unless --overwrite, which replaces only what a usv_mj
 command wrote (listed in the folder's .usv_mj-manifest.json); a folder holding anything else is refused.
 """
@@ -117,6 +119,13 @@ def short_usage() -> str:
             "  usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples")
 
 
+def os_error_line(exc: OSError) -> str:
+    """One line for an OSError: the path(s) and the system's reason (``No space left on device``)."""
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    paths = [str(f) for f in (exc.filename, exc.filename2) if f is not None]
+    return f"{' -> '.join(paths)}: {reason}" if paths else f"{reason} ({type(exc).__name__})"
+
+
 def main(argv: list[str] | None = None) -> int:
     if threading.current_thread() is threading.main_thread():
         # until a command installs its own handlers: SIGTERM / SIGHUP end it as Ctrl-C would (exit 1)
@@ -153,6 +162,14 @@ def main(argv: list[str] | None = None) -> int:
         # point stdout at /dev/null so that the interpreter's final flush does not fail again
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        if getattr(args, "debug", False) or os.environ.get("USV_MJ_DEBUG") == "1":
+            raise
+        # the file system refused while the command wrote (a full disk, a folder made read-only):
+        # not a defect of usv_mj and not bad input (what can be foreseen is refused before
+        # anything is written, exit 2): the command stopped early, exit 1
+        print(f"usv-mj {args.command}: {os_error_line(exc)}", file=sys.stderr)
+        return EXIT_STOPPED
     except Exception as exc:
         from usv_mj.outputs.render import GLUnavailableError
 

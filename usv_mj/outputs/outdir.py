@@ -13,8 +13,9 @@ what such a manifest lists, unchanged:
   before manifests (``summary.json`` + ``run.mcap``, or ``sweep.json`` + ``results.parquet``,
   and nothing but the names those versions wrote). The root, a mount point, the current folder,
   the home folder and their parents are refused too.
-* :func:`check_file` (render, env: a video and its still): the file is new, or its folder's
-  manifest lists it.
+* :func:`check_file` (render, env: a video and its still; scene: an MJCF file): the file is new,
+  or its folder's manifest lists it. :func:`write_file` then writes such a file whole or not at
+  all (never through a symbolic link, never a cut or empty file on a full disk) and lists it.
 * :class:`Staging` writes a job into ``.NAME.staging-PID`` beside ``out`` and moves it into place
   at the end with its manifest; the old folder's listed files are then deleted one by one (never a
   whole tree): anything unlisted that appeared meanwhile stays where it was.
@@ -193,6 +194,8 @@ def record(folder: Path, paths=None, *, patterns=(), command: str | None = None,
     try:
         tmp.write_text(json.dumps(manifest, indent=1) + "\n")
         tmp.replace(folder / MANIFEST)
+    except OSError as exc:      # a full disk: name the manifest (a file's close() names nothing)
+        raise OSError(exc.errno, exc.strerror, str(folder / MANIFEST)) from None
     finally:
         tmp.unlink(missing_ok=True)
 
@@ -356,6 +359,32 @@ def record_file(out, companions: tuple[str, ...] = (".png",)) -> None:
     """After :func:`check_file`'s output was written: list it (and its companions) in its folder's manifest."""
     out = Path(out)
     record(out.parent, [p.name for p in (out, *(out.with_suffix(s) for s in companions)) if p.is_file()])
+
+
+def write_file(out, data: str | bytes) -> None:
+    """Write ``data`` to ``out`` (checked by :func:`check_file`) whole or not at all: into a new
+    temporary file beside it, renamed over it once complete (a full disk or a read-only folder
+    raises OSError naming ``out`` and leaves ``out`` as it was; a symbolic link named ``out`` is
+    replaced, never written through), then listed in its folder's manifest (:func:`record_file`)."""
+    out = Path(out)
+    raw = data.encode() if isinstance(data, str) else bytes(data)
+    tmp = out.parent / f".{out.name}.{os.getpid()}.tmp"     # the name check_names allows for
+    if os.path.lexists(tmp):                                 # left by a dead process of this pid
+        os.unlink(tmp)
+    try:
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)   # the umask applies
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(raw)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, out)
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror, str(out)) from None
+    finally:
+        if os.path.lexists(tmp):
+            os.unlink(tmp)
+    record_file(out, companions=())
 
 
 # --- staging -------------------------------------------------------------------------------------

@@ -356,13 +356,18 @@ def rows_to_table(rows: list[dict], paths: list[str], fingerprint: str = ""):
 
 
 def write_results(path: Path, rows: list[dict], paths: list[str], fingerprint: str) -> None:
-    """Write ``rows`` to ``path`` atomically (a temporary file, then ``os.replace``)."""
+    """Write ``rows`` to ``path`` atomically (a temporary file, then ``os.replace``); an OSError
+    (a full disk) names ``path`` and leaves it as it was."""
     import pyarrow.parquet as pq
 
     table = rows_to_table(rows, paths, fingerprint)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    except OSError as exc:      # pyarrow's own errors carry no file name
+        tmp.unlink(missing_ok=True)
+        raise OSError(exc.errno, exc.strerror or " ".join(str(exc).split()), str(path)) from None
 
 
 def read_results(path: str | Path) -> tuple[list[dict], str]:
