@@ -120,10 +120,12 @@ def short_usage() -> str:
 
 
 def os_error_line(exc: OSError) -> str:
-    """One line for an OSError: the path(s) and the system's reason (``No space left on device``)."""
+    """One line for an OSError: the path(s), the system's reason (``No space left on device``) and
+    the notes the library added to it."""
     reason = exc.strerror or str(exc) or type(exc).__name__
     paths = [str(f) for f in (exc.filename, exc.filename2) if f is not None]
-    return f"{' -> '.join(paths)}: {reason}" if paths else f"{reason} ({type(exc).__name__})"
+    line = f"{' -> '.join(paths)}: {reason}" if paths else f"{reason} ({type(exc).__name__})"
+    return "; ".join([line, *getattr(exc, "__notes__", ())])   # e.g. where the earlier output is (outdir)
 
 
 def main(argv: list[str] | None = None) -> int:

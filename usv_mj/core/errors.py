@@ -70,6 +70,13 @@ def expected(where: str, name: str, what: str, value) -> ArgumentTypeError:
     return ArgumentTypeError(f"{where}: {name} must be {what}, got {got}")
 
 
+class PluginExit(UsvMjError, RuntimeError):
+    """A part of a run (a plug-in controller, reference, hook...) called ``sys.exit`` while the run
+    was going: the run is recorded as failed with every row before it, and this is raised in
+    place of the SystemExit (a plug-in stops a run by raising an exception, never by ending the
+    program). The message names the module and line that called it."""
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised like Ctrl-C's KeyboardInterrupt (its text: the signal's name), so
     that every ending by a signal is recorded as an interruption."""

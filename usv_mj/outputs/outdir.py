@@ -18,7 +18,10 @@ what such a manifest lists, unchanged:
   all (never through a symbolic link, never a cut or empty file on a full disk) and lists it.
 * :class:`Staging` writes a job into ``.NAME.staging-PID`` beside ``out`` and moves it into place
   at the end with its manifest; the old folder's listed files are then deleted one by one (never a
-  whole tree): anything unlisted that appeared meanwhile stays where it was.
+  whole tree): anything unlisted that appeared meanwhile stays where it was. A job that failed
+  (a crash, an output that could not be written) does not replace an earlier output:
+  :meth:`Staging.set_aside` keeps its files in ``.NAME.failed-PID`` beside ``out``, which the next
+  job into ``out`` clears.
 
 Every refusal is one :class:`usv_mj.core.errors.ScenarioError` line (exit 2), raised before anything is
 made. A name whose staging name would be over 255 bytes is refused the same way.
@@ -398,6 +401,8 @@ class Staging:
 
     def __init__(self, out: Path):
         self.out = Path(out)
+        #: ``out`` holds an earlier output (check_folder let it through): a failed job keeps it
+        self.replaces = self.out.is_dir() and any(True for _ in os.scandir(self.out))
         parent = self.out.parent
         self._made = [p for p in [parent, *parent.parents] if not p.exists()]   # removed again if nothing comes
         parent.mkdir(parents=True, exist_ok=True)
@@ -414,6 +419,9 @@ class Staging:
     def _cleanup_killed(parent: Path, name: str) -> None:
         import shutil
 
+        for p in parent.glob(f".{name}.failed-*"):      # a failed job's outputs, kept until this job
+            if (p / STAGING_MARK).exists():
+                shutil.rmtree(p, ignore_errors=True)
         for p in list(parent.glob(f".{name}.staging-*")) + list(parent.glob(f".{name}.old-*")):
             try:
                 os.kill(int(p.name.rsplit("-", 1)[1]), 0)
@@ -446,18 +454,41 @@ class Staging:
             except OSError:
                 break
 
-    def commit(self) -> None:
-        """Drop temporary files, write the manifest, then put the staging folder in place of ``out``
-        (nothing written: ``out`` stays as it was)."""
+    def _tidy(self) -> None:
+        """Drop the temporary files of the job (partial renders, ``*.tmp``)."""
         import shutil
 
-        if not self.path.exists():
-            return
-        (self.path / STAGING_MARK).unlink(missing_ok=True)
         for tmp in list(self.path.rglob("*.tmp")) + list(self.path.rglob("*.segments.txt")):
             tmp.unlink(missing_ok=True)
         for tmp in self.path.glob(".render-*"):
             shutil.rmtree(tmp, ignore_errors=True)
+
+    def set_aside(self) -> Path | None:
+        """The job failed: ``out`` keeps its earlier output, and what the job wrote goes to
+        ``.NAME.failed-PID`` beside it (cleared by the next job into ``out``); that folder, or
+        None when the job wrote nothing (the staging folder and the parents it made then go)."""
+        import shutil
+
+        if not self.path.exists():
+            return None
+        self._tidy()
+        if not any(p.name != STAGING_MARK for p in self.path.iterdir()):
+            self.discard()
+            return None
+        aside = self.out.parent / f".{self.out.name}.failed-{os.getpid()}"
+        if aside.exists() and (aside / STAGING_MARK).exists():
+            shutil.rmtree(aside)          # an earlier failed job of this same process
+        self.path.rename(aside)           # keeps its mark: the next job's clean-up knows it is usv_mj's
+        self.path = aside
+        return aside
+
+    def commit(self) -> None:
+        """Drop temporary files, write the manifest, then put the staging folder in place of ``out``
+        (nothing written: ``out`` stays as it was)."""
+        if not self.path.exists():
+            return
+        (self.path / STAGING_MARK).unlink(missing_ok=True)
+        self._tidy()
         if not any(self.path.iterdir()):
             self.path.rmdir()
             self._unmake()
@@ -484,8 +515,10 @@ def results_folder(out, resume: bool = False):
     """Where a sweep or a benchmark writes its results, as a context manager yielding the folder.
     A new (or empty) folder, or ``resume``: ``out`` itself, in place (a killed job stays resumable).
     Replacing an earlier output (``--overwrite``): a :class:`Staging` folder, so the old output stays
-    until the new one ends; it goes into place however the job ends, unless bad input is found late
-    (a ScenarioError: nothing goes into place)."""
+    until the new one ends; it goes into place when the job ends or is interrupted (its rows so far
+    are resumable there), not when bad input is found late (a ScenarioError: nothing goes into
+    place) nor when the job fails (another exception: the earlier output stays, the job's files
+    go to :meth:`Staging.set_aside`'s folder, named in a note added to the exception)."""
     import contextlib
 
     @contextlib.contextmanager
@@ -497,6 +530,19 @@ def results_folder(out, resume: bool = False):
         except ScenarioError:
             if stage:
                 stage.discard()
+            raise
+        except (KeyboardInterrupt, GeneratorExit):
+            raise
+        except BaseException as exc:
+            if stage:
+                staged, stage_ = str(stage.path), stage
+                stage = None                       # not committed below
+                aside = stage_.set_aside()
+                if isinstance(exc, OSError) and aside is not None and str(exc.filename or "").startswith(staged):
+                    exc.filename = str(aside) + str(exc.filename)[len(staged):]
+                exc.add_note(f"{path} still holds the earlier output; "     # the command line prints it
+                             + (f"what this job wrote is in {aside}/ until the next job into it" if aside else
+                                "this job wrote nothing"))
             raise
         finally:
             if stage and stage.path.exists():
