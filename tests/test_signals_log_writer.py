@@ -74,17 +74,20 @@ class Group:
 
     def finish(self, timeout: float = 120.0) -> tuple[int | None, str, str]:
         """The exit code (None: it did not end in ``timeout`` s and was killed), stdout, stderr."""
+        out: list[str] = []
+        reader = threading.Thread(target=lambda: out.append(self.proc.stdout.read()), daemon=True)
+        reader.start()             # stdout here; stderr is the line reader's alone
         try:
-            out, _ = self.proc.communicate(timeout=timeout)
-            code = self.proc.returncode
+            code = self.proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             self.kill()
-            out, _ = self.proc.communicate()
+            self.proc.wait()
             code = None
+        reader.join(10)
         deadline = time.monotonic() + 10
         while self.lines.get(timeout=max(0.0, deadline - time.monotonic())) is not None:
             pass
-        return code, out, "".join(self.err)
+        return code, "".join(out), "".join(self.err)
 
     def kill(self) -> None:
         try:
@@ -221,3 +224,81 @@ def test_the_live_server_refuses_a_wait_that_is_not_a_finite_time():
     for wait in (math.nan, -0.5, math.inf, "5"):
         with pytest.raises(ScenarioError, match="--live-wait"):
             LiveServer(port=0, wait_s=wait)
+
+
+# --- cause 19: a signal while the benchmark's cluster starts ------------------------------------------
+
+
+TINY_SUITE = """
+name = "tiny"
+episodes = 2
+seed = 3
+duration = 2.0
+plant = "analytic"
+controllers = ["ppc", "pi"]
+[conditions.calm]
+[[tasks]]
+name = "line"
+base = "paper"
+set = { "trajectory.kind" = "line", "initial.eta" = [0.0, 0.0, 0.0] }
+vary = { "initial.eta[1]" = { uniform = [-2.0, 2.0] } }
+settle_time_s = 1.0
+"""
+
+
+def spawned_in_group(pgid: int) -> int:
+    """The processes of group ``pgid`` that multiprocessing spawned (the cluster's workers)."""
+    n = 0
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit():
+            continue
+        try:
+            if os.getpgid(int(pid)) == pgid and b"--multiprocessing-fork" in Path(f"/proc/{pid}/cmdline").read_bytes():
+                n += 1
+        except (OSError, ProcessLookupError):
+            pass
+    return n
+
+
+class Bench(Group):
+    """``python -m usv_mj.cli bench`` (the package's own entry, as the ``usv-mj`` script: its
+    spawned workers import it again)."""
+
+    def __init__(self, args, cwd):
+        self.proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli", "bench", *map(str, args)], cwd=cwd,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     env={**os.environ, "PYTHONPATH": str(ROOT)}, start_new_session=True)
+        self.lines = queue.Queue()
+        self.err = []
+        threading.Thread(target=self._read, daemon=True).start()
+
+
+@pytest.mark.parametrize("sig, resume", [(signal.SIGINT, False), (signal.SIGHUP, True)])
+def test_a_signal_while_the_cluster_starts_is_one_truthful_line(tmp_path, sig, resume):
+    """Ctrl-C (the terminal signals every process of the group) or a hang-up while the local
+    cluster's workers start. Before: ~150 lines of the workers' KeyboardInterrupt tracebacks and
+    the scheduler's "Nanny failed to start"; after a hang-up each worker printed "interrupted
+    (SIGHUP) while starting; nothing was written" (the workers import usv_mj.cli again and took
+    the program's start-up handlers) although results.parquet held the episodes of a first pass."""
+    from usv_mj.jobs.sweep.runner import read_results
+
+    suite, out = tmp_path / "tiny.toml", tmp_path / "out"
+    suite.write_text(TINY_SUITE)
+    done = 0
+    if resume:                  # a first pass leaves one episode in results.parquet
+        first = Bench([suite, "--workers", "1", "--no-progress", "--max-runs", "1", "--out", out], tmp_path)
+        code, _, err = first.finish(timeout=BOUND_S)
+        assert code == 0, err
+        done = len(read_results(out / "results.parquet")[0])
+        assert done == 1
+    prog = Bench([suite, "--workers", "2", "--no-progress", "--out", out, *(["--resume"] if resume else [])], tmp_path)
+    prog.wait_until(lambda: spawned_in_group(prog.proc.pid) >= 2, "the cluster's workers starting")
+    prog.signal_group(sig)
+    code, _, err = prog.finish()
+    assert code == 1, err
+    lines = [line for line in err.splitlines() if line.strip()]
+    held = len(read_results(out / "results.parquet")[0])
+    assert held == done
+    assert len(lines) == 1 and lines[0] == (
+        f"usv-mj bench: interrupted: {held} of 4 episodes are in {out}/results.parquet; run the same command "
+        "with --resume to finish"), err

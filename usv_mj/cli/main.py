@@ -52,7 +52,10 @@ def _early_signal(signum, frame):
 _ARGV0 = sys.argv[0] if sys.argv else ""
 if (__name__ == "__main__" or os.path.basename(_ARGV0) == "usv-mj"
         or _ARGV0.endswith(os.path.join("usv_mj", "cli", "__main__.py"))) \
-        and threading.current_thread() is threading.main_thread():
+        and threading.current_thread() is threading.main_thread() \
+        and "--multiprocessing-fork" not in getattr(sys, "orig_argv", ()):
+    # (not in a worker spawned by multiprocessing, such as a Dask worker: it is handed the program's
+    # argv and imports the program again, but it is not the program and has nothing to say)
     # the program itself, before the imports below (the commands' modules; the library comes when a
     # command runs): SIGTERM / SIGHUP while it starts
     # end it as Ctrl-C would, exit 1, instead of the default death (143)

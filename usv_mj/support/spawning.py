@@ -63,13 +63,14 @@ GROUP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "S
 
 
 @contextlib.contextmanager
-def group_signals_blocked():
-    """Block SIGINT, SIGTERM and SIGHUP in this thread while the block runs (a signal that comes
-    meanwhile is delivered when it ends); a process or thread started inside inherits the mask."""
+def group_signals_blocked(signals=GROUP_SIGNALS):
+    """Block ``signals`` (SIGINT, SIGTERM and SIGHUP) in this thread while the block runs (a signal
+    that comes meanwhile is delivered when it ends); a process or thread started inside inherits
+    the mask, and keeps it."""
     if not hasattr(signal, "pthread_sigmask"):
         yield
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, GROUP_SIGNALS)
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, signals)
     try:
         yield
     finally:
