@@ -110,6 +110,14 @@ def rows_in_staging_log(folder: Path, name: str = "out", at_least: int = 1) -> b
     return False
 
 
+def _spawned(pid: int, pgid: int) -> bool:
+    """``pid`` is a process of group ``pgid`` that multiprocessing spawned (a worker)."""
+    try:
+        return os.getpgid(pid) == pgid and b"--multiprocessing-fork" in Path(f"/proc/{pid}/cmdline").read_bytes()
+    except (OSError, ProcessLookupError):
+        return False
+
+
 def assert_log_holds_what_it_says(out: Path) -> None:
     """run.mcap is complete, holds every row the run simulated (summary.json's simulated_s is its
     last row's t) and its end record counts exactly the rows it holds."""
@@ -160,6 +168,30 @@ def test_a_hang_up_to_a_manoeuvre_leaves_the_whole_log(tmp_path):
     assert code == 1, err
     assert "Traceback" not in err and "leak" not in err, err
     assert_log_holds_what_it_says(tmp_path / "out")
+
+
+def test_a_log_whose_writer_was_killed_is_named_in_the_summary(tmp_path):
+    """The writer killed on its own (SIGKILL, the OOM killer): the run goes on without its log.
+    Before: summary.json said ``missing_outputs: []`` beside a run.mcap cut short, and the line
+    said only "the background writer exited without a reply"."""
+    prog = Group([*RUN, "--out", tmp_path / "out"], tmp_path)
+    prog.wait_until(lambda: rows_in_staging_log(tmp_path), "the run writing rows into its log")
+    writers = [int(pid) for pid in os.listdir("/proc") if pid.isdigit() and _spawned(int(pid), prog.proc.pid)]
+    assert len(writers) == 1                    # --no-video: the log writer is the only spawned worker
+    os.kill(writers[0], signal.SIGKILL)
+    prog.wait_for_line("the run goes on without its log")
+    prog.signal_group(signal.SIGINT)
+    code, _, err = prog.finish()
+    assert code == 1, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith(f"usv-mj run: {tmp_path / 'out' / 'run.mcap'}: the background log writer died "
+                           "(killed by SIGKILL)"), err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["missing_outputs"] == ["run.mcap"]
+    from usv_mj.outputs.log import read_run
+
+    log = read_run(tmp_path / "out" / "run.mcap")
+    assert not log.complete and "cut short" in log.notice
 
 
 # --- cause 2: Ctrl-C to a live run ------------------------------------------------------------------
@@ -247,17 +279,8 @@ settle_time_s = 1.0
 
 
 def spawned_in_group(pgid: int) -> int:
-    """The processes of group ``pgid`` that multiprocessing spawned (the cluster's workers)."""
-    n = 0
-    for pid in os.listdir("/proc"):
-        if not pid.isdigit():
-            continue
-        try:
-            if os.getpgid(int(pid)) == pgid and b"--multiprocessing-fork" in Path(f"/proc/{pid}/cmdline").read_bytes():
-                n += 1
-        except (OSError, ProcessLookupError):
-            pass
-    return n
+    """How many processes of group ``pgid`` multiprocessing spawned (the cluster's workers)."""
+    return sum(1 for pid in os.listdir("/proc") if pid.isdigit() and _spawned(int(pid), pgid))
 
 
 class Bench(Group):

@@ -453,7 +453,7 @@ class _StagedJob:
         self.expected = ["summary.json", "report.md", "figures"] + (["run.mcap"] if log else []) + \
                         (["video.mp4", "video.png"] if video else [])
         self.stack = ExitStack()
-        self.writer = None
+        self.writer = self.base_writer = None
         self.every = None        # the log's n-th step
         self.pool = None
         self.stopped = None      # why the outputs after the simulation stopped (interrupt or fault)
@@ -613,8 +613,8 @@ class _StagedJob:
         if self.log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
             from usv_mj.outputs.log import RunLogWriter
 
-            base_writer = self.stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario,
-                                                                companion_of=self.writer, live=self.live))
+            base_writer = self.base_writer = self.stack.enter_context(RunLogWriter(
+                out / "baseline.mcap", scenario, companion_of=self.writer, live=self.live))
             sink_base = [base_writer.sink(run="baseline", log_every=self.every)]
             self.files["baseline_mcap"] = out / "baseline.mcap"
         cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", self.progress,
@@ -668,7 +668,7 @@ class _StagedJob:
         if self.run_baseline and self.base_rec is None and self.record.status != "interrupted":
             summary_out["baseline"] = {"status": "not run", "stop_reason": stopped}
         summary_out["job_stopped"] = stopped
-        summary_out["missing_outputs"] = _missing(out, self.expected, self.log)
+        summary_out["missing_outputs"] = self._missing_now()
         # the summary first: a second Ctrl-C while the report is written ends the job at once
         self.files["summary"] = out / "summary.json"
         write_json(self.files["summary"], _relocate(summary_out, out, final_out))
@@ -679,7 +679,16 @@ class _StagedJob:
             self.files["report"] = out / "report.md"
         except KeyboardInterrupt:
             summary_out["job_stopped"] = f"{stopped}; interrupted again ({self.signals.last}) while writing the report"
-        summary_out["missing_outputs"] = _missing(out, self.expected, self.log)
+        summary_out["missing_outputs"] = self._missing_now()
+
+    def _missing_now(self) -> list:
+        """The expected outputs not (all) there, a log whose writer failed included (it holds the
+        rows up to its last complete chunk, not the run's: issue 38)."""
+        missing = _missing(self.out, self.expected, self.log)
+        for writer in (self.writer, self.base_writer):
+            if writer is not None and writer.failed and writer.path.name not in missing:
+                missing.append(writer.path.name)
+        return missing
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,

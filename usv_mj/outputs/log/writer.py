@@ -225,6 +225,7 @@ class RunLogWriter:
         self._errors: list[str] = []
         self._sinks: list[RunLogSink] = []
         self._closed = False
+        self.failed = False       # after close: writing failed (the file ends at its last complete chunk)
         self.stats: dict = {}     # after close: the writer's CPU time (background), chunks, messages
         commit, dirty = git_commit()
         to_dict = scenario.to_dict() if hasattr(scenario, "to_dict") else {}
@@ -388,10 +389,15 @@ class RunLogWriter:
                     try:
                         status = self._reply.recv()
                     except EOFError:
-                        status = ("error", "the background writer exited without a reply", {})
+                        status = ("error", None, {})
                 elif not self._proc.is_alive():
-                    status = ("error", f"the background writer exited with code {self._proc.exitcode}", {})
+                    status = ("error", None, {})
             self._proc.join(timeout=30)
+            if status[0] == "error" and status[1] is None:      # it died: say how, and what the file holds
+                code = self._proc.exitcode
+                how = f"killed by {signal_name(-code)}" if code is not None and code < 0 else f"exit code {code}"
+                status = ("error", f"{self.path}: the background log writer died ({how}) before the run ended; "
+                                   "the log holds the rows up to its last complete chunk", {})
             # the worker is gone: anything still buffered for it can never be read, so do not wait
             # for the queue's feeder thread to deliver it (that would hang when the worker died)
             self._queue.cancel_join_thread()
@@ -409,6 +415,7 @@ class RunLogWriter:
             except Exception:
                 error = traceback.format_exc()
         problems = self._errors + ([error] if error else [])
+        self.failed = bool(problems)
         if problems:
             if len(problems) == 1 and "\n" not in problems[0].strip():
                 raise RunLogError(problems[0])      # one line (a fault such as a full disk)
@@ -425,6 +432,16 @@ class RunLogWriter:
                 raise
             warnings.warn(f"run log {self.path}: writer failed too", RuntimeWarning, stacklevel=2)
         return False
+
+
+def signal_name(number: int) -> str:
+    """SIGKILL for 9 (``signal <n>`` for a number the platform does not name)."""
+    import signal
+
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
 
 
 def _close_at_exit(ref):
