@@ -170,6 +170,105 @@ def test_a_hang_up_to_a_manoeuvre_leaves_the_whole_log(tmp_path):
     assert_log_holds_what_it_says(tmp_path / "out")
 
 
+FLEET = """
+preset = "paper"
+control_period = 0.01
+[plant]
+kind = "analytic"
+[[vessels]]
+name = "own"
+own_ship = true
+steer = "keep"
+speed = 0.6
+initial = { eta = [0.0, 0.0, 1.5707963267948966], nu = [0.6, 0.0, 0.0] }
+[[vessels]]
+name = "target"
+steer = "keep"
+speed = 0.6
+initial = { eta = [30.0, 0.0, 1.5707963267948966], nu = [0.6, 0.0, 0.0] }
+"""
+
+
+def test_a_signal_to_a_fleets_process_group_leaves_every_vessels_log_whole(tmp_path):
+    """A fleet (``[[vessels]]``) writes run.mcap and vessel-target.mcap, each by its own background
+    writer: SIGTERM to the group stops the run, and both logs end with every row the run made."""
+    (tmp_path / "fleet.toml").write_text(FLEET)
+    prog = Group(["run", "--scenario", tmp_path / "fleet.toml", "--plant", "analytic", "--no-video", "-q",
+                  "--duration", "3000", "--out", tmp_path / "out"], tmp_path)
+    prog.wait_until(lambda: rows_in_staging_log(tmp_path), "the fleet writing rows into its log")
+    prog.signal_group(signal.SIGTERM)
+    code, _, err = prog.finish()
+    assert code == 1, err
+    assert "Traceback" not in err and "leak" not in err, err
+    out = tmp_path / "out"
+    assert (out / "summary.json").is_file(), (err, sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")))
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and "SIGTERM" in summary["stop_reason"]
+    from usv_mj.outputs.log import read_run
+
+    log = read_run(out / "run.mcap")
+    assert log.complete and log.notice == "" and set(log.runs) == {"main", "target"}
+    dt = 0.01
+    for run, name in (("main", "own"), ("target", "target")):
+        record = log.runs[run]
+        simulated = summary["vessels"][name]["simulated_s"]
+        assert record.value("t", -1) == simulated
+        assert len(record) == round(simulated / dt) + 1
+        assert int(log.metadata["runs"][run]["end"]["rows"]) == len(record)
+        assert record.status == "interrupted"
+    companion = read_run(out / "vessel-target.mcap")        # the companion read alone is whole too
+    assert companion.complete and companion.notice == ""
+
+
+class Taker:
+    """A fleet vessel's sink that keeps what it is handed; ``cut``: the first ``rows`` call ends
+    with a KeyboardInterrupt before it takes the rows (a SIGTERM landing inside the sink: the
+    loop hands them again; a sink that took them passes over what it has, as RunLogSink does)."""
+
+    def __init__(self, cut: bool = False):
+        self.ranges, self.cut, self.ends, self.held = [], cut, 0, None
+
+    def start(self, record):
+        pass
+
+    def rows(self, record, lo, hi):
+        if self.cut:
+            self.cut = False
+            raise KeyboardInterrupt("SIGTERM")
+        self.ranges.append((lo, hi))
+
+    def finish(self, record):
+        self.ends += 1
+        self.held = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+
+
+def test_a_signal_inside_a_fleets_sink_neither_repeats_nor_loses_rows(tmp_path):
+    """In process, no log: before, the fleet's final flush sent the interrupted block again from
+    the start (the own ship's sink, which had them, got rows 0..10 twice) and re-detected the
+    events; the sinks finished with the group's signals open (a second signal cut an end record)."""
+    from usv_mj import load_scenario
+    from usv_mj.builder import build_fleet
+    from usv_mj.loop.fleet import simulate_fleet
+
+    (tmp_path / "fleet.toml").write_text(FLEET.replace('preset = "paper"', 'preset = "paper"\nduration = 0.3'))
+    parts = build_fleet(load_scenario(tmp_path / "fleet.toml"))
+    sinks = {"own": Taker(), "target": Taker(cut=True)}       # the own ship's sink is handed rows first
+    try:
+        record = simulate_fleet(parts, block=10, sinks={name: [s] for name, s in sinks.items()})
+    finally:
+        parts.close()
+    assert record.status == "interrupted" and "SIGTERM" in record.stop_reason
+    for name, sink in sinks.items():
+        rows = len(record[name])
+        assert rows >= 10
+        covered = [i for lo, hi in sink.ranges for i in range(lo, hi)]
+        assert covered == list(range(rows)), (name, sink.ranges)      # each row once, in order
+        assert sink.ends == 1
+        assert {signal.SIGINT, signal.SIGTERM, signal.SIGHUP} <= set(sink.held)
+    events = [(e.t, e.kind, e.message) for e in record["own"].events]
+    assert len(events) == len(set(events)), events
+
+
 def test_a_log_whose_writer_was_killed_is_named_in_the_summary(tmp_path):
     """The writer killed on its own (SIGKILL, the OOM killer): the run goes on without its log.
     Before: summary.json said ``missing_outputs: []`` beside a run.mcap cut short, and the line
@@ -232,6 +331,27 @@ def test_a_live_run_waiting_for_a_viewer_stops_on_a_signal(tmp_path, sig):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["status"] == "interrupted"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]     # no lock, no staging folder left
+
+
+def test_a_fleet_waiting_for_a_viewer_stops_on_ctrl_c_with_every_vessels_log(tmp_path):
+    """A fleet's live run: before, Ctrl-C during the wait (inside the fleet's first flush, after
+    2000 steps) made the final flush start the own ship's run again: "the run failed: run 'main'
+    was started twice". Now the sinks start before the first step, as a single run's."""
+    pytest.importorskip("foxglove", reason='pip install "usv_mj[live]"')
+    (tmp_path / "fleet.toml").write_text(FLEET)
+    prog = Group(["run", "--scenario", tmp_path / "fleet.toml", "--plant", "analytic", "--no-video", "-q",
+                  "--duration", "30", "--live", "--live-port", "0", "--out", tmp_path / "out"], tmp_path)
+    prog.wait_for_line("live: waiting for a viewer")
+    prog.signal_group(signal.SIGINT)
+    code, _, err = prog.finish(timeout=120)
+    assert code == 1, err
+    assert "Traceback" not in err and "failed" not in err, err
+    from usv_mj.outputs.log import read_run
+
+    log = read_run(tmp_path / "out" / "run.mcap")      # every vessel's log holds its run, with its end
+    assert log.complete and log.notice == "" and set(log.runs) == {"main", "target"}, log.notice
+    assert all(run.status == "interrupted" for run in log.runs.values())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet.toml", "out"]   # no lock, no staging folder
 
 
 @pytest.mark.parametrize("wait", ["nan", "-1", "inf"])

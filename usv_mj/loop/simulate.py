@@ -238,25 +238,13 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         raise
     except SystemExit as exc:  # a plug-in that ends the program: the run fails, with its rows
         k = record.n_rows if compiled is not None else k
-        record.status = "failed"
-        record.stop_reason = f"SystemExit at t = {k * dt:.3f} s: {_exit_caller(exc)} called sys.exit({exc.code!r}) " \
-                             "during the run (a plug-in stops a run by raising an exception, not by ending the program)"
+        failure = PluginExit.during_run(exc, k * dt)
+        record.status, record.stop_reason = "failed", str(failure)
         record.events.append(Event(k * dt, "failed", record.stop_reason))
         _finish_run(record, sinks, flush, wall0, step)
-        raise PluginExit(record.stop_reason) from exc
+        raise failure from exc
     _finish_run(record, sinks, flush, wall0, step)
     return record
-
-
-def _exit_caller(exc: SystemExit) -> str:
-    """Where ``exc`` was raised: the module and line of its innermost frame."""
-    tb = exc.__traceback__
-    while tb is not None and tb.tb_next is not None:
-        tb = tb.tb_next
-    if tb is None:
-        return "a part of the run"
-    module = tb.tb_frame.f_globals.get("__name__", "?")
-    return f"{module} (line {tb.tb_lineno})"
 
 
 def _interrupted(record: RunRecord, exc: BaseException, t: float) -> None:
