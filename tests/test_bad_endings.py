@@ -5,7 +5,8 @@ while the figures are drawn) keeps the earlier run in --out, byte for byte, and 
 failed run wrote beside it, named in the one line it prints; the next job into --out clears it.
 The benchmark and the sweep (usv_mj.outputs.outdir.results_folder) keep their earlier results
 the same way. Cause 9: a plug-in that calls ``sys.exit`` mid-run ends the run as a failure with
-its outputs (exit 1), not the program with exit 0 and no output folder.
+its outputs (exit 1), not the program with exit 0 and no output folder. Both hold for a fleet
+(``[[vessels]]``: run.mcap and a ``vessel-NAME.mcap`` per other vessel, usv_mj.jobs.fleet).
 """
 
 from __future__ import annotations
@@ -162,3 +163,77 @@ def test_simulate_reports_a_plugins_sys_exit_as_an_error(quitter):
                                                   "controller": {"kind": quitter}, "baseline": {"enabled": False}})
     with pytest.raises(PluginExit, match=r"test_bad_endings .*sys\.exit\(0\)"):
         simulate(sc)
+
+
+# --- a fleet ([[vessels]]): the same endings, every vessel's log kept -------------------------------
+
+
+FLEET = """
+preset = "paper"
+duration = 0.5
+control_period = 0.01
+[plant]
+kind = "analytic"
+
+[[vessels]]
+name = "own"
+own_ship = true
+steer = "keep"
+speed = 0.6
+initial = {{ eta = [0.0, 0.0, 1.5707963267948966], nu = [0.6, 0.0, 0.0] }}
+
+[[vessels]]
+name = "target"
+initial = {{ eta = [0.0, 30.0, -1.5707963267948966], nu = [0.6, 0.0, 0.0] }}
+{target}
+"""
+
+
+def fleet_args(tmp_path: Path, out: Path, target: str = 'steer = "keep"\nspeed = 0.6') -> list:
+    scenario = tmp_path / "fleet.toml"
+    scenario.write_text(FLEET.format(target=target))
+    return ["run", "--scenario", str(scenario), "--plant", "analytic", "--no-video", "-q", "--out", str(out)]
+
+
+def test_a_failed_fleet_overwrite_keeps_the_earlier_run(tmp_path, capsys, monkeypatch):
+    """Before: the fleet's job put its cut run in place of the earlier one (no fleet figures, no
+    summary.json) and said only the OSError."""
+    import usv_mj.jobs.fleet as fleet_job
+
+    out = tmp_path / "out"
+    args = fleet_args(tmp_path, out)
+    assert main(args) == 0
+    before = snapshot(out)
+    assert {"run.mcap", "vessel-target.mcap", "summary.json"} <= set(before)
+    capsys.readouterr()
+
+    def full_disk(record, folder, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(Path(folder) / "fleet_tracks.png"))
+
+    monkeypatch.setattr(fleet_job, "draw_fleet_figures", full_disk)
+    assert main([*args, "--overwrite"]) == 1
+    line = one_line(capsys)
+    assert snapshot(out) == before
+    aside = [p for p in tmp_path.iterdir() if p.name.startswith(".out.failed-")]
+    assert len(aside) == 1, sorted(p.name for p in tmp_path.iterdir())
+    assert {"run.mcap", "vessel-target.mcap", "traceback.txt"} <= {p.name for p in aside[0].iterdir()}
+    assert f"{out} still holds the earlier run" in line and f"{aside[0]}/" in line, line
+    assert "No space left on device" in line and ".staging" not in line, line
+
+
+def test_a_fleets_plugin_calling_sys_exit_fails_the_run_with_every_vessels_log(tmp_path, capsys, quitter):
+    """Before: the SystemExit passed the fleet's loop and job: exit 0, the logs without an end."""
+    out = tmp_path / "out"
+    assert main(fleet_args(tmp_path, out, f'controller = {{ kind = "{quitter}" }}')) == 1
+    line = one_line(capsys)
+    assert "sys.exit(0)" in line and "test_bad_endings" in line, line
+    from usv_mj.outputs.log import read_run
+
+    log = read_run(out / "run.mcap")             # vessel-target.mcap read with it
+    assert log.complete and set(log.runs) == {"main", "target"}
+    for run in log.runs.values():
+        assert run.status == "failed" and "sys.exit(0)" in run.stop_reason
+    # the target's controller quit at the 21st step (t = 20 * 0.01 s), after the own ship's row of it:
+    # every vessel's rows end at the last whole step, one before
+    for run in log.runs.values():
+        assert len(run) == 20 and run.value("t", -1) == pytest.approx(19 * 0.01, abs=1e-12)

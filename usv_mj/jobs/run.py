@@ -383,9 +383,7 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
                 # a run that failed (a crash, an output that could not be written) never replaces
                 # an earlier one: that stays, and the failed run's files are kept beside it
                 staged = stage.path
-                place = stage.set_aside() if failed is not None and stage.replaces else None
-                if place is None:
-                    stage.commit()
+                place = stage.finish(failed is not None)
                 if failed is not None:
                     _failed_in(failed, staged, out, place)
     result.out_dir = out

@@ -482,6 +482,15 @@ class Staging:
         self.path = aside
         return aside
 
+    def finish(self, failed: bool) -> Path | None:
+        """End the job: a job that ``failed`` (a crash, an output that could not be written) while
+        ``out`` holds an earlier output is set aside (:meth:`set_aside`: returns where); any other
+        is committed (:meth:`commit`: returns None)."""
+        aside = self.set_aside() if failed and self.replaces else None
+        if aside is None:
+            self.commit()
+        return aside
+
     def commit(self) -> None:
         """Drop temporary files, write the manifest, then put the staging folder in place of ``out``
         (nothing written: ``out`` stays as it was)."""
