@@ -1,7 +1,7 @@
 """The main job of a scenario with several vessels (``[[vessels]]``, issue 35): one run, every output.
 
 What ``usv-mj run --scenario FLEET.toml`` writes into ``--out`` (staged, moved into place when the
-job ends, however it ends, as a single run's job: :mod:`usv_mj.jobs.run`):
+job ends, completed, diverged or interrupted, as a single run's job: :mod:`usv_mj.jobs.run`):
 
 - ``run.mcap``: the own ship's run log (run "main": ``/usv/...`` topics), and beside it one
   companion log per other vessel, ``vessel-NAME.mcap`` (run NAME: ``/NAME/usv/...`` topics and the
