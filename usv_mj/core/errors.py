@@ -90,6 +90,25 @@ class PluginWarning(UserWarning):
     (an entry point shadowed by a built-in kind, or named by two distributions)."""
 
 
+class PluginExit(UsvMjError, RuntimeError):
+    """A part of a run (a plug-in controller, reference, hook...) called ``sys.exit`` while the run
+    was going: the run is recorded as failed with every row before it, and this is raised in
+    place of the SystemExit (a plug-in stops a run by raising an exception, never by ending the
+    program). The message names the module and line that called it."""
+
+    @classmethod
+    def during_run(cls, exc: SystemExit, t: float) -> "PluginExit":
+        """The PluginExit of ``exc``, raised at time ``t`` [s] of a run (a single run's loop or a
+        fleet's): its text is the run's stop reason."""
+        tb = exc.__traceback__
+        while tb is not None and tb.tb_next is not None:
+            tb = tb.tb_next
+        caller = "a part of the run" if tb is None else \
+            f"{tb.tb_frame.f_globals.get('__name__', '?')} (line {tb.tb_lineno})"
+        return cls(f"SystemExit at t = {t:.3f} s: {caller} called sys.exit({exc.code!r}) during the run "
+                   "(a plug-in stops a run by raising an exception, not by ending the program)")
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised like Ctrl-C's KeyboardInterrupt (its text: the signal's name), so
     that every ending by a signal is recorded as an interruption."""

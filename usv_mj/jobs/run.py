@@ -344,10 +344,13 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     Every input is checked first (:func:`usv_mj.jobs.preflight.check_run`: a ScenarioError leaves
     ``out_dir`` as it was); ``out_dir`` holding an earlier usv_mj output is refused unless
     ``overwrite``, and then replaced whole; a folder holding anything usv_mj did not write is
-    always refused (:mod:`usv_mj.outputs.outdir`). The outputs are written into a staging folder beside ``out_dir`` and moved
-    into place when the job ends, however it ends. Ctrl-C, SIGTERM and SIGHUP stop the job (the
-    summary says where and which outputs are missing); a crash or an output that cannot be written
-    raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place.
+    always refused (:mod:`usv_mj.outputs.outdir`). The outputs are written into a staging folder
+    beside ``out_dir`` and moved into place when the job ends (completed, diverged, interrupted).
+    Ctrl-C, SIGTERM and SIGHUP stop the job (the summary says where and which outputs are
+    missing); a crash or an output that cannot be written raises :class:`RunFailed` after the
+    summary, the report and ``traceback.txt`` are written: into ``out_dir``, or, when it holds an
+    earlier run, beside it (``.NAME.failed-PID``, cleared by the next run into it: the earlier run
+    stays; ``RunFailed.out_dir`` says where).
     ``log_rate`` [Hz]: the MCAP logs every n-th control step (None: every step). A run whose
     record exceeds ``simulation.STREAM_BYTES`` streams it into ``record/`` (``baseline_record/``):
     ``RunRecord.open`` reads it back.
@@ -381,19 +384,23 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
         check_controller(scenario, scenario.baseline.kind)
     with _OutLock(out), _Signals() as signals:
         stage = Staging(out)
+        failed = None
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
                                  render_opts=render_opts, log_rate=log_rate, live=live,
                                  extra_outputs=extra_outputs)
         except RunFailed as exc:
-            exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
-            exc.traceback = _relocate(exc.traceback, stage.path, out)
-            exc.args = (str(exc).replace(str(stage.path), str(out)),)
+            failed = exc
             raise
         finally:
             with signals.deferred():
-                stage.commit()
+                # a run that failed (a crash, an output that could not be written) never replaces
+                # an earlier one: that stays, and the failed run's files are kept beside it
+                staged = stage.path
+                place = stage.finish(failed is not None)
+                if failed is not None:
+                    _failed_in(failed, staged, out, place)
     result.out_dir = out
     for rec in (result.record, result.baseline):   # a streamed record's folder moved with the outputs
         if rec is not None and rec.stored:
@@ -402,6 +409,20 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     result.summary = _relocate(result.summary, stage.path, out)
     result.render_stats = _relocate(result.render_stats, stage.path, out)
     return result
+
+
+def _failed_in(exc: RunFailed, staged: Path, out: Path, aside: Path | None) -> None:
+    """``exc`` of a run staged in ``staged``, its files now in ``out`` (``aside`` None) or, when
+    ``out`` kept an earlier run, in ``aside``: its paths and its line say where they are."""
+    where = aside if aside is not None else out
+    exc.out_dir, exc.summary = where, _relocate(exc.summary, staged, where)
+    exc.traceback = _relocate(exc.traceback, staged, where)
+    text = str(exc).replace(str(staged), str(where))
+    if aside is not None:
+        text = text.replace(f"{out}/", f"{aside}/") + (f"; {out} still holds the earlier run (--overwrite replaces "
+                                                      f"it only with a run that ends; the next run into it "
+                                                      f"clears {aside}/)")
+    exc.args = (text,)
 
 
 def _failed_summary(scenario: Scenario, plant_kind: str, status: str, reason: str, missing: list) -> dict:
@@ -445,7 +466,7 @@ class _StagedJob:
         self.expected = ["summary.json", "report.md", "figures"] + (["run.mcap"] if log else []) + \
                         (["video.mp4", "video.png"] if video else [])
         self.stack = ExitStack()
-        self.writer = None
+        self.writer = self.base_writer = None
         self.every = None        # the log's n-th step
         self.pool = None
         self.stopped = None      # why the outputs after the simulation stopped (interrupt or fault)
@@ -594,8 +615,8 @@ class _StagedJob:
                                               if isinstance(v, (int, float, str, Path))}
         except KeyboardInterrupt:
             self.stopped = f"interrupted ({signals.last}) while {self.phase}"
-        except Exception as exc:   # an output that cannot be written (disk full, read-only) or a worker
-            self.fault = _one_line(exc)
+        except (Exception, SystemExit) as exc:   # an output that cannot be written (disk full, read-only),
+            self.fault = _one_line(exc)           # a worker, or a plug-in (a criterion) calling sys.exit
             self.stopped = f"stopped while {self.phase}: {self.fault}"
 
     def _baseline(self) -> RunRecord:
@@ -605,8 +626,8 @@ class _StagedJob:
         if self.log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
             from usv_mj.outputs.log import RunLogWriter
 
-            base_writer = self.stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario,
-                                                                companion_of=self.writer, live=self.live))
+            base_writer = self.base_writer = self.stack.enter_context(RunLogWriter(
+                out / "baseline.mcap", scenario, companion_of=self.writer, live=self.live))
             sink_base = [base_writer.sink(run="baseline", log_every=self.every)]
             self.files["baseline_mcap"] = out / "baseline.mcap"
         cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", self.progress,
@@ -663,7 +684,7 @@ class _StagedJob:
         if self.run_baseline and self.base_rec is None and self.record.status != "interrupted":
             summary_out["baseline"] = {"status": "not run", "stop_reason": stopped}
         summary_out["job_stopped"] = stopped
-        summary_out["missing_outputs"] = _missing(out, self.expected, self.log)
+        summary_out["missing_outputs"] = self._missing_now()
         # the summary first: a second Ctrl-C while the report is written ends the job at once
         self.files["summary"] = out / "summary.json"
         write_json(self.files["summary"], _relocate(summary_out, out, final_out))
@@ -674,7 +695,16 @@ class _StagedJob:
             self.files["report"] = out / "report.md"
         except KeyboardInterrupt:
             summary_out["job_stopped"] = f"{stopped}; interrupted again ({self.signals.last}) while writing the report"
-        summary_out["missing_outputs"] = _missing(out, self.expected, self.log)
+        summary_out["missing_outputs"] = self._missing_now()
+
+    def _missing_now(self) -> list:
+        """The expected outputs not (all) there, a log whose writer failed included (it holds the
+        rows up to its last complete chunk, not the run's: issue 38)."""
+        missing = _missing(self.out, self.expected, self.log)
+        for writer in (self.writer, self.base_writer):
+            if writer is not None and writer.failed and writer.path.name not in missing:
+                missing.append(writer.path.name)
+        return missing
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,

@@ -23,7 +23,7 @@ from typing import Callable, Iterable, Protocol
 import numpy as np
 
 from usv_mj.core import arguments
-from usv_mj.core.errors import PluginContractError, Terminated, message_line
+from usv_mj.core.errors import PluginContractError, PluginExit, Terminated, message_line
 from usv_mj.core.kernels import diag_contract, diag_mismatch, diag_row_problem
 from usv_mj.physics.limits import within_limits
 from usv_mj.builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
@@ -257,6 +257,13 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         record.events.append(Event(k * dt, "failed", record.stop_reason))
         _finish_run(record, sinks, flush, wall0, step)
         raise
+    except SystemExit as exc:  # a plug-in that ends the program: the run fails, with its rows
+        k = record.n_rows if compiled is not None else k
+        failure = PluginExit.during_run(exc, k * dt)
+        record.status, record.stop_reason = "failed", str(failure)
+        record.events.append(Event(k * dt, "failed", record.stop_reason))
+        _finish_run(record, sinks, flush, wall0, step)
+        raise failure from exc
     _finish_run(record, sinks, flush, wall0, step)
     return record
 
