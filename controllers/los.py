@@ -233,7 +233,7 @@ class LOSController:
         self._g = gains.as_array()
         self.dt = float(control_period)
         self._st = np.zeros(N_STATE)
-        self._diag = np.zeros(len(self.diagnostic_fields))
+        self._diag = np.zeros(len(DIAGNOSTIC_FIELDS))   # what los_law writes, whatever a subclass declares
 
     def reset(self) -> None:
         self._st[:] = 0.0
@@ -243,7 +243,7 @@ class LOSController:
         """(los_kernel, its arrays) for the compiled loop."""
         from usv_mj.core.kernels import Kernel
 
-        return Kernel(los_kernel, (self._p, self._g, self._st, self.dt, self._diag))
+        return Kernel(los_kernel, (self._p, self._g, self._st, self.dt, self._diag), n_diag=len(self._diag))
 
     def __call__(self, t, state, reference):
         tau_u, tau_r = los_law(float(t), state, reference, self._p, self._g, self._st, self.dt, self._diag)

@@ -138,7 +138,7 @@ class PIController:
                                  funnel_psi.rho_0, funnel_psi.rho_inf, funnel_psi.rate])
         self.dt = float(control_period)
         self._integ = np.zeros(2)
-        self._diag = np.zeros(len(self.diagnostic_fields))
+        self._diag = np.zeros(len(PIController.diagnostic_fields))   # what pi_law writes, whatever a subclass declares
 
     def reset(self) -> None:
         self._integ[:] = 0.0
@@ -148,7 +148,8 @@ class PIController:
         """(pi_kernel, its arrays) for the compiled loop."""
         from usv_mj.core.kernels import Kernel
 
-        return Kernel(pi_kernel, (self._eps, self._g, self._funnel, self._integ, self.dt, self._diag))
+        return Kernel(pi_kernel, (self._eps, self._g, self._funnel, self._integ, self.dt, self._diag),
+                      n_diag=len(self._diag))
 
     def __call__(self, t, state, reference):
         tau_u, tau_r = pi_law(float(t), state, reference, self._eps, self._g, self._funnel,

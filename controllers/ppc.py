@@ -283,7 +283,7 @@ class PPCController:
         from usv_mj.core.kernels import Kernel
 
         return Kernel(ppc_kernel, (self._p, self._g, self._funnel, self._centres, self.weights, self._s2,
-                                   self.dt, self._diag, self._s_buf, self._z_buf))
+                                   self.dt, self._diag, self._s_buf, self._z_buf), n_diag=len(self._diag))
 
     def __call__(self, t, state, reference):
         tau_u, tau_r = ppc_law(float(t), state, reference, self._p, self._g, self._funnel, self._centres,

@@ -333,9 +333,10 @@ def scenario_from_args(args):
                       or None)
     except ScenarioError as exc:
         if not (args.duration is not None and isinstance(exc, TooManyStepsError)):
-            if not sets:
+            typed = list(args.set)[getattr(args, "implied_sets", 0):]   # not those a command adds itself
+            if not sets or not typed:
                 raise
-            raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
+            raise ScenarioError(f"--set {' --set '.join(typed)}: {exc}") from None
     overrides = merge_tables(overrides, sets)
     if args.duration is not None:
         overrides["duration"] = args.duration

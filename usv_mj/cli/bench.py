@@ -75,8 +75,10 @@ def run(args) -> int:
         print(f"usv-mj bench: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"\nusv-mj bench: interrupted: the episodes finished so far are in {out}/results.parquet; "
-              f"run the same command with --resume to finish", file=sys.stderr)
+        from usv_mj.jobs.sweep.runner import episodes_in
+
+        print(f"\nusv-mj bench: interrupted: {episodes_in(Path(out))} of {len(suite.plan.runs)} episodes are in "
+              f"{out}/results.parquet; run the same command with --resume to finish", file=sys.stderr)
         return 1
     except WorkerError as exc:
         print(f"usv-mj bench: stopped: {exc}; the episodes finished so far are in {out}/results.parquet "

@@ -32,11 +32,15 @@ def run(args) -> int:
     path = Path(args.run)
     if path.is_dir():
         path = path / "run.mcap"
-    if not path.is_file():
+    if not path.is_file() and not path.is_symlink():   # a link that leads nowhere: read_run says so
         raise ScenarioError(f"{path}: no such run log" if not path.exists() else f"{path}: is not a regular file")
+    from usv_mj.outputs.log.reader import RunLogReadError
+
     try:
         log = read_run(path)
         record_ = log.record
+    except RunLogReadError as exc:
+        raise ScenarioError(str(exc)) from None
     except (ValueError, KeyError, OSError) as exc:
         raise ScenarioError(f"{path}: not a readable run log ({exc})") from None
     if len(record_) == 0:

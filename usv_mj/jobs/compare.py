@@ -525,10 +525,10 @@ def _judge(runs: dict, result: dict) -> None:
     """Whether each run completed and passed its controller's criterion (:mod:`usv_mj.record.criteria`):
     ``passed_criterion`` and ``criterion`` (its words); for the funnel, in the paper's terms too,
     ``inside_funnels`` and the worst |z_i| (``max_abs_z``)."""
-    from usv_mj.record.criteria import criterion_of_record
+    from usv_mj.record.criteria import criterion_of_record, judge
 
     criterion = criterion_of_record(next(iter(runs.values())))
-    passed = {k: bool(r.status == "completed" and criterion.evaluate(r)["passed"] is True) for k, r in runs.items()}
+    passed = {k: bool(r.status == "completed" and judge(criterion, r)["passed"] is True) for k, r in runs.items()}
     result["criterion"], result["passed_criterion"] = criterion.describe(), passed
     if criterion.kind == "funnel":
         result["inside_funnels"] = passed

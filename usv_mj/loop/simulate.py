@@ -16,11 +16,15 @@ the rows up to the stop stay valid and the sinks are always finished.
 from __future__ import annotations
 
 import math
+import os
 import time
 from typing import Callable, Iterable, Protocol
 
 import numpy as np
 
+from usv_mj.core import arguments
+from usv_mj.core.errors import PluginContractError, PluginExit, Terminated, message_line
+from usv_mj.core.kernels import diag_contract, diag_mismatch, diag_row_problem
 from usv_mj.physics.limits import within_limits
 from usv_mj.builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from usv_mj.builder import FleetParts, build_fleet
@@ -86,6 +90,17 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
     """
     if loop not in ("auto", "python"):
         raise ValueError(f"simulate: loop must be 'auto' or 'python', got {loop!r}")
+    block = arguments.integer("simulate", "block", block, 1, "the number of rows between the sinks' flushes, "
+                              "an integer >= 1")
+    arguments.callable_or_none("simulate", "progress", progress, "a callable progress(n_new_steps) or None")
+    sinks = arguments.each("simulate", "sinks", sinks, "a run sink (an object with start, rows, finish)",
+                           lambda s: all(callable(getattr(s, m, None)) for m in ("start", "rows", "finish")),
+                           "a list of run sinks (objects with start, rows, finish)")
+    hooks = arguments.each("simulate", "hooks", hooks, "a hook, a callable hook(t, k, plant)", callable,
+                           "a list of hooks, callables hook(t, k, plant)")
+    duration = arguments.seconds("simulate", "duration", duration)
+    if reference is not None:
+        arguments.having("simulate", "reference", reference, ("evaluate",), "a reference trajectory")
     if isinstance(scenario, FleetParts) or (isinstance(scenario, Scenario) and scenario.vessels):
         return _simulate_fleet(scenario, plant_kind, duration, progress, block)
     if not isinstance(scenario, Parts):
@@ -150,8 +165,11 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     step = ControlStep(parts.quantizers, actuators)   # clip -> quantize -> actuators -> the row (usv_mj.loop.step)
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
+    problem = diag_contract(controller)   # before anything runs: a kernel's diag against the fields
+    if problem is not None:
+        raise PluginContractError(problem)
     from usv_mj.loop.compiled import kernels_of
-    from usv_mj.record.criteria import criterion_of
+    from usv_mj.record.criteria import criterion_of, criterion_to_dict
 
     compiled, why = (None, "asked for (loop='python')") if not use_compiled else kernels_of(parts, hooks)
     loop = {"loop": "compiled"} if compiled is not None else {"loop": "python", "loop_reason": why}
@@ -160,7 +178,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
         "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **_diagnostic_units(controller, fields),
         **parts.metadata, **loop,
-        "criterion": criterion_of(controller).to_dict(),  # how the outputs judge the run (usv_mj.record.criteria)
+        "criterion": criterion_to_dict(criterion_of(controller)),  # how the outputs judge the run (usv_mj.record.criteria)
         "channels": channels_of(scenario, getattr(controller, "commands", "forces")).to_metadata(),  # what tau and f hold
     }, fields, getattr(controller, "diagnostic_events", None), stream_above)
     record.statics = parts.statics
@@ -174,6 +192,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     data = record.buffer   # the rows from record.base on (all of them when in memory)
     base = 0
     sl_diag = slice(len(COL), len(COL) + len(fields))
+    n_fields = len(fields)
     c_t = COL["t"]
     flush = _Flusher(record, sinks, progress)
     wall0 = time.perf_counter()
@@ -189,7 +208,10 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             for hook in hooks:
                 hook(t, k, plant)
             ref = reference.evaluate(t)
-            tau_u, tau_r, diag = controller(t, x, ref)
+            tau_u, tau_r, diag = controller(t, x.copy(), ref)  # its own copy: the row and the actuators keep x
+            problem = diag_row_problem(controller, diag, n_fields)   # before the row takes it
+            if problem is not None:
+                raise PluginContractError(problem)
             if not (abs(tau_u) < limits.max_force and abs(tau_r) < limits.max_force):
                 _stop_diverged(record, t, f"control force out of limits or not finite: tau_u = {tau_u!r}, "
                                f"tau_r = {tau_r!r}", {"tau_u": _json_number(tau_u), "tau_r": _json_number(tau_r)},
@@ -231,17 +253,45 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             _finish_run(record, sinks, flush, wall0, step)
             return record
         record.status = "failed"
-        record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}"
+        record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {message_line(exc)}"
         record.events.append(Event(k * dt, "failed", record.stop_reason))
         _finish_run(record, sinks, flush, wall0, step)
         raise
+    except SystemExit as exc:  # a plug-in that ends the program: the run fails, with its rows
+        k = record.n_rows if compiled is not None else k
+        failure = PluginExit.during_run(exc, k * dt)
+        record.status, record.stop_reason = "failed", str(failure)
+        record.events.append(Event(k * dt, "failed", record.stop_reason))
+        _finish_run(record, sinks, flush, wall0, step)
+        raise failure from exc
     _finish_run(record, sinks, flush, wall0, step)
     return record
 
 
+def interrupter(exc: BaseException) -> str:
+    """Who interrupted a run, in words: "the user (Ctrl-C)", a signal's name (SIGTERM, SIGHUP), the
+    reason usv_mj's own code gave ("closing the viewer"), or a KeyboardInterrupt a part raised
+    (a plug-in's: where, and its text), which is not a signal."""
+    text = str(exc)
+    if text in ("", "Ctrl-C"):
+        return "the user (Ctrl-C)"
+    if isinstance(exc, Terminated):
+        return text
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    where = os.path.abspath(tb.tb_frame.f_code.co_filename) if tb is not None else ""
+    if where.startswith(_PACKAGE_DIR):
+        return text
+    return f"a KeyboardInterrupt raised at {os.path.basename(where)}:{tb.tb_lineno} ({text!r}), not a signal" \
+        if tb is not None else f"a KeyboardInterrupt ({text!r}), not a signal"
+
+
+_PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep   # usv_mj/
+
+
 def _interrupted(record: RunRecord, exc: BaseException, t: float) -> None:
-    who = str(exc)
-    who = "the user (Ctrl-C)" if who in ("", "Ctrl-C") else who
+    who = interrupter(exc)
     record.status = "interrupted"
     record.stop_reason = f"interrupted by {who} at t = {t:.3f} s"
     record.events.append(Event(t, "interrupted", record.stop_reason))
@@ -265,9 +315,11 @@ class _Done(Exception):
 
 def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()) -> int:
     """The compiled loop (usv_mj.loop.compiled) until the run stops, with the Python loop's events."""
-    from usv_mj.loop.compiled import DIVERGED, FORCE_LIMIT, run_compiled
+    from usv_mj.loop.compiled import DIAG_MISMATCH, DIVERGED, FORCE_LIMIT, run_compiled
 
     k, status, x, out = run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks)
+    if status == DIAG_MISMATCH:   # the Python loop raises it from the same row
+        raise PluginContractError(diag_mismatch(parts.controller, int(out[0])))
     if status == FORCE_LIMIT:
         tau_u, tau_r = float(out[0]), float(out[1])
         t = k * dt

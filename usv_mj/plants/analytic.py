@@ -128,7 +128,9 @@ class AnalyticPlant(PlantBase):
 
     @property
     def state(self) -> np.ndarray:
-        return self._x
+        """(x, y, psi, u, v, r): a copy (the next :meth:`step` starts from the plant's own; editing
+        what it hands out moves nothing, as on the MuJoCo plant)."""
+        return self._x.copy()
 
     @classmethod
     def from_scenario(cls, options, scenario, environment=None, obstacles=(), contact=None, safety_radii=None):

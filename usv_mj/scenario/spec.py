@@ -346,6 +346,10 @@ def load_scenario(path: str | Path | None = None, preset: str | None = None, ove
     if overrides is not None and not isinstance(overrides, Mapping):
         raise expected("load_scenario", "overrides", "a nested dict of scenario keys, e.g. {'duration': 5.0}",
                        overrides)
+    if overrides is not None:
+        from usv_mj.core.arguments import string_keys
+
+        string_keys("load_scenario", "overrides", overrides)
     data: dict = {}
     source = f"preset {preset or 'paper'}"
     if path is not None:

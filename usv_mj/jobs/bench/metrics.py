@@ -105,6 +105,17 @@ BY_COLUMN = {m.column: m for m in METRICS}
 RATES = tuple(m.column for m in METRICS if m.rate)
 
 
+def worst_value(column: str):
+    """The value an episode that is not ok (diverged or failed) counts with in the leaderboard:
+    the worst the metric can take (+inf when lower is better, -inf when higher; a rate's bad
+    outcome: ``passed`` and ``goal_reached`` False, ``contact`` True). Its own metrics are not used:
+    they integrate only up to the divergence, so they would reward it (docs/metrics.md)."""
+    spec = BY_COLUMN[column]
+    if spec.rate:
+        return spec.better == "lower"
+    return math.inf if spec.better == "lower" else -math.inf
+
+
 def _finite(v) -> float | None:
     v = float(v)
     return v if math.isfinite(v) else None
@@ -295,7 +306,7 @@ def episode_metrics(record, *, settle_time_s: float = 20.0, band_cross_track_m: 
     """Every metric of :data:`METRICS` of one episode (module docstring), plus ``settled_cross_track``
     and ``settled_heading`` (False: the settling time is censored); JSON-ready (None, no NaN).
     The options: :class:`MetricOptions` (validated there)."""
-    from usv_mj.record.criteria import criterion_of_record
+    from usv_mj.record.criteria import criterion_of_record, judge
 
     MetricOptions(settle_time_s, band_cross_track_m, band_heading_rad, None if goal is None else tuple(goal),
                   goal_radius_m)
@@ -310,7 +321,7 @@ def episode_metrics(record, *, settle_time_s: float = 20.0, band_cross_track_m: 
         ts, settled = settling_time(t, err, band) if len(t) else (None, False)
         out[f"settling_time_{name}"], out[f"settled_{name}"] = ts, settled
     out.update(input_metrics(record))
-    out["passed"] = criterion_of_record(record).evaluate(record)["passed"]
+    out["passed"] = judge(criterion_of_record(record), record)["passed"]
     obstacles = record.metadata.get("obstacles") or {}
     out["min_clearance_m"] = obstacles.get("min_clearance_m")
     out["contact"] = (int(obstacles.get("contacts") or 0) > 0) if obstacles else None
@@ -366,7 +377,9 @@ class Estimate:
 
 def estimate(column: str, values) -> Estimate:
     """The mean of ``values`` (None: not measured, left out) and its interval: Wilson for the rates
-    of :data:`RATES` (True counts), the percentile bootstrap otherwise."""
+    of :data:`RATES` (True counts), the percentile bootstrap otherwise. A value of +-inf (the worst
+    value of an episode not ok, :func:`worst_value`) makes the mean and both ends of its interval
+    that infinity."""
     present = [v for v in values if v is not None and not (isinstance(v, float) and math.isnan(v))]
     n = len(present)
     if n == 0:
@@ -376,5 +389,8 @@ def estimate(column: str, values) -> Estimate:
         lo, hi = wilson_ci(k, n)
         return Estimate(k / n, lo, hi, n)
     x = np.asarray(present, float)
+    if not np.isfinite(x).all():
+        m = float(np.mean(x))
+        return Estimate(m, m, m, n)
     lo, hi = bootstrap_ci(x)
     return Estimate(float(np.mean(x)), lo, hi, n)

@@ -3,7 +3,9 @@
 - One table per task and condition (and vessel, when the suite names vessels): controllers as rows,
   the metrics of :data:`usv_mj.jobs.bench.metrics.METRICS` that the task measured as columns, each cell
   the mean over episodes with its 95 % interval (:func:`usv_mj.jobs.bench.metrics.estimate`); the best
-  mean of each column in bold (the metric's direction: lower or higher is better).
+  mean of each column in bold (the metric's direction: lower or higher is better). An episode that
+  is not ok (diverged or failed) counts with the metric's worst value (:func:`scored`), never with
+  its metrics up to the divergence, which would rank a diverging controller first.
 - The summary ranking: in every table and every ranked metric (:data:`RANKED`) the controllers are
   ranked 1..n by their means (ties share the lower rank); a controller's score is its mean rank over
   all of them, and its wins the number of (table, metric) it is best in.
@@ -23,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from usv_mj.jobs.bench.episode import PREFIX
-from usv_mj.jobs.bench.metrics import BY_COLUMN, METRICS, estimate
+from usv_mj.jobs.bench.metrics import BY_COLUMN, METRICS, estimate, worst_value
 
 ENCOUNTER = ("collision", "domain_kept", "min_range_m", "S_safety", "S13", "S14", "S15", "S16", "S17",
              "path_deviation_m", "time_loss_s")
@@ -52,16 +54,31 @@ def table_name(key: tuple, vessels: bool) -> str:
     return f"{key[0]} / {key[1]}" + (f" / {key[2]}" if vessels else "")
 
 
+def scored(row: dict, column: str, measured: bool):
+    """The value ``row`` counts with in ``column`` of the leaderboard: its own metric when its
+    status is ok; otherwise (diverged or failed) the metric's worst value (+-inf, or a rate's bad
+    outcome: :func:`usv_mj.jobs.bench.metrics.worst_value`) when its table ``measured`` the metric
+    (some episode of the table has a value), else None (not measured)."""
+    if row["status"] == "ok":
+        return row.get(PREFIX + column)
+    return worst_value(column) if measured else None
+
+
 def aggregate(rows: list[dict]) -> dict:
-    """``{(task, condition, vessel): {controller: {metric: Estimate, "_ok": (ok, n)}}}`` in row order."""
+    """``{(task, condition, vessel): {controller: {metric: Estimate, "_ok": (ok, n)}}}`` in row order;
+    an episode that is not ok counts with the worst value of every metric its table measured
+    (:func:`scored`), so a controller that diverged ranks last on the continuous metrics."""
     out: dict = {}
     for row in rows:
         out.setdefault(group_key(row), {}).setdefault(row["vary.controller"], []).append(row)
     agg = {}
     for key, by_ctrl in out.items():
         agg[key] = {}
+        measured = {m.column for m in METRICS
+                    if any(r.get(PREFIX + m.column) is not None for rs in by_ctrl.values() for r in rs)}
         for ctrl, rs in by_ctrl.items():
-            cell = {m.column: estimate(m.column, [r.get(PREFIX + m.column) for r in rs]) for m in METRICS}
+            cell = {m.column: estimate(m.column, [scored(r, m.column, m.column in measured) for r in rs])
+                    for m in METRICS}
             cell["_ok"] = (sum(r["status"] == "ok" for r in rs), len(rs))
             agg[key][ctrl] = cell
     return agg
@@ -69,7 +86,7 @@ def aggregate(rows: list[dict]) -> dict:
 
 def _best(cells: dict, column: str):
     """The controllers with the best mean of ``column`` (none when fewer than two measured it)."""
-    means = {c: v[column].mean for c, v in cells.items() if v[column].n and math.isfinite(v[column].mean)}
+    means = {c: v[column].mean for c, v in cells.items() if v[column].n and not math.isnan(v[column].mean)}
     if len(means) < 2 or len(set(means.values())) < 2:
         return set(), means
     pick = min if BY_COLUMN[column].better == "lower" else max
@@ -120,7 +137,13 @@ def by_table(by: dict, controllers: list, what: str) -> list[str]:
 
 def printed_leaderboard(agg: dict, controllers: list, vessels: bool) -> list[str]:
     """What ``usv-mj bench`` prints at the end (and report.md opens with): the summary ranking,
-    then the mean rank per task and, with vessels, per vessel (markdown)."""
+    then the mean rank per task and, with vessels, per vessel (markdown). With fewer than two
+    controllers there is nothing to rank: one sentence says so instead of empty tables."""
+    present = [c for c in controllers if any(c in cells for cells in agg.values())]
+    if len(present) < 2:
+        who = f"one controller (`{present[0]}`)" if present else "no controller"
+        return [f"The suite scores {who}: a ranking compares two or more, so there is none; its metrics are in "
+                f"the tables of each task (report.md, leaderboard.json)."]
     lines = summary_table(ranking(agg))
     lines += ["", "Mean rank per task (over its conditions" + (" and vessels" if vessels else "")
               + "; lower is better, the best in bold):", ""] + by_table(ranking_by(agg, 0), controllers, "task")
@@ -132,7 +155,9 @@ def printed_leaderboard(agg: dict, controllers: list, vessels: bool) -> list[str
 
 def normalised_scores(agg: dict) -> dict:
     """``{key: {controller: score}}``: per table, the mean over the ranked metrics of
-    (worst - value) / (worst - best) (1 = the table's best, 0 = its worst)."""
+    (worst - value) / (worst - best) over the finite means (1 = the table's best, 0 = its worst); an
+    infinite mean (an episode not ok: the worst value) scores 0, and the finite means then span
+    1 (best) to 0 (worst finite), or are all 1 when they are equal."""
     out = {}
     for key, cells in agg.items():
         scores: dict = {c: [] for c in cells}
@@ -140,15 +165,23 @@ def normalised_scores(agg: dict) -> dict:
             best, means = _best(cells, column)
             if not best:
                 continue
-            lo, hi = min(means.values()), max(means.values())
+            finite = [m for m in means.values() if math.isfinite(m)]
+            lo, hi = min(finite), max(finite)
             for c, m in means.items():
-                s = (hi - m) / (hi - lo) if BY_COLUMN[column].better == "lower" else (m - lo) / (hi - lo)
+                if not math.isfinite(m):
+                    s = 0.0
+                elif hi == lo:
+                    s = 1.0
+                else:
+                    s = (hi - m) / (hi - lo) if BY_COLUMN[column].better == "lower" else (m - lo) / (hi - lo)
                 scores[c].append(s)
         out[key] = {c: (float(np.mean(s)) if s else math.nan) for c, s in scores.items()}
     return out
 
 
 def _fmt(v: float) -> str:
+    if math.isinf(v):
+        return "worst"   # an episode not ok counts with the worst value (aggregate)
     if not math.isfinite(v):
         return "-"
     a = abs(v)
@@ -162,6 +195,8 @@ def _fmt(v: float) -> str:
 def cell_text(e, rate: bool) -> str:
     if not e.n:
         return "-"
+    if math.isinf(e.mean):
+        return "worst (not ok)"
     if rate:
         return f"{100 * e.mean:.0f} % [{100 * e.lo:.0f}, {100 * e.hi:.0f}]"
     return f"{_fmt(e.mean)} [{_fmt(e.lo)}, {_fmt(e.hi)}]"
@@ -273,7 +308,9 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
              f"Suite `{suite.source}`: {len(suite.tasks)} tasks x {len(suite.conditions)} conditions"
              + (f" x {len(suite.vessels)} vessels" if vessels else "") + f" x {len(controllers)} controllers, "
              f"{'/'.join(map(str, n_ep))} episodes each: {len(rows)} episodes, {len(failed)} not ok "
-             f"(diverged or failed). Each cell: the mean over the episodes, [its 95 % interval] (percentile "
+             f"(diverged or failed). An episode not ok counts with the worst value of every metric (a rate: "
+             f"not passed, contact, goal not reached; any other metric: the cell says 'worst' and the "
+             f"controller ranks last on it), not with its metrics up to the divergence. Each cell: the mean over the episodes, [its 95 % interval] (percentile "
              f"bootstrap; Wilson for the rates); the best of each column in bold; ↓ lower is better, ↑ higher. "
              f"Metrics: docs/metrics.md.", "", "## Summary ranking", "",
              f"Mean rank of each controller over every table and the ranked metrics its episodes measured "
@@ -294,7 +331,7 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
     for key, cells in agg.items():
         if key[0] not in tasks_seen:
             tasks_seen.append(key[0])
-            lines += [f"## Task `{key[0]}`", "", f"![bars](figures/bars-{key[0]}.png)", ""]
+            lines += [f"## Task `{key[0]}`", "", f"![bars](<figures/bars-{key[0]}.png>)", ""]
         lines += [f"### {table_name(key, vessels)}", ""] + task_table(cells, controllers) + [""]
     if encounters:
         lines += ["## Situations", "", "Every encounter episode: the closest approach of the own ship to any other "

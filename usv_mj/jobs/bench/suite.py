@@ -76,6 +76,11 @@ TASK_KEYS = ("name", "base", "duration", "set", "vary", "settle_time_s", "band_c
 CONDITION_KEYS = ("set", "actuators", "sea")
 CONTROLLER_KEYS = ("name", "kind", "set", "policy", "control_period", "criterion")
 POLICY_KEYS = ("control_period", "criterion")
+MAX_EPISODES = 100_000
+"""The most episodes a suite may plan (every task's episodes x conditions x vessels x controllers):
+each planned episode holds its own scenario (about 20 kB) and takes about 10 ms to draw and
+validate, so 100 000 are about 2 GB and a quarter of an hour before the first episode runs. A
+bigger suite is refused before anything is drawn: split it into several suites."""
 ROW_HOOK = "usv_mj.jobs.bench.episode:metrics_row"
 POLICY_EPISODE = "usv_mj.jobs.bench.policy:policy_episode"
 
@@ -248,6 +253,24 @@ def _positive(source, where, v, default, *, integer=False):
     return v
 
 
+def check_size(source, episodes: int, tasks: list, n_conditions: int, n_vessels: int, n_controllers: int) -> int:
+    """The number of episodes the suite plans (every task's episodes x conditions x vessels x
+    controllers; a policy left off a task with obstacles still counted), refused over
+    :data:`MAX_EPISODES` before anything is drawn."""
+    per_task = []
+    for ti, task in enumerate(tasks):
+        if not isinstance(task, dict):
+            raise SweepError(f"{source}: [[tasks]] {ti} must be a table, got {task!r}")
+        name = task.get("name", ti)
+        per_task.append(_positive(source, f"task {name!r}: episodes", task.get("episodes"), episodes, integer=True))
+    n = sum(per_task) * n_conditions * n_vessels * n_controllers
+    if n > MAX_EPISODES:
+        raise SweepError(f"{source}: {n} episodes ({sum(per_task)} over the tasks x {n_conditions} conditions x "
+                         f"{n_vessels} vessels x {n_controllers} controllers) is over the limit of {MAX_EPISODES}: "
+                         f"too many to plan (about 20 kB each); split the suite")
+    return n
+
+
 def load_suite(path: str | Path | None = None) -> Suite:
     """Read, sample and validate a suite file, or a shipped suite by name (default: "default"); see the
     module docstring."""
@@ -267,6 +290,9 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
         raise SweepError(f"{source}: seed must be a whole number >= 0, got {seed!r}")
     duration = _positive(source, "duration", data.get("duration"), 60.0)
     controllers = _controllers(source, data.get("controllers", ["ppc", "pi", "los"]))
+    for i, ctrl in enumerate(controllers):
+        if ctrl.policy is not None:
+            _check_policy(source, f"controllers[{i}] ({ctrl.name!r})", ctrl.policy, directory)
     vessels = data.get("vessels", [])
     if not isinstance(vessels, list) or not all(isinstance(v, str) and v for v in vessels):
         raise SweepError(f"{source}: vessels must be a list of vessel kinds, got {vessels!r}")
@@ -277,12 +303,17 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
     tasks = data.get("tasks")
     if not isinstance(tasks, list) or not tasks:
         raise SweepError(f"{source}: a suite needs at least one [[tasks]] table")
+    check_size(source, episodes, tasks, len(conditions), len(vessels), len(controllers))
     runs, names, per_task, skipped = [], [], {}, []
     for ti, task in enumerate(tasks):
         _check_keys(source, f"[[tasks]] {ti}", task, TASK_KEYS)
         name = task.get("name")
         if not isinstance(name, str) or not name or name in names:
             raise SweepError(f"{source}: [[tasks]] {ti}: name must be a unique non-empty string, got {name!r}")
+        bad = sorted({c for c in name if c in "/\\" or not c.isprintable()})
+        if bad or name in (".", ".."):
+            raise SweepError(f"{source}: [[tasks]] {ti}: name {name!r} cannot name a file (figures/bars-NAME.png): "
+                             f"no {', '.join(map(repr, bad)) or 'name . or ..'}; use letters, digits, '-', '_', '.'")
         names.append(name)
         where = f"task {name!r}"
         base = load_base(f"{source} {where}", task.get("base", "paper"), directory)
@@ -377,6 +408,33 @@ def _policy_criterion(ctrl: ControllerEntry, metrics: dict) -> dict:
     from usv_mj.jobs.bench.policy import default_criterion
 
     return dict(ctrl.criterion) if ctrl.criterion else default_criterion(metrics["settle_time_s"]).to_dict()
+
+
+def _check_policy(source, where: str, spec, directory: Path | None) -> None:
+    """A policy that cannot be found is refused when the suite is planned, not in every episode (a
+    bench whose episodes all failed to load it, exit 0): a ``.zip`` must exist, a
+    ``package.module:callable``'s module must be importable (it is imported by the workers)."""
+    import importlib.util
+
+    if not isinstance(spec, str) or not spec:
+        raise SweepError(f"{source}: {where}: policy must be a .zip or package.module:callable, got {spec!r}")
+    if spec.endswith(".zip"):
+        path = Path(_policy_path(spec, directory))
+        if not path.is_file():
+            raise SweepError(f"{source}: {where}: policy file {str(path)!r} does not exist"
+                             + (" (a relative path is taken from the suite's folder)" if not Path(spec).is_absolute()
+                                else ""))
+        return
+    module, _, attr = spec.partition(":")
+    if not module or not attr:
+        raise SweepError(f"{source}: {where}: policy {spec!r}: give a stable-baselines3 .zip or "
+                         f"package.module:callable")
+    try:
+        found = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        found = None
+    if found is None:
+        raise SweepError(f"{source}: {where}: policy {spec!r}: no module {module!r} on the Python path")
 
 
 def _policy_path(spec: str, directory: Path | None) -> str:

@@ -34,6 +34,7 @@ import json
 import math
 import os
 import pickle
+import signal
 import sys
 import time
 import uuid
@@ -44,6 +45,7 @@ import numpy as np
 
 from usv_mj.core.errors import WorkerError, WorkerSetupError
 from usv_mj.jobs.sweep.spec import RunSpec, SweepError, SweepPlan
+from usv_mj.support.spawning import group_signals_blocked, start_resource_tracker
 
 RESULTS_FILE = "results.parquet"
 #: What a sweep writes into its folder, by name (listed in its manifest before they are written).
@@ -356,13 +358,29 @@ def rows_to_table(rows: list[dict], paths: list[str], fingerprint: str = ""):
 
 
 def write_results(path: Path, rows: list[dict], paths: list[str], fingerprint: str) -> None:
-    """Write ``rows`` to ``path`` atomically (a temporary file, then ``os.replace``)."""
+    """Write ``rows`` to ``path`` atomically (a temporary file, then ``os.replace``); an OSError
+    (a full disk) names ``path`` and leaves it as it was."""
     import pyarrow.parquet as pq
 
     table = rows_to_table(rows, paths, fingerprint)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    except OSError as exc:      # pyarrow's own errors carry no file name
+        tmp.unlink(missing_ok=True)
+        raise OSError(exc.errno, exc.strerror or " ".join(str(exc).split()), str(path)) from None
+
+
+def episodes_in(out: Path) -> int:
+    """How many rows ``out/results.parquet`` holds (0 when it is missing or cannot be read): what an
+    interrupted sweep or benchmark says it kept."""
+    try:
+        import pyarrow.parquet as pq
+
+        return int(pq.read_metadata(Path(out) / RESULTS_FILE).num_rows)
+    except Exception:  # noqa: BLE001 - no file, or a damaged one: nothing kept there
+        return 0
 
 
 def read_results(path: str | Path) -> tuple[list[dict], str]:
@@ -446,19 +464,33 @@ def open_client(scheduler: str | None = None, workers: int | None = None,
     scheduler_log = logging.getLogger("distributed")
     level = scheduler_log.level
     scheduler_log.setLevel(max(scheduler_log.getEffectiveLevel(), logging.WARNING))
+    cluster = client = None
     try:
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.CRITICAL)
+        # Made with a terminal's Ctrl-C and hang-up blocked in this thread (_TERMINAL): they signal
+        # every process of the group, and a worker still starting died of them with a traceback
+        # each (and the scheduler's "Nanny failed to start"). The cluster's IO loop thread, the
+        # threads it starts and every worker they spawn (a replacement too) keep them blocked: this
+        # process takes them, once the cluster is made (and assigned: the finally closes it), and
+        # closes the cluster. SIGTERM stays the workers' (the nannies end them with it).
+        start_resource_tracker()      # multiprocessing's, sheltered from a hang-up (support.spawning)
+        with group_signals_blocked(_TERMINAL):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                   silence_logs=logging.CRITICAL)
         client = Client(cluster)
         echo(f"local Dask cluster: {n} worker processes x 1 thread; dashboard: {_dashboard(client)}")
-        try:
-            yield client
-        finally:
-            with _quiet_teardown():
-                client.close()
-                cluster.close()
+        yield client
     finally:
-        scheduler_log.setLevel(level)
+        try:
+            with _quiet_teardown():
+                if client is not None:
+                    client.close()
+                if cluster is not None:
+                    cluster.close()
+        finally:
+            scheduler_log.setLevel(level)
+
+
+_TERMINAL = tuple(getattr(signal, name) for name in ("SIGINT", "SIGHUP") if hasattr(signal, name))
 
 
 @contextlib.contextmanager

@@ -11,8 +11,10 @@ one's bytes on a ``foxglove.Channel`` made from the file's own channel and schem
 Pacing: ``speed`` = None logs as fast as the run makes rows (each viewer has a deep buffer,
 :data:`BACKLOG`; when a viewer falls further behind, its oldest messages are dropped, the log file
 is always written in full); ``speed`` = X holds log time / X to the wall clock (1: real time).
-The first chunk waits for a viewer to subscribe (up to ``wait_s``; None: until one does), so that a
-viewer opened after the command sees the run from its start. Loopback (127.0.0.1) only by default.
+The server waits for a viewer to subscribe (up to ``wait_s`` [s], a finite number >= 0; None: until
+one does) once the first run's channels are in the file (:meth:`LiveServer.ready`, before the run's
+first step), so that a viewer opened after the command sees the run from its start; Ctrl-C or
+SIGTERM stops the wait (and the run). Loopback (127.0.0.1) only by default.
 
 Subprotocols: a viewer names the protocol in its WebSocket handshake. foxglove-sdk's server accepts
 ``foxglove.sdk.v1`` only, and answers any other offer with HTTP 400 (its handshake,
@@ -237,6 +239,9 @@ class LiveServer:
                  wait_s: float | None = None, say=None):
         if speed is not None and not (speed > 0 and speed < float("inf")):
             raise ScenarioError(f"--speed {speed!r}: must be a finite number > 0 (1 = real time)")
+        if wait_s is not None and not (isinstance(wait_s, (int, float)) and 0 <= wait_s < float("inf")):
+            raise ScenarioError(f"--live-wait {wait_s!r}: must be a finite number of seconds >= 0 (leave it out "
+                                "to wait until a viewer comes)")
         if not (isinstance(port, int) and 0 <= port < 65536):
             raise ScenarioError(f"--live-port {port!r}: must be a TCP port, 0 to 65535")
         foxglove = import_foxglove()
@@ -280,14 +285,20 @@ class LiveServer:
             self._channels[key] = ch
         return ch
 
+    def ready(self, writer) -> None:
+        """Advertise the channels of the MCAP file ``writer`` (a
+        :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`) and, the first time it has any, wait
+        for a viewer (:meth:`wait_for_viewer`; a KeyboardInterrupt, Ctrl-C or SIGTERM, ends the wait)."""
+        for cid in writer.channels:      # every channel is advertised before its first message
+            self._channel(writer, cid)
+        if not self._waited and writer.channels:
+            self._waited = True
+            self.wait_for_viewer()
+
     def chunk(self, writer, parts) -> None:
         """Log every message of one uncompressed chunk (``parts``: its bytes / uint8 arrays in order)
         of the MCAP file ``writer`` (a :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`)."""
-        for cid in writer.channels:      # every channel is advertised before its first message
-            self._channel(writer, cid)
-        if not self._waited:
-            self._waited = True
-            self.wait_for_viewer()
+        self.ready(writer)
         data = memoryview(b"".join(bytes(p) for p in parts))
         pos, end, head = 0, len(data), _HEAD.size
         while pos < end:
@@ -301,14 +312,21 @@ class LiveServer:
 
     def replay(self, path) -> int:
         """Serve the messages of the MCAP file ``path`` in log-time order as :meth:`chunk` serves a
-        run's (``usv-mj render RUN.mcap --live``); returns the number of messages served."""
+        run's (``usv-mj render RUN.mcap --live``); returns the number of messages served. A file
+        without a readable summary (a cut or damaged log) is served front to back up to where it
+        ends or is damaged, and the server says so (as ``render`` draws what such a log holds)."""
         from mcap.reader import make_reader
 
         with open(path, "rb") as f:
-            reader = make_reader(f)
-            summary = reader.get_summary()
+            try:
+                summary = make_reader(f).get_summary()
+            except Exception:  # noqa: BLE001 - the mcap library's errors of a cut or damaged file
+                summary = None
             if summary is None:
-                raise ScenarioError(f"{path}: the log has no summary (an unfinished file): nothing to replay")
+                f.seek(0)
+                return self._replay_stream(path, f)
+            f.seek(0)
+            reader = make_reader(f)
             chans = {}
             for cid, rec in summary.channels.items():
                 schema = summary.schemas.get(rec.schema_id)
@@ -318,10 +336,45 @@ class LiveServer:
                                               context=self.context, metadata=dict(rec.metadata))
             self._channels.update({("replay", cid): ch for cid, ch in chans.items()})
             self.wait_for_viewer()
-            for _, channel, message in reader.iter_messages(log_time_order=True):
-                self._pace("replay", message.log_time)
-                chans[channel.id].log(message.data, log_time=message.log_time)
-                self.sent += 1
+            try:
+                for _, channel, message in reader.iter_messages(log_time_order=True):
+                    self._pace("replay", message.log_time)
+                    chans[channel.id].log(message.data, log_time=message.log_time)
+                    self.sent += 1
+            except Exception as exc:  # noqa: BLE001 - a damaged chunk inside a file with a summary
+                self._say(f"live: {path} is damaged after {self.sent} messages ({type(exc).__name__}: "
+                          f"{' '.join(str(exc).split())[:120]}); served what comes before")
+        return self.sent
+
+    def _replay_stream(self, path, f) -> int:
+        """:meth:`replay` of a file without a readable summary: its records front to back (the
+        run log's writer writes each file in log-time order) until the file ends or is damaged."""
+        from mcap.records import Channel, Message, Schema
+        from mcap.stream_reader import StreamReader
+
+        schemas, chans = {}, {}
+        problem = "it has no summary (an unfinished file)"
+        try:
+            for rec in StreamReader(f, record_size_limit=1 << 32).records:
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec
+                elif isinstance(rec, Channel):
+                    schema = schemas.get(rec.schema_id)
+                    fg_schema = None if schema is None else self._fg.Schema(
+                        name=schema.name, encoding=schema.encoding, data=schema.data)
+                    chans[rec.id] = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
+                                                     context=self.context, metadata=dict(rec.metadata))
+                    self._channels[("replay", rec.id)] = chans[rec.id]
+                elif isinstance(rec, Message) and rec.channel_id in chans:
+                    if not self._waited:
+                        self._waited = True
+                        self.wait_for_viewer()
+                    self._pace("replay", rec.log_time)
+                    chans[rec.channel_id].log(rec.data, log_time=rec.log_time)
+                    self.sent += 1
+        except Exception as exc:  # noqa: BLE001 - where the cut or the damage is
+            problem = f"it ends or is damaged there ({type(exc).__name__})"
+        self._say(f"live: {path} is cut short: served the {self.sent} messages it holds; {problem}")
         return self.sent
 
     def _pace(self, key, log_time: int) -> None:
