@@ -31,7 +31,8 @@ import math
 from numba import njit
 
 from usv_mj.controllers.hysteresis_quantizer import quantizer_kernel
-from usv_mj.core.kernels import Kernel
+from usv_mj.core.errors import PluginContractError
+from usv_mj.core.kernels import Kernel, kernel_blocker
 from usv_mj.physics.actuators import actuator_kernel
 from usv_mj.record.run_record import COL
 
@@ -107,12 +108,27 @@ class ControlStep:
         (updated in place by every call) and parameters."""
         args = self._args
         if args is None or args[_QUANTIZE] != self.quantize:
+            self._check_parts()
             q_u, q_r = self.quantizers
             act = self.actuators
             args = self._args = (*self.bounds, q_u._state, q_u._delta, q_u._u_min, q_r._state, q_r._delta,
                                  q_r._u_min, self.quantize, bool(act.unlimited), act.params, act.state, act.mmg)
             assert control_step.py_func.__code__.co_varnames[4 + _QUANTIZE] == "quantize"
         return args
+
+    def _check_parts(self) -> None:
+        """The channel stage is this one compiled function in every loop: a quantizer or actuators
+        object whose class overrides what the function computes (a subclass replacing ``step``, an
+        instance attribute in place of a method) would be ignored without a word, so it is refused."""
+        for role, part in (("surge quantizer", self.quantizers[0]), ("yaw quantizer", self.quantizers[1]),
+                           ("actuators", self.actuators)):
+            why = kernel_blocker(part)
+            if why is not None:
+                raise PluginContractError(
+                    f"the {role}: {why}: the control step (clip, quantize by Eq. 3, actuators) is one compiled "
+                    f"function in every loop (usv_mj/loop/step.py), which reads the part's state and parameters, "
+                    f"never its methods; change the quantizer or the actuators through their options "
+                    f"([quantizer], [actuators]), or the command before it in your controller")
 
     def kernel(self) -> Kernel:
         """(:func:`control_step`, :meth:`args`) for the generated loops (usv_mj.loop.generate)."""

@@ -623,6 +623,11 @@ def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict
     token = uuid.uuid4().hex[:8]
     futures = {}
     shared = None  # whether every worker is a thread of this process (then it sees this registry)
+    # The watch reads the cluster once now, before any run is submitted: a worker that takes the first
+    # run and dies at once (before the wait's first watch, 1 s in) has then been seen, so its loss is
+    # timed; read only while waiting, the cluster looked never to have had a worker and the wait had no end.
+    watch = _WorkerWatch(client, lost_workers_s)
+    watch()
     for run, options in jobs:
         try:
             imports = worker_imports(run.scenario)  # SweepError for a kind that exists only in this process
@@ -638,7 +643,7 @@ def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict
                             key=f"{key_prefix}-{run.run_id}-{token}", pure=False, retries=0)
         futures[fut] = run
     try:
-        for fut in _waiting(as_completed(list(futures)), _WorkerWatch(client, lost_workers_s)):
+        for fut in _waiting(as_completed(list(futures)), watch):
             run = futures[fut]
             try:
                 row = fut.result()
