@@ -61,6 +61,11 @@ back: ``usv_mj/Track-v0``, ``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``,
 package is imported (a task registered later: when it registers) (if gymnasium is installed), for ``gymnasium.make`` (an installed wheel imports it
 when gymnasium is imported: :mod:`usv_mj.envs.gymnasium_hook`); flat scaled observations
 and normalized actions: :mod:`usv_mj.envs.gymnasium_env`.
+
+Many episodes in one call: ``gymnasium.make_vec("usv_mj/Track-v0", num_envs=N)`` (the vector view,
+:mod:`usv_mj.envs.gymnasium_vector`; ``plant="analytic"`` for the native RK4 of the same hull),
+:func:`load_batch` for dm_env users (arrays of TimeStep fields, :mod:`usv_mj.envs.batch`) and
+:class:`usv_mj.envs.sb3_vec.USVSB3VecEnv` for stable-baselines3: the same batch, stepped natively.
 """
 
 from __future__ import annotations
@@ -74,10 +79,12 @@ _WHERE = {
     "load": "environment", "gym_env": "gymnasium_env", "episode_record": "environment",
     "USVEnvironment": "environment", "PPCPolicy": "policies", "RandomPolicy": "policies",
     "TrackTask": "tasks", "HarbourTask": "tasks", "USVPhysics": "physics", "USVGymEnv": "gymnasium_env",
+    "load_batch": "batch", "TrackBatch": "batch", "USVVectorEnv": "gymnasium_vector", "USVSB3VecEnv": "sb3_vec",
 }
 
-__all__ = ["ALL_TASKS", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "TASKS", "TrackTask", "USVEnvironment",
-           "USVGymEnv", "USVPhysics", "episode_record", "gym_env", "gym_id", "load"]
+__all__ = ["ALL_TASKS", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "TASKS", "TrackBatch", "TrackTask",
+           "USVEnvironment", "USVGymEnv", "USVPhysics", "USVVectorEnv", "episode_record", "gym_env", "gym_id", "load",
+           "load_batch"]
 
 _GYM_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]*(?:[_-][A-Za-z0-9]+)*$")
 
@@ -111,7 +118,8 @@ def register_gymnasium(tasks=None) -> None:
     for task in (TASKS.kinds() if tasks is None else tasks):
         env_id = gym_id(task)
         if env_id is not None and env_id not in registry:
-            register(id=env_id, entry_point="usv_mj.envs.gymnasium_env:USVGymEnv", kwargs={"task": task})
+            register(id=env_id, entry_point="usv_mj.envs.gymnasium_env:USVGymEnv", kwargs={"task": task},
+                     vector_entry_point="usv_mj.envs.gymnasium_vector:make_vector_env")
 
 
 register_gymnasium()
