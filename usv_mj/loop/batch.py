@@ -136,7 +136,7 @@ def stack(kernels: list) -> Stacked:
             continue
         args.append(np.ascontiguousarray(np.stack(vals)))
         mask.append(True)
-        if written and not same and v0.flags.writeable:
+        if written and v0.flags.writeable:   # (one object in several episodes: the last one's is kept)
             back.append((j, vals))
     return Stacked(tuple(args), tuple(mask), tuple(back))
 
@@ -205,25 +205,31 @@ def simulate_batch(scenarios, *, plant_kind: str | None = None, controller_kind:
     (None: numba's setting). A part that raises (a plant's failure) fails its episode only: its
     record says so (status "failed"), the others go on; ``raise_errors`` then raises the first
     error once every episode is finished (as simulate raises it)."""
-    parts = []
+    parts, fleets = [], {}
     try:
-        for sc in scenarios:
-            if isinstance(sc, Parts):
-                parts.append(sc)
-                continue
-            sc = sc if isinstance(sc, Scenario) else as_scenario(sc, "simulate_batch")
-            parts.append(build(sc, plant_kind=plant_kind, controller_kind=controller_kind, duration=duration))
-        return run_batch(parts, block=block, store=store, progress=progress, n_threads=n_threads,
-                         raise_errors=raise_errors)
+        for i, sc in enumerate(scenarios):
+            if not isinstance(sc, Parts):
+                sc = sc if isinstance(sc, Scenario) else as_scenario(sc, "simulate_batch")
+                if sc.vessels:   # a fleet: its own loop (usv_mj.loop.fleet), as simulate runs it
+                    fleets[i] = sc
+                    continue
+                sc = build(sc, plant_kind=plant_kind, controller_kind=controller_kind, duration=duration)
+            parts.append(sc)
+        records = iter(run_batch(parts, block=block, store=store, progress=progress, n_threads=n_threads,
+                                 raise_errors=raise_errors))
+        return [single.simulate(fleets[i], plant_kind=plant_kind, duration=duration, block=block)
+                if i in fleets else next(records) for i in range(len(parts) + len(fleets))]
     finally:
         for p in parts:
             p.close()
 
 
 def run_batch(parts: list, *, block: int = 2000, store=False, progress=None, n_threads: int | None = None,
-              raise_errors: bool = True) -> list:
-    """:func:`simulate_batch` of built parts (not closed here)."""
+              raise_errors: bool = True, errors: list | None = None) -> list:
+    """:func:`simulate_batch` of built parts (not closed here). ``errors``: a list given is filled with
+    each episode's exception (None: it raised none), in order."""
     records: list = [None] * len(parts)
+    found_errors: list = [None] * len(parts)
     alone, episodes = [], []
     for i, p in enumerate(parts):
         hooks = tuple(p.hooks)
@@ -239,14 +245,12 @@ def run_batch(parts: list, *, block: int = 2000, store=False, progress=None, n_t
     groups: dict = {}
     for ep in episodes:
         groups.setdefault(ep.key(), []).append(ep)
-    errors = []
     with threads(n_threads):
         for group in groups.values():
             _run_group(group, block)
     for ep in episodes:
         records[ep.index] = ep.start.record
-        if ep.error is not None:
-            errors.append(ep.error)
+        found_errors[ep.index] = ep.error
     for i in alone:   # as simulate runs them (its errors raised as it raises them)
         p = parts[i]
         try:
@@ -254,10 +258,12 @@ def run_batch(parts: list, *, block: int = 2000, store=False, progress=None, n_t
         except Exception as exc:
             if raise_errors:
                 raise
-            errors.append(exc)
-            records[i] = getattr(exc, "record", None)
-    if errors and raise_errors:
-        raise errors[0]
+            found_errors[i] = exc
+    if errors is not None:
+        errors[:] = found_errors
+    first = next((e for e in found_errors if e is not None), None)
+    if first is not None and raise_errors:
+        raise first
     return records
 
 
@@ -334,7 +340,6 @@ def _after_block(ep: _Episode, stacks: dict, i: int, k: int, status: int, x, out
     except Exception as exc:
         if not single._failed(st.record, exc, st.record.n_rows * st.dt):
             ep.error = exc
-            exc.record = st.record
     _finish(ep)
     return False
 
