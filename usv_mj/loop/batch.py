@@ -231,7 +231,11 @@ def run_batch(parts: list, *, block: int = 2000, store=False, progress=None, n_t
     records: list = [None] * len(parts)
     found_errors: list = [None] * len(parts)
     alone, episodes = [], []
+    fleets = []
     for i, p in enumerate(parts):
+        if not isinstance(p, Parts):   # a fleet's parts: its own loop (usv_mj.loop.fleet), as simulate runs it
+            fleets.append(i)
+            continue
         hooks = tuple(p.hooks)
         found, _ = kernels_of(p, hooks)
         if found is None or found["hook"].fn is not no_hook:   # Python parts, or a hook: the single run's loop
@@ -251,10 +255,11 @@ def run_batch(parts: list, *, block: int = 2000, store=False, progress=None, n_t
     for ep in episodes:
         records[ep.index] = ep.start.record
         found_errors[ep.index] = ep.error
-    for i in alone:   # as simulate runs them (its errors raised as it raises them)
+    for i in alone + fleets:   # as simulate runs them (its errors raised as it raises them)
         p = parts[i]
         try:
-            records[i] = single._run(p, list(p.sinks), block, progress, tuple(p.hooks), store=store)
+            records[i] = single._run(p, list(p.sinks), block, progress, tuple(p.hooks), store=store) \
+                if i in alone else single.simulate(p, block=block, progress=progress)
         except Exception as exc:
             if raise_errors:
                 raise
