@@ -242,3 +242,21 @@ def test_the_stable_baselines3_view_resets_in_the_same_step():
         assert not np.array_equal(obs, np.stack([info["terminal_observation"] for info in infos]))
     finally:
         venv.close()
+
+
+def test_the_harbour_tasks_are_a_sync_vector_env_of_single_views():
+    """Not batched natively (a model per layout, obstacles moved in Python): make_vec gives
+    Gymnasium's SyncVectorEnv of USVGymEnv, env i seeded seed + i, with its autoreset mode."""
+    env = gymnasium.make_vec("usv_mj/Harbor-v0", num_envs=2, seed=4, duration=0.05)
+    try:
+        assert type(env.unwrapped).__name__ == "SyncVectorEnv"
+        assert env.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+        obs, _ = env.reset()
+        single = gymnasium.make("usv_mj/Harbor-v0", seed=5, duration=0.05)
+        try:
+            assert np.array_equal(obs[1], single.reset()[0])
+        finally:
+            single.close()
+        env.step(np.zeros((2, 2), np.float32))
+    finally:
+        env.close()
