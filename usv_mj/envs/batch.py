@@ -25,7 +25,7 @@ native code: the fast one, for learning at scale).
 
 The argument arrays are held as :mod:`usv_mj.loop.batch` holds a batched run's (state per episode,
 equal parameters once). What is not batched: the harbour tasks (a new MuJoCo model per layout, moving
-obstacles in Python, contacts): :func:`usv_mj.envs.vector.make_vector_env` steps those one by one.
+obstacles in Python, contacts): :func:`usv_mj.envs.gymnasium_vector.make_vector_env` steps those one by one.
 """
 
 from __future__ import annotations
@@ -115,6 +115,11 @@ _IMPORTS = ("from numba import prange\n"
             "from usv_mj.envs.native import harbor_sense, hypot_py, observe_scaled, track_observe, track_reward")
 
 
+class NotBatched(ValueError):
+    """The task cannot be stepped by :class:`TrackBatch` (its obstacles move in Python, its reference
+    changes during the episode): the vector view steps it env by env."""
+
+
 class BatchTimeStep(NamedTuple):
     """A dm_env ``TimeStep`` of every episode: ``step_type`` (N,) of dm_env.StepType values, ``reward``
     and ``discount`` (N,) (NaN where an episode starts: dm_env's None), ``observation`` an
@@ -143,8 +148,8 @@ class TrackBatch:
         self.single = single if single is not None else load(task, **options)
         t = self.single.task
         if isinstance(t, HarbourTask) or not getattr(t, "_fusable", False):
-            raise ValueError(f"usv_mj.envs.load_batch: the task {task!r} is not batched natively (its "
-                             f"obstacles move in Python); usv_mj.envs.vector.make_vector_env steps it env by env")
+            raise NotBatched(f"usv_mj.envs.load_batch: the task {task!r} is not batched natively (its obstacles "
+                             f"move in Python); gymnasium.make_vec steps it env by env (SyncVectorEnv)")
         if _EXP is not math.exp:   # numpy's exp is not libm's here: the single env's rewards use numpy's
             import warnings
 
@@ -162,7 +167,7 @@ class TrackBatch:
         self.preview = np.ascontiguousarray(t.preview_times, dtype=np.float64)
         evaluator = native.StepEvaluator(t.reference, t.preview_times)
         if not evaluator.native or evaluator.key_fn is not None:
-            raise ValueError(f"usv_mj.envs.load_batch: the task's reference ({type(t.reference).__name__}) has no "
+            raise NotBatched(f"usv_mj.envs.load_batch: the task's reference ({type(t.reference).__name__}) has no "
                              f"fixed kernel")
         if evaluator.t_max is not None and evaluator.t_max < self.time_limit + evaluator.horizon:
             raise ValueError("usv_mj.envs.load_batch: the reference's table ends before the episode's preview does")

@@ -47,8 +47,8 @@ except ImportError:  # pragma: no cover - optional dependency
 
     raise missing_extra("gymnasium", "usv_mj's vector environments (gymnasium.make_vec)") from None
 
-from usv_mj.envs.batch import TrackBatch
-from usv_mj.envs.environment import HARBOUR_TASKS
+from usv_mj.envs.batch import NotBatched, TrackBatch
+from usv_mj.envs.environment import task_entry
 from usv_mj.envs.gymnasium_env import USVGymEnv
 
 
@@ -84,8 +84,12 @@ class USVVectorEnv(VectorEnv):
                                          for n, v in items]) for items in (
             self.single._scale.items(), ((n, b[0]) for n, b in self.single._bounds.items()),
             ((n, b[1]) for n, b in self.single._bounds.items())))
-        self.batch = TrackBatch(task, num_envs, seed, plant=plant, single=self.single.dm_env, n_threads=n_threads,
-                                parallel=parallel, scaled=(scale, lo, hi))
+        try:
+            self.batch = TrackBatch(task, num_envs, seed, plant=plant, single=self.single.dm_env, n_threads=n_threads,
+                                    parallel=parallel, scaled=(scale, lo, hi))
+        except BaseException:
+            self.single.close()
+            raise
         self.num_envs = self.batch.num_envs
         self.single_observation_space = self.single.observation_space
         self.single_action_space = self.single.action_space
@@ -191,15 +195,18 @@ class USVVectorEnv(VectorEnv):
 
 def make_vector_env(num_envs: int = 1, task: str = "track", autoreset_mode=AutoresetMode.NEXT_STEP, **options):
     """The vector entry point of the registered ids (``gymnasium.make_vec``): :class:`USVVectorEnv` for
-    the track tasks; the harbour tasks (not batched natively) as a ``SyncVectorEnv`` of
+    the tasks the batch steps natively (a track task with a fixed reference); the others (the harbour
+    tasks: tagged "obstacles"; a task the batch cannot take) as a ``SyncVectorEnv`` of
     :class:`USVGymEnv`, env i seeded ``seed + i``."""
     options.pop("max_episode_steps", None)
-    if task in HARBOUR_TASKS:
-        options.pop("plant", None)
-        options.pop("n_threads", None)
-        options.pop("parallel", None)
-        seed = options.pop("seed", None)
-        fns = [(lambda i=i: USVGymEnv(task, seed=None if seed is None else int(seed) + i, **options))
-               for i in range(int(num_envs))]
-        return gymnasium.vector.SyncVectorEnv(fns, autoreset_mode=_mode(autoreset_mode))
-    return USVVectorEnv(task, num_envs, autoreset_mode=autoreset_mode, **options)
+    if "obstacles" not in task_entry(task).tags:
+        try:
+            return USVVectorEnv(task, num_envs, autoreset_mode=autoreset_mode, **options)
+        except NotBatched:
+            pass
+    for name in ("plant", "n_threads", "parallel"):
+        options.pop(name, None)
+    seed = options.pop("seed", None)
+    fns = [(lambda i=i: USVGymEnv(task, seed=None if seed is None else int(seed) + i, **options))
+           for i in range(int(num_envs))]
+    return gymnasium.vector.SyncVectorEnv(fns, autoreset_mode=_mode(autoreset_mode))
