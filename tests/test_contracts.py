@@ -257,10 +257,13 @@ def test_plant_contract(plant, vessel, runs):
 def test_disturbance_contract(kind, plant, runs):
     from usv_mj.jobs.compare import CLOSED_LOOP_TOLERANCE_M
 
+    from usv_mj.physics.disturbances import D_MAX_WORDS, check_disturbance
+
     entry = DISTURBANCES.get(kind)
     options = entry.options_class()
     packed = np.asarray(options.as_array(), dtype=float)
-    assert packed.ndim == 1 and packed.size > 0 and np.all(np.isfinite(packed))
+    assert packed.ndim == 1 and 0 < packed.size <= D_MAX_WORDS and np.all(np.isfinite(packed))
+    check_disturbance(options, kind)   # a numba.njit kernel(dp, t), no force(t) of its own beside it
     sc = scenario_of(disturbance=kind)
     assert isinstance(sc.disturbance, entry.options_class)
     assert np.array_equal(np.asarray(sc.disturbance.as_array(), dtype=float), packed)   # the defaults

@@ -27,7 +27,8 @@ against ``MyGains``. Every registry works the same way:
   plants get ``environment=``, ``obstacles=``, ``contact=``, ``safety_radii=`` (and
   ``rangefinders=`` when asked); controllers and vessels get nothing (a vessel's factory is called
   while the scenario is built, with ``scenario=None``, and returns a :class:`usv_mj.vessels.Vessel`). A disturbance's options dataclass is the
-  disturbance itself (its ``as_array()`` feeds the plants' kernels), so it registers only that.
+  disturbance itself (its ``as_array()`` and its ``kernel`` feed the plants, usv_mj.physics.disturbances),
+  so it registers only that: ``@DISTURBANCES.register("squall")`` on the dataclass.
 
 Where a kind is found, in this order (:meth:`Registry.get`):
 
@@ -39,7 +40,7 @@ Where a kind is found, in this order (:meth:`Registry.get`):
 3. ``"package.module:Name"`` (as Gymnasium's ``entry_point``): the module is imported and ``Name``
    taken; it is registered under that very string;
 4. a Python **entry point** named ``kind`` in the registry's group (``usv_mj.controllers``,
-   ``usv_mj.references.trajectories``, ``usv_mj.plants``, ``usv_mj.physics.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
+   ``usv_mj.trajectories``, ``usv_mj.plants``, ``usv_mj.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
 
 For 3 and 4 the object named is either registered by its own module's decorator, or registered
 here with the options dataclass it declares as its class attribute ``options`` (none if it has no
@@ -114,9 +115,13 @@ class Registry:
     registers it on import; ``group``: the entry-point group searched for kinds not found.
     """
 
-    def __init__(self, what: str, builtins: dict[str, str], group: str, files: tuple[str, str] | None = None):
+    def __init__(self, what: str, builtins: dict[str, str], group: str, files: tuple[str, str] | None = None,
+                 self_options: bool = False):
         self.what = what
         self.group = group
+        # a kind's object is its own options dataclass (the disturbances'): registered with no
+        # options=, a dataclass takes itself (``@DISTURBANCES.register("squall")`` on the class)
+        self.self_options = self_options
         self._builtins = dict(builtins)  # kind -> module that registers it on import
         # (suffix, "module:function"): a kind ending in the suffix is a data file, registered under its
         # path by that function (imported by name: looking a file kind up is the registry's business)
@@ -154,9 +159,12 @@ class Registry:
                 raise ValueError(f"{self.what} kind {kind!r} is already registered ({old.source}: "
                                  f"{_name_of(old.obj)}); pass replace=True to replace it, or choose another kind")
             full = dict(info)
-            if options is not None:
-                full["options"] = options
-                full["gains"] = options  # the controllers' historical name
+            own = options
+            if own is None and self.self_options and isinstance(obj, type) and dataclasses.is_dataclass(obj):
+                own = obj
+            if own is not None:
+                full["options"] = own
+                full["gains"] = own  # the controllers' historical name
             self._entries[kind] = Entry(kind, obj, full, source)
             return obj
 
@@ -350,8 +358,10 @@ CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "us
                                       "zigzag": "usv_mj.controllers.zigzag"},
                        "usv_mj.controllers")
 TRAJECTORIES = Registry("trajectory", {k: "usv_mj.references.trajectories" for k in ("paper", "line", "circle", "waypoints")},
-                        "usv_mj.references.trajectories")
-DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"}, "usv_mj.physics.disturbances")
+                        "usv_mj.trajectories")  # the entry-point group: a public name, kept from before the layers
+#: d(t) (usv_mj.physics.disturbances: the contract, the dispatch); a kind's object is its options dataclass
+DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"}, "usv_mj.disturbances",
+                        self_options=True)
 #: the hulls (docs/vessels.md): a module, or a data file of usv_mj/vessels/data/ read by
 #: usv_mj.vessels.datafile (its kinds are named here, so that looking one up imports no physics)
 VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_mj.vessels.clarke83",
