@@ -4,6 +4,7 @@ parameters once) checked on their own."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ from numba import njit
 from usv_mj import load_scenario, simulate
 from usv_mj.core.kernels import Kernel
 from usv_mj.loop.batch import signature, simulate_batch, stack, write_back
+from usv_mj.physics.disturbances import D_KERNEL, Disturbance, packed_disturbance
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "examples" / "scenarios"
@@ -88,6 +90,49 @@ def test_a_batch_of_mixed_episodes_equals_the_single_runs_bit_for_bit():
         statuses.add(rec.status)
     assert statuses == {"completed", "diverged"}   # both stops are in the batch
     assert dict(batch)[[n for n, _, _ in eps].index("diverges")].status == "diverged"
+
+
+@njit(cache=True)
+def _gust_kernel(dp, t):
+    """A yaw gust: f_n = dp[0] for dp[1] <= t < dp[2] (no surge or sway force)."""
+    if dp[1] <= t < dp[2]:
+        return 0.0, 0.0, dp[0]
+    return 0.0, 0.0, 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class _Gust(Disturbance):
+    """A disturbance kind of the test's own (not registered: the scenario holds the object)."""
+
+    moment: float = 1.0   # [N m]
+    start: float = 0.0    # [s]
+    end: float = 1.0      # [s]
+
+    kernel = _gust_kernel
+
+    def as_array(self):
+        return np.array([self.moment, self.start, self.end])
+
+
+def test_each_episode_carries_its_own_packed_disturbance():
+    """Episodes of one kernel combination whose d(t) differ (the paper's at two scales, a kind of the
+    test's own at two strengths: one stacked packed vector, a dispatch word per row) each get the d(t)
+    of their own run alone, on both plants; the gust's episodes differ from the paper's (its kernel ran)."""
+    paper = _paper("analytic", (2.0, -3.0, 0.0), duration=0.6)
+    eps = [paper, dataclasses.replace(paper, disturbance=dataclasses.replace(paper.disturbance, scale=0.0)),
+           dataclasses.replace(paper, disturbance=_Gust(40.0, 0.1, 0.4)),
+           dataclasses.replace(paper, disturbance=_Gust(-25.0, 0.2, 0.5))]
+    mj = _paper("mujoco", (2.0, -3.0, 0.0), duration=0.4)
+    eps += [mj, dataclasses.replace(mj, disturbance=_Gust(40.0, 0.1, 0.3))]
+    words = np.array([packed_disturbance(sc.disturbance) for sc in eps[:4]])
+    assert words[0, D_KERNEL] == 0.0 and words[2, D_KERNEL] != 0.0   # the paper's kernel, the gust's cfunc
+    recs = simulate_batch(eps, block=150, n_threads=2)
+    alone = [simulate(sc) for sc in eps]
+    for i, (rec, one) in enumerate(zip(recs, alone)):
+        _same_record(rec, one, f"episode {i}")
+    for gust, paper_run in ((2, 0), (3, 0), (5, 4)):
+        assert np.abs(recs[gust]["r"] - recs[paper_run]["r"]).max() > 1e-3, gust   # the gust turned it
+    assert not np.array_equal(recs[0]["psi"], recs[1]["psi"])   # the paper's d(t) at scale 0 is not at 1e-4
 
 
 def test_the_parts_are_left_where_the_single_run_leaves_them():
