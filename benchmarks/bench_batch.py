@@ -31,7 +31,8 @@ import time
 import numpy as np
 from numba import njit, prange
 
-from usv_mj.physics.ship import PaperDisturbance, ShipParams, hull_terms, kinematics_terms, mass_solve_terms
+from usv_mj.physics.ship import (PaperDisturbance, ShipParams, hull_terms, kinematics_terms, mass_solve_terms,
+                                 packed_disturbance)
 from usv_mj.physics.sea.dynamics import calm_rk4_advance
 
 DT, NSUB = 0.01, 10
@@ -104,7 +105,8 @@ def _timed(fn, seconds, repeats):
 
 
 def bare(n_env, seconds, repeats, kind):
-    p, dp = ShipParams().as_array(), PaperDisturbance().as_array()
+    # the packed d(t) the plants carry (17 words, the dispatch word 0: the paper's kernel), as the env's
+    p, dp = ShipParams().as_array(), packed_disturbance(PaperDisturbance())
     rng = np.random.default_rng(0)
     X = np.zeros((6, n_env)) if kind == "bare" else np.zeros((n_env, 6))
     FU, FR = rng.uniform(0, 100, n_env), rng.uniform(-10, 10, n_env)
