@@ -15,7 +15,7 @@ from ``--n-envs`` copies of the environment stepped in one process (stable-basel
 ``DummyVecEnv``, 8 by default) with ``n_steps = 2048 // n_envs`` each, so one update still sees
 2048 steps, as the default: vectorising only batches the policy's forward pass.
 
-Two things make it fast (docs/metrics.md, "The PPO row"):
+What makes it fast (docs/metrics.md, "The PPO row"):
 
 - **One torch thread** (``torch.set_num_threads(1)``). torch's default is one intra-op thread per
   core; on a 2-core machine that others share, its threads spin against each other and against the
@@ -24,6 +24,9 @@ Two things make it fast (docs/metrics.md, "The PPO row"):
 - **A vectorised environment**: one batched forward pass for 8 environment steps instead of 8
   (2980 steps/s on the idle machine). An environment step is ~130 us (the fused native step of
   :mod:`usv_mj.envs.native`: 10 RK4 steps of 1 ms and the observation in one compiled call).
+- **Threads that sleep between steps**: the script sets ``OMP_WAIT_POLICY=passive`` (unless set)
+  before numba loads OpenMP; with the default, the batch's idle threads spin through PPO's update
+  (65 against 494 steps/s, measured on the shared machine).
 - **The episodes stepped together** (``--vec native``, the default since issue 36): the
   ``--n-envs`` episodes advance in one compiled call (:class:`usv_mj.envs.sb3_vec.USVSB3VecEnv`:
   the action, the plant, the observation and the reward of every episode, no Python per episode),
@@ -46,8 +49,16 @@ the track observation has no view of obstacles, so a policy is not scored on the
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
+
+# numba's worker threads (the native batch's prange on the OpenMP layer) spin after every parallel env
+# step by default (libgomp's OMP_WAIT_POLICY), and PPO's update, which runs between the steps, finds
+# both cores taken: 65 steps/s against 494 with "passive" (6144 steps, --vec native, MuJoCo plant,
+# shared 2-core machine at load 8). Read once, when libgomp loads: set before numba or torch is
+# imported; a setting of the user's own is kept.
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 
 def main() -> int:
