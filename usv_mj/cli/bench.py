@@ -18,6 +18,7 @@ def add_arguments(p) -> None:
                               "(default renders/bench-<suite name>)")
     flags.add_cluster_arguments(p)
     flags.add_resume_arguments(p, "episodes")
+    flags.add_batch_argument(p, "episodes")
     flags.add_overwrite_argument(p, "--out whole when it holds an earlier usv_mj output (the new benchmark is "
                                     "staged: the old one stays until it ends)")
     p.add_argument("--compare", nargs=2, metavar=("A", "B"), default=None,
@@ -70,7 +71,7 @@ def run(args) -> int:
         with results_folder(out, args.resume) as folder:   # staged when it replaces an earlier output
             result = run_bench(suite, folder, scheduler=args.scheduler, workers=args.workers,
                                resume=args.resume, progress=not args.quiet, max_runs=args.max_runs,
-                               jobqueue=args.jobqueue, jobs=args.jobs, draw=not args.no_figures)
+                               jobqueue=args.jobqueue, jobs=args.jobs, draw=not args.no_figures, batch=args.batch)
     except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj bench: error: {exc}", file=sys.stderr)
         return 2

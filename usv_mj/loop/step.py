@@ -71,6 +71,8 @@ def control_step(tau_u, tau_r, x, row, lo_u, hi_u, lo_r, hi_r, qs_u, delta_u, u_
 
 UNBOUNDED = (-math.inf, math.inf, -math.inf, math.inf)
 _QUANTIZE = 10   # where ``quantize`` sits in ControlStep.args()
+#: the arguments control_step writes (ControlStep.args() indices): the two quantizers' states and the actuators'
+STEP_STATE = (4, 7, 13)
 
 
 class ControlStep:
@@ -114,6 +116,8 @@ class ControlStep:
             args = self._args = (*self.bounds, q_u._state, q_u._delta, q_u._u_min, q_r._state, q_r._delta,
                                  q_r._u_min, self.quantize, bool(act.unlimited), act.params, act.state, act.mmg)
             assert control_step.py_func.__code__.co_varnames[4 + _QUANTIZE] == "quantize"
+            assert tuple(control_step.py_func.__code__.co_varnames[4 + i] for i in STEP_STATE) == (
+                "qs_u", "qs_r", "act_state")
         return args
 
     def _check_parts(self) -> None:
@@ -132,7 +136,7 @@ class ControlStep:
 
     def kernel(self) -> Kernel:
         """(:func:`control_step`, :meth:`args`) for the generated loops (usv_mj.loop.generate)."""
-        return Kernel(control_step, self.args())
+        return Kernel(control_step, self.args(), state=STEP_STATE)
 
     def __call__(self, tau_u: float, tau_r: float, x, row) -> tuple[float, float]:
         """One control period (module docstring): writes ``row``'s control columns, returns (f_u, f_r)."""

@@ -219,7 +219,7 @@ class PaperReference(Reference):
         from usv_mj.core.kernels import Kernel
 
         return Kernel(paper_kernel, (self._x, self._y, self._psi, self.GRID, self.speed, self.t_turn, self.t_phase,
-                                     self.amplitude, self.period, self._out))
+                                     self.amplitude, self.period, self._out), state=(9,))
 
 
 class LineReference(Reference):
@@ -236,7 +236,7 @@ class LineReference(Reference):
     def kernel(self):
         from usv_mj.core.kernels import Kernel
 
-        return Kernel(line_kernel, (self.start[0], self.start[1], self.heading, self.speed, self._out))
+        return Kernel(line_kernel, (self.start[0], self.start[1], self.heading, self.speed, self._out), state=(4,))
 
     def pose(self, t):
         return line_pose(t, self.start[0], self.start[1], self.heading, self.speed)
@@ -262,7 +262,7 @@ class CircleReference(Reference):
         from usv_mj.core.kernels import Kernel
 
         return Kernel(circle_kernel, (self.center[0], self.center[1], self.radius, self.speed, self.theta0,
-                                      self.direction, self._out))
+                                      self.direction, self._out), state=(6,))
 
     def pose(self, t):
         return circle_pose(t, self.center[0], self.center[1], self.radius, self.speed, self.theta0, self.direction)
@@ -323,7 +323,7 @@ class WaypointReference(Reference):
     def kernel(self):
         from usv_mj.core.kernels import Kernel
 
-        return Kernel(waypoint_kernel, (self.speed, self._starts, self._rows, self._out))
+        return Kernel(waypoint_kernel, (self.speed, self._starts, self._rows, self._out), state=(3,))
 
     def pose(self, t):
         return waypoint_pose(t, self.speed, self._starts, self._rows)
