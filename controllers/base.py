@@ -32,8 +32,9 @@ from typing import Protocol
 import numpy as np
 
 # the shared layouts (usv_mj.core.layouts): the reference vector, the funnel block, the PPC law's diagnostics
-from usv_mj.core.layouts import (DIAG_FIELDS, FUNNEL_FIELDS, REF_FIELDS, REF_PSI, REF_R, REF_U, REF_X,  # noqa: F401
-                                 REF_XDOT, REF_Y, REF_YDOT)
+from usv_mj.core.layouts import (DIAG_FIELDS, FUNNEL_FIELDS, N_REF, REF_FIELDS, REF_PSI, REF_R, REF_RDOT,  # noqa: F401
+                                 REF_U, REF_VECTOR_FIELDS, REF_X, REF_XDDOT, REF_XDOT, REF_Y, REF_YDDOT, REF_YDOT,
+                                 STATE_FIELDS)
 
 DIAG = {name: i for i, name in enumerate(DIAG_FIELDS)}
 TRACKING_FIELDS = DIAG_FIELDS[:13]
