@@ -133,6 +133,8 @@ class PIController:
 
     name = "pi"
     diagnostic_fields = TRACKING_FIELDS + ("u_e", "r_e", "integral_u", "integral_r")
+    #: from the paper's start pose it drives paper-limited's thrusters into their limits (usv-mj compare)
+    reaches_actuator_limits = True
     # e_i* = ln((1 + z_i) / (1 - z_i)) are numbers; integral_u of u_c - u, integral_r of e3
     diagnostic_units = {"e1s": "-", "e2s": "-", "e3s": "-", "psi_a": "rad", "u_e": "m/s", "r_e": "rad/s",
                         "integral_u": "m", "integral_r": "rad s"}

@@ -109,3 +109,17 @@ set = { "trajectory.kind" = "line", "initial.eta" = [0.0, 0.0, 0.0] }
     other.write_text((folder / "suite.toml").read_text().replace("episodes = 2", "episodes = 3"))
     assert main(["bench", str(other), "--out", str(out), "--compare", "pi", "pi-2"]) == 2
     assert "another suite" in capsys.readouterr().err
+
+
+def test_overrides_that_switch_the_kind_drop_a_files_own_gains(tmp_path):
+    """The same rule for a scenario file's own [controller] gains under --set / load_scenario(overrides=)
+    / Scenario.with_overrides (compare's saturated case switches a LOS scenario to PPC this way)."""
+    from usv_mj import load_scenario
+
+    f = tmp_path / "ppc.toml"
+    f.write_text('preset = "paper"\n[controller]\nkind = "ppc"\nk1 = 4.0\n')
+    sc = load_scenario(f, overrides={"controller": {"kind": "los", "lookahead": 5.0}})
+    assert sc.controller.kind == "los" and sc.controller.gains.lookahead == 5.0
+    back = sc.with_overrides({"controller": {"kind": "ppc"}})
+    assert back.controller.kind == "ppc" and back.controller.gains.k1 == 3.0   # the preset's, not the file's
+    assert load_scenario(f, overrides={"controller": {"k3": 9.0}}).controller.gains.k1 == 4.0   # no switch: kept

@@ -292,7 +292,7 @@ class Scenario:
 
     def with_overrides(self, overrides: dict) -> "Scenario":
         """A new scenario: this one's TOML table with ``overrides`` merged in and validated again."""
-        return from_dict(merge_tables(self.raw, overrides), source=self.source or "<overrides>")
+        return from_dict(merge_overrides(self.raw, overrides, self.source), source=self.source or "<overrides>")
 
     def without(self, *sections: str) -> "Scenario":
         """A new scenario without these top-level tables (e.g. ``"obstacles"``: the same run in open
@@ -362,7 +362,7 @@ def load_scenario(path: str | Path | None = None, preset: str | None = None, ove
     if preset is not None:
         data["preset"] = preset
     if overrides:
-        data = merge_tables(data, overrides)
+        data = merge_overrides(data, overrides, source)
     return from_dict(data, source=source)
 
 
@@ -388,6 +388,18 @@ def switched_kind(section: str, table: dict, kind, source: str = "<dict>") -> di
         cls = registry.get(kind, f"{source}: {section}.kind").options_class
         known |= {f.name for f in dataclasses.fields(cls)} if cls is not None else set()
     return {k: v for k, v in table.items() if k in known}
+
+
+def merge_overrides(data: dict, overrides: dict, source: str = "<dict>") -> dict:
+    """``data`` (a scenario table) with ``overrides`` merged in, a section whose ``kind`` the overrides
+    switch first cut to the new kind's keys (:func:`switched_kind`), so ``{"controller": {"kind":
+    "los"}}`` over a file's PPC gains is LOS with its own, as over a preset."""
+    base = dict(data)
+    for section in KIND_DEFAULTS:
+        over = overrides.get(section)
+        if isinstance(over, dict) and "kind" in over and isinstance(base.get(section), dict):
+            base[section] = switched_kind(section, base[section], over["kind"], source)
+    return merge_tables(base, overrides)
 
 
 def from_dict(data: dict, source: str = "<dict>") -> Scenario:
