@@ -89,3 +89,20 @@ def test_the_gains_are_placed_on_the_nominal_model():
     plain = load_scenario(overrides={"vessel": {"kind": "otter"}}).baseline.gains
     heavy = load_scenario(overrides={"vessel": {"kind": "otter", "model_mismatch": 2.0}}).baseline.gains
     assert heavy.kp_r == pytest.approx(2.0 * plain.kp_r, rel=1e-12) and heavy.ki_u == pytest.approx(2.0 * plain.ki_u)
+
+
+def test_kinds_and_the_report_show_the_derived_gains():
+    from usv_mj.cli.kinds import list_kinds
+    from usv_mj.outputs.report import gains_section
+    from usv_mj import simulate
+
+    otter = load_scenario(overrides={"vessel": {"kind": "otter"}, "controller": {"kind": "los"}})
+    rows = {r["kind"]: r for r in list_kinds(["controller"], vessel="otter")["controller"]["kinds"]}
+    los = {o["name"]: o for o in rows["los"]["options"]}
+    assert los["kp_psi"]["derived"] and los["kp_psi"]["default"] == otter.controller.gains.kp_psi
+    assert "derived" not in los["ilos_sigma"]
+    paper = {o["name"]: o for o in {r["kind"]: r for r in list_kinds(["controller"])["controller"]["kinds"]}["pi"]["options"]}
+    assert paper["kp_r"]["default"] == 200.0 and paper["kp_r"]["derived"]
+    rec = simulate(otter.with_overrides({"duration": 0.01, "plant": {"kind": "analytic"}}))
+    text = gains_section(rec)
+    assert "| kp_psi | 2706.73 | the vessel (derived) |" in text and "| ilos_sigma | 0 | the scenario or the default |" in text
