@@ -209,8 +209,8 @@ def test_the_default_suite_plans(tmp_path):
     assert suite.tasks == ["paper-track", "line-0.6", "line-1.0", "circle-0.6", "circle-1.0", "lawnmower", "harbour"]
     assert suite.conditions == ["calm", "sea", "limited"]
     assert [c.name for c in suite.controllers] == ["ppc", "pi", "los", "ppo"]
-    # 2 episodes x 3 conditions x 4 vessels x (7 tasks x 3 controllers + 6 tasks for the policy, no harbour)
-    assert len(suite.plan.runs) == 2 * 3 * 4 * (7 * 3 + 6)
+    # 10 episodes x 3 conditions x 4 vessels x (7 tasks x 3 controllers + 6 tasks for the policy, no harbour)
+    assert len(suite.plan.runs) == 10 * 3 * 4 * (7 * 3 + 6)
     ppo = [r for r in suite.plan.runs if r.values["controller"] == "ppo"]
     assert Path(ppo[0].options["policy"]).is_file()   # the shipped policy, beside the suite
     harbour = [r for r in suite.plan.runs if r.values["task"] == "harbour"]

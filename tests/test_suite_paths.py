@@ -103,7 +103,7 @@ set = { "trajectory.kind" = "line", "initial.eta" = [0.0, 0.0, 0.0] }
     os.chdir(tmp_path)
     assert main(["bench", "--out", str(out), "--compare", "pi", "pi-2"]) == 0
     text = capsys.readouterr().out
-    assert "suite " + str(folder / "suite.toml") in text and "Holm-Bonferroni over" in text
+    assert "suite " + str(folder / "suite.toml") in text and "Holm-Bonferroni within each cell" in text
     # the suite given again must be the folder's
     other = folder / "other.toml"
     other.write_text((folder / "suite.toml").read_text().replace("episodes = 2", "episodes = 3"))

@@ -130,10 +130,13 @@ class Scaling:
     def surge_integral_limit(self, limit_ref: float, ki_ref: float) -> float:
         """The anti-windup limit [m] of the surge integrator whose authority ki x limit [N] is to the
         hull's drag at its design speed what the reference's is to its own:
-        limit = limit_ref (drag / drag_ref) / (ki / ki_ref)."""
+        limit = limit_ref (drag / drag_ref) / (ki / ki_ref). A hull whose nominal model has no surge
+        damping (an MMG hull: its forces are the MMG model's, usv_mj.physics.mmg) scales the authority
+        as the loop's own force scale m11 U omega instead."""
         p, r, s = self.point, self.ref, self.s
         ki_ratio = (p.m11 / r.m11) * s * s
-        return limit_ref * (p.drag / r.drag) / ki_ratio
+        force = p.drag / r.drag if p.drag > 0 else (p.m11 / r.m11) * s * (p.U / r.U)
+        return limit_ref * force / ki_ratio
 
     def heading_integral_limit(self, limit_ref: float) -> float:
         """The anti-windup limit [rad s] of the heading integrator: its authority ki x limit [N m]

@@ -75,11 +75,16 @@ def compare(rows: list[dict], a: str, b: str, alpha: float = 0.05) -> dict:
     - a 0/1 outcome: McNemar's exact test on the discordant pairs; ``passed`` only when both were
       judged by the same criterion, otherwise shown apart (``apart``: the two rates side by side).
 
-    Returns ``{"a", "b", "alpha", "correction", "family", "tests", "apart", "summary"}``: ``tests`` one
-    dict per (cell, metric) with ``task, condition, vessel, metric, test, pairs, a, b, p, p_holm,
-    verdict`` (``a`` / ``b``: the cell's median, or the share, or "k/n reached, median"), ``family``
-    the number of tests Holm's correction ran over, ``summary`` per metric the cells where each is
-    better and where neither is."""
+
+    Holm's correction runs within each cell, over the metrics tested there: the family of one claim
+    ("A differs from B on this task, in this condition, on this hull"); the counts over cells in
+    ``summary`` are descriptive, not a further test.
+
+    Returns ``{"a", "b", "alpha", "correction", "cells", "n_tests", "tests", "apart", "summary"}``:
+    ``tests`` one dict per (cell, metric) with ``task, condition, vessel, metric, test, pairs, a, b,
+    p, p_holm, family, verdict`` (``a`` / ``b``: the cell's median, or the share, or "k/n reached,
+    median"; ``family`` the number of tests of its cell), ``summary`` per metric the cells where each
+    is better and where neither is."""
     import numpy as np
 
     from usv_mj.jobs.bench.episode import PREFIX
@@ -164,16 +169,23 @@ def compare(rows: list[dict], a: str, b: str, alpha: float = 0.05) -> dict:
             tests.append({**where, "metric": m.column, "test": "Wilcoxon signed-rank", "pairs": len(keep),
                           "a": _median_text(pa, keep), "b": _median_text(pb, keep), "p": wilcoxon_p(xa, xb),
                           "direction": direction})
-    adjusted = holm([t["p"] for t in tests])
+    # Holm within each cell: the family of one claim, "A differs from B on this task, in this condition,
+    # on this hull", over the metrics tested there (docs/metrics.md)
+    by_cell: dict = {}
+    for t in tests:
+        by_cell.setdefault((t["task"], t["condition"], t["vessel"]), []).append(t)
+    for family in by_cell.values():
+        for t, p_holm in zip(family, holm([t["p"] for t in family])):
+            t["p_holm"], t["family"] = p_holm, len(family)
     summary: dict = {}
-    for t, p_holm in zip(tests, adjusted):
-        t["p_holm"] = p_holm
+    for t in tests:
+        p_holm = t["p_holm"]
         t["verdict"] = (f"{a} better" if t["direction"] > 0 else f"{b} better") \
             if p_holm < alpha and t["direction"] != 0 else "no difference"
         s = summary.setdefault(t["metric"], {a: 0, b: 0, "no difference": 0})
         s[t["verdict"].removesuffix(" better") if t["verdict"] != "no difference" else "no difference"] += 1
-    return {"a": a, "b": b, "alpha": alpha, "correction": "Holm-Bonferroni", "family": len(tests),
-            "tests": tests, "apart": apart, "summary": summary}
+    return {"a": a, "b": b, "alpha": alpha, "correction": "Holm-Bonferroni within each cell", "cells": len(by_cell),
+            "n_tests": len(tests), "tests": tests, "apart": apart, "summary": summary}
 
 
 def _median_text(values, keep) -> float:
@@ -193,24 +205,26 @@ def _event_text(m: dict) -> str:
 def compare_table(result: dict, a: str, b: str) -> str:
     """What ``usv-mj bench --compare`` prints: the method, per metric the cells where each controller
     is better after Holm's correction, the significant cells, and the rates shown apart."""
-    lines = [f"Holm-Bonferroni over {result['family']} paired tests (every task / condition / vessel cell x metric), "
-             f"family-wise alpha = {result['alpha']:g}; tests: Wilcoxon signed-rank (continuous), exact sign test "
-             f"with censoring (settling, time to goal), McNemar exact (rates); docs/metrics.md.", "",
+    lines = [f"{result['n_tests']} paired tests in {result['cells']} task / condition / vessel cells; Holm-Bonferroni "
+             f"within each cell over its metrics (family-wise alpha = {result['alpha']:g} per cell; the counts over "
+             f"cells are descriptive); tests: Wilcoxon signed-rank (continuous), exact sign test with censoring "
+             f"(settling, time to goal), McNemar exact (rates); docs/metrics.md.", "",
              f"| metric | cells `{a}` better | cells `{b}` better | cells no difference |", "| --- | --- | --- | --- |"]
     for metric, s in result["summary"].items():
         lines.append(f"| {metric} | {s[a]} | {s[b]} | {s['no difference']} |")
     significant = [t for t in result["tests"] if t["verdict"] != "no difference"]
     lines.append("")
     if not significant:
-        lines.append(f"No metric differs in any cell after Holm's correction ({result['family']} tests).")
+        lines.append(f"No metric differs in any cell after Holm's correction ({result['n_tests']} tests).")
     else:
-        lines += [f"| task / condition / vessel | metric | test | pairs | `{a}` | `{b}` | p | Holm p | verdict |",
+        lines += [f"| task / condition / vessel | metric | test | pairs | `{a}` | `{b}` | p | Holm p (of m) | verdict |",
                   "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
         for t in significant:
             fa = t["a"] if isinstance(t["a"], str) else f"{t['a']:.4g}"
             fb = t["b"] if isinstance(t["b"], str) else f"{t['b']:.4g}"
             lines.append(f"| {t['task']} / {t['condition']} / {t['vessel']} | {t['metric']} | {t['test']} | "
-                         f"{t['pairs']} | {fa} | {fb} | {t['p']:.3g} | {t['p_holm']:.3g} | {t['verdict']} |")
+                         f"{t['pairs']} | {fa} | {fb} | {t['p']:.3g} | {t['p_holm']:.3g} ({t['family']}) | "
+                         f"{t['verdict']} |")
     if result["apart"]:
         lines += ["", "Criterion pass rates not compared (judged by different criteria), shown apart:", "",
                   f"| task / condition / vessel | `{a}` | `{b}` |", "| --- | --- | --- |"]
