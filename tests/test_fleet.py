@@ -148,3 +148,53 @@ def test_the_fleet_video_draws_every_vessel_where_the_record_has_it():
     patch = frame[max(0, py - 2):py + 3, max(0, px - 2):px + 3].reshape(-1, 3).astype(float)
     target = np.array(rgba[:3]) * 255
     assert np.min(np.linalg.norm(patch - target, axis=1)) < 90   # lit and shaded, the target's orange
+
+
+def test_plot_and_render_of_a_fleet_log_redraw_the_fleet(tmp_path, monkeypatch):
+    """``usv-mj plot`` and ``usv-mj render`` of a fleet's run.mcap read its companions back as the
+    fleet (usv_mj.outputs.log.fleet_log): the fleet's figures and report, and a video handed every
+    vessel, from the log alone: the positions equal the simulated record's."""
+    from usv_mj.cli.main import main
+    from usv_mj.jobs.fleet import run_fleet_job
+    from usv_mj.outputs.log import read_run
+    from usv_mj.outputs.log.fleet_log import fleet_of_log
+    from usv_mj.outputs.render import video
+
+    result = run_fleet_job(fleet("analytic", HEAD_ON, duration=5.0), tmp_path / "run", progress=False, video=False)
+    back = fleet_of_log(read_run(tmp_path / "run" / "run.mcap"))
+    assert back.names == ("own", "target") and back.own == "own"
+    for name in back.names:
+        assert np.array_equal(back[name]["x"], result.record[name]["x"])
+    assert main(["plot", str(tmp_path / "run"), "--out", str(tmp_path / "again")]) == 0
+    assert (tmp_path / "again" / "figures" / "fleet_tracks.png").is_file()
+    assert "own-target" in (tmp_path / "again" / "report.md").read_text()
+    seen = {}
+
+    def fake_render(record, out, **kw):
+        seen.update(kw, own=record.metadata.get("vessel_name"))
+        return {"mp4": out, "png": out, "frames": 1, "width": 2, "height": 2, "video_fps": 1.0, "speedup": 1.0,
+                "fps": 1.0, "wall_s": 0.0, "workers": 1, "gl": "none", "gl_renderer": ""}
+
+    monkeypatch.setattr(video, "render_run", fake_render)
+    assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "v.mp4"), "--quiet"]) == 0
+    assert seen["own"] == "own" and seen["fleet"].names == ("own", "target")
+    assert seen["domain"] == pytest.approx(3 * 1.98)   # the own ship's safety domain: 3 hull lengths
+
+
+def test_each_contact_is_reported_with_its_own_peak():
+    """Two touches, 0.3 s and 0.1 s long, with peaks 500 N then 200 N: the summary lists them apart
+    (the second's peak is its own, not the first's), counts 2 and 0.4 s in contact; the report's cell
+    says so in one line."""
+    from usv_mj.outputs.fleet_report import _contacts
+    from usv_mj.record.encounters import encounter_summary
+
+    record = simulate(fleet("analytic", APART, duration=2.0))
+    dt = 0.01
+    record.contacts[:] = 0.0
+    record.contacts[100:130, 0] = np.linspace(100.0, 500.0, 30)      # t = 1.00-1.29 s
+    record.contacts[150:160, 0] = 200.0                              # t = 1.50-1.59 s
+    pair = encounter_summary(record)["pairs"]["own-far"]
+    assert [c["t_s"] for c in pair["contacts"]] == pytest.approx([1.0, 1.5])
+    assert [c["max_force_N"] for c in pair["contacts"]] == pytest.approx([500.0, 200.0])
+    assert pair["n_contacts"] == 2 and pair["in_contact_s"] == pytest.approx(40 * dt)
+    assert _contacts(pair) == "from t = 1.0 s: 2 touches, 0.4 s in all, up to 500 N"

@@ -183,9 +183,13 @@ def test_usv_mj_kinds_lists_the_installed_plugin_with_its_options(installed, tmp
     done = _cli(["kinds", "--json"], tmp_path, [installed, REPO])
     assert done.returncode == 0, done.stderr
     table = json.loads(done.stdout)
-    assert set(table) == {"controller", "trajectory", "plant", "disturbance", "vessel", "manoeuvre"}
+    from usv_mj.core.registry import REGISTRIES
+
+    assert set(table) == set(REGISTRIES)   # every registry, the environments' tasks too
+    assert [r["kind"] for r in table["task"]["kinds"]] == list(REGISTRIES["task"].kinds())
     rows = {r["kind"]: r for r in table["trajectory"]["kinds"]}
-    assert rows["lawnmower"]["source"] == "entry point usv_mj.references.trajectories (dist usv-mj-example-plugin 0.1.0)"
+    # the groups are public names (a user's installed package declares them): the layer move keeps them
+    assert rows["lawnmower"]["source"] == "entry point usv_mj.trajectories (dist usv-mj-example-plugin 0.1.0)"
     options = {o["name"]: o for o in rows["lawnmower"]["options"]}
     assert options["lane_length"] == {"name": "lane_length", "type": "float", "default": 30.0, "unit": "m"}
     assert rows["paper"]["source"] == "built-in" and rows["circle"]["options"][2]["name"] == "radius"
@@ -193,6 +197,9 @@ def test_usv_mj_kinds_lists_the_installed_plugin_with_its_options(installed, tmp
     assert {o["name"]: o["unit"] for o in pd["options"]}["kd_yaw"] == "N m s/rad"
     pi = {o["name"]: o["unit"] for o in {r["kind"]: r for r in table["controller"]["kinds"]}["pi"]["options"]}
     assert (pi["kp_r"], pi["ki_r"], pi["kd_r"]) == ("N m/rad", "N m/(rad s)", "N m s/rad")  # from its docstring
+    squall = {r["kind"]: r for r in table["disturbance"]["kinds"]}["squall"]   # a d(t) of its own
+    assert squall["source"] == "entry point usv_mj.disturbances (dist usv-mj-example-plugin 0.1.0)"
+    assert {o["name"]: o["unit"] for o in squall["options"]} == {"moment": "N m", "start": "s", "end": "s"}
     text = _cli(["kinds", "trajectory"], tmp_path, [installed, REPO])
     assert text.returncode == 0 and "lawnmower" in text.stdout and "lane_spacing" in text.stdout
 

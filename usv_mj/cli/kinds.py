@@ -1,7 +1,7 @@
 """``usv-mj kinds``: every kind of every registry, where it comes from, and its options.
 
 For each registry of :data:`usv_mj.core.registry.REGISTRIES` (controller, trajectory, plant,
-disturbance) and each kind a scenario may name: its source ("built-in", "entry point GROUP (dist
+disturbance, vessel, manoeuvre, and the environments' tasks with their tags) and each kind: its source ("built-in", "entry point GROUP (dist
 NAME VERSION)", "module:Name", "registered at runtime (module M)"), the object that makes it, and
 its options dataclass's fields (name, type, default, unit). A kind that cannot be loaded (a broken
 entry point) is listed with its one-line error.
@@ -162,6 +162,8 @@ def list_kinds(sections=None, vessel: str | None = None) -> dict:
                          "object": f"{getattr(obj, '__module__', '?')}.{getattr(obj, '__qualname__', repr(obj))}",
                          "options": describe_options(entry.options_class,
                                                      derived.get(kind) if section == "controller" else None)})
+            if "tags" in entry.info:   # an environment task's (usv_mj.core.registry.TASKS)
+                rows[-1]["tags"] = list(entry.info["tags"])
         out[section] = {"group": registry.group, "common": _common_options(section), "kinds": rows}
     return out
 
@@ -215,6 +217,8 @@ def run(args) -> int:
                 print(f"  {row['kind']:14s} {row['source']}: {row['error']}")
                 continue
             print(f"  {row['kind']:14s} {row['source']}  ({row['object']})")
+            if "tags" in row:
+                print(f"      tags: {', '.join(row['tags']) or '(none)'}")
             for o in row["options"]:
                 unit = f"[{o['unit']}]" if o["unit"] else ""
                 how = (f"  derived from the vessel ({args.vessel or 'paper hull'}'s shown; docs/gains.md)"

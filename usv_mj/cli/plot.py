@@ -43,6 +43,11 @@ def run(args) -> int:
         why = f": {log.problem}" if log.problem else ""
         raise ScenarioError(f"{path}: the log holds no rows of a run (nothing to plot){why}")
     out = Path(args.out) if args.out else path.parent
+    from usv_mj.outputs.log.fleet_log import fleet_of_log
+
+    fleet = fleet_of_log(log)
+    if fleet is not None:   # several vessels (usv_mj.jobs.fleet): the own ship's figures and the fleet's
+        return _plot_fleet(fleet, log, path, out, args.overwrite)
     manoeuvre = ("manoeuvre.json",) if spec_of_record(log.record) is not None else ()
     check_folder(out, args.overwrite, writes=("report.md", "figures", *manoeuvre))
     out.mkdir(parents=True, exist_ok=True)
@@ -63,4 +68,29 @@ def run(args) -> int:
                  *(Path(f).relative_to(out).as_posix() for f in figures)])
     print(f"figures and report from {path} written to {out}/" + (" (from an incomplete log, see above)"
                                                                  if log.notice else ""))
+    return EXIT_OK
+
+
+def _plot_fleet(fleet, log, path: Path, out: Path, overwrite: bool) -> int:
+    from usv_mj.outputs.figures import draw_figures
+    from usv_mj.outputs.fleet_figures import draw_fleet_figures
+    from usv_mj.outputs.fleet_report import write_fleet_report
+    from usv_mj.outputs.outdir import check_folder, record
+    from usv_mj.record.encounters import encounter_summary
+    from usv_mj.record.summary import summarize
+
+    check_folder(out, overwrite, writes=("report.md", "figures"))
+    out.mkdir(parents=True, exist_ok=True)
+    if log.notice:
+        print(f"usv-mj plot: warning: the log is incomplete: {log.notice}", file=sys.stderr)
+    encounters = encounter_summary(fleet)
+    figures = draw_figures(fleet.own_record, out / "figures", note=log.notice) + \
+        draw_fleet_figures(fleet, out / "figures", note=log.notice, summary=encounters)
+    own = fleet.own_record
+    summary = {"vessels": {n: summarize(fleet[n]) for n in fleet.names}, "encounters": encounters,
+               "own_ship": fleet.own, "status": fleet.status, "stop_reason": fleet.stop_reason,
+               "plant": own.metadata.get("plant", "?"), "duration_s": float(own["t"][-1]) if len(own) else 0.0}
+    write_fleet_report(out / "report.md", summary)
+    record(out, ["report.md", *(Path(f).relative_to(out).as_posix() for f in figures)])
+    print(f"figures and report of {len(fleet.names)} vessels from {path} written to {out}/")
     return EXIT_OK

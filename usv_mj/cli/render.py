@@ -58,8 +58,12 @@ def run(args) -> int:
     except ValueError as exc:
         print(f"usv-mj render: error: {exc}", file=sys.stderr)
         return 2
+    fleet, domain = _fleet_of(log, args.run) if not getattr(args, "live", False) else (None, 0.0)
+    if fleet is not None:   # a fleet's log: the own ship's record, every other vessel drawn beside it
+        record = fleet.own_record
     try:
-        result = render_run(record, out, progress=not args.quiet, **flags.video_options(args))
+        result = render_run(record, out, progress=not args.quiet, fleet=fleet, domain=domain,
+                            **flags.video_options(args))
         record_file(out)
     except GLUnavailableError as exc:
         print(f"usv-mj render: {exc}", file=sys.stderr)
@@ -72,3 +76,17 @@ def run(args) -> int:
     print(f"rendered {result['fps']:.1f} frames/s in {result['wall_s']:.1f} s on {result['workers']} "
           f"worker(s), GL {result['gl']} ({result['gl_renderer'] or 'unknown renderer'})")
     return 0
+
+
+def _fleet_of(log, run_path):
+    """(the FleetRecord, its safety domain [m]) of a fleet's log (usv_mj.jobs.fleet), else (None, 0)."""
+    if log is None:
+        return None, 0.0
+    from usv_mj.outputs.log.fleet_log import fleet_of_log
+
+    fleet = fleet_of_log(log)
+    if fleet is None:
+        return None, 0.0
+    from usv_mj.record.encounters import encounter_summary
+
+    return fleet, float(encounter_summary(fleet).get("safety_domain_m") or 0.0)

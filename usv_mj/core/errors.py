@@ -58,6 +58,12 @@ class PluginImportError(UnknownKindError):
     the kind, where it was named, and the import's own error)."""
 
 
+class PluginContractError(ScenarioError):
+    """A registered part breaks its registry's contract (a disturbance whose kernel is not a
+    ``numba.njit`` function, whose ``as_array()`` is too long, ...): the message names the kind and
+    what is wrong. Bad input (exit 2), not a defect of usv_mj."""
+
+
 class ArgumentTypeError(UsvMjError, TypeError):
     """A public function was handed the wrong kind of object; the message names the function, the
     argument, what it takes and what it got: ``simulate: scenario must be ..., got NoneType``."""

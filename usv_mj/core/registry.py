@@ -1,4 +1,5 @@
-"""Registries of the parts a scenario names by ``kind``: plants, controllers, trajectories, disturbances, vessels.
+"""Registries of the parts a scenario names by ``kind``: plants, controllers, trajectories, disturbances, vessels,
+manoeuvres; and of the environments' tasks (:data:`TASKS`, :class:`TaskRegistry`).
 
 As in dm_control's suite, a part registers itself where it is defined::
 
@@ -26,7 +27,8 @@ against ``MyGains``. Every registry works the same way:
   plants get ``environment=``, ``obstacles=``, ``contact=``, ``safety_radii=`` (and
   ``rangefinders=`` when asked); controllers and vessels get nothing (a vessel's factory is called
   while the scenario is built, with ``scenario=None``, and returns a :class:`usv_mj.vessels.Vessel`). A disturbance's options dataclass is the
-  disturbance itself (its ``as_array()`` feeds the plants' kernels), so it registers only that.
+  disturbance itself (its ``as_array()`` and its ``kernel`` feed the plants, usv_mj.physics.disturbances),
+  so it registers only that: ``@DISTURBANCES.register("squall")`` on the dataclass.
 
 Where a kind is found, in this order (:meth:`Registry.get`):
 
@@ -38,7 +40,7 @@ Where a kind is found, in this order (:meth:`Registry.get`):
 3. ``"package.module:Name"`` (as Gymnasium's ``entry_point``): the module is imported and ``Name``
    taken; it is registered under that very string;
 4. a Python **entry point** named ``kind`` in the registry's group (``usv_mj.controllers``,
-   ``usv_mj.references.trajectories``, ``usv_mj.plants``, ``usv_mj.physics.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
+   ``usv_mj.trajectories``, ``usv_mj.plants``, ``usv_mj.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
 
 For 3 and 4 the object named is either registered by its own module's decorator, or registered
 here with the options dataclass it declares as its class attribute ``options`` (none if it has no
@@ -113,9 +115,13 @@ class Registry:
     registers it on import; ``group``: the entry-point group searched for kinds not found.
     """
 
-    def __init__(self, what: str, builtins: dict[str, str], group: str, files: tuple[str, str] | None = None):
+    def __init__(self, what: str, builtins: dict[str, str], group: str, files: tuple[str, str] | None = None,
+                 self_options: bool = False):
         self.what = what
         self.group = group
+        # a kind's object is its own options dataclass (the disturbances'): registered with no
+        # options=, a dataclass takes itself (``@DISTURBANCES.register("squall")`` on the class)
+        self.self_options = self_options
         self._builtins = dict(builtins)  # kind -> module that registers it on import
         # (suffix, "module:function"): a kind ending in the suffix is a data file, registered under its
         # path by that function (imported by name: looking a file kind up is the registry's business)
@@ -153,9 +159,12 @@ class Registry:
                 raise ValueError(f"{self.what} kind {kind!r} is already registered ({old.source}: "
                                  f"{_name_of(old.obj)}); pass replace=True to replace it, or choose another kind")
             full = dict(info)
-            if options is not None:
-                full["options"] = options
-                full["gains"] = options  # the controllers' historical name
+            own = options
+            if own is None and self.self_options and isinstance(obj, type) and dataclasses.is_dataclass(obj):
+                own = obj
+            if own is not None:
+                full["options"] = own
+                full["gains"] = own  # the controllers' historical name
             self._entries[kind] = Entry(kind, obj, full, source)
             return obj
 
@@ -349,8 +358,10 @@ CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "us
                                       "zigzag": "usv_mj.controllers.zigzag"},
                        "usv_mj.controllers")
 TRAJECTORIES = Registry("trajectory", {k: "usv_mj.references.trajectories" for k in ("paper", "line", "circle", "waypoints")},
-                        "usv_mj.references.trajectories")
-DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"}, "usv_mj.physics.disturbances")
+                        "usv_mj.trajectories")  # the entry-point group: a public name, kept from before the layers
+#: d(t) (usv_mj.physics.disturbances: the contract, the dispatch); a kind's object is its options dataclass
+DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"}, "usv_mj.disturbances",
+                        self_options=True)
 #: the hulls (docs/vessels.md): a module, or a data file of usv_mj/vessels/data/ read by
 #: usv_mj.vessels.datafile (its kinds are named here, so that looking one up imports no physics)
 VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_mj.vessels.clarke83",
@@ -361,9 +372,72 @@ VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_
 #: disturbance's (the ``[manoeuvre]`` table's keys); the job that runs them is usv_mj.jobs.manoeuvres
 MANOEUVRES = Registry("manoeuvre", {k: "usv_mj.scenario.manoeuvre" for k in ("turning", "zigzag", "spiral", "stopping")},
                       "usv_mj.manoeuvres")
-#: every registry by its scenario section (``usv-mj kinds`` lists them)
+
+
+class TaskRegistry(Registry):
+    """The environments' tasks (:mod:`usv_mj.envs`), registered as dm_control's suite registers its
+    own: by a decorator on the task's factory, with its typed options and its tags::
+
+        @TASKS.register("my_task", options=MyOptions, tags=("waves",), scenario={"sea": {...}})
+        def my_task(options, scenario, *, random, environment_kwargs): ...   # -> the environment
+
+    ``options``: the dataclass of the task's keyword options of ``usv_mj.envs.load`` (its
+    ``duration`` [s] and ``preview_times`` [s] fields, when it has them, set the episode's length
+    and how far the scenario's reference reaches); ``tags``: words that say what the task holds
+    ("waves": the task's own sea; "obstacles": a harbour), read by :meth:`tagged`; ``scenario``:
+    the scenario tables the task sets, under the user's overrides. The factory's contract is in
+    :mod:`usv_mj.envs.suite`. The built-in tasks come first in :meth:`kinds`, in their declared
+    order; :meth:`on_register` calls a function with every entry registered from then on (the
+    Gymnasium ids of a task registered at runtime). It imports no dm_control: a built-in's module
+    is imported when its kind is looked up."""
+
+    def __init__(self, what: str, builtins: dict[str, str], group: str):
+        super().__init__(what, builtins, group)
+        self._listeners = []
+
+    def kinds(self) -> tuple[str, ...]:
+        """The built-in tasks in their declared order, then the others (registered, entry points) sorted."""
+        others = (set(self._entries) | set(self._eps())) - set(self._builtins)
+        return tuple(self._builtins) + tuple(sorted(others))
+
+    def tagged(self, *tags: str) -> tuple[str, ...]:
+        """The kinds (in :meth:`kinds` order) whose entry has every one of ``tags`` (loads the entries)."""
+        want = set(tags)
+        entries = {e.kind: e for e in self.entries()}
+        return tuple(k for k in self.kinds() if k in entries and want <= set(entries[k].tags))
+
+    def on_register(self, listener) -> None:
+        """Call ``listener(entry)`` after each registration from now on (not for the earlier ones)."""
+        if listener not in self._listeners:
+            self._listeners.append(listener)
+
+    def _decorator(self, kind, options, info, source, replace):
+        info = dict(info)
+        tags = info.get("tags", ())
+        if isinstance(tags, str) or not all(isinstance(t, str) and t for t in tags):
+            raise ValueError(f"{self.what} {kind!r}: tags must be a tuple of words, got {tags!r}")
+        info["tags"] = tuple(tags)
+        tables = info.get("scenario")
+        if tables is not None and not isinstance(tables, dict):
+            raise ValueError(f"{self.what} {kind!r}: scenario must be a dict of scenario tables, got {tables!r}")
+        info["scenario"] = dict(tables or {})
+        register = super()._decorator(kind, options, info, source, replace)
+
+        def deco(obj):
+            out = register(obj)
+            for listener in list(self._listeners):
+                listener(self._entries[kind])
+            return out
+
+        return deco
+
+
+#: the environments' tasks (usv_mj.envs.load, the Gymnasium ids, usv-mj env): :class:`TaskRegistry`
+TASKS = TaskRegistry("task", {k: "usv_mj.envs.suite" for k in ("track", "track_waves", "harbor", "harbor_waves")},
+                     "usv_mj.tasks")
+#: every registry by its scenario section (``usv-mj kinds`` lists them), and the environments' tasks
 REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES,
-              "vessel": VESSELS, "manoeuvre": MANOEUVRES}
+              "vessel": VESSELS, "manoeuvre": MANOEUVRES, "task": TASKS}
 
 
 def _packages() -> dict:

@@ -11,8 +11,11 @@ Public API::
     env.task.info                                  # why the episode ended
     env.close()
 
-Tasks (:data:`ALL_TASKS`; the observation, action, reward and termination conventions are in
-:mod:`usv_mj.envs.tasks`):
+Tasks: the kinds of the registry :data:`usv_mj.core.registry.TASKS` (``ALL_TASKS`` reads it), each
+registered by a decorator on its factory with its typed options and its tags, as dm_control's suite
+registers its own (:mod:`usv_mj.envs.suite`; a task of your own registers the same way and is then
+a task of :func:`load`, of ``gymnasium.make`` and of ``usv-mj env``). The observation, action,
+reward and termination conventions are in :mod:`usv_mj.envs.tasks`. The built-in ones:
 
 - ``track``: follow the paper's reference (docs/model.md §4) from a start drawn uniformly within
   +-(3 m, 3 m, 0.5 rad) of its pose at t = 0, at rest; 30 s episodes, control period 0.01 s
@@ -52,21 +55,20 @@ what shimmy's ``DmControlCompatibilityV0`` calls), ``env.render_frame()`` and th
 ``render()`` all draw through the project's renderer (:mod:`usv_mj.envs.rendering`), headless, with
 the water.
 
-A Gymnasium view: :func:`gym_env`, and the ids of :data:`GYM_IDS` (``usv_mj/Track-v0``,
-``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``, ``usv_mj/HarborWaves-v0``), registered when this
-package is imported (if gymnasium is installed), for ``gymnasium.make`` (an installed wheel imports it
+A Gymnasium view: :func:`gym_env`, and an id per task (:func:`gym_id`; ``GYM_IDS`` maps them
+back: ``usv_mj/Track-v0``, ``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``,
+``usv_mj/HarborWaves-v0``, and ``usv_mj/MyTask-v0`` for a task ``my_task``), registered when this
+package is imported (a task registered later: when it registers) (if gymnasium is installed), for ``gymnasium.make`` (an installed wheel imports it
 when gymnasium is imported: :mod:`usv_mj.envs.gymnasium_hook`); flat scaled observations
 and normalized actions: :mod:`usv_mj.envs.gymnasium_env`.
 """
 
 from __future__ import annotations
 
-from usv_mj.core.lazy_names import lazy_names
+import re
 
-ALL_TASKS = ("track", "track_waves", "harbor", "harbor_waves")
-#: Gymnasium id -> task (as usv_mj.envs.gymnasium_env.GYM_IDS, without importing gymnasium here)
-GYM_IDS = {"usv_mj/Track-v0": "track", "usv_mj/TrackWaves-v0": "track_waves",
-           "usv_mj/Harbor-v0": "harbor", "usv_mj/HarborWaves-v0": "harbor_waves"}
+from usv_mj.core.lazy_names import lazy_names
+from usv_mj.core.registry import TASKS
 
 _WHERE = {
     "load": "environment", "gym_env": "gymnasium_env", "episode_record": "environment",
@@ -74,28 +76,60 @@ _WHERE = {
     "TrackTask": "tasks", "HarbourTask": "tasks", "USVPhysics": "physics", "USVGymEnv": "gymnasium_env",
 }
 
-__all__ = ["ALL_TASKS", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "TrackTask", "USVEnvironment",
-           "USVGymEnv", "USVPhysics", "episode_record", "gym_env", "load"]
+__all__ = ["ALL_TASKS", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "TASKS", "TrackTask", "USVEnvironment",
+           "USVGymEnv", "USVPhysics", "episode_record", "gym_env", "gym_id", "load"]
+
+_GYM_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]*(?:[_-][A-Za-z0-9]+)*$")
 
 
-def register_gymnasium() -> None:
-    """Register :data:`GYM_IDS` with Gymnasium's registry when gymnasium is installed (it imports
-    neither dm_control nor mujoco: the entry point is resolved by ``gymnasium.make``). Called on
-    import of this module, which the wheel's start-up hook does once gymnasium is imported
-    (:mod:`usv_mj.envs.gymnasium_hook`: Gymnasium 1.x reads no entry points) and
-    ``gymnasium.make("usv_mj.envs:usv_mj/Track-v0")`` does first; also the ``gymnasium.envs``
+def gym_id(task: str) -> str | None:
+    """The Gymnasium id of ``task``: ``usv_mj/`` + its words capitalised + ``-v0`` ("track_waves" ->
+    "usv_mj/TrackWaves-v0"); None for a kind that is no plain name ("package.module:factory")."""
+    if not _GYM_NAME.match(task):
+        return None
+    return "usv_mj/" + "".join(w[:1].upper() + w[1:] for w in re.split(r"[_-]", task)) + "-v0"
+
+
+def gym_ids() -> dict:
+    """Gymnasium id -> task, for every task of :data:`TASKS` (the built-in ones, those registered
+    since and the entry points of the group ``usv_mj.tasks``)."""
+    return {gym_id(k): k for k in TASKS.kinds() if gym_id(k) is not None}
+
+
+def register_gymnasium(tasks=None) -> None:
+    """Register the Gymnasium ids of ``tasks`` (default: every task of :data:`TASKS`; a task
+    registered later is added when it registers) with Gymnasium's registry when gymnasium is
+    installed (it imports neither dm_control nor mujoco: the entry point is resolved by
+    ``gymnasium.make``). Called on import of this module, which the wheel's start-up hook does once
+    gymnasium is imported (:mod:`usv_mj.envs.gymnasium_hook`: Gymnasium 1.x reads no entry points)
+    and ``gymnasium.make("usv_mj.envs:usv_mj/Track-v0")`` does first; also the ``gymnasium.envs``
     entry point of the package (pyproject.toml), which only Gymnasium before 1.0 loaded."""
     try:
         from gymnasium.envs.registration import register, registry
     except ImportError:  # pragma: no cover - optional dependency
         return
-    for env_id, task in GYM_IDS.items():
-        if env_id not in registry:
+    for task in (TASKS.kinds() if tasks is None else tasks):
+        env_id = gym_id(task)
+        if env_id is not None and env_id not in registry:
             register(id=env_id, entry_point="usv_mj.envs.gymnasium_env:USVGymEnv", kwargs={"task": task})
 
 
 register_gymnasium()
+TASKS.on_register(lambda entry: register_gymnasium((entry.kind,)))
 
 
 # names imported on first use, so ``usv-mj --help`` does not import dm_control
-__getattr__, __dir__, _ = lazy_names(__name__, {name: "." + module for name, module in _WHERE.items()})
+_lazy_getattr, _lazy_dir, _ = lazy_names(__name__, {name: "." + module for name, module in _WHERE.items()})
+
+
+def __dir__():
+    return sorted(set(_lazy_dir()) | {"ALL_TASKS", "GYM_IDS"})
+
+
+def __getattr__(name):
+    # the registry read at every access: a task registered since is in them
+    if name == "ALL_TASKS":
+        return TASKS.kinds()
+    if name == "GYM_IDS":
+        return gym_ids()
+    return _lazy_getattr(name)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import collections
+import copy
 import dataclasses
 import math
 import warnings
@@ -17,20 +18,13 @@ with warnings.catch_warnings():
     from dm_control.rl import control
 from dm_env import specs
 
-from usv_mj.builder import channels_of, make_environment, make_plant
+from usv_mj.builder import channels_of
+from usv_mj.core.errors import UnknownKindError
+from usv_mj.core.registry import TASKS
 from usv_mj.scenario.spec import Scenario, ScenarioError, load_scenario, merge_tables
 
-from usv_mj.envs import ALL_TASKS
-from usv_mj.envs.physics import USVPhysics
-from usv_mj.envs.tasks import DEFAULT_PREVIEW, HarbourTask, TrackTask
+from usv_mj.envs.tasks import DEFAULT_PREVIEW
 
-WAVES_SEA = {"preset": "moderate",
-             # compass directions (docs/sea.md): current setting toward 060, wind from the south (180)
-             "current": {"speed": 0.3, "toward_deg": 60.0, "sigma": 0.0, "time_constant": 120.0},
-             "wind": {"speed": 5.0, "from_deg": 180.0, "gust_sigma": 1.0, "gust_time_constant": 2.0, "seed": 2}}
-HARBOUR_FUNNEL = {"rho_xy": [3.0, 0.5], "rate": 0.2}  # as examples/scenarios/harbour_gap.toml
-HARBOUR_TASKS = ("harbor", "harbor_waves")
-WAVE_TASKS = ("track_waves", "harbor_waves")
 #: keys of ``environment_kwargs`` (as ``dm_control.suite.load``'s): control.Environment's own options
 ENVIRONMENT_KWARGS = ("time_limit", "flat_observation", "legacy_step")
 
@@ -202,7 +196,14 @@ class USVEnvironment(control.Environment):
                 self._physics.close()
 
 
-def _scenario(task: str, options: dict, duration: float) -> Scenario:
+#: the options of :func:`load` every task takes (the scenario's), beside the task's own typed options
+SCENARIO_OPTIONS = ("scenario", "preset", "overrides", "vessel", "control_period", "substeps")
+DEFAULT_DURATION = 30.0  # s: the episode of a task whose options have no ``duration``
+
+
+def _scenario(task: str, entry, options: dict, duration: float) -> Scenario:
+    """The episode's scenario (:mod:`usv_mj.envs.suite`: the factory's contract): ``scenario`` as
+    is, else the preset, the task's tables (``entry.scenario``) and the user's overrides."""
     from usv_mj.scenario.overrides import with_vessel
 
     scenario = options.pop("scenario", None)
@@ -225,30 +226,34 @@ def _scenario(task: str, options: dict, duration: float) -> Scenario:
         raise ValueError(f"usv_mj.envs.load({task!r}): overrides must be a dict of scenario tables, got {overrides!r}")
     overrides = with_vessel(vessel, overrides)  # --vessel's own shorthand: [vessel] kind, its options kept
     base = {"control_period": cp, "plant": {"kind": "mujoco", "substeps": sub}, "duration": duration}
-    if task in WAVE_TASKS:
-        base["sea"] = WAVES_SEA
-    if task in HARBOUR_TASKS:
-        base["funnel"] = HARBOUR_FUNNEL
-        base["trajectory"] = {"kind": "waypoints", "points": [[0.0, 0.0], [40.0, 0.0]], "speed": 0.6}
-        base["initial"] = {"eta": [0.0, 0.0, 0.0]}
+    base = merge_tables(base, copy.deepcopy(entry.scenario))  # the task's own tables (its sea, its harbour)
     try:
         return load_scenario(preset=preset, overrides=merge_tables(base, overrides))
     except ScenarioError as exc:
-        if task in WAVE_TASKS and "[sea]" in str(exc):   # the task's own sea: a user cannot remove it
-            raise type(exc)(f"{exc}; the task {task!r} is in a sea: the calm tasks are "
-                            f"{', '.join(t for t in ALL_TASKS if t not in WAVE_TASKS)}") from None
+        if "waves" in entry.tags and "[sea]" in str(exc):   # the task's own sea: a user cannot remove it
+            calm = [k for k in TASKS.kinds() if k not in TASKS.tagged("waves")]
+            raise type(exc)(f"{exc}; the task {task!r} is in a sea: the calm tasks are {', '.join(calm)}") from None
         raise
 
 
-#: [m] the harbour tasks' goal_distance: past the piers (x = 10-21 m) and the buoys drawn at 0.55-0.9
-#: of it; at most 500 m (each layout's plan is smoothed along the whole distance, 0.4 s per 100 m)
-GOAL_DISTANCE_RANGE = (30.0, 500.0)
+def task_entry(task: str):
+    """The registry entry of ``task`` (:data:`usv_mj.core.registry.TASKS`); ValueError naming the tasks."""
+    if not isinstance(task, str) or task not in TASKS:
+        raise ValueError(f"usv_mj.envs.load: unknown task {task!r}; tasks: {', '.join(TASKS.kinds())}"
+                         + (" (or 'package.module:factory')" if isinstance(task, str) and ":" not in task else ""))
+    try:
+        return TASKS.get(task, "usv_mj.envs.load")
+    except UnknownKindError as exc:   # an entry point or module:Name that cannot be imported
+        raise ValueError(str(exc)) from None
 
 
 def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, flat_observation: bool = False,
          **options) -> USVEnvironment:
-    """A new environment for ``task`` (one of :data:`ALL_TASKS`) seeded with ``seed`` (an int, a
-    ``numpy.random.RandomState`` or None for fresh entropy); options: see the module docstring.
+    """A new environment for ``task`` (a kind of :data:`usv_mj.core.registry.TASKS`: "track",
+    "track_waves", "harbor", "harbor_waves", a task registered by its own module, or
+    "package.module:factory") seeded with ``seed`` (an int, a ``numpy.random.RandomState`` or None
+    for fresh entropy); options: see the module docstring of :mod:`usv_mj.envs` (the task's own are
+    its options dataclass's fields: ``usv-mj kinds task``).
 
     As ``dm_control.suite.load``: ``task_kwargs`` (a dict, merged into the options),
     ``environment_kwargs`` (``time_limit`` [s] = the episode length, ``flat_observation``,
@@ -256,8 +261,7 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
 
     Raises ValueError for an unknown task, option or vessel.
     """
-    if task not in ALL_TASKS:
-        raise ValueError(f"usv_mj.envs.load: unknown task {task!r}; tasks: {', '.join(ALL_TASKS)}")
+    entry = task_entry(task)
     options = {**(task_kwargs or {}), **options}
     env_kw = dict(environment_kwargs or {})
     unknown = sorted(set(env_kw) - set(ENVIRONMENT_KWARGS))
@@ -268,51 +272,28 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
     legacy_step = bool(env_kw.pop("legacy_step", True))
     if "time_limit" in env_kw:
         options.setdefault("duration", env_kw.pop("time_limit"))
-    harbour = task in HARBOUR_TASKS
-    default_duration = 90.0 if harbour else 30.0
-    duration = float(options.pop("duration", default_duration))
+    option_class = entry.options_class
+    fields = {f.name for f in dataclasses.fields(option_class)} if option_class is not None else set()
+    unknown = sorted(set(options) - fields - set(SCENARIO_OPTIONS) - {"duration"})
+    if unknown:
+        raise ValueError(f"usv_mj.envs.load({task!r}): unknown options {unknown}; the task's: "
+                         f"{', '.join(sorted(fields)) or 'none'}; every task's: {', '.join(SCENARIO_OPTIONS)}")
+    own = {k: options.pop(k) for k in list(options) if k in fields}
+    try:
+        typed = option_class(**own) if option_class is not None else None
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"usv_mj.envs.load({task!r}): {exc}") from None
+    duration = float(getattr(typed, "duration", options.pop("duration", DEFAULT_DURATION)))
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"usv_mj.envs.load: duration must be a finite number > 0 s, got {duration!r}")
-    preview = tuple(options.get("preview_times", DEFAULT_PREVIEW))
-    scenario = _scenario(task, options, duration + max(preview) + 1.0)
+    preview = tuple(getattr(typed, "preview_times", DEFAULT_PREVIEW))
+    scenario = _scenario(task, entry, options, duration + max(preview) + 1.0)
     if scenario.plant.kind != "mujoco":
         scenario = scenario.with_overrides({"plant": {"kind": "mujoco"}})
-    task_kw = {k: options.pop(k) for k in ("quantize", "max_surge_force", "max_yaw_moment", "preview_times",
-                                           "start_offset", "max_distance") if k in options}
     cp, sub = scenario.control_period, scenario.plant.substeps
-    n_steps = round(duration / cp)
-    time_limit = n_steps * cp
+    time_limit = round(duration / cp) * cp
     env_kw = {"time_limit": time_limit, "n_sub_steps": sub, "flat_observation": flat, "legacy_step": legacy_step}
-    if not harbour:
-        if options:
-            raise ValueError(f"usv_mj.envs.load({task!r}): unknown options {sorted(options)}")
-        tsk = TrackTask(scenario, random=seed, time_limit=time_limit, **task_kw)
-        return USVEnvironment(USVPhysics.from_plant(make_plant(scenario, "mujoco")), tsk, **env_kw)
-    harbour_kw = {k: options.pop(k) for k in ("n_rays", "max_range", "goal_radius") if k in options}
-    goal_distance = float(options.pop("goal_distance", 40.0))
-    lo, hi = GOAL_DISTANCE_RANGE
-    if not (math.isfinite(goal_distance) and lo <= goal_distance <= hi):
-        raise ValueError(f"usv_mj.envs.load({task!r}): goal_distance must be in [{lo:g}, {hi:g}] m (the goal "
-                         f"beyond the piers at x = 10-21 m, within reach of the planner), got {goal_distance!r}")
-    if options:
-        raise ValueError(f"usv_mj.envs.load({task!r}): unknown options {sorted(options)}")
-    tsk = HarbourTask(scenario, margin_m=scenario.guidance.margin_m, random=seed, time_limit=time_limit,
-                      **harbour_kw, **task_kw)
-    tsk.goal_distance = goal_distance
-    sea = make_environment(scenario)  # one sea for every layout (a pure function of t and the seeds)
-
-    def build():
-        from usv_mj.obstacles.clearance import MuJoCoClearance
-
-        from usv_mj.envs.layout import harbour_layout
-
-        layout = harbour_layout(tsk.random, scenario, scenario.guidance, duration, goal_distance)
-        episode = dataclasses.replace(scenario, obstacles=tuple(layout.obstacles))
-        plant = make_plant(episode, "mujoco", sea, rangefinders=tsk.ray_angles)
-        tsk.attach_layout(layout, MuJoCoClearance(plant), episode)
-        return USVPhysics.from_plant(plant)
-
-    return USVEnvironment(build(), tsk, rebuild=build, **env_kw)
+    return entry.make(typed, scenario, random=seed, environment_kwargs=env_kw)
 
 
 def step_row(env) -> tuple:

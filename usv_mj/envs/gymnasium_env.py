@@ -10,9 +10,11 @@
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
     info["kind"], info["reason"]                        # why the episode ended (None while it runs)
 
-Ids (:data:`usv_mj.envs.GYM_IDS`, registered on ``import usv_mj.envs``): ``usv_mj/Track-v0``, ``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``,
-``usv_mj/HarborWaves-v0`` (the tasks ``track``, ``track_waves``, ``harbor``, ``harbor_waves`` of
-:mod:`usv_mj.envs`). ``gymnasium.make(id, **options)`` passes the options of
+Ids: one per task of :data:`usv_mj.core.registry.TASKS` (:func:`usv_mj.envs.gym_id`, registered on
+``import usv_mj.envs``, and by a task registered later when it registers): ``usv_mj/Track-v0``,
+``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``, ``usv_mj/HarborWaves-v0`` (the tasks ``track``,
+``track_waves``, ``harbor``, ``harbor_waves`` of :mod:`usv_mj.envs`), ``usv_mj/MyTask-v0`` for a
+task ``my_task`` of your own. ``gymnasium.make(id, **options)`` passes the options of
 :func:`usv_mj.envs.load` through (``duration``, ``quantize``, ``preset``, ...), plus ``seed`` (the
 environment's seed until the first ``reset(seed=...)``), ``flat`` and ``render_size``.
 
@@ -66,7 +68,6 @@ except ImportError:  # pragma: no cover - optional dependency
 
     raise missing_extra("gymnasium", "usv_mj's Gymnasium view (usv_mj.envs.gym_env, gymnasium.make)") from None
 
-from usv_mj.envs import GYM_IDS  # noqa: F401 (API: id -> task)
 from usv_mj.envs.environment import load
 
 LENGTH_SCALE = 10.0      # m
@@ -245,5 +246,5 @@ def gym_env(task: str, seed=None, render_mode=None, **options):
     """A Gymnasium view of :func:`load`: :class:`usv_mj.envs.gymnasium_env.USVGymEnv` (a flat,
     scaled float32 observation and a normalized Box(-1, 1) action by default; see that module).
     The same environments are registered as ``usv_mj/Track-v0`` ... for ``gymnasium.make``
-    (:data:`usv_mj.envs.GYM_IDS`). Raises ImportError if gymnasium is not installed."""
+    (:func:`usv_mj.envs.gym_id` of each task). Raises ImportError if gymnasium is not installed."""
     return USVGymEnv(task, seed=seed, render_mode=render_mode, **options)

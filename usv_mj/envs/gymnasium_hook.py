@@ -16,7 +16,7 @@ When a program imports ``gymnasium`` (or any ``gymnasium.*``), that finder calls
 :func:`spec_with_registration` here. It finds gymnasium's real spec through the other finders
 and returns it with the loader's ``exec_module`` wrapped: once gymnasium's own ``__init__`` has run,
 the finder leaves ``sys.meta_path`` and :func:`register` imports :mod:`usv_mj.envs`, whose
-:func:`~usv_mj.envs.register_gymnasium` registers :data:`usv_mj.envs.GYM_IDS` with string entry
+:func:`~usv_mj.envs.register_gymnasium` registers the id of every task with string entry
 points (``usv_mj.envs.gymnasium_env:USVGymEnv``): neither dm_control nor MuJoCo is imported until
 ``gymnasium.make`` asks for an environment. That costs about 4 ms once, on top of gymnasium's own
 ~150 ms import; any failure in it is swallowed too (then ``gymnasium.make("usv_mj/Track-v0")``

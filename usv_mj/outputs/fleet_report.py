@@ -28,7 +28,7 @@ def write_fleet_report(path, summary: dict) -> Path:
               "| pair | closest [m] | at t [s] | DCPA 1 s before [m] | TCPA 1 s before [s] | contact |",
               "|---|---|---|---|---|---|"]
     for name, p in enc["pairs"].items():
-        contact = ", ".join(f"t = {c['t_s']:.1f} s ({c['max_force_N']:.3g} N)" for c in p["contacts"]) or "none"
+        contact = _contacts(p)
         lines.append(f"| {name} | {_num(p['min_range_m'])} | {_num(p['t_min_range_s'], '{:.1f}')} | "
                      f"{_num(p['dcpa_before_m'])} | {_num(p['tcpa_before_s'], '{:.1f}')} | {contact} |")
     lines += ["", "Collision (a contact between hulls): **" + ("yes" if enc["collision"] else "no") + "**.", "",
@@ -37,3 +37,16 @@ def write_fleet_report(path, summary: dict) -> Path:
     path = Path(path)
     path.write_text("\n".join(lines))
     return path
+
+
+def _contacts(pair: dict) -> str:
+    """The pair's contacts in one cell: the first's time, how many, how long in all, the hardest."""
+    contacts = pair["contacts"]
+    if not contacts:
+        return "none"
+    n = pair.get("n_contacts", len(contacts))
+    peak = max(c["max_force_N"] for c in contacts)
+    first = f"from t = {contacts[0]['t_s']:.1f} s"
+    if n == 1:
+        return f"{first}, {pair.get('in_contact_s', 0.0):.2g} s, up to {peak:.3g} N"
+    return f"{first}: {n} touches, {pair.get('in_contact_s', 0.0):.2g} s in all, up to {peak:.3g} N"

@@ -55,6 +55,7 @@ import weakref
 import mujoco
 import numpy as np
 
+from usv_mj.physics.disturbances import packed_disturbance
 from usv_mj.physics.sea.environment import run_sea
 from usv_mj.physics.ship import RigidBodySplit
 from usv_mj.plants import mujoco_callback as mcb
@@ -195,7 +196,7 @@ def write_parameters(ud: np.ndarray, ship, disturbance, split, packed_sea=None) 
             raise ValueError(f"usv_mj hydrodynamics: an MMG hull needs nuserdata >= {mcb.N_USERDATA_MMG}, "
                              f"got {len(ud)}")
         ud[mcb.U_MMG:mcb.U_MMG + len(p) - mcb.N_SHIP_PARAMS] = p[mcb.N_SHIP_PARAMS:]
-    ud[mcb.U_DP:mcb.U_DP + len(disturbance.as_array())] = disturbance.as_array()
+    ud[mcb.U_DP:mcb.U_DP + mcb.N_DIST_WORDS] = packed_disturbance(disturbance)  # any kind's d(t), dispatch word last
     write_sea(ud, packed_sea)
     ud[mcb.U_MAGIC] = mcb.MAGIC
 

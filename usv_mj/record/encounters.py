@@ -54,13 +54,15 @@ def encounter_summary(record: FleetRecord) -> dict:
         k = int(np.argmin(np.where(finite, rng, np.inf))) if finite.any() else 0
         before = max(0, k - (int(round(1.0 / dt)) if dt > 0 else 0))
         on = contacts[:, p] > 1e-6
-        starts = np.flatnonzero(np.diff(np.concatenate(([False], on)).astype(np.int8)) == 1)
+        edges = np.diff(np.concatenate(([False], on, [False])).astype(np.int8))
+        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)   # each contact: rows [start, end)
         entry = {"vessels": [record.names[i], record.names[j]],
                  "min_range_m": float(rng[k]), "t_min_range_s": float(t[k]) if len(t) else 0.0,
                  "dcpa_before_m": float(g[before, GEOMETRY_FIELDS.index("dcpa_m")]),
                  "tcpa_before_s": float(g[before, GEOMETRY_FIELDS.index("tcpa_s")]),
-                 "contacts": [{"t_s": float(t[s]), "max_force_N": float(contacts[s:, p][on[s:]].max())}
-                              for s in starts[:20]],
+                 "contacts": [{"t_s": float(t[s]), "max_force_N": float(contacts[s:e, p].max())}
+                              for s, e in zip(starts[:20], ends[:20])],
+                 "n_contacts": int(len(starts)),
                  "in_contact_s": float(on.sum() * dt)}
         if record.own in entry["vessels"] and domain is not None:
             entry["safety_domain_m"] = domain

@@ -72,3 +72,29 @@ class FleetRecord:
         """(rows, vessels, 6): every vessel's (x, y, psi, u, v, r) at every row."""
         cols = ("x", "y", "psi", "u", "v", "r")
         return np.stack([np.column_stack([self.records[n][c] for c in cols]) for n in self.names], axis=1)
+
+
+def fleet_of_records(records: dict, own: str, metadata: dict | None = None) -> FleetRecord:
+    """A :class:`FleetRecord` of vessels' records read back (a fleet's run log: each vessel a run of its
+    own, usv_mj.jobs.fleet): the rows the records share, the contacts from their "vessel_contact"
+    events (the force at each episode's first row: a log keeps the events, not the per-row forces)."""
+    names = list(records)
+    rows = min(r.n_rows for r in records.values())
+    fleet = FleetRecord(names, records, own, max(rows, 1), metadata)
+    t = records[own]["t"]
+    seen = set()
+    for name in names:
+        for e in records[name].events:
+            pair = tuple(e.values.get("pair", ())) if e.kind == "vessel_contact" else ()
+            if len(pair) != 2 or (e.t, pair) in seen or not all(p in names for p in pair):
+                continue
+            seen.add((e.t, pair))
+            if (e.t, pair) not in {(x.t, tuple(x.values.get("pair", ()))) for x in fleet.events}:
+                fleet.events.append(e)
+            i, j = sorted(names.index(p) for p in pair)
+            k = int(np.argmin(np.abs(t[:rows] - e.t))) if rows else 0
+            fleet.contacts[k, fleet.pairs.index((i, j))] = float(e.values.get("force_N", 1.0))
+    statuses = {records[n].status for n in names}
+    fleet.status = records[own].status if len(statuses) == 1 else sorted(statuses)[0]
+    fleet.stop_reason = records[own].stop_reason
+    return fleet

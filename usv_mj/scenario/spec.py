@@ -29,12 +29,14 @@ from pathlib import Path
 from typing import Any
 
 from usv_mj.physics.actuators import ActuatorSpec
-from usv_mj.core.errors import ScenarioError, SeaSettingsError, TooManyStepsError
+from usv_mj.core.errors import (PluginContractError, ScenarioError, SeaSettingsError, TooManyStepsError,
+                                UnknownKindError)
 from usv_mj.scenario.fleet import vessels_from_tables
 from usv_mj.scenario.manoeuvre import manoeuvre_from_table
 from usv_mj.scenario.obstacles import GuidanceSpec, from_tables, guidance_from_table
 from usv_mj.core.registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES, VESSELS
 from usv_mj.physics.sea.settings import SeaSettings, merge_sea_tables, sea_preset_table
+from usv_mj.physics.disturbances import check_disturbance
 from usv_mj.physics.ship import PaperDisturbance, ShipParams
 from usv_mj.support.toml_values import read_toml
 from usv_mj.scenario.tables import (KindOptions, build_table, construct, convert, merge_tables, to_plain,  # noqa: F401
@@ -367,14 +369,15 @@ def load_scenario(path: str | Path | None = None, preset: str | None = None, ove
 
 
 #: the sections whose ``kind`` selects the other keys' meaning, and each one's default kind
-KIND_DEFAULTS = {"controller": "ppc", "baseline": "pi", "trajectory": "paper", "plant": "mujoco"}
+KIND_DEFAULTS = {"controller": "ppc", "baseline": "pi", "trajectory": "paper", "plant": "mujoco",
+                 "disturbance": "paper"}
 
 
 def switched_kind(section: str, table: dict, kind, source: str = "<dict>") -> dict:
     """``[section]`` (a table of :data:`KIND_DEFAULTS`) when its kind becomes ``kind``: unchanged if it
     is the table's own kind; else a controller's (baseline's) gains are dropped, they belong to the
-    old kind (the baseline keeps ``enabled``), and a trajectory or plant keeps only the keys the new
-    kind also has (the plant's ``substeps`` always). The one rule of a kind switch, for a preset under
+    old kind (the baseline keeps ``enabled``), and a trajectory, plant or disturbance keeps only the
+    keys the new kind also has (the plant's ``substeps`` always). The one rule of a kind switch, for a preset under
     a scenario (:func:`from_dict`) and for a sweep's or a suite's ``[set] "controller.kind"``
     (:func:`usv_mj.jobs.sweep.spec.apply_values`). ``kind`` itself is not written into the result."""
     if kind == table.get("kind", KIND_DEFAULTS[section]):
@@ -382,7 +385,7 @@ def switched_kind(section: str, table: dict, kind, source: str = "<dict>") -> di
     if section in ("controller", "baseline"):
         return {k: v for k, v in table.items() if k == "enabled"}
     keep = ("substeps",) if section == "plant" else ()
-    registry = TRAJECTORIES if section == "trajectory" else PLANTS
+    registry = {"trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES}[section]
     known = set(keep)
     if isinstance(kind, str) and (set(table) - {"kind", *keep}):
         cls = registry.get(kind, f"{source}: {section}.kind").options_class
@@ -625,13 +628,38 @@ def _kind_spec(spec_cls, registry, table: Any, source: str, section: str, defaul
 
 def _build_disturbance(table: Any, source: str):
     """``[disturbance]``: ``kind`` (default "paper") names a registered disturbance, whose
-    parameter dataclass validates the other keys."""
+    parameter dataclass validates the other keys; the result keeps the kind's contract
+    (:func:`usv_mj.physics.disturbances.check_disturbance`: a njit kernel, a short ``as_array()``).
+    A plug-in kind's errors name the kind."""
     if not isinstance(table, dict):
         raise ScenarioError(f"{source}: [disturbance] must be a table, got {table!r}")
     table = dict(table)
     kind = table.pop("kind", "paper")
     entry = DISTURBANCES.get(kind, f"{source}: disturbance.kind")
-    return build_table(entry.options_class or entry.obj, table, source, "disturbance", extra_known={"kind"})
+    cls = entry.options_class or entry.obj
+    if not dataclasses.is_dataclass(cls):
+        raise PluginContractError(f"{source}: disturbance kind {kind!r}: {_name(cls)} must be a dataclass (its "
+                                  f"fields are the [disturbance] table's keys; usv_mj.physics.disturbances)")
+    try:
+        disturbance = build_table(cls, table, source, "disturbance", extra_known={"kind"})
+    except ScenarioError as exc:
+        if kind == "paper" or isinstance(exc, UnknownKindError):
+            raise
+        msg = str(exc)  # "source: disturbance.key ...": the kind goes after the source
+        rest = msg[len(source) + 2:] if msg.startswith(f"{source}: ") else msg
+        raise type(exc)(f"{source}: disturbance kind {kind!r}: {rest}") from None
+    except (TypeError, AttributeError) as exc:  # a dataclass that cannot be made from its own defaults
+        raise PluginContractError(f"{source}: disturbance kind {kind!r}: {_name(cls)} cannot be made "
+                                  f"({type(exc).__name__}: {exc})") from None
+    try:
+        check_disturbance(disturbance, kind)
+    except PluginContractError as exc:
+        raise PluginContractError(f"{source}: {exc}") from None
+    return disturbance
+
+
+def _name(obj) -> str:
+    return f"{getattr(obj, '__module__', '?')}.{getattr(obj, '__qualname__', repr(obj))}"
 
 
 def _build_sea(table, source: str) -> SeaSettings:

@@ -38,6 +38,9 @@ import numpy as np
 from usv_mj.core.errors import ScenarioError
 
 SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C")
+#: the environment task (a kind of :data:`usv_mj.core.registry.TASKS`) whose Gymnasium view a policy
+#: runs in, on the suite task's own scenario: ``usv_mj/Track-v0``'s (what the policies are trained in)
+POLICY_TASK = "track"
 DEFAULT_CONTROL_PERIOD = 0.01
 """s: the control period of ``usv_mj/Track-v0`` (10 RK4 steps of 1 ms), the one a policy trained there learnt."""
 
@@ -102,12 +105,15 @@ def policy_episode(scenario, options: dict):
     from usv_mj.envs.environment import episode_record
     from usv_mj.envs.gymnasium_env import USVGymEnv
 
+    from usv_mj.core.registry import TASKS
+
     spec = options["policy"]
-    if scenario.obstacles:
-        raise ScenarioError(f"policy {spec!r}: the Gymnasium Track observation has no view of the obstacles of "
-                            f"this task; a policy is scored on open-water tasks")
+    task = TASKS.get(POLICY_TASK, f"policy {spec!r}")
+    if scenario.obstacles:   # the task's observation sees the obstacles of its own layout at most
+        raise ScenarioError(f"policy {spec!r}: the Gymnasium {POLICY_TASK!r} observation has no view of the obstacles "
+                            f"of this task; a policy is scored on open-water tasks")
     criterion = criterion_from_dict(options.get("criterion") or default_criterion().to_dict())
-    genv = USVGymEnv("track", seed=0, scenario=scenario, duration=scenario.duration, start_offset=(0.0, 0.0, 0.0))
+    genv = USVGymEnv(task.kind, seed=0, scenario=scenario, duration=scenario.duration, start_offset=(0.0, 0.0, 0.0))
     env = genv.dm_env
     task = env.task
     eta0 = np.asarray(scenario.initial.eta, float)
