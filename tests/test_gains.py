@@ -106,3 +106,36 @@ def test_kinds_and_the_report_show_the_derived_gains():
     rec = simulate(otter.with_overrides({"duration": 0.01, "plant": {"kind": "analytic"}}))
     text = gains_section(rec)
     assert "| kp_psi | 2706.73 | the vessel (derived) |" in text and "| ilos_sigma | 0 | the scenario or the default |" in text
+
+
+def test_each_vessel_of_a_fleet_gets_the_gains_of_its_own_hull():
+    """[[vessels]] (usv_mj.scenario.fleet): every vessel's scenario derives its controller's defaults
+    from its own hull, as a single run on that hull does, and build_fleet's controllers use them
+    (the top level's vessel, the paper hull, gives none of them its gains)."""
+    from usv_mj.builder import build_fleet
+
+    vessels = [
+        {"name": "paper", "steer": "keep", "initial": {"eta": [0.0, 0.0, 0.0], "nu": [0.6, 0.0, 0.0]}},
+        {"name": "otter", "steer": "keep", "vessel": {"kind": "otter"},
+         "initial": {"eta": [0.0, 100.0, 0.0], "nu": [1.0, 0.0, 0.0]}},
+        {"name": "wamv", "vessel": {"kind": "examples/vessels/wamv.toml"}, "controller": {"kind": "pi"},
+         "trajectory": {"kind": "line", "start": [0.0, 200.0], "heading_deg": 0.0},
+         "initial": {"eta": [0.0, 200.0, 0.0]}},
+    ]
+    sc = load_scenario(overrides={"duration": 1.0, "plant": {"kind": "analytic"}, "vessels": vessels})
+    parts = {v.name: v for v in build_fleet(sc).vessels}
+    alone = {
+        "paper": load_scenario(overrides={"controller": {"kind": "los"}}).controller,
+        "otter": load_scenario(overrides={"vessel": {"kind": "otter"}, "controller": {"kind": "los"}}).controller,
+        "wamv": load_scenario(overrides={"vessel": {"kind": "examples/vessels/wamv.toml"},
+                                         "controller": {"kind": "pi"}}).controller,
+    }
+    for v in sc.vessels:
+        mine = v.scenario.controller
+        assert mine.kind == alone[v.name].kind and mine.gains == alone[v.name].gains, v.name
+        assert set(mine.derived) == set(alone[v.name].derived) != set(), v.name
+        assert parts[v.name].controller.gains == mine.gains, v.name
+    assert sc.vessels[0].scenario.controller.gains.kp_psi == PAPER_LOS["kp_psi"]
+    assert sc.vessels[1].scenario.controller.gains.kp_psi != PAPER_LOS["kp_psi"]   # the Otter's own
+    assert sc.vessels[2].scenario.controller.gains.kp_r != PAPER_PI["kp_r"]        # the WAM-V's own
+    assert parts["otter"].controller.nominal == sc.vessels[1].scenario.nominal_ship
