@@ -144,4 +144,4 @@ def test_the_wheel_carries_the_default_benchmark_suite(installed):
                           text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     n, source = proc.stdout.split()
-    assert n == "648" and str(ROOT) not in source   # 2 x 3 x 4 x (7 x 3 + 6): tests/test_bench_run.py
+    assert n == "3240" and str(ROOT) not in source   # 10 x 3 x 4 x (7 x 3 + 6): tests/test_bench_run.py
