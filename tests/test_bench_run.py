@@ -204,13 +204,28 @@ def test_cli_bad_suite_is_one_line_and_exit_2(tmp_path, capsys):
     assert len(err) == 1 and err[0].startswith("usv-mj bench: error: ") and "episodes" in err[0]
 
 
+def default_suite_at_one_episode():
+    """The shipped suite as load_suite() plans it (its file, its folder), at 1 episode per cell instead
+    of its 10: planning all 3240 scenarios takes tens of seconds, and the plan is the same for every
+    episode count but for the draws (checked: the file says 10, no task its own)."""
+    import tomllib
+
+    from usv_mj.jobs.bench.suite import DEFAULT_EPISODES, default_suite_path
+
+    path = default_suite_path()
+    data = tomllib.loads(path.read_text())
+    assert data["episodes"] == DEFAULT_EPISODES == 10 and not any("episodes" in t for t in data["tasks"])
+    return plan_suite({**data, "episodes": 1}, str(path), path.parent)
+
+
 def test_the_default_suite_plans(tmp_path):
-    suite = load_suite()
+    suite = default_suite_at_one_episode()
     assert suite.tasks == ["paper-track", "line-0.6", "line-1.0", "circle-0.6", "circle-1.0", "lawnmower", "harbour"]
     assert suite.conditions == ["calm", "sea", "limited"]
     assert [c.name for c in suite.controllers] == ["ppc", "pi", "los", "ppo"]
-    # 10 episodes x 3 conditions x 4 vessels x (7 tasks x 3 controllers + 6 tasks for the policy, no harbour)
-    assert len(suite.plan.runs) == 10 * 3 * 4 * (7 * 3 + 6)
+    # 3 conditions x 4 vessels x (7 tasks x 3 controllers + 6 tasks for the policy, no harbour) per
+    # episode; x 10 episodes: the default suite's 3240
+    assert len(suite.plan.runs) == 3 * 4 * (7 * 3 + 6) and 10 * len(suite.plan.runs) == 3240
     ppo = [r for r in suite.plan.runs if r.values["controller"] == "ppo"]
     assert Path(ppo[0].options["policy"]).is_file()   # the shipped policy, beside the suite
     harbour = [r for r in suite.plan.runs if r.values["task"] == "harbour"]
