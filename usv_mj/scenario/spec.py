@@ -36,6 +36,7 @@ from usv_mj.scenario.manoeuvre import manoeuvre_from_table
 from usv_mj.scenario.obstacles import GuidanceSpec, from_tables, guidance_from_table
 from usv_mj.core.registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES, VESSELS
 from usv_mj.physics.sea.settings import SeaSettings, merge_sea_tables, sea_preset_table
+from usv_mj.physics.design import DesignPoint, Scaling
 from usv_mj.physics.disturbances import check_disturbance
 from usv_mj.physics.ship import PaperDisturbance, ShipParams
 from usv_mj.support.toml_values import read_toml
@@ -553,8 +554,6 @@ def _build_vessel(table: Any, ship: Any, source: str) -> VesselSpec:
 def _design_scaling(vessel: VesselSpec | None):
     """A function returning the :class:`usv_mj.physics.design.Scaling` of the scenario's hull (its
     nominal model: the vessel's times ``model_mismatch``, its length), made when first asked."""
-    from usv_mj.physics.design import DesignPoint, Scaling
-
     made = []
 
     def scaling():
