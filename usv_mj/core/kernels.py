@@ -6,7 +6,8 @@ A part that can run natively has, beside its Python interface (which stays as it
 can be generated, compiled and cached on disk) and the tuple of arguments (arrays and scalars,
 its parameters and its state) that follow the loop's own arguments. The signatures:
 
-- reference: ``fn(t, *args) -> ref`` (the 7-vector of usv_mj.controllers.base.REF_FIELDS);
+- reference: ``fn(t, *args) -> ref`` (the vector of usv_mj.core.layouts.REF_VECTOR_FIELDS: the
+  record's 7 entries, then the accelerations; the loops record the first 7);
 - controller: ``fn(t, x, ref, *args) -> (tau_u, tau_r, diag)`` (``diag`` laid out as its
   ``diagnostic_fields``), like ``__call__``;
 - quantizer: ``fn(tau, *args) -> (q, k)`` (the quantized value and the signed level index);

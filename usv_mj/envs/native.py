@@ -273,9 +273,9 @@ def sensor_pos_address() -> int:
 def _rows_python(reference, t, preview):
     """The reference rows through ``reference.evaluate`` (references without a kernel)."""
     refs = np.empty((preview.size + 1, 7))
-    refs[0] = reference.evaluate(t)
+    refs[0] = reference.evaluate(t)[:7]   # the 7 entries the observation reads (not the accelerations)
     for k, tau in enumerate(preview):
-        refs[k + 1] = reference.evaluate(t + tau)
+        refs[k + 1] = reference.evaluate(t + tau)[:7]
     return refs
 
 

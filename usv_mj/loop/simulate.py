@@ -32,8 +32,11 @@ from usv_mj.loop.fleet import simulate_fleet
 from usv_mj.loop.step import ControlStep
 from usv_mj.record.events import detect_events, json_number as _json_number  # noqa: F401 (detect_events: API)
 from usv_mj.record.run_record import COL, N_CORE, SL_REF, SL_STATE, Event, RunRecord
+from usv_mj.core.layouts import REF_FIELDS
 from usv_mj.scenario.spec import Scenario
 from usv_mj.references import trajectories
+
+N_REF_RECORDED = len(REF_FIELDS)
 
 #: a record bigger than this (rows x columns x 8 bytes) streams to disk when ``store`` is None
 STREAM_BYTES = 256 * 2 ** 20
@@ -246,7 +249,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             row = data[k - base]
             row[c_t] = t
             row[SL_STATE] = x
-            row[SL_REF] = ref
+            row[SL_REF] = ref[:N_REF_RECORDED]   # the record's 7 reference columns (the accelerations are not recorded)
             row[sl_diag] = diag
             f_u, f_r = step(tau_u, tau_r, x, row)   # clip -> quantize -> actuators, the row's control columns
             k += 1
@@ -406,7 +409,7 @@ def _stop_diverged(record, t, message, values, data, i, x, ref, diag, sl_diag):
     row = data[i]   # i: the row's index in the window
     row[COL["t"]] = t
     row[SL_STATE] = x
-    row[SL_REF] = ref
+    row[SL_REF] = ref[:N_REF_RECORDED]
     row[sl_diag] = diag
     record.n_rows = record.base + i + 1
     record.events.append(Event(t, "divergence", message, values))
