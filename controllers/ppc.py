@@ -242,6 +242,9 @@ class PPCController:
 
     name = "ppc"
     diagnostic_fields = DIAG_FIELDS
+    #: from the paper's start pose it drives paper-limited's thrusters into their limits (usv-mj compare's
+    #: saturated case runs with it; controllers/base.py)
+    reaches_actuator_limits = True
     diagnostic_events = {"s2_clamped": "s2_clamp"}
 
     @classmethod

@@ -187,23 +187,28 @@ def test_controller_contract(controller, vessel, runs):
 @pytest.mark.parametrize("kind", TRAJECTORIES.kinds())
 def test_trajectory_contract(kind, runs):
     from usv_mj.core.kernels import kernel_of
-    from usv_mj.core.layouts import REF_FIELDS
+    from usv_mj.core.layouts import N_REF, REF_RDOT, REF_XDDOT, REF_YDDOT
     from usv_mj.loop.simulate import make_reference
 
     sc = scenario_of(duration=30.0, trajectory=kind)
     ref = make_reference(sc)
     h = 1e-6
     for t in (0.0, 0.37, 4.1, 17.9):
+        # the 7 recorded entries and the accelerations a controller receives (REF_VECTOR_FIELDS, issue 37)
         r = np.array(ref.evaluate(t), dtype=float)
-        assert r.shape == (len(REF_FIELDS),) and np.all(np.isfinite(r))
+        assert r.shape == (N_REF,) and np.all(np.isfinite(r[:7]))
         assert -math.pi <= r[2] <= math.pi
-        # the velocities and the yaw rate are the time derivatives of the pose (central differences,
-        # one-sided at t = 0)
+        # the velocities and the yaw rate are the time derivatives of the pose, the accelerations those
+        # of the velocities and the yaw rate (central differences, one-sided at t = 0)
         lo = max(t - h, 0.0)
         a, b = np.array(ref.evaluate(t + h)), np.array(ref.evaluate(lo))
         d = (a[:3] - b[:3]) / (t + h - lo)
         d[2] = math.remainder(a[2] - b[2], 2 * math.pi) / (t + h - lo)
         assert np.allclose(d, r[[3, 4, 5]], rtol=1e-5, atol=1e-5), (kind, t, d, r)
+        acc = r[[REF_XDDOT, REF_YDDOT, REF_RDOT]]
+        if kind in TRAJECTORIES.builtin_kinds() or not np.all(np.isnan(acc)):   # a plug-in may leave them NaN
+            dd = (a[[3, 4, 5]] - b[[3, 4, 5]]) / (t + h - lo)
+            assert np.allclose(dd, acc, rtol=1e-5, atol=1e-5), (kind, t, dd, acc)
     make_kernel = kernel_of(ref)
     if make_kernel is not None:   # the compiled loop's reference is evaluate() bit for bit
         kernel = make_kernel()

@@ -306,6 +306,14 @@ def add_cluster_arguments(p, *, batch: bool = True) -> None:
     add_workers_argument(p, "local cluster")
 
 
+def add_batch_argument(p, runs: str) -> None:
+    """--batch N: up to N of the ``runs`` per Dask task, simulated together in one compiled batch
+    (usv_mj.loop.batch; the same rows as one task per run)."""
+    p.add_argument("--batch", type=count, default=1, metavar="N",
+                   help=f"run up to N {runs} per task, together in one compiled batch (the same results; "
+                        f"default 1)")
+
+
 def add_resume_arguments(p, runs: str) -> None:
     """--resume and --max-runs of a job whose ``runs`` stream into DIR/results.parquet."""
     p.add_argument("--resume", action="store_true", help=f"run only the {runs} missing from DIR/results.parquet")

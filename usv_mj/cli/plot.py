@@ -25,7 +25,7 @@ def run(args) -> int:
     from usv_mj.outputs.figures import draw_figures
     from usv_mj.outputs.log import read_run
     from usv_mj.outputs.outdir import check_folder, record
-    from usv_mj.outputs.report import write_report
+    from usv_mj.outputs.report import gains_section, write_report
     from usv_mj.record.criteria import criterion_of_record
     from usv_mj.record.summary import summarize
 
@@ -63,9 +63,10 @@ def run(args) -> int:
     figures = list(figures) + list(manoeuvre_files.get("manoeuvre_figures", []))
     summary = summarize(log.record)
     base = summarize(log.baseline, criterion_of_record(log.record)) if log.baseline is not None else None
+    gains = gains_section(log.record, log.baseline)
     write_report(out / "report.md", summary, base,
                  log.metadata.get("step_check"),
-                 extra_sections=sections + ([f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers "
+                 extra_sections=sections + ([gains] if gains else []) + ([f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers "
                                              "above are of what was recovered."] if log.notice else []) or None)
     record(out, ["report.md", *(["manoeuvre.json"] if sections else []),
                  *(Path(f).relative_to(out).as_posix() for f in figures)])

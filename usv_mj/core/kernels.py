@@ -6,7 +6,8 @@ A part that can run natively has, beside its Python interface (which stays as it
 can be generated, compiled and cached on disk) and the tuple of arguments (arrays and scalars,
 its parameters and its state) that follow the loop's own arguments. The signatures:
 
-- reference: ``fn(t, *args) -> ref`` (the 7-vector of usv_mj.controllers.base.REF_FIELDS);
+- reference: ``fn(t, *args) -> ref`` (the vector of usv_mj.core.layouts.REF_VECTOR_FIELDS: the
+  record's 7 entries, then the accelerations; the loops record the first 7);
 - controller: ``fn(t, x, ref, *args) -> (tau_u, tau_r, diag)`` (``diag`` laid out as its
   ``diagnostic_fields``), like ``__call__``;
 - quantizer: ``fn(tau, *args) -> (q, k)`` (the quantized value and the signed level index);
@@ -17,6 +18,10 @@ its parameters and its state) that follow the loop's own arguments. The signatur
 - hook: ``fn(k, t, x, *args) -> python``: the hook's work at row ``k`` (time ``t``, state ``x``),
   before the reference; True when Python must do it instead (the loop then calls the hook's
   ``__call__`` for that row and goes on): :mod:`usv_mj.obstacles.native_step`.
+
+``state`` (optional) names the arguments the kernel writes (by index into ``args``): what a
+batch of episodes (:mod:`usv_mj.loop.batch`) must hold once per episode; every other argument is a
+parameter, only read, which episodes with equal values share.
 
 ``sync`` (optional) writes the kernel's results back into the Python object after a block (a
 plant's ``sync(k, x)``: its step count and state; the obstacle hook's rows), so that the object is
@@ -62,6 +67,11 @@ class Kernel(NamedTuple):
     sync: Callable | None = None
     fail: Callable | None = None
     n_diag: int | None = None   # a controller's: the length of the diag it returns (None: not declared)
+    #: which of ``args`` the kernel writes (its state, scratch, outputs), by index; None: not declared.
+    #: The batched loop (usv_mj.loop.batch) gives each episode its own copy of these and shares the
+    #: others (parameters, only read) between episodes whose values are equal; with None it copies
+    #: every array per episode (always right, more memory).
+    state: tuple | None = None
 
 
 #: data no kernel reads, which a class below the kernel's (or the object) may give its own values:

@@ -545,3 +545,64 @@ TASKS = TaskRegistry("task", {k: "usv_mj.envs.suite" for k in ("track", "track_w
 #: every registry by its scenario section (``usv-mj kinds`` lists them), and the environments' tasks
 REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES,
               "vessel": VESSELS, "manoeuvre": MANOEUVRES, "task": TASKS}
+
+
+def _packages() -> dict:
+    """importlib.metadata.packages_distributions(), read once per process (it reads every installed
+    distribution's file list)."""
+    global _PACKAGES
+    if _PACKAGES is None:
+        import importlib.metadata as md
+
+        _PACKAGES = md.packages_distributions()
+    return _PACKAGES
+
+
+_PACKAGES = None
+
+
+def origin(entry: Entry) -> dict:
+    """Where a registered kind comes from, for a run's metadata (the run log names every plug-in a run
+    used): ``source`` (as :attr:`Entry.source`), ``module`` (the object's), and for anything not
+    built in the installed ``distribution`` that provides the module and its ``version`` (None when
+    the module is not part of an installed distribution: a ``module:Name`` on PYTHONPATH, a runtime
+    registration; then ``file``, the module's file). A data file's kind (a vessel file) names the file."""
+    import importlib.metadata as md
+
+    out = {"source": entry.source, "module": entry.module}
+    if entry.source == BUILT_IN:
+        return out
+    if entry.source.startswith("data file"):
+        out["file"] = entry.kind
+        return out
+    top = entry.module.split(".")[0] if entry.module else ""
+    dists = _packages().get(top, []) if top else []
+    out["distribution"] = dists[0] if dists else None
+    out["version"] = None
+    if dists:
+        try:
+            out["version"] = md.version(dists[0])
+        except md.PackageNotFoundError:
+            pass
+    else:
+        module = sys.modules.get(entry.module)
+        out["file"] = getattr(module, "__file__", None)
+    return out
+
+
+def origins(kinds: dict) -> dict:
+    """``{"<registry> <kind>": origin}`` of every kind in ``kinds`` ({registry name: kind or None},
+    registry names of :data:`REGISTRIES`) that is not built in; a kind that cannot be looked up is
+    named with the error."""
+    out = {}
+    for section, kind in kinds.items():
+        if not kind:
+            continue
+        try:
+            entry = REGISTRIES[section].get(kind, section)
+        except Exception as exc:   # noqa: BLE001 - metadata: say why, never fail a run for it
+            out[f"{section} {kind}"] = {"source": "unknown", "error": str(exc)}
+            continue
+        if entry.source != BUILT_IN:
+            out[f"{section} {kind}"] = origin(entry)
+    return out

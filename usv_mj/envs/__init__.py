@@ -67,6 +67,11 @@ Traffic (issue 35): ``usv_mj/Encounter-v0`` (:data:`ENV_IDS`, registered beside 
 Imazu case or a scenario with ``[[vessels]]``), and :func:`traffic_parallel_env`
 (:class:`TrafficParallelEnv`, :mod:`usv_mj.envs.traffic_parallel`) the PettingZoo ``ParallelEnv``
 in which every vessel is an agent; both on :mod:`usv_mj.envs.traffic`.
+
+Many episodes in one call: ``gymnasium.make_vec("usv_mj/Track-v0", num_envs=N)`` (the vector view,
+:mod:`usv_mj.envs.gymnasium_vector`; ``plant="analytic"`` for the native RK4 of the same hull),
+:func:`load_batch` for dm_env users (arrays of TimeStep fields, :mod:`usv_mj.envs.batch`) and
+:class:`usv_mj.envs.sb3_vec.USVSB3VecEnv` for stable-baselines3: the same batch, stepped natively.
 """
 
 from __future__ import annotations
@@ -87,11 +92,12 @@ _WHERE = {
     "USVEnvironment": "environment", "PPCPolicy": "policies", "RandomPolicy": "policies",
     "TrackTask": "tasks", "HarbourTask": "tasks", "USVPhysics": "physics", "USVGymEnv": "gymnasium_env",
     "EncounterEnv": "encounter_env", "TrafficParallelEnv": "traffic_parallel", "traffic_parallel_env": "traffic_parallel",
+    "load_batch": "batch", "TrackBatch": "batch", "USVVectorEnv": "gymnasium_vector", "USVSB3VecEnv": "sb3_vec",
 }
 
 __all__ = ["ALL_TASKS", "ENV_IDS", "EncounterEnv", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "TASKS",
-           "TrackTask", "TrafficParallelEnv", "USVEnvironment", "USVGymEnv", "USVPhysics", "episode_record", "gym_env",
-           "gym_id", "load", "traffic_parallel_env"]
+           "TrackBatch", "TrackTask", "TrafficParallelEnv", "USVEnvironment", "USVGymEnv", "USVPhysics", "USVVectorEnv",
+           "episode_record", "gym_env", "gym_id", "load", "load_batch", "traffic_parallel_env"]
 
 _GYM_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]*(?:[_-][A-Za-z0-9]+)*$")
 
@@ -125,7 +131,8 @@ def register_gymnasium(tasks=None) -> None:
     for task in (TASKS.kinds() if tasks is None else tasks):
         env_id = gym_id(task)
         if env_id is not None and env_id not in registry:
-            register(id=env_id, entry_point="usv_mj.envs.gymnasium_env:USVGymEnv", kwargs={"task": task})
+            register(id=env_id, entry_point="usv_mj.envs.gymnasium_env:USVGymEnv", kwargs={"task": task},
+                     vector_entry_point="usv_mj.envs.gymnasium_vector:make_vector_env")
     for env_id, entry_point in (ENV_IDS.items() if tasks is None else ()):
         if env_id not in registry:
             register(id=env_id, entry_point=entry_point)

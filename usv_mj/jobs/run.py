@@ -24,7 +24,7 @@ from pathlib import Path
 from usv_mj.record.criteria import criterion_of_record
 from usv_mj.outputs.figures import draw_figures
 from usv_mj.record.run_record import RunRecord
-from usv_mj.outputs.report import adaptation_section, write_report
+from usv_mj.outputs.report import adaptation_section, gains_section, write_report
 from usv_mj.scenario.spec import Scenario
 from usv_mj.loop.simulate import simulate
 from usv_mj.record.summary import CHECK_TIMES, baseline_line, criterion_line, outcome_sentence, pose_errors_at, summarize
@@ -593,6 +593,8 @@ class _StagedJob:
             self.files["figures"] = draw_figures(record, out / "figures", self.base_rec, obstacles=scenario.obstacles)
             adaptation = adaptation_section(record)   # a run whose controller adapts network weights
             extra_sections = [adaptation] if adaptation else []
+            gains = gains_section(record, self.base_rec)   # the gains each law ran with (docs/gains.md)
+            extra_sections += [gains] if gains else []
             if self.extra_outputs is not None:
                 self.phase = "writing the manoeuvre's outputs"
                 sections, extra_files = self.extra_outputs(record, out)

@@ -81,13 +81,21 @@ def run_block(k, stop, n, dt, data, base, n_diag, max_force, max_speed, max_yaw_
 '''
 
 
+#: what ``run_block``'s template imports beside the kernels, and the numbers formatted into it
+BLOCK_IMPORTS = "from usv_mj.physics.limits import within_limits"
+BLOCK_FIELDS = dict(n_core=N_CORE, BLOCK_END=BLOCK_END, DONE=DONE, FORCE_LIMIT=FORCE_LIMIT, PLANT_FAILED=PLANT_FAILED,
+                    DIVERGED=DIVERGED, HOOK=HOOK, DIAG_MISMATCH=DIAG_MISMATCH,
+                    **{f"c_{c}": COL[c] for c in ("t", "x", "x_d", "y_d")})
+
+
+def block_kernels(kernels: dict) -> dict:
+    """{role: (kernel function, number of its arguments)}: what the generator takes (usv_mj.loop.generate)."""
+    return {role: (kernels[role].fn, len(kernels[role].args)) for role in _ROLES}
+
+
 def compiled_block(kernels: dict):
     """The generated ``run_block`` for this combination of kernels (module docstring)."""
-    module = generate("usv_mj_loop", _TEMPLATE, {role: (kernels[role].fn, len(kernels[role].args)) for role in _ROLES},
-                      imports="from usv_mj.physics.limits import within_limits", n_core=N_CORE,
-                      BLOCK_END=BLOCK_END, DONE=DONE, FORCE_LIMIT=FORCE_LIMIT, PLANT_FAILED=PLANT_FAILED,
-                      DIVERGED=DIVERGED, HOOK=HOOK, DIAG_MISMATCH=DIAG_MISMATCH,
-                      **{f"c_{c}": COL[c] for c in ("t", "x", "x_d", "y_d")})
+    module = generate("usv_mj_loop", _TEMPLATE, block_kernels(kernels), imports=BLOCK_IMPORTS, **BLOCK_FIELDS)
     return module.run_block
 
 

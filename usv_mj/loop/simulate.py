@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from typing import Callable, Iterable, Protocol
+from typing import Callable, Iterable, NamedTuple, Protocol
 
 import numpy as np
 
@@ -32,8 +32,11 @@ from usv_mj.loop.fleet import simulate_fleet
 from usv_mj.loop.step import ControlStep
 from usv_mj.record.events import detect_events, json_number as _json_number  # noqa: F401 (detect_events: API)
 from usv_mj.record.run_record import COL, N_CORE, SL_REF, SL_STATE, Event, RunRecord
+from usv_mj.core.layouts import REF_FIELDS
 from usv_mj.scenario.spec import Scenario
 from usv_mj.references import trajectories
+
+N_REF_RECORDED = len(REF_FIELDS)
 
 #: a record bigger than this (rows x columns x 8 bytes) streams to disk when ``store`` is None
 STREAM_BYTES = 256 * 2 ** 20
@@ -155,9 +158,24 @@ def _new_record(rows: int, block: int, store, metadata: dict, fields: tuple, eve
     return RunRecord.streamed(folder, window, metadata, fields, events, temporary=temporary)
 
 
-def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_compiled: bool = True,
-         store=None, stream_above=None) -> RunRecord:
-    scenario, plant, controller, reference = parts.scenario, parts.plant, parts.controller, parts.reference
+class _Start(NamedTuple):
+    """A run made ready by :func:`_start`: its first row is next."""
+
+    record: RunRecord
+    step: ControlStep
+    compiled: dict | None       # the parts' kernels (taken again after the resets), or None: the Python loop
+    flush: "_Flusher"
+    limits: object
+    dt: float
+    n: int
+    wall0: float
+
+
+def _start(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_compiled: bool = True,
+           store=None, stream_above=None) -> _Start:
+    """What a run does before its first row (the single run's :func:`_run`, and each episode of a
+    batch, usv_mj.loop.batch): the record and its metadata, the sinks started, the parts reset."""
+    scenario, plant, controller = parts.scenario, parts.plant, parts.controller
     duration = parts.duration
     dt = scenario.control_period
     n = int(round(duration / dt))
@@ -189,13 +207,23 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     plant.reset(scenario.initial.eta, scenario.initial.nu, 0.0)
     controller.reset()
     step.reset()
+    flush = _Flusher(record, sinks, progress)
+    return _Start(record, step, compiled, flush, limits, dt, n, time.perf_counter())
+
+
+def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_compiled: bool = True,
+         store=None, stream_above=None) -> RunRecord:
+    record, step, compiled, flush, limits, dt, n, wall0 = _start(parts, sinks, block, progress, hooks, use_compiled,
+                                                                 store, stream_above)
+    from usv_mj.loop.compiled import kernels_of
+
+    plant, controller, reference = parts.plant, parts.controller, parts.reference
+    fields = record.diagnostic_fields
     data = record.buffer   # the rows from record.base on (all of them when in memory)
     base = 0
     sl_diag = slice(len(COL), len(COL) + len(fields))
     n_fields = len(fields)
     c_t = COL["t"]
-    flush = _Flusher(record, sinks, progress)
-    wall0 = time.perf_counter()
     k = 0
     try:
         if compiled is not None:
@@ -221,7 +249,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             row = data[k - base]
             row[c_t] = t
             row[SL_STATE] = x
-            row[SL_REF] = ref
+            row[SL_REF] = ref[:N_REF_RECORDED]   # the record's 7 reference columns (the accelerations are not recorded)
             row[sl_diag] = diag
             f_u, f_r = step(tau_u, tau_r, x, row)   # clip -> quantize -> actuators, the row's control columns
             k += 1
@@ -247,14 +275,9 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         _interrupted(record, exc, k * dt)
     except Exception as exc:  # recorded, then re-raised after the sinks are finished
         k = record.n_rows if compiled is not None else k
-        cause = interrupt_in_chain(exc)
-        if cause is not None:  # a signal that landed in compiled code surfaces as SystemError
-            _interrupted(record, cause, k * dt)
+        if _failed(record, exc, k * dt):  # a signal that landed in compiled code surfaces as SystemError
             _finish_run(record, sinks, flush, wall0, step)
             return record
-        record.status = "failed"
-        record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {message_line(exc)}"
-        record.events.append(Event(k * dt, "failed", record.stop_reason))
         _finish_run(record, sinks, flush, wall0, step)
         raise
     except SystemExit as exc:  # a plug-in that ends the program: the run fails, with its rows
@@ -290,6 +313,19 @@ def interrupter(exc: BaseException) -> str:
 _PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep   # usv_mj/
 
 
+def _failed(record: RunRecord, exc: BaseException, t: float) -> bool:
+    """Record a run stopped by ``exc`` at t [s]: interrupted (True: a signal behind it, nothing to
+    raise) or failed (False: the caller raises it once the sinks are finished)."""
+    cause = interrupt_in_chain(exc)
+    if cause is not None:
+        _interrupted(record, cause, t)
+        return True
+    record.status = "failed"
+    record.stop_reason = f"{type(exc).__name__} at t = {t:.3f} s: {message_line(exc)}"
+    record.events.append(Event(t, "failed", record.stop_reason))
+    return False
+
+
 def _interrupted(record: RunRecord, exc: BaseException, t: float) -> None:
     who = interrupter(exc)
     record.status = "interrupted"
@@ -315,11 +351,19 @@ class _Done(Exception):
 
 def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()) -> int:
     """The compiled loop (usv_mj.loop.compiled) until the run stops, with the Python loop's events."""
-    from usv_mj.loop.compiled import DIAG_MISMATCH, DIVERGED, FORCE_LIMIT, run_compiled
+    from usv_mj.loop.compiled import DIAG_MISMATCH, run_compiled
 
     k, status, x, out = run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks)
     if status == DIAG_MISMATCH:   # the Python loop raises it from the same row
         raise PluginContractError(diag_mismatch(parts.controller, int(out[0])))
+    return _compiled_stop(record, k, status, x, out, limits, dt)
+
+
+def _compiled_stop(record, k, status, x, out, limits, dt) -> int:
+    """The Python loop's events for the compiled loop's stop (``status``, usv_mj.loop.compiled) after
+    ``k`` rows; returns the rows the run has."""
+    from usv_mj.loop.compiled import DIVERGED, FORCE_LIMIT
+
     if status == FORCE_LIMIT:
         tau_u, tau_r = float(out[0]), float(out[1])
         t = k * dt
@@ -365,7 +409,7 @@ def _stop_diverged(record, t, message, values, data, i, x, ref, diag, sl_diag):
     row = data[i]   # i: the row's index in the window
     row[COL["t"]] = t
     row[SL_STATE] = x
-    row[SL_REF] = ref
+    row[SL_REF] = ref[:N_REF_RECORDED]
     row[sl_diag] = diag
     record.n_rows = record.base + i + 1
     record.events.append(Event(t, "divergence", message, values))

@@ -120,7 +120,7 @@ class AnalyticPlant(PlantBase):
             self._t = self._t0 + k * self.control_period
 
         fn, args = self._kernel_args(t_end)
-        return Kernel(fn, args, sync)
+        return Kernel(fn, args, sync, state=())   # writes nothing: the state is returned
 
     @property
     def time(self) -> float:

@@ -347,7 +347,8 @@ class MuJoCoPlant(PlantBase):
             self._raise_after_step(self.time_at(k))
 
         return Kernel(mcb.mujoco_kernel, (self._m_addr, self._d_addr, self._t0, self.control_period, self.substeps,
-                                          *mcb.kernel_constants()), sync, fail)
+                                          *mcb.kernel_constants()), sync, fail,
+                      state=())   # it writes the mjData behind d_addr (one per plant), no argument
 
     def _raise_after_step(self, t: float) -> None:
         self._x = None

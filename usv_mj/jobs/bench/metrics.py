@@ -35,7 +35,10 @@ input is never applied).
   ``time_loss_s``, and the own ship's inputs as above (its effort in its own channels).
 
 Intervals over episodes: :func:`bootstrap_ci` (percentile bootstrap of the mean, a fixed seed) for
-continuous metrics and :func:`wilson_ci` for rates (:data:`RATES`).
+continuous metrics, :func:`wilson_ci` for rates (:data:`RATES`), and for a time to an event
+(:data:`EVENTS`: settling, time to the goal) no mean at all: the fraction of episodes that reached
+it, the median and the distribution-free interval of the median, the episodes that did not reach
+it censored at their end (:func:`usv_mj.jobs.bench.stats.censored_median`).
 """
 
 from __future__ import annotations
@@ -60,6 +63,7 @@ class MetricSpec:
     unit: str
     better: str   # "lower" | "higher"
     rate: bool = False   # a 0/1 outcome: Wilson interval, shown as a share
+    reached: str = ""    # a time to an event: the column that says whether it happened (else censored)
 
 
 METRICS = (
@@ -69,8 +73,8 @@ METRICS = (
     MetricSpec("ise_heading", "ISE heading", "rad^2 s", "lower"),
     MetricSpec("max_cross_track_after_settle", "max abs e_ct after settle", "m", "lower"),
     MetricSpec("max_heading_after_settle", "max abs e_psi after settle", "rad", "lower"),
-    MetricSpec("settling_time_cross_track", "settling e_ct", "s", "lower"),
-    MetricSpec("settling_time_heading", "settling e_psi", "s", "lower"),
+    MetricSpec("settling_time_cross_track", "settling e_ct", "s", "lower", reached="settled_cross_track"),
+    MetricSpec("settling_time_heading", "settling e_psi", "s", "lower", reached="settled_heading"),
     MetricSpec("effort_u", "effort surge", "N s", "lower"),
     MetricSpec("effort_r", "effort yaw", "N m s", "lower"),
     MetricSpec("energy", "energy", "J", "lower"),
@@ -83,7 +87,7 @@ METRICS = (
     MetricSpec("min_clearance_m", "min clearance", "m", "higher"),
     MetricSpec("contact", "contact", "", "lower", rate=True),
     MetricSpec("goal_reached", "goal reached", "", "higher", rate=True),
-    MetricSpec("time_to_goal_s", "time to goal", "s", "lower"),
+    MetricSpec("time_to_goal_s", "time to goal", "s", "lower", reached="goal_reached"),
 )
 ENCOUNTER_METRICS = (
     MetricSpec("collision", "collision", "", "lower", rate=True),
@@ -103,6 +107,8 @@ controller, the controller's own criterion not among them."""
 METRICS = METRICS + ENCOUNTER_METRICS
 BY_COLUMN = {m.column: m for m in METRICS}
 RATES = tuple(m.column for m in METRICS if m.rate)
+EVENTS = tuple(m.column for m in METRICS if m.reached)
+"""The times to an event: censored where the event did not happen (usv_mj.jobs.bench.stats)."""
 
 
 def worst_value(column: str):
@@ -367,12 +373,29 @@ def bootstrap_ci(values, resamples: int = BOOTSTRAP_RESAMPLES, seed: int = BOOTS
 
 @dataclass(frozen=True)
 class Estimate:
-    """A metric over episodes: ``mean`` (for a rate: the share), its 95 % interval, ``n`` episodes."""
+    """A metric over episodes: ``mean`` (for a rate: the share; for a time to an event: the median,
+    inf when not reached by the median episode), its 95 % interval, ``n`` episodes; ``reached``: for
+    a time to an event, how many of them reached it (None otherwise)."""
 
     mean: float
     lo: float
     hi: float
     n: int
+    reached: int | None = None
+
+
+def estimate_event(times, reached) -> Estimate:
+    """A time to an event over episodes (:data:`EVENTS`): the median with its distribution-free 95 %
+    interval, the episodes that did not reach it censored at their end
+    (:func:`usv_mj.jobs.bench.stats.censored_median`); ``reached`` of ``n``. An episode with
+    ``reached`` None (not measured: no goal) is left out."""
+    from usv_mj.jobs.bench.stats import censored_median
+
+    pairs = [(t, bool(r)) for t, r in zip(times, reached) if r is not None]
+    if not pairs:
+        return Estimate(math.nan, math.nan, math.nan, 0)
+    m = censored_median([t if t is not None else math.inf for t, _ in pairs], [r for _, r in pairs])
+    return Estimate(m["median"], m["lo"], m["hi"], m["n"], m["reached"])
 
 
 def estimate(column: str, values) -> Estimate:

@@ -2,13 +2,18 @@
 
 - One table per task and condition (and vessel, when the suite names vessels): controllers as rows,
   the metrics of :data:`usv_mj.jobs.bench.metrics.METRICS` that the task measured as columns, each cell
-  the mean over episodes with its 95 % interval (:func:`usv_mj.jobs.bench.metrics.estimate`); the best
-  mean of each column in bold (the metric's direction: lower or higher is better). An episode that
-  is not ok (diverged or failed) counts with the metric's worst value (:func:`scored`), never with
-  its metrics up to the divergence, which would rank a diverging controller first.
-- The summary ranking: in every table and every ranked metric (:data:`RANKED`) the controllers are
-  ranked 1..n by their means (ties share the lower rank); a controller's score is its mean rank over
-  all of them, and its wins the number of (table, metric) it is best in.
+  the mean over episodes with its 95 % interval (:func:`usv_mj.jobs.bench.metrics.estimate`), a time
+  to an event (settling, time to the goal) as the share that reached it and its median with the
+  others censored (:func:`usv_mj.jobs.bench.metrics.estimate_event`, never a mean); the best of each
+  column in bold (the metric's direction: lower or higher is better). An episode that is not ok
+  (diverged or failed) counts with the metric's worst value (:func:`scored`; for a time to an event:
+  not reached), never with its metrics up to the divergence, which would rank a diverging controller first. The criterion column is each
+  controller's own promise: bold only when every controller of the table is judged by the same one.
+- The summary ranking: in every table and every ranked metric (:data:`RANKED`: metrics that mean the
+  same for every controller, so not the criterion, which differs between them) the controllers are
+  ranked 1..n by their means (medians for a time to an event, "not reached" last; ties share the
+  lower rank); a controller's score is its mean rank over all of them, and its wins the number of
+  (table, metric) it is best in. The criteria are shown apart (:func:`criteria_table`).
 - Figures: ``heatmap.png`` (controller x task/condition, the mean normalised score over the ranked
   metrics, 1 = the best of the table, 0 = the worst), ``bars-<task>.png`` (each condition, four key
   metrics, bars with the intervals), ``worst-episodes.png`` (each controller's worst episode, the one
@@ -25,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from usv_mj.jobs.bench.episode import PREFIX
-from usv_mj.jobs.bench.metrics import BY_COLUMN, METRICS, estimate, worst_value
+from usv_mj.jobs.bench.metrics import BY_COLUMN, METRICS, estimate, estimate_event, wilson_ci, worst_value
 
 ENCOUNTER = ("collision", "domain_kept", "min_range_m", "S_safety", "S13", "S14", "S15", "S16", "S17",
              "path_deviation_m", "time_loss_s")
@@ -33,10 +38,10 @@ ENCOUNTER = ("collision", "domain_kept", "min_range_m", "S_safety", "S13", "S14"
 formulas for every controller (an encounter episode measures no ``passed``: the controllers' own
 criteria differ, a path tolerance for ``los``, the clearance for ``sbmpc``)."""
 RANKED = ("iae_cross_track", "iae_heading", "max_cross_track_after_settle", "settling_time_cross_track",
-          "energy", "switches_per_s_u", "passed", "min_clearance_m", "contact", "goal_reached",
-          "time_to_goal_s") + ENCOUNTER
+          "energy", "switches_per_s_u", "min_clearance_m", "contact", "goal_reached", "time_to_goal_s") + ENCOUNTER
 """The metrics of the summary ranking and the heat map (one of each kind of quality; a table ranks
-the ones its episodes measured)."""
+the ones its episodes measured): each means the same for every controller (the same formula, band
+and goal), so ``passed``, which judges each by its own criterion, is not among them."""
 TABLE = ENCOUNTER + ("iae_cross_track", "ise_cross_track", "iae_heading", "max_cross_track_after_settle",
          "max_heading_after_settle", "settling_time_cross_track", "effort_u", "effort_r", "energy",
          "switches_per_s_u", "switches_per_s_r", "total_variation_u", "saturation_fraction", "passed",
@@ -77,16 +82,37 @@ def aggregate(rows: list[dict]) -> dict:
         measured = {m.column for m in METRICS
                     if any(r.get(PREFIX + m.column) is not None for rs in by_ctrl.values() for r in rs)}
         for ctrl, rs in by_ctrl.items():
-            cell = {m.column: estimate(m.column, [scored(r, m.column, m.column in measured) for r in rs])
-                    for m in METRICS}
+            cell = {m.column: _estimate(m, rs, m.column in measured) for m in METRICS}
             cell["_ok"] = (sum(r["status"] == "ok" for r in rs), len(rs))
+            cell["_criterion"] = _criterion_words(rs)
             agg[key][ctrl] = cell
     return agg
 
 
+def _estimate(m, rs: list[dict], measured: bool):
+    """A metric of a controller's episodes in a table: :func:`estimate_event` for a time to an event
+    (an episode that is not ok did not reach it), else :func:`estimate` of each episode's value as
+    :func:`scored` counts it (``measured``: some episode of the table has a value)."""
+    if not m.reached:
+        return estimate(m.column, [scored(r, m.column, measured) for r in rs])
+    flags = [None if r.get(PREFIX + m.reached) is None else bool(r[PREFIX + m.reached]) and r["status"] == "ok"
+             for r in rs]
+    return estimate_event([r.get(PREFIX + m.column) for r in rs], flags)
+
+
+def _criterion_words(rs: list[dict]) -> str:
+    """The criterion a controller's episodes were judged by (its words from the rows)."""
+    seen = sorted({str(r.get("criterion.description") or r.get("criterion.kind") or "") for r in rs} - {""})
+    return " / ".join(seen)
+
+
 def _best(cells: dict, column: str):
-    """The controllers with the best mean of ``column`` (none when fewer than two measured it)."""
+    """The controllers with the best mean of ``column`` (none when fewer than two measured it, and for
+    the criterion none unless every controller of the table is judged by the same one); a time to an
+    event not reached by the median episode is an infinite median, last."""
     means = {c: v[column].mean for c, v in cells.items() if v[column].n and not math.isnan(v[column].mean)}
+    if column == "passed" and len({cells[c].get("_criterion", "") for c in means}) > 1:
+        return set(), means
     if len(means) < 2 or len(set(means.values())) < 2:
         return set(), means
     pick = min if BY_COLUMN[column].better == "lower" else max
@@ -135,10 +161,31 @@ def by_table(by: dict, controllers: list, what: str) -> list[str]:
     return lines
 
 
+def criteria_table(agg: dict, controllers: list) -> list[str]:
+    """Each controller's own criterion and the share of its episodes that kept it over the suite,
+    with Wilson's interval: shown apart from the ranking, a rate comparable only between controllers
+    judged by the same criterion (markdown)."""
+    lines = ["| controller | criterion (its own) | kept | 95 % interval |", "| --- | --- | --- | --- |"]
+    for ctrl in controllers:
+        cells = [t[ctrl] for t in agg.values() if ctrl in t]
+        if not cells:
+            continue
+        k = sum(round(c["passed"].mean * c["passed"].n) for c in cells if c["passed"].n)
+        n = sum(c["passed"].n for c in cells)
+        words = " / ".join(sorted({c.get("_criterion", "") for c in cells} - {""})) or "-"
+        if n:
+            lo, hi = wilson_ci(k, n)
+            lines.append(f"| `{ctrl}` | {words} | {k}/{n} | [{100 * lo:.0f}, {100 * hi:.0f}] % |")
+        else:
+            lines.append(f"| `{ctrl}` | {words} | not judged | - |")
+    return lines
+
+
 def printed_leaderboard(agg: dict, controllers: list, vessels: bool) -> list[str]:
     """What ``usv-mj bench`` prints at the end (and report.md opens with): the summary ranking,
-    then the mean rank per task and, with vessels, per vessel (markdown). With fewer than two
-    controllers there is nothing to rank: one sentence says so instead of empty tables."""
+    then the mean rank per task and, with vessels, per vessel, then each controller's own criterion
+    apart (markdown). With fewer than two controllers there is nothing to rank: one sentence says so
+    instead of empty tables."""
     present = [c for c in controllers if any(c in cells for cells in agg.values())]
     if len(present) < 2:
         who = f"one controller (`{present[0]}`)" if present else "no controller"
@@ -150,6 +197,8 @@ def printed_leaderboard(agg: dict, controllers: list, vessels: bool) -> list[str
     if vessels:
         lines += ["", "Mean rank per vessel (over the tasks and conditions):", ""] \
             + by_table(ranking_by(agg, 2), controllers, "vessel")
+    lines += ["", "Each controller's own criterion over all its episodes (not ranked: a rate compares only "
+              "controllers judged by the same criterion):", ""] + criteria_table(agg, controllers)
     return lines
 
 
@@ -165,8 +214,14 @@ def normalised_scores(agg: dict) -> dict:
             best, means = _best(cells, column)
             if not best:
                 continue
-            finite = [m for m in means.values() if math.isfinite(m)]
-            lo, hi = min(finite), max(finite)
+            values = list(means.values())
+            if not all(math.isfinite(v) for v in values):   # a time not reached (inf): by rank instead
+                sign = 1.0 if BY_COLUMN[column].better == "lower" else -1.0
+                distinct = sorted(set(values), key=lambda v: sign * v)
+                for c, m in means.items():
+                    scores[c].append(1.0 - distinct.index(m) / (len(distinct) - 1))
+                continue
+            lo, hi = min(values), max(values)
             for c, m in means.items():
                 if not math.isfinite(m):
                     s = 0.0
@@ -195,6 +250,11 @@ def _fmt(v: float) -> str:
 def cell_text(e, rate: bool) -> str:
     if not e.n:
         return "-"
+    if e.reached is not None:   # a time to an event: reached of n, median [interval], > T where censored
+        def t(v):
+            return "> T" if math.isinf(v) else _fmt(v)
+
+        return f"{e.reached}/{e.n}: {t(e.mean)} [{t(e.lo)}, {t(e.hi)}]"
     if math.isinf(e.mean):
         return "worst (not ok)"
     if rate:
@@ -309,12 +369,17 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
              + (f" x {len(suite.vessels)} vessels" if vessels else "") + f" x {len(controllers)} controllers, "
              f"{'/'.join(map(str, n_ep))} episodes each: {len(rows)} episodes, {len(failed)} not ok "
              f"(diverged or failed). An episode not ok counts with the worst value of every metric (a rate: "
-             f"not passed, contact, goal not reached; any other metric: the cell says 'worst' and the "
-             f"controller ranks last on it), not with its metrics up to the divergence. Each cell: the mean over the episodes, [its 95 % interval] (percentile "
-             f"bootstrap; Wilson for the rates); the best of each column in bold; ↓ lower is better, ↑ higher. "
-             f"Metrics: docs/metrics.md.", "", "## Summary ranking", "",
+             f"not passed, contact, goal not reached; a time to an event: not reached; any other metric: the cell "
+             f"says 'worst' and the controller ranks last on it), not with its metrics up to the divergence. "
+             f"Each cell: the mean over the episodes, [its 95 % interval] (percentile "
+             f"bootstrap; Wilson for the rates); a time to an event (settling, time to goal) as reached/episodes: "
+             f"the median [its distribution-free 95 % interval], the episodes that did not reach it censored at "
+             f"their end (> T), never averaged; the best of each column in bold (the criterion only among "
+             f"controllers judged by the same one); ↓ lower is better, ↑ higher. Metrics and statistics: "
+             f"docs/metrics.md.", "", "## Summary ranking", "",
              f"Mean rank of each controller over every table and the ranked metrics its episodes measured "
-             f"({', '.join(c for c in RANKED if any(v[c].n for cells in agg.values() for v in cells.values()))}); "
+             f"({', '.join(c for c in RANKED if any(v[c].n for cells in agg.values() for v in cells.values()))}: "
+             f"each means the same for every controller; the criteria, which differ, are shown apart below); "
              f"wins: the (table, metric) pairs it is best in.", ""]
     lines += printed_leaderboard(agg, controllers, vessels)
     if getattr(suite, "skipped", None):
@@ -358,8 +423,10 @@ def write_report(out: str | Path, rows: list[dict], suite, draw: bool = True) ->
     (out / "leaderboard.json").write_text(json.dumps({
         "suite": suite.source, "name": suite.name, "ranking": rank,
         "tables": [{"task": k[0], "condition": k[1], "vessel": k[2],
-                    "controllers": {c: {**{m: {"mean": _j(e.mean), "lo": _j(e.lo), "hi": _j(e.hi), "n": e.n}
-                                           for m, e in v.items() if m != "_ok"}, "ok": v["_ok"][0], "episodes": v["_ok"][1]}
+                    "controllers": {c: {**{m: {"mean": _j(e.mean), "lo": _j(e.lo), "hi": _j(e.hi), "n": e.n,
+                                               **({"reached": e.reached} if e.reached is not None else {})}
+                                           for m, e in v.items() if not m.startswith("_")},
+                                        "ok": v["_ok"][0], "episodes": v["_ok"][1], "criterion": v["_criterion"]}
                                     for c, v in cells.items()},
                     "normalised_score": {c: _j(s) for c, s in scores[k].items()}} for k, cells in agg.items()],
     }, indent=1))

@@ -3,7 +3,7 @@
 A suite is TOML (the default: ``usv_mj/jobs/bench/suites/default.toml``)::
 
     name = "default"
-    episodes = 3              # episodes of every (task, condition, vessel, controller); default 3
+    episodes = 10             # episodes of every (task, condition, vessel, controller); default 10 (docs/metrics.md)
     seed = 2026               # the start poses and sea seeds: np.random.default_rng([seed, task index])
     duration = 60.0           # s, a task's default
     plant = "analytic"        # optional: every task's plant
@@ -13,7 +13,8 @@ A suite is TOML (the default: ``usv_mj/jobs/bench/suites/default.toml``)::
     # a policy's table also takes control_period (s, default 0.01: Track-v0's, the period it was
     # trained at; held over it, zero-order hold) and criterion (a usv_mj.record.criteria table, default:
     # the pose tolerance of its training reward's full-reward band, see usv_mj.jobs.bench.policy)
-    vessels = []              # optional: each name becomes the override vessel.kind (empty: the task's hull)
+    vessels = []              # optional: each name becomes the override vessel.kind (empty: the task's hull);
+                              # a data file ("boats/wamv.toml") is found next to the suite first
 
     [conditions.calm]                                     # every task runs in every condition
     [conditions.sea]
@@ -82,6 +83,11 @@ each planned episode holds its own scenario (about 20 kB) and takes about 10 ms 
 validate, so 100 000 are about 2 GB and a quarter of an hour before the first episode runs. A
 bigger suite is refused before anything is drawn: split it into several suites."""
 ROW_HOOK = "usv_mj.jobs.bench.episode:metrics_row"
+#: episodes per cell unless a suite says: the fewest with which a 95 % interval and a paired test of
+#: one cell can say something (docs/metrics.md, "How many episodes"): an exact paired test's smallest
+#: two-sided p, 2 / 2^n, stays below 0.05 / 15 (Holm over a cell's 15 or so metrics) from n = 10 on,
+#: and Wilson's interval of 10 kept out of 10 is [72, 100] % where 2 of 2 gave [34, 100] %
+DEFAULT_EPISODES = 10
 POLICY_EPISODE = "usv_mj.jobs.bench.policy:policy_episode"
 
 
@@ -205,7 +211,7 @@ def _with_table(scenario, section: str, table: dict, source: str):
         raise SweepError(f"{source}: [{section}] = {table!r}: {exc}") from None
 
 
-def _condition(source, name, table, scenario):
+def _condition(source, name, table, scenario, directory=None):
     """``scenario`` under condition ``name``: ``actuators`` (a preset whose [actuators] table is
     taken), ``sea`` (a sea preset name: ``sea.preset``), ``set`` (dotted paths)."""
     _check_keys(source, f"[conditions.{name}]", table, CONDITION_KEYS)
@@ -217,7 +223,7 @@ def _condition(source, name, table, scenario):
         if not actuators:
             raise SweepError(f"{source}: [conditions.{name}] actuators: preset {table['actuators']!r} has no [actuators]")
         scenario = _with_table(scenario, "actuators", actuators, source)
-    sets = dict(table.get("set", {}))
+    sets = _suite_files(dict(table.get("set", {})), directory)
     if "sea" in table:
         sets = {"sea.preset": table["sea"], **sets}
     return apply_values(scenario, sets, f"{source} [conditions.{name}]") if sets else scenario
@@ -284,7 +290,7 @@ def load_suite(path: str | Path | None = None) -> Suite:
 def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = None) -> Suite:
     """The :class:`Suite` of a parsed suite table: every episode drawn and validated, nothing run."""
     _check_keys(source, "the suite", data, SUITE_KEYS)
-    episodes = _positive(source, "episodes", data.get("episodes"), 3, integer=True)
+    episodes = _positive(source, "episodes", data.get("episodes"), DEFAULT_EPISODES, integer=True)
     seed = data.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise SweepError(f"{source}: seed must be a whole number >= 0, got {seed!r}")
@@ -296,6 +302,7 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
     vessels = data.get("vessels", [])
     if not isinstance(vessels, list) or not all(isinstance(v, str) and v for v in vessels):
         raise SweepError(f"{source}: vessels must be a list of vessel kinds, got {vessels!r}")
+    vessel_files = {v: _suite_file(v, directory) for v in vessels}   # named as given, run from their file
     vessels = vessels or [""]
     conditions = data.get("conditions", {"calm": {}})
     if not isinstance(conditions, dict) or not conditions:
@@ -324,6 +331,7 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
         sets = task.get("set", {})
         if not isinstance(sets, dict):
             raise SweepError(f"{source}: {where}: set must be a table of path = value, got {sets!r}")
+        sets = _suite_files(sets, directory)
         base = apply_values(base, {**fixed, **sets}, f"{source} {where}")
         imazu = imazu_options(task["imazu"], f"{source}: {where}") if "imazu" in task else None
         if imazu is not None and "episodes" in task:
@@ -354,9 +362,10 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
             elif ctrl.policy and imazu is not None:
                 skipped.append((name, ctrl.name, "a policy's Track observation has no view of the other vessels"))
         for cname, ctable in conditions.items():
-            cond = _condition(source, cname, ctable or {}, base)
+            cond = _condition(source, cname, ctable or {}, base, directory)
             for vessel in vessels:
-                ves = apply_values(cond, {"vessel.kind": vessel}, f"{source} vessel {vessel!r}") if vessel else cond
+                ves = apply_values(cond, {"vessel.kind": vessel_files[vessel]}, f"{source} vessel {vessel!r}") \
+                    if vessel else cond
                 for ctrl in controllers:
                     if ctrl.policy and (base.obstacles or imazu is not None):
                         continue
@@ -386,6 +395,22 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
     doc = {"suite": data, "runs": [[r.run_id, r.values, r.scenario.raw, r.options] for r in runs]}
     plan.fingerprint = hashlib.sha256(json.dumps(doc, sort_keys=True, default=repr).encode()).hexdigest()
     return Suite(source, plan.name, plan, names, list(conditions), vessels, controllers, per_task, skipped)
+
+
+def _suite_file(value, directory: Path | None):
+    """A data file a suite names (a vessel ``kind = "boat.toml"``): relative to the suite's folder
+    when it is there (as a task's ``base``), made absolute so every worker finds it; else as given
+    (relative to the working folder, or a kind)."""
+    if isinstance(value, str) and value.endswith(".toml") and directory is not None and not Path(value).is_absolute():
+        candidate = directory / value
+        if candidate.is_file():
+            return str(candidate.resolve())
+    return value
+
+
+def _suite_files(sets: dict, directory: Path | None) -> dict:
+    """``set`` overrides with the data files they name (``vessel.kind``) resolved as :func:`_suite_file`."""
+    return {p: (_suite_file(v, directory) if p == "vessel.kind" else v) for p, v in sets.items()}
 
 
 def _policy_scenario(source, ctrl: ControllerEntry, scenario):

@@ -863,7 +863,7 @@ def _read_one(path) -> RunLog:
     file_meta, runs_meta = {}, {}
     for name, m in scan.metadata:
         if name == "usv_mj":
-            file_meta = {k: _maybe_json(v) if k in ("scenario", "versions", "git_dirty", "companion_of") else v
+            file_meta = {k: _maybe_json(v) if k in ("scenario", "versions", "git_dirty", "companion_of", "plugins") else v
                          for k, v in m.items()}
         elif "/" in name:
             kind, run = name.split("/", 1)

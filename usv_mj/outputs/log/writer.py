@@ -21,7 +21,10 @@ What is in the file (topics: :mod:`usv_mj.outputs.log.topics`):
 
 - metadata ``usv_mj`` (at open): schema version, preset, every parameter (``scenario.to_dict()``),
   package versions (python, numpy, numba, mujoco, mcap, orjson, protobuf, zstandard, usv_mj), the
-  project's git commit ("unknown" outside a checkout) and whether the tree had uncommitted changes;
+  project's own version (``usv_mj_version``, usv_mj.core.version), every plug-in the run names
+  (``plugins``: each kind that is not built in, with its distribution and version, or its module's
+  or data file's path: :func:`plugins_of`), and in a git checkout the commit and whether the tree
+  had uncommitted changes (an installed package has none: ``install`` says so);
 - attachments: ``models/<name>.xml`` for every model XML of the project, ``scenario/<file>`` when
   ``scenario.source`` is a file, any ``attachments`` passed in, and ``scene/<run>.xml`` (at
   ``start``, a MuJoCo plant's run): the MJCF scene that plant ran (``MuJoCoPlant.scene_xml``);
@@ -62,6 +65,8 @@ from pathlib import Path
 
 import numpy as np
 
+from usv_mj.core.registry import origins
+from usv_mj.core.version import __version__
 from usv_mj.record.run_record import COL, COLUMNS, RunRecord
 from usv_mj.support.assets import model_files
 from usv_mj.outputs.log.messages import (RunLogError, RunLogFile, frame_layout, funnel_layout, json_text,  # noqa: F401 (re-exported)
@@ -84,6 +89,27 @@ def package_versions() -> dict:
             out[name] = importlib_metadata.version(name)
         except importlib_metadata.PackageNotFoundError:
             out[name] = "not installed"
+    return out
+
+
+def plugins_of(scenario) -> dict:
+    """Every kind the scenario names that is not built in, with where it comes from: the installed
+    distribution and its version, or the module's file, or the data file
+    (:func:`usv_mj.core.registry.origins`); {} for a scenario of built-ins only."""
+    if not hasattr(scenario, "controller"):
+        return {}
+    raw = getattr(scenario, "raw", {}) or {}
+    baseline = getattr(scenario, "baseline", None)
+    kinds = {"controller": scenario.controller.kind,
+             "trajectory": getattr(getattr(scenario, "trajectory", None), "kind", None),
+             "plant": getattr(getattr(scenario, "plant", None), "kind", None),
+             "vessel": getattr(getattr(scenario, "vessel", None), "kind", None),
+             "disturbance": (raw.get("disturbance") or {}).get("kind") if isinstance(raw.get("disturbance"), dict)
+             else None,
+             "manoeuvre": getattr(getattr(scenario, "manoeuvre", None), "kind", None)}
+    out = origins(kinds)
+    if baseline is not None and getattr(baseline, "enabled", False):
+        out.update({f"baseline {k.split(' ', 1)[1]}": v for k, v in origins({"controller": baseline.kind}).items()})
     return out
 
 
@@ -232,7 +258,10 @@ class RunLogWriter:
         file_metadata = {
             "schema_version": SCHEMA_VERSION, "preset": str(getattr(scenario, "preset", "")),
             "source": str(getattr(scenario, "source", "")), "scenario": json_text(to_dict),
-            "versions": json_text(package_versions()), "git_commit": commit, "git_dirty": json_text(dirty),
+            "versions": json_text(package_versions()), "usv_mj_version": __version__,
+            "plugins": json_text(plugins_of(scenario)),
+            **({"git_commit": commit, "git_dirty": json_text(dirty)} if commit != "unknown" else
+               {"install": "an installed package, not a git checkout (usv_mj_version names it)"}),
             "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "topics": "see usv_mj.outputs.log.topics: /usv/... (run main), /baseline/usv/... (run baseline)",
             "log_id": self.log_id,
