@@ -44,13 +44,14 @@ def _decoder(channel):
     return lambda data: cls.FromString(data)
 
 
-async def _client(port: int, want: set) -> dict:
+async def _client(port: int, want: set, ends: frozenset = frozenset({"/usv/events"})) -> dict:
     """Subscribe to every channel as it is advertised (the SDK advertises them one by one); collect the
-    decoded messages by topic until the run_end event. ``want``: topics that must be advertised."""
+    decoded messages by topic until the run_end event of every events topic of ``ends`` (a fleet: one
+    per vessel). ``want``: topics that must be advertised."""
     async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"],
                                   max_size=None) as ws:
         assert ws.subprotocol == "foxglove.sdk.v1"
-        subs, decoders, got = {}, {}, {}
+        subs, decoders, got, ended = {}, {}, {}, set()
         while True:
             frame = await ws.recv()
             if isinstance(frame, str):
@@ -71,9 +72,11 @@ async def _client(port: int, want: set) -> dict:
             topic = subs[sub]["topic"]
             got[topic].append((stamp, value))
             got.setdefault("wall", []).append(time.monotonic())
-            if topic == "/usv/events" and value.get("kind") == "run_end":
-                assert want <= set(got), sorted(got)
-                return got
+            if topic in ends and value.get("kind") == "run_end":
+                ended.add(topic)
+                if ended == set(ends):
+                    assert want <= set(got), sorted(got)
+                    return got
 
 
 def _wait_for_url(proc, lines: list) -> int:
@@ -138,6 +141,54 @@ def test_run_live_serves_the_record(tmp_path):
         assert m["rotation"]["z"] == pytest.approx(math.sin(record["psi"][k] / 2), abs=1e-12)
         assert m["rotation"]["w"] == pytest.approx(math.cos(record["psi"][k] / 2), abs=1e-12)
     assert got["/usv/errors"], "the funnel errors are served"
+
+
+def test_run_live_serves_every_vessel_of_a_fleet(tmp_path):
+    """A fleet's run served live (issue 35): every vessel's state and hull frame on its own topics
+    (the own ship's under /usv, the target's under /target/usv with frame target/base_link), each
+    equal to that vessel's run in the logs written beside it, bit for bit."""
+    out = tmp_path / "fleet"
+    scenario = os.path.join(ROOT, "examples", "scenarios", "head_on_no_avoidance.toml")
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", "run", "--scenario", scenario, "--live",
+                             "--live-port", "0", "--duration", "3", "--plant", "analytic", "--no-video", "-q",
+                             "--out", str(out)], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines: list = []
+    want = {"/usv/state", "/usv/tf/hull", "/target/usv/state", "/target/usv/tf/hull"}
+    try:
+        port = _wait_for_url(proc, lines)
+        got = asyncio.run(asyncio.wait_for(_client(port, want, frozenset({"/usv/events", "/target/usv/events"})),
+                                           TIMEOUT_S))
+        assert proc.wait(TIMEOUT_S) == 0, "".join(lines)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    from usv_mj.outputs.log import read_run
+
+    log = read_run(out / "run.mcap")
+    for prefix, run, frame in (("/usv", "main", "base_link"), ("/target/usv", "target", "target/base_link")):
+        record = log.runs[run]
+        state = got[f"{prefix}/state"]
+        assert len(state) == len(record["t"]) == 301
+        for name in ("x", "y", "psi"):
+            assert np.array_equal(np.array([getattr(m, name) for _, m in state]), record[name]), (run, name)
+        assert {m["child_frame_id"] for _, m in got[f"{prefix}/tf/hull"]} == {frame}
+    # the two vessels close head-on: the target starts 30 m north of the own ship, both heading for the other
+    own, target = got["/usv/state"], got["/target/usv/state"]
+    assert target[0][1].y - own[0][1].y == 30.0 and target[-1][1].y - own[-1][1].y < 30.0
+    # the log replayed (usv-mj render RUN --live): the other vessel's file is served with the own ship's
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", "render", str(out / "run.mcap"), "--live",
+                             "--live-port", "0"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines = []
+    try:
+        port = _wait_for_url(proc, lines)
+        again = asyncio.run(asyncio.wait_for(_client(port, want, frozenset({"/usv/events", "/target/usv/events"})),
+                                             TIMEOUT_S))
+        assert proc.wait(TIMEOUT_S) == 0, "".join(lines)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    for topic in ("/usv/state", "/target/usv/state"):
+        assert [m.y for _, m in again[topic]] == [m.y for _, m in got[topic]], topic
 
 
 def test_missing_sdk_is_one_line(tmp_path):

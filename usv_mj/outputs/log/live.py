@@ -29,12 +29,16 @@ passed on as it is. :data:`SUBPROTOCOLS` are the names accepted; any other offer
 
 from __future__ import annotations
 
+import heapq
 import struct
 import sys
 import threading
 import time
+from contextlib import ExitStack
+from pathlib import Path
 
 from usv_mj.core.errors import ScenarioError
+from usv_mj.outputs.log.reader import companion_files
 
 DEFAULT_PORT = 8765
 BACKLOG = 1 << 17        # messages buffered per viewer before the oldest are dropped
@@ -257,6 +261,7 @@ class LiveServer:
             raise ScenarioError(f"--live-port {port}: cannot serve on {host}:{port} ({exc})") from None
         self.host, self.port = host, int(self.relay.port)
         self._channels: dict = {}      # (id of the file writer, MCAP channel id) -> foxglove.Channel
+        self._writers: list = []       # the file writers that feed this server (attach): a fleet's several
         self._waited = False
         self._clock: dict = {}         # per file: (wall [s], log time [ns]) of its first message paced
         self.sent = 0
@@ -280,14 +285,26 @@ class LiveServer:
             self._channels[key] = ch
         return ch
 
+    def attach(self, writer) -> None:
+        """Serve the chunks of the MCAP file ``writer`` too (a fleet's run: one file per vessel). Every
+        attached file's channels are advertised before the first wait for a viewer, so a viewer that
+        came for one vessel subscribes to all of them before any message is sent."""
+        if all(w is not writer for w in self._writers):
+            self._writers.append(writer)
+
     def chunk(self, writer, parts) -> None:
         """Log every message of one uncompressed chunk (``parts``: its bytes / uint8 arrays in order)
         of the MCAP file ``writer`` (a :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`)."""
-        for cid in writer.channels:      # every channel is advertised before its first message
-            self._channel(writer, cid)
+        self.attach(writer)
+        known = len(self._channels)
+        for w in self._writers:          # every channel is advertised before its first message
+            for cid in list(w.channels):
+                self._channel(w, cid)
         if not self._waited:
             self._waited = True
             self.wait_for_viewer()
+        elif len(self._channels) > known:    # channels that came after the viewer: let it subscribe first
+            self._settle()
         data = memoryview(b"".join(bytes(p) for p in parts))
         pos, end, head = 0, len(data), _HEAD.size
         while pos < end:
@@ -300,27 +317,33 @@ class LiveServer:
             pos += 9 + length
 
     def replay(self, path) -> int:
-        """Serve the messages of the MCAP file ``path`` in log-time order as :meth:`chunk` serves a
-        run's (``usv-mj render RUN.mcap --live``); returns the number of messages served."""
+        """Serve the messages of the MCAP file ``path`` and of its companions (the baseline's log, a
+        fleet's other vessels: :func:`usv_mj.outputs.log.reader.companion_files`) in log-time order,
+        as :meth:`chunk` serves a run's (``usv-mj render RUN.mcap --live``); returns the number of
+        messages served."""
         from mcap.reader import make_reader
 
-        with open(path, "rb") as f:
-            reader = make_reader(f)
-            summary = reader.get_summary()
-            if summary is None:
-                raise ScenarioError(f"{path}: the log has no summary (an unfinished file): nothing to replay")
-            chans = {}
-            for cid, rec in summary.channels.items():
-                schema = summary.schemas.get(rec.schema_id)
-                fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
-                                                                        data=schema.data)
-                chans[cid] = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
-                                              context=self.context, metadata=dict(rec.metadata))
-            self._channels.update({("replay", cid): ch for cid, ch in chans.items()})
+        with ExitStack() as stack:
+            streams = []
+            for k, file in enumerate([Path(path), *companion_files(path)]):
+                reader = make_reader(stack.enter_context(open(file, "rb")))
+                summary = reader.get_summary()
+                if summary is None:
+                    raise ScenarioError(f"{file}: the log has no summary (an unfinished file): nothing to replay")
+                chans = {}
+                for cid, rec in summary.channels.items():
+                    schema = summary.schemas.get(rec.schema_id)
+                    fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
+                                                                            data=schema.data)
+                    chans[cid] = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
+                                                  context=self.context, metadata=dict(rec.metadata))
+                self._channels.update({(f"replay{k}", cid): ch for cid, ch in chans.items()})
+                streams.append(((m.log_time, k, chans[c.id], m.data) for _, c, m in
+                                reader.iter_messages(log_time_order=True)))
             self.wait_for_viewer()
-            for _, channel, message in reader.iter_messages(log_time_order=True):
-                self._pace("replay", message.log_time)
-                chans[channel.id].log(message.data, log_time=message.log_time)
+            for log_time, _, channel, data in heapq.merge(*streams, key=lambda e: (e[0], e[1])):
+                self._pace("replay", log_time)
+                channel.log(data, log_time=log_time)
                 self.sent += 1
         return self.sent
 
@@ -359,6 +382,19 @@ class LiveServer:
                 lis.changed.wait(SETTLE_S)
         self._say(f"live: a viewer is subscribed to {len(lis.subs)} channels")
         return True
+
+    def _settle(self) -> None:
+        """After channels were advertised to a subscribed viewer: wait until its subscriptions changed
+        and then held still for SETTLE_S (at most 2 s; a viewer that wants none of them costs the 2 s)."""
+        lis = self.listener
+        with lis.lock:
+            if not lis.subs:
+                return
+            start, before = time.monotonic(), lis.last_change
+            while time.monotonic() - start < 2.0:
+                if lis.last_change > before and time.monotonic() - lis.last_change >= SETTLE_S:
+                    return
+                lis.changed.wait(SETTLE_S)
 
     def finish(self, linger_s: float | None = None) -> None:
         """After the run: serve until every viewer has gone (or ``linger_s`` [s]), then stop."""

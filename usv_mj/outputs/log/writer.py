@@ -282,6 +282,8 @@ class RunLogWriter:
         else:
             self._file = RunLogFile(*args)
             self._file.mcap.tee = live
+            if live is not None:
+                live.attach(self._file.mcap)
 
     # commands
     def _send(self, cmd: tuple):
