@@ -13,7 +13,11 @@ interleaved rounds:
   loop (``loop="python"``) and the compiled loop (usv_mj.loop.compiled), and the same in the
   ``moderate`` sea, with the realtime factor;
 - with ``--vessel KIND`` (repeatable; docs/vessels.md) the same ``simulate`` on that vessel, and its
-  compiled loop's step against the paper hull's.
+  compiled loop's step against the paper hull's;
+- a plug-in's controller at the compiled speed (docs/controllers.md, "The compiled path"): the paper
+  scenario driven by the built-in ``pi`` and by the example plug-in's ``example-pd``
+  (examples/plugins/usv_mj_example_plugin: its law a numba function handed as its ``kernel()``), both
+  in the compiled loop, and the plug-in's step over ``pi``'s (``--no-plugin`` skips them).
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--no-sea", action="store_true", help="skip the moderate-sea runs")
     ap.add_argument("--vessel", action="append", default=[], help="also run the paper's scenario on this vessel kind")
+    ap.add_argument("--no-plugin", action="store_true", help="skip the plug-in controller against pi")
     args = ap.parse_args(argv)
 
     import mujoco
@@ -56,6 +61,18 @@ def main(argv=None):
         runs["paper, moderate sea"] = load_scenario(preset="paper", overrides={**over, "sea": {"preset": "moderate"}})
     for kind in args.vessel:
         runs[f"vessel {kind}"] = load_scenario(preset="paper", overrides={**over, "vessel": {"kind": kind}})
+    if not args.no_plugin:
+        import sys
+        from pathlib import Path
+
+        plugin = Path(__file__).resolve().parent.parent / "examples" / "plugins" / "usv_mj_example_plugin"
+        try:
+            import usv_mj_example_plugin  # noqa: F401  (installed)
+        except ImportError:
+            sys.path.insert(0, str(plugin))
+        runs["paper, pi"] = load_scenario(preset="paper", overrides={**over, "controller": {"kind": "pi"}})
+        runs["paper, example-pd plug-in"] = load_scenario(preset="paper", overrides={
+            **over, "controller": {"kind": "usv_mj_example_plugin.pd:ExamplePD"}})
     for sc in runs.values():  # compile / cache load of both loops on both plants
         for kind in ("analytic", "mujoco"):
             for loop in ("auto", "python"):
@@ -117,6 +134,11 @@ def main(argv=None):
         for kind in ("mujoco", "analytic"):
             py, co = best[f"simulate({label}), {kind}, Python loop"], best[f"simulate({label}), {kind}, compiled loop"]
             print(f"{label}, {kind}: compiled loop {py / co:.2f}x faster than the Python loop")
+    if "paper, pi" in runs:
+        for kind in ("mujoco", "analytic"):
+            co = {c: best[f"simulate(paper, {c}), {kind}, compiled loop"] for c in ("pi", "example-pd plug-in")}
+            print(f"example-pd plug-in, {kind}: compiled loop step {co['example-pd plug-in'] / co['pi']:.2f}x pi's "
+                  f"({co['example-pd plug-in'] * 1e6:.2f} us against {co['pi'] * 1e6:.2f} us)")
     for label in (k for k in runs if k.startswith("vessel ")):
         for kind in ("mujoco", "analytic"):
             co, paper = best[f"simulate({label}), {kind}, compiled loop"], best[f"simulate(paper), {kind}, compiled loop"]

@@ -5,7 +5,8 @@ A controller is any object with
 - ``reset()``: back to its initial internal state;
 - ``__call__(t, state, reference) -> (tau_u, tau_r, diagnostics)``: the continuous control law at
   time ``t`` [s] for the plant state ``state = (x, y, psi, u, v, r)`` and the reference vector
-  (layout ``REF_*`` below); it returns the surge force tau_u [N], the yaw moment tau_r [N m] before
+  (layout ``REF_*`` below: :data:`REF_VECTOR_FIELDS`, the record's 7 entries then the accelerations
+  x_d_ddot, y_d_ddot, r_d_dot; index it, do not unpack it: docs/controllers.md); it returns the surge force tau_u [N], the yaw moment tau_r [N m] before
   quantization and a float64 diagnostics vector laid out as the controller's own
   ``diagnostic_fields``. The vector is the controller's own buffer, overwritten on the next call:
   copy it to keep it;
@@ -18,6 +19,12 @@ A controller is any object with
   (``{"u_error": "m/s", "integral_psi": "rad s", "switches": "-"}``; "-" dimensionless). It goes
   into the run record's metadata, and figure 7 draws the fields one panel per unit with that unit
   on the axis; a field without a declared unit gets a panel of its own, marked "unit not declared";
+- ``reaches_actuator_limits`` (optional, False by default): the law drives the actuators into their
+  limits from the scenario's start, so ``usv-mj compare``'s saturated closed-loop case runs with it
+  and requires that it saturated; a law that does not declare it is never failed for tracking within
+  the limits (the case then runs with the paper's PPC law; docs/controllers.md);
+- ``kernel()`` (optional): the law as a numba function for the compiled loop (usv_mj.core.kernels;
+  docs/controllers.md, "The compiled path");
 - ``from_scenario(gains, scenario)`` (a classmethod) when it is registered in
   :data:`usv_mj.core.registry.CONTROLLERS` with its typed gains dataclass.
 
@@ -32,8 +39,9 @@ from typing import Protocol
 import numpy as np
 
 # the shared layouts (usv_mj.core.layouts): the reference vector, the funnel block, the PPC law's diagnostics
-from usv_mj.core.layouts import (DIAG_FIELDS, FUNNEL_FIELDS, REF_FIELDS, REF_PSI, REF_R, REF_U, REF_X,  # noqa: F401
-                                 REF_XDOT, REF_Y, REF_YDOT)
+from usv_mj.core.layouts import (DIAG_FIELDS, FUNNEL_FIELDS, N_REF, REF_FIELDS, REF_PSI, REF_R, REF_RDOT,  # noqa: F401
+                                 REF_U, REF_VECTOR_FIELDS, REF_X, REF_XDDOT, REF_XDOT, REF_Y, REF_YDDOT, REF_YDOT,
+                                 STATE_FIELDS)
 
 DIAG = {name: i for i, name in enumerate(DIAG_FIELDS)}
 TRACKING_FIELDS = DIAG_FIELDS[:13]

@@ -40,7 +40,8 @@ period after the outputs are formed; the integrators are clamped (anti-windup). 
 numba function, :func:`los_law`: ``__call__`` calls it, and it is the compiled loop's kernel.
 
 Default gains, tuned on the paper's hull (docs/model.md §1, about 2 m long) and the ``paper``
-preset: Delta = 3 m (1.5 hull lengths, Fossen's lower bound; the guidance loop's time constant
+preset (on another hull the gains a scenario does not set are these placed again on its nominal
+model at its bandwidth: :meth:`LOSGains.for_vessel`, docs/gains.md): Delta = 3 m (1.5 hull lengths, Fossen's lower bound; the guidance loop's time constant
 Delta/U is 5 s at 0.6 m/s); the heading loop by Fossen's pole placement on the yaw inertia
 m33 = 15.6 kg m^2 with omega_n = 8 rad/s, zeta = 1 (kp = m33 omega_n^2 = 998, taken as 1000 N m/rad;
 kd = 2 zeta omega_n m33 - d33 = 244, taken as 250 N m s/rad; ki = omega_n/10 kp = 800 N m/(rad s)): stiff enough
@@ -128,6 +129,23 @@ class LOSGains:
         if not self.u_c_max > self.u_c_min:
             raise ScenarioError(f"controller.u_c_max ({self.u_c_max!r}) must be greater than "
                                 f"controller.u_c_min ({self.u_c_min!r})")
+
+    #: the gains :meth:`for_vessel` derives from the vessel (the others keep the defaults above)
+    DERIVED = ("lookahead", "ref_omega", "kp_psi", "ki_psi", "kd_psi", "u_at", "l_at", "kp_u", "ki_u")
+
+    @classmethod
+    def for_vessel(cls, scaling) -> dict:
+        """The default gains on the hull of ``scaling`` (a :class:`usv_mj.physics.design.Scaling`):
+        the defaults above (the paper hull's design) placed again on that hull (docs/gains.md): the
+        heading PID and the surge PI by pole placement with its nominal m33, m11 and damping at its
+        bandwidth, the reference model's frequency a rate, the look-ahead and l_at lengths, u_at a
+        speed. The paper hull gets the defaults exactly."""
+        d = cls()
+        kp_u, ki_u = scaling.surge_pi(d.kp_u, d.ki_u)
+        kp, kd, ki = scaling.heading_pid(d.kp_psi, d.kd_psi, d.ki_psi)
+        lam = scaling.length
+        return {"lookahead": d.lookahead * lam, "ref_omega": scaling.rate(d.ref_omega), "kp_psi": kp, "ki_psi": ki,
+                "kd_psi": kd, "u_at": d.u_at * scaling.speed, "l_at": d.l_at * lam, "kp_u": kp_u, "ki_u": ki_u}
 
     def as_array(self) -> np.ndarray:
         """The gains packed in field order (the kernel reads them by position: G_* below)."""
@@ -233,7 +251,7 @@ class LOSController:
         self._g = gains.as_array()
         self.dt = float(control_period)
         self._st = np.zeros(N_STATE)
-        self._diag = np.zeros(len(self.diagnostic_fields))
+        self._diag = np.zeros(len(DIAGNOSTIC_FIELDS))   # what los_law writes, whatever a subclass declares
 
     def reset(self) -> None:
         self._st[:] = 0.0
@@ -243,7 +261,7 @@ class LOSController:
         """(los_kernel, its arrays) for the compiled loop."""
         from usv_mj.core.kernels import Kernel
 
-        return Kernel(los_kernel, (self._p, self._g, self._st, self.dt, self._diag))
+        return Kernel(los_kernel, (self._p, self._g, self._st, self.dt, self._diag), n_diag=len(self._diag))
 
     def __call__(self, t, state, reference):
         tau_u, tau_r = los_law(float(t), state, reference, self._p, self._g, self._st, self.dt, self._diag)

@@ -144,7 +144,7 @@ class OpenLoopController:
         """(open_loop_kernel, its tables) for the compiled loop."""
         from usv_mj.core.kernels import Kernel
 
-        return Kernel(open_loop_kernel, (*self._u, *self._r, self._linear, self._diag))
+        return Kernel(open_loop_kernel, (*self._u, *self._r, self._linear, self._diag), n_diag=len(self._diag))
 
     def __call__(self, t, state, reference):
         return open_loop_kernel(float(t), state, reference, *self._u, *self._r, self._linear, self._diag)

@@ -9,7 +9,9 @@
 
 Tuned fairly for the paper's ship (surge time constant about 0.5 s; yaw natural frequency about
 3.6 rad/s with damping about 0.7, so that the heading loop rejects the paper preset's yaw
-disturbance of up to 20 N m with a torque budget below the PPC law's), and driven through the same
+disturbance of up to 20 N m with a torque budget below the PPC law's): the defaults of
+:class:`PIGains`. On another hull the gains a scenario does not set are these placed again on its
+nominal model at its bandwidth (:meth:`PIGains.for_vessel`, docs/gains.md). Driven through the same
 quantizer as the PPC controller. A softer heading loop (40 / 4 / 30) lets e3 leave its funnel:
 that says more about the tuning than about PI control, so it is not the baseline. Its
 funnel errors are reported with the same transform so the figures can compare them.
@@ -77,6 +79,24 @@ class PIGains:
         if not self.u_c_max > self.u_c_min:
             raise ValueError("controller.u_c_max must be greater than controller.u_c_min")
 
+    #: the gains :meth:`for_vessel` derives from the vessel (the others keep the defaults above)
+    DERIVED = ("k_at", "kp_u", "ki_u", "kp_r", "ki_r", "kd_r", "a1", "integral_limit_u", "integral_limit_r")
+
+    @classmethod
+    def for_vessel(cls, scaling) -> dict:
+        """The default gains on the hull of ``scaling`` (a :class:`usv_mj.physics.design.Scaling`):
+        the defaults above, which are the paper hull's design, placed again on that hull by pole
+        placement at its bandwidth (docs/gains.md): the surge PI and the heading PID with its nominal
+        m11, m33 and damping, k_at a rate, a1 an area, the anti-windup limits keeping their authority.
+        The paper hull gets the defaults exactly."""
+        d = cls()
+        kp_u, ki_u = scaling.surge_pi(d.kp_u, d.ki_u)
+        kp_r, kd_r, ki_r = scaling.heading_pid(d.kp_r, d.kd_r, d.ki_r)
+        lam = scaling.length
+        return {"k_at": scaling.rate(d.k_at), "kp_u": kp_u, "ki_u": ki_u, "kp_r": kp_r, "ki_r": ki_r, "kd_r": kd_r,
+                "a1": d.a1 * lam * lam, "integral_limit_u": scaling.surge_integral_limit(d.integral_limit_u, d.ki_u),
+                "integral_limit_r": scaling.heading_integral_limit(d.integral_limit_r)}
+
 
 @njit(cache=True)
 def pi_law(t, x, ref, eps, g, funnel, integ, dt, diag):
@@ -113,6 +133,8 @@ class PIController:
 
     name = "pi"
     diagnostic_fields = TRACKING_FIELDS + ("u_e", "r_e", "integral_u", "integral_r")
+    #: from the paper's start pose it drives paper-limited's thrusters into their limits (usv-mj compare)
+    reaches_actuator_limits = True
     # e_i* = ln((1 + z_i) / (1 - z_i)) are numbers; integral_u of u_c - u, integral_r of e3
     diagnostic_units = {"e1s": "-", "e2s": "-", "e3s": "-", "psi_a": "rad", "u_e": "m/s", "r_e": "rad/s",
                         "integral_u": "m", "integral_r": "rad s"}
@@ -138,7 +160,7 @@ class PIController:
                                  funnel_psi.rho_0, funnel_psi.rho_inf, funnel_psi.rate])
         self.dt = float(control_period)
         self._integ = np.zeros(2)
-        self._diag = np.zeros(len(self.diagnostic_fields))
+        self._diag = np.zeros(len(PIController.diagnostic_fields))   # what pi_law writes, whatever a subclass declares
 
     def reset(self) -> None:
         self._integ[:] = 0.0
@@ -148,7 +170,8 @@ class PIController:
         """(pi_kernel, its arrays) for the compiled loop."""
         from usv_mj.core.kernels import Kernel
 
-        return Kernel(pi_kernel, (self._eps, self._g, self._funnel, self._integ, self.dt, self._diag))
+        return Kernel(pi_kernel, (self._eps, self._g, self._funnel, self._integ, self.dt, self._diag),
+                      n_diag=len(self._diag))
 
     def __call__(self, t, state, reference):
         tau_u, tau_r = pi_law(float(t), state, reference, self._eps, self._g, self._funnel,

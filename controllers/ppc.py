@@ -242,6 +242,9 @@ class PPCController:
 
     name = "ppc"
     diagnostic_fields = DIAG_FIELDS
+    #: from the paper's start pose it drives paper-limited's thrusters into their limits (usv-mj compare's
+    #: saturated case runs with it; controllers/base.py)
+    reaches_actuator_limits = True
     diagnostic_events = {"s2_clamped": "s2_clamp"}
 
     @classmethod
@@ -283,7 +286,7 @@ class PPCController:
         from usv_mj.core.kernels import Kernel
 
         return Kernel(ppc_kernel, (self._p, self._g, self._funnel, self._centres, self.weights, self._s2,
-                                   self.dt, self._diag, self._s_buf, self._z_buf))
+                                   self.dt, self._diag, self._s_buf, self._z_buf), n_diag=len(self._diag))
 
     def __call__(self, t, state, reference):
         tau_u, tau_r = ppc_law(float(t), state, reference, self._p, self._g, self._funnel, self._centres,

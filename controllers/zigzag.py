@@ -103,7 +103,7 @@ class ZigzagController:
     def __init__(self, gains: ZigzagGains):
         self.gains = gains
         self._switch = math.radians(gains.psi_switch_deg)
-        self._diag = np.zeros(len(self.diagnostic_fields))
+        self._diag = np.zeros(len(ZigzagController.diagnostic_fields))   # what zigzag_kernel writes
         self._st = np.zeros(5)
         self.reset()
 
@@ -117,7 +117,7 @@ class ZigzagController:
         from usv_mj.core.kernels import Kernel
 
         return Kernel(zigzag_kernel, (float(self.gains.tau_u), float(self.gains.tau_r_amplitude), self._switch,
-                                      self._st, self._diag))
+                                      self._st, self._diag), n_diag=len(self._diag))
 
     def __call__(self, t, state, reference):
         return zigzag_kernel(float(t), np.asarray(state, float), reference, float(self.gains.tau_u),

@@ -11,7 +11,9 @@ Run it on two trees and diff the outputs::
     python scripts/record_digest.py > after.txt
     diff before.txt after.txt
 
-``--only SUBSTRING`` runs the cases whose name holds it; ``--list`` prints the names.
+``--only SUBSTRING`` runs the cases whose name holds it; ``--list`` prints the names; ``--loops
+auto,python,batch`` adds the batched loop (usv_mj.loop.batch: every case of a plant in one batch; its
+lines must equal the others').
 """
 
 from __future__ import annotations
@@ -57,10 +59,24 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default="", help="run the cases whose name holds this")
     ap.add_argument("--list", action="store_true", help="print the case names")
     ap.add_argument("--plants", default="analytic,mujoco")
-    ap.add_argument("--loops", default="auto,python")
+    ap.add_argument("--loops", default="auto,python", help="auto, python and/or batch")
     args = ap.parse_args(argv)
     from usv_mj import load_scenario, simulate
 
+    loops = args.loops.split(",")
+    batched = {}   # loop "batch": every case of a plant in one batch (usv_mj.loop.batch), printed in case order
+    if "batch" in loops and not args.list:
+        from usv_mj.loop.batch import simulate_batch
+
+        for plant in args.plants.split(","):
+            cases = [c for c in CASES if args.only in c[0]]
+            for controller in {c[4] for c in cases}:
+                mine = [c for c in cases if c[4] == controller]
+                scenarios = [load_scenario(path, preset=preset, overrides={
+                    **overrides, "duration": duration, "plant": {**overrides.get("plant", {}), "kind": plant}})
+                    for _, path, preset, overrides, _, duration in mine]
+                for case, record in zip(mine, simulate_batch(scenarios, controller_kind=controller)):
+                    batched[(case[0], plant)] = record
     for name, path, preset, overrides, controller, duration in CASES:
         if args.only not in name:
             continue
@@ -68,10 +84,11 @@ def main(argv=None) -> int:
             print(name)
             continue
         for plant in args.plants.split(","):
-            for loop in args.loops.split(","):
+            for loop in loops:
                 over = {**overrides, "duration": duration, "plant": {**overrides.get("plant", {}), "kind": plant}}
                 scenario = load_scenario(path, preset=preset, overrides=over)
-                record = simulate(scenario, controller_kind=controller, loop=loop)
+                record = batched[(name, plant)] if loop == "batch" else simulate(scenario, controller_kind=controller,
+                                                                                  loop=loop)
                 print(f"{name:16s} {plant:8s} {loop:6s} rows={record.n_rows:6d} {record.status:10s} "
                       f"{digest(record)} events={len(record.events)}:{events(record)} "
                       f"loop={record.metadata.get('loop')}", flush=True)

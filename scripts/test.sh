@@ -5,4 +5,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 export MPLBACKEND=Agg
-exec "${PYTHON:-python3}" -m pytest "$@"
+# The suite runs on every core (pytest-xdist; USV_MJ_TEST_WORKERS=0 runs it in this process, in order):
+# each test writes under its own tmp_path and binds port 0, so two run side by side.
+exec "${PYTHON:-python3}" -m pytest -n "${USV_MJ_TEST_WORKERS:-auto}" "$@"

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from usv_mj.plants.mujoco_callback import N_USERDATA  # what the hydrodynamics need (74 with the vessels' layout)
+from usv_mj.plants.mujoco_callback import N_USERDATA  # what the hydrodynamics need (103: the vessels' and fleets' layout, the packed d(t))
 
 import usv_mj
 from usv_mj import build, load_scenario
@@ -125,23 +125,23 @@ def test_detach_leaves_mujoco_alone():
 
 
 @pytest.mark.parametrize("xml, words", [
-    ('<mujoco><size nuserdata="96"/><worldbody><body name="boat"><joint type="slide" axis="1 0 0"/>'
+    (f'<mujoco><size nuserdata="{N_USERDATA}"/><worldbody><body name="boat"><joint type="slide" axis="1 0 0"/>'
      '<joint type="slide" axis="0 1 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
      '</worldbody></mujoco>', "no body 'hull'"),
     ('<mujoco><worldbody><body name="hull"><joint type="slide" axis="1 0 0"/>'
      '<joint type="slide" axis="0 1 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
      '</worldbody></mujoco>', f'nuserdata="{N_USERDATA}"'),
-    ('<mujoco><size nuserdata="96"/><worldbody><body name="hull"><freejoint/><geom size="0.5"/></body>'
+    (f'<mujoco><size nuserdata="{N_USERDATA}"/><worldbody><body name="hull"><freejoint/><geom size="0.5"/></body>'
      '</worldbody></mujoco>', "is 'simple' to MuJoCo"),
-    ('<mujoco><size nuserdata="96"/><worldbody><body name="buoy"><joint type="slide" axis="0 0 1"/>'
+    (f'<mujoco><size nuserdata="{N_USERDATA}"/><worldbody><body name="buoy"><joint type="slide" axis="0 0 1"/>'
      '<geom size="0.5"/></body><body name="hull"><freejoint/><geom size="0.5" pos="0.1 0 0"/></body>'
      '</worldbody></mujoco>', "must be the model's first joint"),
-    ('<mujoco><size nuserdata="96"/><worldbody><body name="hull"><joint type="ball"/><geom size="0.5"/></body>'
+    (f'<mujoco><size nuserdata="{N_USERDATA}"/><worldbody><body name="hull"><joint type="ball"/><geom size="0.5"/></body>'
      '</worldbody></mujoco>', "or one free joint"),
-    ('<mujoco><size nuserdata="96"/><worldbody><body name="hull"><joint type="slide" axis="0 1 0"/>'
+    (f'<mujoco><size nuserdata="{N_USERDATA}"/><worldbody><body name="hull"><joint type="slide" axis="0 1 0"/>'
      '<joint type="slide" axis="1 0 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
      '</worldbody></mujoco>', "slide along x"),
-    ('<mujoco><size nuserdata="96"/><worldbody><body name="buoy"><joint type="slide" axis="0 0 1"/>'
+    (f'<mujoco><size nuserdata="{N_USERDATA}"/><worldbody><body name="buoy"><joint type="slide" axis="0 0 1"/>'
      '<geom size="0.5"/></body><body name="hull"><joint type="slide" axis="1 0 0"/>'
      '<joint type="slide" axis="0 1 0"/><joint type="hinge" axis="0 0 1"/><geom size="0.5"/></body>'
      '</worldbody></mujoco>', "first three degrees of freedom"),

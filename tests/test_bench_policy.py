@@ -8,7 +8,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from usv_mj.jobs.bench.suite import default_suite_path, load_suite, plan_suite
+from usv_mj.jobs.bench.suite import default_suite_path, plan_suite
 
 PROBE = '''
 import numpy as np
@@ -101,10 +101,12 @@ MASSES = {"cybership2": 23.8, "otter": 80.0, "clarke83": 1025.0 * 0.65 * 2.0 * 0
 
 
 def test_the_default_suite_scores_every_vessel_that_has_landed():
-    suite = load_suite()
     data = tomllib.loads(default_suite_path().read_text())
+    # as load_suite() plans it (the file, its folder) at 1 episode per cell instead of 10: the same
+    # plan, a tenth of the scenarios to build (tests/test_bench_run.py: the file says 10)
+    suite = plan_suite({**data, "episodes": 1}, str(default_suite_path()), default_suite_path().parent)
     assert suite.vessels == ["paper", "cybership2", "otter", "clarke83"]
-    n_ep, n_tasks, n_cond = data["episodes"], len(data["tasks"]), len(data["conditions"])
+    n_ep, n_tasks, n_cond = 1, len(data["tasks"]), len(data["conditions"])
     policies = [c for c in suite.controllers if c.policy]
     kinds = [c for c in suite.controllers if not c.policy]
     assert [c.name for c in kinds] == ["ppc", "pi", "los"] and [c.name for c in policies] == ["ppo"]
@@ -122,40 +124,47 @@ def test_the_default_suite_scores_every_vessel_that_has_landed():
             assert run.scenario.control_period == 0.001 and run.scenario.plant.substeps == 1
 
 
-def test_usv_mj_bench_prints_the_leaderboard_it_writes(tmp_path, monkeypatch):
+def test_usv_mj_bench_prints_the_leaderboard_it_writes(tmp_path, monkeypatch, capsys):
     """The command end to end (a new folder, then --resume of the finished one): exit 0, and the
-    leaderboard it prints is the one report.md opens with."""
+    leaderboard it prints is the one report.md opens with. The two commands that run episodes are
+    processes of their own (their own cluster, as a user's); the ones that run none (--resume of a
+    finished folder, the refusals) call the program in this process, which saves a start-up each."""
     import os
     import subprocess
     import sys
     from pathlib import Path
 
+    from usv_mj.cli.main import main
+
     root = Path(__file__).resolve().parents[1]
-    (tmp_path / "probe_policy.py").write_text(PROBE)
+    (tmp_path / "probe_policy_cli.py").write_text(PROBE)   # its own name: imported here too
     suite = tmp_path / "s.toml"
     suite.write_text('duration = 2.0\nepisodes = 1\nplant = "analytic"\nvessels = ["paper", "otter"]\n'
-                     'controllers = ["ppc", { name = "probe", policy = "probe_policy:Probe" }]\n'
+                     'controllers = ["ppc", { name = "probe", policy = "probe_policy_cli:Probe" }]\n'
                      '[[tasks]]\nname = "line"\nsettle_time_s = 1.0\n'
                      'set = { "trajectory.kind" = "line", "initial.eta" = [0.0, 0.5, 0.0] }\n')
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), str(tmp_path)])}
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "usv_mj.cli.main", "bench", str(suite), "--out", str(out), "--workers", "1",
-           "--no-progress", "--no-figures"]
+    args = ["bench", str(suite), "--out", str(out), "--workers", "1", "--no-progress", "--no-figures"]
+    cmd = [sys.executable, "-m", "usv_mj.cli.main", *args]
     done = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
+    assert "INFO:distributed" not in done.stderr   # the scheduler's start-up stays quiet
     printed = [line for line in done.stdout.splitlines() if line.startswith("|")]
     report = (out / "report.md").read_text()
     assert printed and "\n".join(printed[:4]) in report
     assert "| vessel | `ppc` | `probe` |" in printed and any(line.startswith("| otter |") for line in printed)
-    again = subprocess.run(cmd + ["--resume"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
-    assert again.returncode == 0 and "4 episodes (0 run now)" in again.stdout, again.stderr
-    assert "INFO:distributed" not in done.stderr + again.stderr   # the scheduler's start-up stays quiet
-    refused = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
-    assert refused.returncode == 2 and "pass --overwrite" in refused.stderr, refused.stderr
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))   # the policy's module, as PYTHONPATH gives it above
+    capsys.readouterr()
+    assert main(args + ["--resume"]) == 0
+    again = capsys.readouterr()
+    assert "4 episodes (0 run now)" in again.out and "INFO:distributed" not in again.err, again.err
+    assert main(args) == 2
+    assert "pass --overwrite" in capsys.readouterr().err
     replaced = subprocess.run(cmd + ["--overwrite"], cwd=tmp_path, env=env, capture_output=True, text=True,
                               timeout=300)
     assert replaced.returncode == 0 and "4 episodes (4 run now)" in replaced.stdout, replaced.stderr
     assert (out / "report.md").read_text() == report   # the same suite again: the same leaderboard
-    both = subprocess.run(cmd + ["--overwrite", "--resume"], cwd=tmp_path, env=env, capture_output=True, text=True,
-                          timeout=300)
-    assert both.returncode == 2 and "give one of them" in both.stderr, both.stderr
+    assert main(args + ["--overwrite", "--resume"]) == 2
+    assert "give one of them" in capsys.readouterr().err

@@ -143,18 +143,20 @@ def _row(ctrl, ep, iae, passed=True):
             "vary.episode": ep, "status": "ok", "m.iae_cross_track": iae, "m.passed": passed}
 
 
-def test_compare_is_the_exact_wilcoxon_test():
-    # A lower in all 8 pairs: the exact two-sided signed-rank p is 2 / 2^8
+def test_compare_is_the_exact_wilcoxon_test_per_cell():
+    # A lower in all 8 pairs: the exact two-sided signed-rank p is 2 / 2^8; Holm over the cell's two
+    # tests (IAE, passed) doubles it
     rows = [_row("A", i, 1.0 + i) for i in range(8)] + [_row("B", i, 1.5 + 1.1 * i) for i in range(8)]
-    by = {r["metric"]: r for r in compare(rows, "A", "B")}
+    result = compare(rows, "A", "B")
+    by = {r["metric"]: r for r in result["tests"]}
     iae = by["iae_cross_track"]
-    assert iae["pairs"] == 8 and iae["p"] == pytest.approx(2 / 2 ** 8)
-    assert iae["verdict"] == "A better"
-    assert by["passed"]["verdict"] == "identical"
+    assert iae["pairs"] == 8 and iae["p"] == pytest.approx(2 / 2 ** 8) and iae["p_holm"] == pytest.approx(4 / 2 ** 8)
+    assert iae["verdict"] == "A better" and (iae["task"], iae["condition"]) == ("t", "calm")
+    assert by["passed"]["verdict"] == "no difference" and by["passed"]["p"] == 1.0
     # B lower in 3 of 4 pairs only: not significant (the smallest two-sided p with 4 pairs is 0.125)
     rows = [_row("A", i, v) for i, v in enumerate([1.0, 2.0, 3.0, 4.0])] + \
            [_row("B", i, v) for i, v in enumerate([0.5, 1.8, 2.6, 4.5])]
-    r = {x["metric"]: x for x in compare(rows, "A", "B")}["iae_cross_track"]
+    r = {x["metric"]: x for x in compare(rows, "A", "B")["tests"]}["iae_cross_track"]
     assert r["verdict"] == "no difference" and r["p"] >= 0.125
     with pytest.raises(SweepError, match="no controller 'C'"):
         compare(rows, "A", "C")
@@ -171,7 +173,8 @@ def test_the_leaderboard_marks_the_best_and_ranks(tmp_path):
     assert a.startswith("| `A` | 4/4 | **1.15 [") and "**100 % [" in a     # IAE mean 1.15, best; all passed
     assert "| 2.15 [" in b and "| 50 % [" in b
     rank = ranking(agg)
-    assert rank["A"]["mean_rank"] == 1.0 and rank["B"]["mean_rank"] == 2.0 and rank["A"]["wins"] == 2
+    # the criterion is not ranked (it means each controller's own promise): IAE alone ranks them
+    assert rank["A"]["mean_rank"] == 1.0 and rank["B"]["mean_rank"] == 2.0 and rank["A"]["wins"] == 1
 
 
 def test_bad_suites_say_where(tmp_path):
@@ -201,13 +204,28 @@ def test_cli_bad_suite_is_one_line_and_exit_2(tmp_path, capsys):
     assert len(err) == 1 and err[0].startswith("usv-mj bench: error: ") and "episodes" in err[0]
 
 
+def default_suite_at_one_episode():
+    """The shipped suite as load_suite() plans it (its file, its folder), at 1 episode per cell instead
+    of its 10: planning all 3240 scenarios takes tens of seconds, and the plan is the same for every
+    episode count but for the draws (checked: the file says 10, no task its own)."""
+    import tomllib
+
+    from usv_mj.jobs.bench.suite import DEFAULT_EPISODES, default_suite_path
+
+    path = default_suite_path()
+    data = tomllib.loads(path.read_text())
+    assert data["episodes"] == DEFAULT_EPISODES == 10 and not any("episodes" in t for t in data["tasks"])
+    return plan_suite({**data, "episodes": 1}, str(path), path.parent)
+
+
 def test_the_default_suite_plans(tmp_path):
-    suite = load_suite()
+    suite = default_suite_at_one_episode()
     assert suite.tasks == ["paper-track", "line-0.6", "line-1.0", "circle-0.6", "circle-1.0", "lawnmower", "harbour"]
     assert suite.conditions == ["calm", "sea", "limited"]
     assert [c.name for c in suite.controllers] == ["ppc", "pi", "los", "ppo"]
-    # 2 episodes x 3 conditions x 4 vessels x (7 tasks x 3 controllers + 6 tasks for the policy, no harbour)
-    assert len(suite.plan.runs) == 2 * 3 * 4 * (7 * 3 + 6)
+    # 3 conditions x 4 vessels x (7 tasks x 3 controllers + 6 tasks for the policy, no harbour) per
+    # episode; x 10 episodes: the default suite's 3240
+    assert len(suite.plan.runs) == 3 * 4 * (7 * 3 + 6) and 10 * len(suite.plan.runs) == 3240
     ppo = [r for r in suite.plan.runs if r.values["controller"] == "ppo"]
     assert Path(ppo[0].options["policy"]).is_file()   # the shipped policy, beside the suite
     harbour = [r for r in suite.plan.runs if r.values["task"] == "harbour"]

@@ -27,6 +27,12 @@ the same contract the day it appears. The contracts:
   ``envs.load`` takes (their defaults give the task's default episode, bit for bit), its tags are
   words, an episode keeps its observation spec and rewards in [0, 1]; it has a Gymnasium id and is
   a choice of ``usv-mj env``; a task of the user's own registered by the decorator is all of that;
+- environments beside the tasks (:data:`usv_mj.envs.ENV_IDS`: ``usv_mj/Encounter-v0``; and the
+  PettingZoo traffic environment, which has no id): not kinds of ``TASKS``, so not held to the task
+  contract (a task is a dm_control environment of one hull on the MuJoCo plant, rewards in [0, 1],
+  made by ``envs.load``; these are their own ``gymnasium.Env`` / ``ParallelEnv`` of a fleet on either
+  plant, with penalties below 0). Their ids are registered with Gymnasium beside the tasks' and no
+  task's id shadows them; their libraries' own API checks are tests/test_traffic_env.py's;
 - commands: every command of the program answers ``--help`` (exit 0) naming each of its flags.
 
 Runs are short (1-2 s of simulated time) and each scenario is run once per loop for every test
@@ -181,23 +187,28 @@ def test_controller_contract(controller, vessel, runs):
 @pytest.mark.parametrize("kind", TRAJECTORIES.kinds())
 def test_trajectory_contract(kind, runs):
     from usv_mj.core.kernels import kernel_of
-    from usv_mj.core.layouts import REF_FIELDS
+    from usv_mj.core.layouts import N_REF, REF_RDOT, REF_XDDOT, REF_YDDOT
     from usv_mj.loop.simulate import make_reference
 
     sc = scenario_of(duration=30.0, trajectory=kind)
     ref = make_reference(sc)
     h = 1e-6
     for t in (0.0, 0.37, 4.1, 17.9):
+        # the 7 recorded entries and the accelerations a controller receives (REF_VECTOR_FIELDS, issue 37)
         r = np.array(ref.evaluate(t), dtype=float)
-        assert r.shape == (len(REF_FIELDS),) and np.all(np.isfinite(r))
+        assert r.shape == (N_REF,) and np.all(np.isfinite(r[:7]))
         assert -math.pi <= r[2] <= math.pi
-        # the velocities and the yaw rate are the time derivatives of the pose (central differences,
-        # one-sided at t = 0)
+        # the velocities and the yaw rate are the time derivatives of the pose, the accelerations those
+        # of the velocities and the yaw rate (central differences, one-sided at t = 0)
         lo = max(t - h, 0.0)
         a, b = np.array(ref.evaluate(t + h)), np.array(ref.evaluate(lo))
         d = (a[:3] - b[:3]) / (t + h - lo)
         d[2] = math.remainder(a[2] - b[2], 2 * math.pi) / (t + h - lo)
         assert np.allclose(d, r[[3, 4, 5]], rtol=1e-5, atol=1e-5), (kind, t, d, r)
+        acc = r[[REF_XDDOT, REF_YDDOT, REF_RDOT]]
+        if kind in TRAJECTORIES.builtin_kinds() or not np.all(np.isnan(acc)):   # a plug-in may leave them NaN
+            dd = (a[[3, 4, 5]] - b[[3, 4, 5]]) / (t + h - lo)
+            assert np.allclose(dd, acc, rtol=1e-5, atol=1e-5), (kind, t, dd, acc)
     make_kernel = kernel_of(ref)
     if make_kernel is not None:   # the compiled loop's reference is evaluate() bit for bit
         kernel = make_kernel()
@@ -257,10 +268,13 @@ def test_plant_contract(plant, vessel, runs):
 def test_disturbance_contract(kind, plant, runs):
     from usv_mj.jobs.compare import CLOSED_LOOP_TOLERANCE_M
 
+    from usv_mj.physics.disturbances import D_MAX_WORDS, check_disturbance
+
     entry = DISTURBANCES.get(kind)
     options = entry.options_class()
     packed = np.asarray(options.as_array(), dtype=float)
-    assert packed.ndim == 1 and packed.size > 0 and np.all(np.isfinite(packed))
+    assert packed.ndim == 1 and 0 < packed.size <= D_MAX_WORDS and np.all(np.isfinite(packed))
+    check_disturbance(options, kind)   # a numba.njit kernel(dp, t), no force(t) of its own beside it
     sc = scenario_of(disturbance=kind)
     assert isinstance(sc.disturbance, entry.options_class)
     assert np.array_equal(np.asarray(sc.disturbance.as_array(), dtype=float), packed)   # the defaults
@@ -425,6 +439,22 @@ def test_a_task_of_the_users_own_is_a_task_everywhere(capsys):
     finally:
         TASKS.unregister("test_circle_task")
         gymnasium.envs.registry.pop(env_id, None)
+
+
+def test_environments_beside_the_tasks_have_their_own_gymnasium_ids():
+    """ENV_IDS (module docstring: no kinds of TASKS, their API checks in tests/test_traffic_env.py):
+    each id is in Gymnasium's registry with its own entry point, which is a gymnasium.Env, and is
+    no task's id (a task of that name would take the id from it)."""
+    gymnasium = pytest.importorskip("gymnasium")
+    from gymnasium.envs.registration import load_env_creator
+
+    from usv_mj import envs
+
+    assert envs.ENV_IDS
+    for env_id, entry_point in envs.ENV_IDS.items():
+        assert gymnasium.envs.registry[env_id].entry_point == entry_point
+        assert issubclass(load_env_creator(entry_point), gymnasium.Env)
+        assert env_id not in envs.GYM_IDS
 
 
 # --- commands --------------------------------------------------------------------------------------

@@ -135,9 +135,9 @@ def test_max_runs_submits_only_the_runs_it_runs(tmp_path, monkeypatch):
                     'transient = 0.1\n[vary]\n"initial.eta[0]" = { uniform = [-1.0, 1.0] }\n')
     submitted = []
 
-    def counting(client, jobs, on_row, key_prefix="usv-run"):
+    def counting(client, jobs, on_row, *args, **kwargs):
         submitted.append(len(jobs))
-        return gather(client, jobs, on_row, key_prefix)
+        return gather(client, jobs, on_row, *args, **kwargs)
 
     gather = runner.gather_rows
     monkeypatch.setattr(runner, "gather_rows", counting)

@@ -700,7 +700,12 @@ def test_physics_render_shows_the_water_headless_without_mujoco_gl(tmp_path):
     water = next(t for t in scene.iter("texture") if t.get("name") == "water")
     calm = np.load(tmp_path / "shimmy.npy")
     assert calm.shape == (240, 320, 3) and calm.dtype == np.uint8
-    assert _share_of_colour(calm, [float(v) for v in water.get("rgb1").split()]) > 0.5
+    rgb1 = [float(v) for v in water.get("rgb1").split()]
+    # the overlays (the HUD panel, the legend, the scale bar, the translucent funnel box) cover about
+    # half the frame: the water fills the strip above the funnel box right of the HUD, and shows
+    # through everywhere else (a frame without it, black or sky, scores about 0 on both)
+    assert _share_of_colour(calm[:40, 170:], rgb1) > 0.95
+    assert _share_of_colour(calm, rgb1) > 0.35
 
 
 def test_stable_baselines3_ppo_takes_the_gymnasium_view_as_is():

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from usv_mj import build, load_scenario, simulate
+from usv_mj.core.errors import PluginContractError
 from usv_mj.core.kernels import kernel_blocker, kernel_of
 from usv_mj.record.run_record import COL
 from usv_mj.core.registry import CONTROLLERS, PLANTS, TRAJECTORIES
@@ -84,6 +85,10 @@ def _obstacle_scenario():
                          overrides={"duration": DURATION, "baseline": {"enabled": False}, "plant": {"kind": "analytic"}})
 
 
+#: the parts of the control step (usv_mj/loop/step.py): a subclass that overrides their behaviour is
+#: refused before the run, in either loop (the step is one compiled function reading their arrays)
+CHANNEL_ROLES = ("surge quantizer", "actuators")
+
 # role -> how to reach the part in a build; cases: (role, scenario maker, build keywords)
 ROLES = {
     "reference": lambda parts: parts.reference,
@@ -144,6 +149,15 @@ def test_a_subclass_overriding_any_public_method_runs_the_python_loop_bit_for_bi
             assert kernel_blocker(object.__new__(sub)) == (
                 f"MuJoCoPlant subclass {sub.__name__} overrides {name} (and has no kernel of its own)")
         methods = ["state"]
+    if role in CHANNEL_ROLES:   # the one compiled control step reads their arrays, never their methods
+        for name in methods:
+            sub = overriding(cls, name)
+            for loop in ("auto", "python"):
+                with pytest.raises(PluginContractError, match=rf"^the {role}: {cls.__name__} subclass {sub.__name__} "
+                                                              rf"overrides {name} \(and has no kernel of its own\): "
+                                                              r"the control step .* is one compiled function"):
+                    _record(make_scenario, kw, role, sub, loop)
+        return
     for name in methods:
         sub = overriding(cls, name)
         auto = _record(make_scenario, kw, role, sub, "auto")
@@ -156,8 +170,7 @@ def test_a_subclass_overriding_any_public_method_runs_the_python_loop_bit_for_bi
 
 def test_the_perturbation_shows_where_the_loop_calls_the_method():
     """The subclasses above would catch a wrong loop: their records differ from the plain run's."""
-    for role, kw, name in (("reference", {}, "pose"), ("controller", {}, "__call__"), ("surge quantizer", {}, "step"),
-                           ("plant", {}, "step")):
+    for role, kw, name in (("reference", {}, "pose"), ("controller", {}, "__call__"), ("plant", {}, "step")):
         plain = _record(_scenario, kw, role, None, "python")
         cls = type(ROLES[role](build(_scenario(), **kw)))
         moved = _record(_scenario, kw, role, overriding(cls, name), "python")

@@ -1,7 +1,7 @@
 """Issue 23: --overwrite replaces only what a usv_mj command wrote (usv_mj/outputs/outdir.py).
 
 Every command with an output path and --overwrite (run, compare, plot, sweep, capability: a folder;
-render, env: a video file) is pointed at a folder of the user's own files (plain files, some with
+render, env: a video file; scene: an MJCF file) is pointed at a folder of the user's own files (plain files, some with
 the names a run writes, a subfolder, a hidden file, symbolic links to files elsewhere) and at a
 fake home folder: each must exit 2 with one line and leave every decoy and every link target as it
 was, byte for byte. The positive case: a folder an earlier run wrote is replaced, and its manifest
@@ -41,13 +41,14 @@ def make_decoys(tmp: Path) -> tuple[Path, Path]:
     d = tmp / "mine"
     d.mkdir()
     (d / "thesis.txt").write_text("chapter 1\n")
-    for name in ("summary.json", "report.md", "video.mp4", "video.png", "run.mp4", "compare.json"):
+    for name in ("summary.json", "report.md", "video.mp4", "video.png", "run.mp4", "compare.json", "scene.xml"):
         (d / name).write_bytes(f"the user's own {name}\n".encode())
     (d / "data").mkdir()
     (d / "data" / "points.csv").write_text("1,2\n3,4\n")
     (d / ".hidden").write_text("secret\n")
     (d / "link.txt").symlink_to(target)
     (d / "clip.mp4").symlink_to(target)
+    (d / "link.xml").symlink_to(target)
     return d, target
 
 
@@ -72,6 +73,8 @@ def commands(out: Path, mcap: Path) -> list[list[str]]:
         ["render", str(mcap), "--no-progress", "--out", str(out), "--overwrite"],
         ["env", "track", "--duration", "0.2", "--video", str(out / "run.mp4"), "--overwrite"],
         ["env", "track", "--duration", "0.2", "--video", str(out), "--overwrite"],
+        ["scene", "--out", str(out / "scene.xml"), "--overwrite"],       # issue 38: overwritten before
+        ["scene", "--out", str(out / "link.xml"), "--overwrite"],        # written through the link before
     ]
 
 
@@ -102,8 +105,8 @@ def test_every_command_refuses_the_home_folder(tmp_path, a_run, capsys, monkeypa
     before = tree(home)
     for out in (home, home.parent):
         for argv in commands(out, a_run / "run.mcap"):
-            if argv[0] in ("render", "env") and not argv[argv.index("--out" if "--out" in argv else "--video") + 1] \
-                    == str(out):
+            if argv[0] in ("render", "env", "scene") and \
+                    not argv[argv.index("--out" if "--out" in argv else "--video") + 1] == str(out):
                 continue                       # a new video file inside the home folder is allowed
             one_line_exit_2(argv, capsys)
             assert tree(home) == before, argv

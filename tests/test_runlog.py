@@ -417,7 +417,10 @@ def test_metadata_and_attachments(tmp_path):
     assert meta["scenario"] == _norm(sc.to_dict())
     assert {"mujoco", "numpy", "numba", "mcap", "python"} <= set(meta["versions"])
     head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
-    assert meta["git_commit"] == (head or "unknown")
+    assert meta["git_commit"] == head   # a checkout (an installed package has none: test_log_names_the_plugins...)
+    from usv_mj.core.version import __version__
+
+    assert meta["usv_mj_version"] == __version__ and meta["plugins"] == {}   # built-ins only
     assert log.attachments["extra.txt"] == b"text"
     assert log.attachments["scenario/my_scenario.toml"] == toml.read_bytes()
     models = sorted((ROOT / "models").glob("*.xml"))
@@ -790,3 +793,44 @@ def test_state_schema_says_the_axes_conventions(logged):
     assert "counter-clockwise from east" in state["psi"]
     assert "forward" in state["u"] and "port" in state["v"]
     assert "north position" not in state["x"] and "east position" not in state["y"]
+
+
+def test_the_log_names_its_plugins_and_an_installed_package_no_unknown_commit(tmp_path, monkeypatch, capsys):
+    """Issue 37, item 5: the log's metadata names every plug-in kind the run used (here a module:Name
+    controller on PYTHONPATH, no distribution: its file; a vessel data file) and the project's
+    version; outside a git checkout it says so instead of "git commit: unknown"."""
+    import usv_mj.outputs.log.writer as writer_module
+    from usv_mj.cli.main import main
+
+    monkeypatch.syspath_prepend(str(ROOT / "examples" / "plugins" / "usv_mj_example_plugin"))
+    monkeypatch.setattr(writer_module, "git_commit", lambda root=None: ("unknown", None))   # as a wheel install
+    sc = load_scenario(overrides={"duration": 0.5, "plant": {"kind": "analytic"}, "baseline": {"enabled": False},
+                                  "controller": {"kind": "usv_mj_example_plugin.pd:ExamplePD"},
+                                  "vessel": {"kind": str(ROOT / "examples" / "vessels" / "wamv.toml")}})
+    path = tmp_path / "plug.mcap"
+    with RunLogWriter(path, sc) as writer:
+        simulate(sc, sinks=[writer.sink("main")])
+    meta = read_run(path).metadata
+    assert "git_commit" not in meta and "not a git checkout" in meta["install"]
+    pd = meta["plugins"]["controller usv_mj_example_plugin.pd:ExamplePD"]
+    assert pd["module"] == "usv_mj_example_plugin.pd" and pd["file"].endswith("pd.py") and pd["distribution"] is None
+    assert meta["plugins"][f"vessel {ROOT / 'examples' / 'vessels' / 'wamv.toml'}"]["source"].startswith("data file")
+    assert main(["inspect", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "git commit" not in out and "(an installed package, not a git checkout)" in out
+    assert "plug-in controller usv_mj_example_plugin.pd:ExamplePD:" in out
+
+
+def test_an_installed_plugins_distribution_and_version_are_named():
+    """An entry point's kind names the installed distribution that provides its module and its version
+    (usv_mj.core.registry.origin), read from the distribution's metadata."""
+    import importlib.metadata as md
+
+    from usv_mj.core.registry import Entry, origin
+
+    class Fake:
+        pass
+
+    Fake.__module__ = "numpy.fake"   # a module of an installed distribution
+    o = origin(Entry("x", Fake, {}, "entry point usv_mj.controllers (dist numpy)"))
+    assert o["distribution"] == "numpy" and o["version"] == md.version("numpy")

@@ -36,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from usv_mj.core.errors import ScenarioError
+from usv_mj.core import arguments
+from usv_mj.core.errors import ScenarioError, expected
 from usv_mj.core.registry import CONTROLLERS, PLANTS
 from usv_mj.physics.channels import RunChannels, run_channels
 from usv_mj.physics.sea.environment import run_sea
@@ -309,6 +310,10 @@ def build(scenario: Scenario, *, plant_kind: str | None = None, controller_kind:
     for part, name, attributes in ((plant, "plant", PLANT_ATTRIBUTES), (controller, "controller", CONTROLLER_ATTRIBUTES)):
         if part is not None:
             check_part(part, "build", name, attributes)
+    if duration is not None and not arguments.is_real(duration):   # not True, not '1'
+        raise expected("build", "duration", "a number of seconds > 0 or None (the scenario's)", duration)
+    if reference is not None:
+        arguments.having("build", "reference", reference, ("evaluate",), "a reference trajectory")
     duration = scenario.duration if duration is None else float(duration)
     if not (math.isfinite(duration) and duration > 0):
         raise ScenarioError(f"{scenario.source}: duration must be > 0 s, got {duration!r}")

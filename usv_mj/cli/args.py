@@ -306,6 +306,14 @@ def add_cluster_arguments(p, *, batch: bool = True) -> None:
     add_workers_argument(p, "local cluster")
 
 
+def add_batch_argument(p, runs: str) -> None:
+    """--batch N: up to N of the ``runs`` per Dask task, simulated together in one compiled batch
+    (usv_mj.loop.batch; the same rows as one task per run)."""
+    p.add_argument("--batch", type=count, default=1, metavar="N",
+                   help=f"run up to N {runs} per task, together in one compiled batch (the same results; "
+                        f"default 1)")
+
+
 def add_resume_arguments(p, runs: str) -> None:
     """--resume and --max-runs of a job whose ``runs`` stream into DIR/results.parquet."""
     p.add_argument("--resume", action="store_true", help=f"run only the {runs} missing from DIR/results.parquet")
@@ -333,9 +341,10 @@ def scenario_from_args(args):
                       or None)
     except ScenarioError as exc:
         if not (args.duration is not None and isinstance(exc, TooManyStepsError)):
-            if not sets:
+            typed = list(args.set)[getattr(args, "implied_sets", 0):]   # not those a command adds itself
+            if not sets or not typed:
                 raise
-            raise ScenarioError(f"--set {' --set '.join(args.set)}: {exc}") from None
+            raise ScenarioError(f"--set {' --set '.join(typed)}: {exc}") from None
     overrides = merge_tables(overrides, sets)
     if args.duration is not None:
         overrides["duration"] = args.duration

@@ -18,11 +18,14 @@ def add_arguments(p) -> None:
                               "(default renders/bench-<suite name>)")
     flags.add_cluster_arguments(p)
     flags.add_resume_arguments(p, "episodes")
+    flags.add_batch_argument(p, "episodes")
     flags.add_overwrite_argument(p, "--out whole when it holds an earlier usv_mj output (the new benchmark is "
                                     "staged: the old one stays until it ends)")
     p.add_argument("--compare", nargs=2, metavar=("A", "B"), default=None,
-                   help="do not run: test whether controller A beats B per metric over the paired episodes "
-                        "of DIR/results.parquet (Wilcoxon signed-rank)")
+                   help="do not run: test A against B in every task/condition/vessel cell and metric over the "
+                        "paired episodes of DIR/results.parquet (Wilcoxon, censored sign test, McNemar; Holm's "
+                        "correction); the suite is the one the folder was run with (a SUITE given is checked "
+                        "against it)")
     p.add_argument("--no-figures", action="store_true", help="report.md and leaderboard.json without figures")
     flags.add_quiet_argument(p)
 
@@ -34,31 +37,20 @@ def add_arguments(p) -> None:
                 "moderate sea with current and with thrust limits, the same episodes for each; default: the\n"
                 "suite shipped in the package. Episodes run on the sweep's Dask cluster and stream into\n"
                 "results.parquet (--resume finishes); report.md is the leaderboard with 95 % intervals and\n"
-                "figures. --compare A B tests A against B per metric (paired Wilcoxon). docs/metrics.md.")
+                "figures. --compare A B tests A against B per cell and metric (paired tests, Holm-corrected),\n"
+                "reading the suite from the results folder. docs/metrics.md.")
 def run(args) -> int:
     """0 done, 2 bad input, 1 interrupted."""
-    from usv_mj.jobs.bench import compare, compare_table, run_bench
+    from usv_mj.jobs.bench import run_bench
 
+    out = args.out or "renders/bench-default"
     try:
         from usv_mj.jobs.bench.suite import describe, load_suite
 
+        if args.compare:
+            return _compare(args)
         suite = load_suite(args.suite)
         out = args.out or str(Path("renders") / f"bench-{suite.name}")
-        if args.compare:
-            from usv_mj.jobs.sweep.runner import RESULTS_FILE, read_results
-
-            path = Path(out) / RESULTS_FILE
-            if not path.is_file():
-                raise SweepError(f"--compare: {path} does not exist: run the suite first (usv-mj bench --out {out})")
-            rows, fingerprint = read_results(path)
-            if fingerprint != suite.plan.fingerprint:
-                raise SweepError(f"--compare: {path} holds the results of another suite than {suite.source}")
-            a, b = args.compare
-            result = compare(rows, a, b)
-            print(f"{a} vs {b}: paired over the episodes of {path} ({len(rows)} of {len(suite.plan.runs)} "
-                  f"episodes in), Wilcoxon signed-rank, two-sided, 5 %")
-            print(compare_table(result, a, b))
-            return 0
         from usv_mj.outputs.outdir import check_folder, results_folder
 
         if args.resume and args.overwrite:
@@ -70,13 +62,15 @@ def run(args) -> int:
         with results_folder(out, args.resume) as folder:   # staged when it replaces an earlier output
             result = run_bench(suite, folder, scheduler=args.scheduler, workers=args.workers,
                                resume=args.resume, progress=not args.quiet, max_runs=args.max_runs,
-                               jobqueue=args.jobqueue, jobs=args.jobs, draw=not args.no_figures)
+                               jobqueue=args.jobqueue, jobs=args.jobs, draw=not args.no_figures, batch=args.batch)
     except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj bench: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"\nusv-mj bench: interrupted: the episodes finished so far are in {out}/results.parquet; "
-              f"run the same command with --resume to finish", file=sys.stderr)
+        from usv_mj.jobs.sweep.runner import episodes_in
+
+        print(f"\nusv-mj bench: interrupted: {episodes_in(Path(out))} of {len(suite.plan.runs)} episodes are in "
+              f"{out}/results.parquet; run the same command with --resume to finish", file=sys.stderr)
         return 1
     except WorkerError as exc:
         print(f"usv-mj bench: stopped: {exc}; the episodes finished so far are in {out}/results.parquet "
@@ -93,3 +87,40 @@ def run(args) -> int:
     print(f"{len(result.rows)} episodes ({result.ran} run now), {result.failed} not ok; {out}/report.md, "
           f"{out}/leaderboard.json, {out}/figures/")
     return flags.report_failed(result.rows, "usv-mj bench", "episode")
+
+
+def _compare(args) -> int:
+    """``--compare A B``: the paired tests over ``--out``'s results. The results folder knows its suite
+    (``sweep.json``: its file and fingerprint, the fingerprint also in results.parquet), so no suite
+    file is needed again; one that is given must be the folder's."""
+    import json
+
+    from usv_mj.jobs.bench import compare, compare_table
+    from usv_mj.jobs.bench.suite import default_suite_path, load_suite
+    from usv_mj.jobs.sweep.runner import RESULTS_FILE, read_results
+
+    if args.out is None:
+        suite = load_suite(args.suite)   # the default folder is the suite's (renders/bench-<name>)
+        out = str(Path("renders") / f"bench-{suite.name}")
+    else:
+        suite, out = None, args.out
+    path = Path(out) / RESULTS_FILE
+    if not path.is_file():
+        raise SweepError(f"--compare: {path} does not exist: run the suite first (usv-mj bench "
+                         f"{args.suite or ''}{' ' if args.suite else ''}--out {out})")
+    rows, fingerprint = read_results(path)
+    info = Path(out) / "sweep.json"
+    ran = json.loads(info.read_text()) if info.is_file() else {}
+    if ran.get("fingerprint") and ran["fingerprint"] != fingerprint:
+        raise SweepError(f"--compare: {path} and {info} belong to different benchmarks")
+    if args.suite is not None:
+        suite = suite or load_suite(args.suite)
+        if fingerprint != suite.plan.fingerprint:
+            raise SweepError(f"--compare: {path} holds the results of another suite than {suite.source} "
+                             f"(it was run with {ran.get('source', '?')}; leave the suite out to use that one)")
+    source = ran.get("source") or (suite.source if suite is not None else str(default_suite_path()))
+    a, b = args.compare
+    result = compare(rows, a, b)
+    print(f"{a} vs {b}: paired over the episodes of {path} (suite {source}, {len(rows)} episodes)")
+    print(compare_table(result, a, b))
+    return 0

@@ -81,8 +81,22 @@ def run(args) -> int:
         except (ValueError, AttributeError):
             pass
         print(f"preset: {meta.get('preset', '?')}  source: {meta.get('source', '?')}")
-        print(f"git commit: {meta.get('git_commit', '?')}"
-              + ("  (uncommitted changes)" if meta.get("git_dirty") == "true" else ""))
+        version = meta.get("usv_mj_version")
+        if meta.get("git_commit") and meta["git_commit"] != "unknown":
+            print(f"usv_mj {version or '?'}, git commit {meta['git_commit']}"
+                  + ("  (uncommitted changes)" if meta.get("git_dirty") == "true" else ""))
+        elif version:
+            print(f"usv_mj {version} (an installed package, not a git checkout)")
+        else:   # a log written before the version was recorded
+            print(f"git commit: {meta.get('git_commit', '?')}")
+        try:
+            plugins = json.loads(meta.get("plugins") or "{}")
+        except ValueError:
+            plugins = {}
+        for kind, where in plugins.items():
+            what = (f"{where['distribution']} {where.get('version') or '?'}" if where.get("distribution") else
+                    where.get("file") or where.get("source", "?"))
+            print(f"plug-in {kind}: {what} (module {where.get('module', '?')})")
         print(f"created: {meta.get('created_utc', '?')}  schema: {meta.get('schema_version', '?')}")
         print(f"versions: {versions}")
     for run, parts in runs.items():

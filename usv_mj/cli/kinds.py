@@ -83,10 +83,13 @@ def _docstring_units(cls) -> dict:
     return out
 
 
-def describe_options(cls) -> list[dict]:
-    """The fields of an options dataclass: ``{"name", "type", "default", "unit"}`` each."""
+def describe_options(cls, derived: dict | None = None) -> list[dict]:
+    """The fields of an options dataclass: ``{"name", "type", "default", "unit"}`` each, and
+    ``"derived": true`` for a gain the class derives from the vessel (its ``DERIVED``, docs/gains.md:
+    the default shown is the paper hull's, or ``derived``'s value for the vessel asked for)."""
     if cls is None:
         return []
+    derived_names = set(getattr(cls, "DERIVED", ()) if hasattr(cls, "for_vessel") else ())
     units = _docstring_units(cls)
     units.update(_comment_units(cls))
     out = []
@@ -98,8 +101,32 @@ def describe_options(cls) -> list[dict]:
         else:
             default = None
         unit = f.metadata.get("unit") if f.metadata else None
-        out.append({"name": f.name, "type": f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type)),
-                    "default": _plain(default), "unit": unit or units.get(f.name, "")})
+        row = {"name": f.name, "type": f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type)),
+               "default": _plain(derived[f.name] if derived and f.name in derived else default),
+               "unit": unit or units.get(f.name, "")}
+        if f.name in derived_names:
+            row["derived"] = True
+        out.append(row)
+    return out
+
+
+def vessel_gains(vessel: str) -> dict:
+    """``{controller kind: {gain: value}}``: the gains each controller that derives its defaults
+    (PI, LOS: ``for_vessel``, docs/gains.md) gets on ``vessel`` (a kind or a data file's path)."""
+    from usv_mj.core.registry import CONTROLLERS
+    from usv_mj.physics.design import DesignPoint, Scaling
+    from usv_mj.scenario.spec import load_scenario
+
+    sc = load_scenario(overrides={"vessel": {"kind": vessel}})
+    scaling = Scaling(DesignPoint.of(sc.nominal_ship, sc.vessel.model.dimensions.L))
+    out = {}
+    for kind in CONTROLLERS.kinds():
+        try:
+            gains = CONTROLLERS.get(kind).info.get("gains")
+        except Exception:   # noqa: BLE001 - a broken entry point is listed by list_kinds with its error
+            continue
+        if gains is not None and hasattr(gains, "for_vessel"):
+            out[kind] = gains.for_vessel(scaling)
     return out
 
 
@@ -115,8 +142,10 @@ def _plain(value):
     return repr(value)
 
 
-def list_kinds(sections=None) -> dict:
-    """section -> {"group", "kinds": [{"kind", "source", "object", "options" | "error"}]}."""
+def list_kinds(sections=None, vessel: str | None = None) -> dict:
+    """section -> {"group", "kinds": [{"kind", "source", "object", "options" | "error"}]}; with
+    ``vessel``, a controller's derived gains are that vessel's (:func:`vessel_gains`)."""
+    derived = vessel_gains(vessel) if vessel else {}
     out = {}
     for section, registry in REGISTRIES.items():
         if sections and section not in sections:
@@ -131,7 +160,8 @@ def list_kinds(sections=None) -> dict:
             obj = entry.obj
             rows.append({"kind": kind, "source": entry.source,
                          "object": f"{getattr(obj, '__module__', '?')}.{getattr(obj, '__qualname__', repr(obj))}",
-                         "options": describe_options(entry.options_class)})
+                         "options": describe_options(entry.options_class,
+                                                     derived.get(kind) if section == "controller" else None)})
             if "tags" in entry.info:   # an environment task's (usv_mj.core.registry.TASKS)
                 rows[-1]["tags"] = list(entry.info["tags"])
         out[section] = {"group": registry.group, "common": _common_options(section), "kinds": rows}
@@ -150,6 +180,9 @@ def _common_options(section: str) -> list[dict]:
 def add_arguments(p) -> None:
     p.add_argument("section", nargs="*", metavar="REGISTRY",
                    help=f"only these registries ({', '.join(REGISTRIES)}); default: all")
+    p.add_argument("--vessel", default=None, metavar="KIND",
+                   help="show the gains a controller derives from the vessel (PI, LOS; docs/gains.md) for this "
+                        "vessel kind or data file instead of the paper hull's")
     flags.add_json_argument(p)
 
 
@@ -158,7 +191,9 @@ def add_arguments(p) -> None:
     help="every controller, trajectory, plant and disturbance kind: where it comes from, its options",
     description="List every kind a scenario may name, registry by registry (controller, trajectory, plant,\n"
                 "disturbance): where it comes from (built-in, an entry point's distribution, module:Name,\n"
-                "registered at runtime) and its options (name, type, default, unit). --json for one object.")
+                "registered at runtime) and its options (name, type, default, unit). A controller's gains derived\n"
+                "from the vessel (PI, LOS: docs/gains.md) are marked, shown for the paper hull or --vessel KIND.\n"
+                "--json for one object.")
 def run(args) -> int:
     for name in args.section:
         if name not in REGISTRIES:
@@ -169,7 +204,7 @@ def run(args) -> int:
             hint = difflib.get_close_matches(name.rstrip("s"), list(REGISTRIES), n=1)
             raise ScenarioError(f"unknown registry {name!r}" + (f" (did you mean {hint[0]!r}?)" if hint else "")
                                 + f"; registries: {', '.join(REGISTRIES)}")
-    table = list_kinds(args.section or None)
+    table = list_kinds(args.section or None, vessel=args.vessel)
     if args.json:
         print(json.dumps(table, indent=2))
         return 0
@@ -186,7 +221,9 @@ def run(args) -> int:
                 print(f"      tags: {', '.join(row['tags']) or '(none)'}")
             for o in row["options"]:
                 unit = f"[{o['unit']}]" if o["unit"] else ""
-                print(f"      {o['name']:18s} {o['type']:24s} {json.dumps(o['default']):24s} {unit}")
+                how = (f"  derived from the vessel ({args.vessel or 'paper hull'}'s shown; docs/gains.md)"
+                       if o.get("derived") else "")
+                print(f"      {o['name']:18s} {o['type']:24s} {json.dumps(o['default']):24s} {unit}{how}")
             if not row["options"]:
                 print("      (no options)")
         print()

@@ -19,10 +19,12 @@
     usv-mj view [--manual]             MuJoCo's viewer on the scenario: water, sea, controller (or the arrow keys)
     usv-mj manoeuvre turning           a standard manoeuvre: turning, zigzag, spiral, stopping (IMO measures)
 
-Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted: the reason is printed and
-recorded); 2 bad input (the message names the key and the file); 3 no OpenGL for the video (the
-message names the Debian packages to install; --no-video skips the video; `usv-mj view`: no display);
-141 the output pipe closed.
+Exit codes: 0 done; 1 the run stopped early (diverged, failed, interrupted, or the file system refused
+a write, such as a full disk: the reason and the path are printed and recorded); 2 bad input (the
+message names the key and the file; an output folder that cannot be written, when that is known
+before anything is written, is bad input too); 3 no OpenGL for the video (the message names the
+Debian packages to install; --no-video skips the video; `usv-mj view`: no display); 141 the output
+pipe closed.
 An --out that holds an earlier output is refused unless --overwrite, which replaces only what a usv_mj
 command wrote (listed in the folder's .usv_mj-manifest.json); a folder holding anything else is refused.
 """
@@ -33,6 +35,7 @@ import os
 import signal
 import sys
 import threading
+import warnings
 
 
 def _signal_while_starting(signum, frame):
@@ -50,7 +53,10 @@ def _early_signal(signum, frame):
 _ARGV0 = sys.argv[0] if sys.argv else ""
 if (__name__ == "__main__" or os.path.basename(_ARGV0) == "usv-mj"
         or _ARGV0.endswith(os.path.join("usv_mj", "cli", "__main__.py"))) \
-        and threading.current_thread() is threading.main_thread():
+        and threading.current_thread() is threading.main_thread() \
+        and "--multiprocessing-fork" not in getattr(sys, "orig_argv", ()):
+    # (not in a worker spawned by multiprocessing, such as a Dask worker: it is handed the program's
+    # argv and imports the program again, but it is not the program and has nothing to say)
     # the program itself, before the imports below (the commands' modules; the library comes when a
     # command runs): SIGTERM / SIGHUP while it starts
     # end it as Ctrl-C would, exit 1, instead of the default death (143)
@@ -62,7 +68,7 @@ from pathlib import Path  # noqa: E402
 
 from usv_mj.cli.args import EXIT_BAD_INPUT, EXIT_NO_GL, EXIT_OK, EXIT_STOPPED  # noqa: E402,F401 (re-exported)
 from usv_mj.cli.commands import CommandUnavailable, load, names  # noqa: E402
-from usv_mj.core.errors import ScenarioError  # noqa: E402
+from usv_mj.core.errors import PluginWarning, ScenarioError, one_line  # noqa: E402
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
@@ -117,7 +123,27 @@ def short_usage() -> str:
             "  usv-mj COMMAND --help   what a command does and its options; usv-mj --help for examples")
 
 
+_PYTHON_WARNING = warnings.formatwarning
+
+
+def _one_line_warning(message, category, filename, lineno, line=None):
+    """usv_mj's own warnings (a plug-in's entry point not used) as one line, others as Python's."""
+    if issubclass(category, PluginWarning):
+        return f"usv-mj: warning: {message}\n"
+    return _PYTHON_WARNING(message, category, filename, lineno, line)
+
+
+def os_error_line(exc: OSError) -> str:
+    """One line for an OSError: the path(s), the system's reason (``No space left on device``) and
+    the notes the library added to it."""
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    paths = [str(f) for f in (exc.filename, exc.filename2) if f is not None]
+    line = f"{' -> '.join(paths)}: {reason}" if paths else f"{reason} ({type(exc).__name__})"
+    return "; ".join([line, *getattr(exc, "__notes__", ())])   # e.g. where the earlier output is (outdir)
+
+
 def main(argv: list[str] | None = None) -> int:
+    warnings.formatwarning = _one_line_warning
     if threading.current_thread() is threading.main_thread():
         # until a command installs its own handlers: SIGTERM / SIGHUP end it as Ctrl-C would (exit 1)
         for sig in (signal.SIGTERM, signal.SIGHUP):
@@ -153,6 +179,14 @@ def main(argv: list[str] | None = None) -> int:
         # point stdout at /dev/null so that the interpreter's final flush does not fail again
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        if getattr(args, "debug", False) or os.environ.get("USV_MJ_DEBUG") == "1":
+            raise
+        # the file system refused while the command wrote (a full disk, a folder made read-only):
+        # not a defect of usv_mj and not bad input (what can be foreseen is refused before
+        # anything is written, exit 2): the command stopped early, exit 1
+        print(f"usv-mj {args.command}: {os_error_line(exc)}", file=sys.stderr)
+        return EXIT_STOPPED
     except Exception as exc:
         from usv_mj.outputs.render import GLUnavailableError
 
@@ -167,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         while where is not None and where.tb_next is not None:
             where = where.tb_next
         at = f" at {Path(where.tb_frame.f_code.co_filename).name}:{where.tb_lineno}" if where is not None else ""
-        print(f"usv-mj {args.command}: internal error: {type(exc).__name__}: {' '.join(str(exc).split())}{at} "
+        print(f"usv-mj {args.command}: internal error: {one_line(exc)}{at} "
               "(a defect of usv_mj; USV_MJ_DEBUG=1 shows the traceback)", file=sys.stderr)
         return EXIT_STOPPED
 

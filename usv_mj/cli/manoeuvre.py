@@ -61,6 +61,7 @@ def _scenario(args):
                             "name that one or drop the table")
     if args.kind and not any(item.split("=", 1)[0].strip() == "manoeuvre.kind" for item in args.set):
         args.set = [f"manoeuvre.kind={args.kind}"] + list(args.set)  # before the kind's own --set keys
+        args.implied_sets = 1   # not typed: an error is not blamed on it (usv_mj.cli.args)
     scenario = flags.scenario_from_args(args)
     spec = scenario.manoeuvre
     kind = spec.kind if spec is not None else None
@@ -142,11 +143,15 @@ def _run_fleet(args) -> int:
     t0 = time.perf_counter()
     try:
         fleet = run_fleet(scenario_for, kinds, kind, out, plant_kind=args.plant, video=args.video,
-                          progress=not args.quiet, overwrite=args.overwrite, render_options=render_options)
+                          progress=not args.quiet, overwrite=args.overwrite, render_options=render_options,
+                          skip_refused=args.vessel.strip() == "all")
     except RunFailed as exc:
         print(f"usv-mj manoeuvre: {exc}", file=sys.stderr)
         return EXIT_STOPPED
     plant = fleet["rows"][0]["plant"] if fleet["rows"] else args.plant
+    for vessel, why in fleet["skipped"]:   # --vessel all: those that cannot run this manoeuvre
+        print(f"usv-mj manoeuvre: {vessel} left out: {why}", file=sys.stderr)
+    kinds = [v for v in kinds if v not in dict(fleet["skipped"])]
     print(f"usv-mj manoeuvre {kind}: {len(kinds)} vessels, {plant} plant ({time.perf_counter() - t0:.1f} s)")
     print("\n".join(table_lines(kind, fleet["rows"])))
     print(f"  outputs in {out}/: manoeuvre_vessels.png, vessels.json, vessels.md and one folder per vessel "

@@ -25,18 +25,22 @@ def run(args) -> int:
     from usv_mj.outputs.figures import draw_figures
     from usv_mj.outputs.log import read_run
     from usv_mj.outputs.outdir import check_folder, record
-    from usv_mj.outputs.report import write_report
+    from usv_mj.outputs.report import gains_section, write_report
     from usv_mj.record.criteria import criterion_of_record
     from usv_mj.record.summary import summarize
 
     path = Path(args.run)
     if path.is_dir():
         path = path / "run.mcap"
-    if not path.is_file():
+    if not path.is_file() and not path.is_symlink():   # a link that leads nowhere: read_run says so
         raise ScenarioError(f"{path}: no such run log" if not path.exists() else f"{path}: is not a regular file")
+    from usv_mj.outputs.log.reader import RunLogReadError
+
     try:
         log = read_run(path)
         record_ = log.record
+    except RunLogReadError as exc:
+        raise ScenarioError(str(exc)) from None
     except (ValueError, KeyError, OSError) as exc:
         raise ScenarioError(f"{path}: not a readable run log ({exc})") from None
     if len(record_) == 0:
@@ -59,9 +63,10 @@ def run(args) -> int:
     figures = list(figures) + list(manoeuvre_files.get("manoeuvre_figures", []))
     summary = summarize(log.record)
     base = summarize(log.baseline, criterion_of_record(log.record)) if log.baseline is not None else None
+    gains = gains_section(log.record, log.baseline)
     write_report(out / "report.md", summary, base,
                  log.metadata.get("step_check"),
-                 extra_sections=sections + ([f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers "
+                 extra_sections=sections + ([gains] if gains else []) + ([f"## The log is incomplete\n\n**{log.notice}.** The figures and numbers "
                                              "above are of what was recovered."] if log.notice else []) or None)
     record(out, ["report.md", *(["manoeuvre.json"] if sections else []),
                  *(Path(f).relative_to(out).as_posix() for f in figures)])

@@ -4,7 +4,6 @@ its log replayed to Foxglove (--live)."""
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from usv_mj.cli import args as flags
 from usv_mj.cli.commands import COMMANDS
@@ -12,7 +11,8 @@ from usv_mj.cli.commands import COMMANDS
 
 def add_arguments(p) -> None:
     p.add_argument("run", metavar="RUN", help="a run directory (holding run.mcap) or an .mcap file")
-    flags.add_out_argument(p, "the .mp4 to write, or a directory (default: beside the run, <stem>.mp4)", metavar="OUT")
+    flags.add_out_argument(p, "the .mp4 to write, or a folder that exists (the video goes in it as run.mp4, or "
+                              "<stem>.mp4 for an .mcap file; default: beside the run)", metavar="OUT")
     flags.add_quiet_argument(p)
     flags.add_overwrite_argument(p, "the .mp4 and its .png still when usv_mj wrote them")
     flags.add_video_arguments(p)
@@ -26,7 +26,7 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     """0 on success, 2 on bad input, 3 when no OpenGL backend starts."""
     from usv_mj.outputs.render.gl_backend import GLUnavailableError
-    from usv_mj.outputs.render.video import default_output, load_run_log, render_run, stored_record
+    from usv_mj.outputs.render.video import load_run_log, output_path, render_run, stored_record
 
     try:
         stored = stored_record(args.run) if not getattr(args, "live", False) else None
@@ -50,7 +50,7 @@ def run(args) -> int:
         live.finish()
         print(f"usv-mj render: served {n} messages of {mcap} live")
         return 0
-    out = Path(args.out) if args.out else default_output(Path(args.run), mcap)
+    out = output_path(args.out, args.run, mcap)
     try:
         from usv_mj.outputs.outdir import check_file, record_file
 

@@ -74,9 +74,18 @@ def run(args) -> int:
 
 def _run_fleet(args, scenario, out, live, t0) -> int:
     from usv_mj.jobs.fleet import one_screen_fleet_summary, run_fleet_job
+    from usv_mj.jobs.run import RunFailed
 
-    result = run_fleet_job(scenario, out, log=not args.no_log, progress=not args.quiet, overwrite=args.overwrite,
-                           live=live, video=not args.no_video, render_options=flags.video_options(args))
+    try:
+        result = run_fleet_job(scenario, out, log=not args.no_log, progress=not args.quiet, overwrite=args.overwrite,
+                               live=live, video=not args.no_video, render_options=flags.video_options(args))
+    except RunFailed as exc:      # as a single run's: one line, where the files are, exit 1
+        if live is not None:
+            live.close()
+        if args.debug and exc.traceback is not None and Path(exc.traceback).is_file():
+            sys.stderr.write(Path(exc.traceback).read_text())
+        print(f"usv-mj run: {exc}", file=sys.stderr)
+        return EXIT_STOPPED
     if live is not None:
         live.finish()
     print(one_screen_fleet_summary(result, time.perf_counter() - t0))

@@ -22,6 +22,7 @@ from usv_mj.core.errors import ScenarioError
 def add_arguments(p) -> None:
     flags.add_scenario_arguments(p)
     flags.add_out_argument(p, "the MJCF file to write (default scene.xml)", default="scene.xml", metavar="FILE")
+    flags.add_overwrite_argument(p, "--out when an earlier usv-mj scene wrote it")
     flags.add_plant_argument(p, default="mujoco", help="the scene is the MuJoCo plant's (the only choice)")
 
 
@@ -33,6 +34,7 @@ def add_arguments(p) -> None:
                 "usv_mj.attach_hydrodynamics(model, data, scenario=...) attaches the hull forces and the sea.")
 def run(args) -> int:
     from usv_mj.builder import build
+    from usv_mj.outputs.outdir import check_file, write_file
 
     flags.only_mujoco(args.plant, "the scene is the MuJoCo plant's")
     out = Path(args.out)
@@ -40,11 +42,12 @@ def run(args) -> int:
         raise ScenarioError(f"--out {args.out!r}: name an .xml file to write")
     if out.suffix.lower() != ".xml":
         raise ScenarioError(f"--out {args.out!r}: an MJCF file ends in .xml")
+    # a file usv_mj did not write (or a link) is refused, before anything is built or written
+    check_file(out, args.overwrite, suffix=".xml", companions=())
     scenario = flags.scenario_from_args(args)
     with build(scenario, duration=min(scenario.duration, 1.0)) as parts:
         text = parts.plant.scene_xml()
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text)
+    write_file(out, text)      # whole or not at all, then listed in the folder's manifest
     print(f"usv-mj scene: wrote {out} (the {scenario.source} scene; no water until usv_mj.attach_hydrodynamics)")
     return 0
-

@@ -16,6 +16,7 @@ def add_arguments(p) -> None:
                               "renders/sweep-<file name>)")
     flags.add_cluster_arguments(p)
     flags.add_resume_arguments(p, "runs")
+    flags.add_batch_argument(p, "runs")
     flags.add_overwrite_argument(p, "--out whole when it holds an earlier usv_mj output (the new sweep is "
                                     "written beside it and moved into place when it ends)")
     p.add_argument("--retry-failed", action="store_true",
@@ -62,7 +63,7 @@ def run(args) -> int:
             result = run_sweep(plan, folder, scheduler=args.scheduler, workers=args.workers, resume=args.resume,
                                keep_logs=args.keep_logs, log_rate=args.log_rate, progress=not args.quiet,
                                max_runs=args.max_runs, jobqueue=args.jobqueue, jobs=args.jobs,
-                               retry_failed=args.retry_failed)
+                               retry_failed=args.retry_failed, batch=args.batch)
     except ScenarioError as exc:  # SweepError and the output checks
         print(f"usv-mj sweep: error: {exc}", file=sys.stderr)
         return 2

@@ -9,6 +9,8 @@ caller may catch the family or one member.
 
 from __future__ import annotations
 
+import re
+
 
 class UsvMjError(Exception):
     """Base of every error that usv_mj raises on purpose (never a bug)."""
@@ -58,9 +60,22 @@ class PluginImportError(UnknownKindError):
     the kind, where it was named, and the import's own error)."""
 
 
+class PluginContractError(ScenarioError):
+    """A plug-in (a part named by ``package.module:Name``, an entry point, a class registered at
+    runtime or handed to the API) breaks the contract of its sort (a factory that cannot take its
+    arguments, a disturbance whose kernel is not a ``numba.njit`` function or whose ``as_array()`` is
+    too long, ...): the message names the plug-in, the contract and the fix. Bad input of the user's
+    (exit 2), not a defect of usv_mj."""
+
+
 class ArgumentTypeError(UsvMjError, TypeError):
     """A public function was handed the wrong kind of object; the message names the function, the
     argument, what it takes and what it got: ``simulate: scenario must be ..., got NoneType``."""
+
+
+class ArgumentValueError(UsvMjError, ValueError):
+    """A public function was handed an argument of the right type but a value it cannot take; the
+    message names the function, the argument, what it takes and what it got."""
 
 
 def expected(where: str, name: str, what: str, value) -> ArgumentTypeError:
@@ -70,6 +85,30 @@ def expected(where: str, name: str, what: str, value) -> ArgumentTypeError:
     return ArgumentTypeError(f"{where}: {name} must be {what}, got {got}")
 
 
+class PluginWarning(UserWarning):
+    """Something about the installed plug-ins the user should know but that does not stop the run
+    (an entry point shadowed by a built-in kind, or named by two distributions)."""
+
+
+class PluginExit(UsvMjError, RuntimeError):
+    """A part of a run (a plug-in controller, reference, hook...) called ``sys.exit`` while the run
+    was going: the run is recorded as failed with every row before it, and this is raised in
+    place of the SystemExit (a plug-in stops a run by raising an exception, never by ending the
+    program). The message names the module and line that called it."""
+
+    @classmethod
+    def during_run(cls, exc: SystemExit, t: float) -> "PluginExit":
+        """The PluginExit of ``exc``, raised at time ``t`` [s] of a run (a single run's loop or a
+        fleet's): its text is the run's stop reason."""
+        tb = exc.__traceback__
+        while tb is not None and tb.tb_next is not None:
+            tb = tb.tb_next
+        caller = "a part of the run" if tb is None else \
+            f"{tb.tb_frame.f_globals.get('__name__', '?')} (line {tb.tb_lineno})"
+        return cls(f"SystemExit at t = {t:.3f} s: {caller} called sys.exit({exc.code!r}) during the run "
+                   "(a plug-in stops a run by raising an exception, not by ending the program)")
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised like Ctrl-C's KeyboardInterrupt (its text: the signal's name), so
     that every ending by a signal is recorded as an interruption."""
@@ -77,7 +116,7 @@ class Terminated(KeyboardInterrupt):
 
 #: The optional dependencies (pyproject.toml's extras): import name -> (pip name, extra).
 EXTRAS = {"gymnasium": ("gymnasium", "gym"), "shimmy": ("shimmy", "gym"), "dask_jobqueue": ("dask-jobqueue", "hpc"),
-          "bokeh": ("bokeh", "hpc"), "stable_baselines3": ("stable-baselines3", "rl")}
+          "bokeh": ("bokeh", "hpc"), "stable_baselines3": ("stable-baselines3", "rl"), "pettingzoo": ("pettingzoo", "gym")}
 
 
 class MissingExtra(UsvMjError, ImportError):
@@ -88,3 +127,44 @@ def missing_extra(module: str, what: str) -> MissingExtra:
     """The one-line error for ``what`` needing the optional ``module``: ``pip install "usv_mj[gym]"``."""
     package, extra = EXTRAS[module]
     return MissingExtra(f"{what} needs {package}, which is not installed: pip install \"usv_mj[{extra}]\"")
+
+
+_ANSI = re.compile(r"\x1b\[[0-9;?]*[ -/]*[@-~]")
+
+
+def plain_text(text) -> str:
+    """``text`` without terminal escape sequences (numba highlights its messages with them)."""
+    return _ANSI.sub("", str(text))
+
+
+def compiler_summary(text: str) -> str | None:
+    """numba's compiler error (``Failed in nopython mode pipeline ...``, dozens of lines) as one
+    line: what failed and the first source line it names (``file.py, line N``); None for text
+    that is not one."""
+    lines = [line.strip() for line in plain_text(text).splitlines()]
+    if not any(line.startswith("Failed in ") for line in lines):
+        return None
+    body = [line for line in lines if line and not line.startswith(("Failed in ", "During:"))]
+    what = ""
+    for i, line in enumerate(body):
+        if line.startswith("File "):
+            break
+        what = line
+        if not line.endswith(":"):
+            break
+        what = " ".join(body[i:i + 2])
+        break
+    where = next((line[len("File "):].rstrip(":").replace('"', "") for line in body if line.startswith("File ")), "")
+    return what + (f" ({where})" if where else "")
+
+
+def message_line(exc: BaseException) -> str:
+    """``exc``'s message on one line, escape sequences removed, a numba compiler error summarized."""
+    text = compiler_summary(str(exc))
+    return text if text is not None else " ".join(plain_text(exc).split())
+
+
+def one_line(exc: BaseException) -> str:
+    """``Type: message`` (:func:`message_line`)."""
+    text = message_line(exc)
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__

@@ -27,7 +27,8 @@ against ``MyGains``. Every registry works the same way:
   plants get ``environment=``, ``obstacles=``, ``contact=``, ``safety_radii=`` (and
   ``rangefinders=`` when asked); controllers and vessels get nothing (a vessel's factory is called
   while the scenario is built, with ``scenario=None``, and returns a :class:`usv_mj.vessels.Vessel`). A disturbance's options dataclass is the
-  disturbance itself (its ``as_array()`` feeds the plants' kernels), so it registers only that.
+  disturbance itself (its ``as_array()`` and its ``kernel`` feed the plants, usv_mj.physics.disturbances),
+  so it registers only that: ``@DISTURBANCES.register("squall")`` on the dataclass.
 
 Where a kind is found, in this order (:meth:`Registry.get`):
 
@@ -39,7 +40,7 @@ Where a kind is found, in this order (:meth:`Registry.get`):
 3. ``"package.module:Name"`` (as Gymnasium's ``entry_point``): the module is imported and ``Name``
    taken; it is registered under that very string;
 4. a Python **entry point** named ``kind`` in the registry's group (``usv_mj.controllers``,
-   ``usv_mj.references.trajectories``, ``usv_mj.plants``, ``usv_mj.physics.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
+   ``usv_mj.trajectories``, ``usv_mj.plants``, ``usv_mj.disturbances``, ``usv_mj.vessels``), loaded with :mod:`importlib.metadata`.
 
 For 3 and 4 the object named is either registered by its own module's decorator, or registered
 here with the options dataclass it declares as its class attribute ``options`` (none if it has no
@@ -51,15 +52,20 @@ kind registered only by a decorator in a script's ``__main__`` exists only in th
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import difflib
 import importlib
+import inspect
+import os
 import re
 import sys
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
-from usv_mj.core.errors import PluginImportError, UnknownKindError
+from usv_mj.core.errors import (PluginContractError, PluginImportError, PluginWarning, UnknownKindError, UsvMjError,
+                                one_line)
 
 BUILT_IN = "built-in"
 _MODULE_NAME = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
@@ -76,6 +82,8 @@ class Entry:
     obj: Any
     info: dict = field(default_factory=dict)
     source: str = "registered at runtime"
+    what: str = "part"              # the registry's noun ("controller"), for messages
+    returns: tuple = ()             # what the part must have (the registry's interface), checked on a plug-in's
 
     def __getattr__(self, name):  # entry.gains, entry.options, entry.doc, ... from the registration's keywords
         if name.startswith("__"):
@@ -95,16 +103,52 @@ class Entry:
         """The module that defines the object ("" if it has none)."""
         return getattr(self.obj, "__module__", "") or ""
 
+    @property
+    def plugin(self) -> bool:
+        """Whether the object is a plug-in's (its errors are its own, not usv_mj's): anything but a
+        built-in and a vessel data file (data, made by usv_mj's own factory)."""
+        return self.source != BUILT_IN and not self.source.startswith("data file")
+
     def make(self, options, scenario, **context):
         """The part: ``obj.from_scenario(options, scenario, **context)``, or ``obj(options,
         scenario, **context)`` for a plain factory; a kind whose object *is* its options class (a
-        disturbance) gives ``options`` itself."""
+        disturbance) gives ``options`` itself. A plug-in's factory is held to the contract: a
+        signature that cannot take these arguments, an exception of its own (not a usv_mj error
+        it lets through) or a part without the registry's interface raises
+        :class:`PluginContractError` naming the plug-in, the contract and the fix."""
         factory = getattr(self.obj, "from_scenario", None)
-        if factory is not None:
-            return factory(options, scenario, **context)
-        if self.obj is self.options_class:
+        if factory is None and self.obj is self.options_class:
             return options
-        return self.obj(options, scenario, **context)
+        factory = factory if factory is not None else self.obj
+        if not self.plugin:
+            return factory(options, scenario, **context)
+        name = _name_of(self.obj) + (".from_scenario" if factory is not self.obj else "")
+        head = f"{self.what} kind {self.kind!r} ({name}, {self.source})"
+        call = "(options, scenario" + "".join(f", {k}=..." for k in context) + ")"
+        try:
+            inspect.signature(factory).bind(options, scenario, **context)
+        except TypeError as exc:
+            raise PluginContractError(f"{head}: its factory cannot be called as {call}: {exc}; a {self.what} "
+                                      f"factory takes {call} (usv_mj.core.registry)") from None
+        except ValueError:   # no signature to read (a builtin): the call itself says
+            pass
+        try:
+            part = factory(options, scenario, **context)
+        except UsvMjError:
+            raise
+        except Exception as exc:
+            hint = ""
+            if options is None and self.options_class is None:
+                hint = ("; it was given options None: a class named by 'module:Name' or an entry point declares "
+                        "its options dataclass as the class attribute `options` (or derives from a registered class)")
+            raise PluginContractError(f"{head}: its factory raised {one_line(exc)}{_where(exc)} (a defect of the "
+                                      f"plug-in, not of usv_mj){hint}") from exc
+        missing = [a for a in self.returns if not hasattr(part, a)]
+        if missing:
+            raise PluginContractError(f"{head}: its factory returned {type(part).__name__} {_short(part)}, which has "
+                                      f"no {', '.join(missing)}: a {self.what} has {', '.join(self.returns)} "
+                                      f"(usv_mj.core.registry)")
+        return part
 
 
 class Registry:
@@ -114,15 +158,22 @@ class Registry:
     registers it on import; ``group``: the entry-point group searched for kinds not found.
     """
 
-    def __init__(self, what: str, builtins: dict[str, str], group: str, files: tuple[str, str] | None = None):
+    def __init__(self, what: str, builtins: dict[str, str], group: str, files: tuple[str, str] | None = None,
+                 returns: tuple = (), self_options: bool = False):
         self.what = what
         self.group = group
+        self.returns = tuple(returns)   # the attributes a part must have (checked on a plug-in's)
+        # a kind's object is its own options dataclass (the disturbances'): registered with no
+        # options=, a dataclass takes itself (``@DISTURBANCES.register("squall")`` on the class)
+        self.self_options = self_options
         self._builtins = dict(builtins)  # kind -> module that registers it on import
         # (suffix, "module:function"): a kind ending in the suffix is a data file, registered under its
         # path by that function (imported by name: looking a file kind up is the registry's business)
         self._files = files
         self._entries: dict[str, Entry] = {}
         self._entry_points = None        # name -> importlib.metadata.EntryPoint, read once
+        self._ep_notes: dict = {}        # name -> why an entry point of that name is not (or not alone) used
+        self._warned: set = set()
 
     # --- registering ----------------------------------------------------------------------------
 
@@ -154,10 +205,13 @@ class Registry:
                 raise ValueError(f"{self.what} kind {kind!r} is already registered ({old.source}: "
                                  f"{_name_of(old.obj)}); pass replace=True to replace it, or choose another kind")
             full = dict(info)
-            if options is not None:
-                full["options"] = options
-                full["gains"] = options  # the controllers' historical name
-            self._entries[kind] = Entry(kind, obj, full, source)
+            own = options
+            if own is None and self.self_options and isinstance(obj, type) and dataclasses.is_dataclass(obj):
+                own = obj
+            if own is not None:
+                full["options"] = own
+                full["gains"] = own  # the controllers' historical name
+            self._entries[kind] = Entry(kind, obj, full, source, self.what, self.returns)
             return obj
 
         return deco
@@ -200,6 +254,12 @@ class Registry:
         if not isinstance(kind, str) or not kind:
             raise UnknownKindError(f"{where + ': ' if where else ''}a {self.what} kind must be a non-empty "
                                    f"string, got {kind!r}")
+        if kind not in self._warned:   # once per kind: an entry point of its name is not (or not alone) used
+            self._warned.add(kind)
+            if ":" not in kind:
+                self._eps()
+                if kind in self._ep_notes:
+                    warnings.warn(self._ep_notes[kind], PluginWarning, stacklevel=2)
         if kind in self._entries:
             return self._entries[kind]
         if kind in self._builtins:
@@ -260,11 +320,30 @@ class Registry:
         if self._entry_points is None:
             from importlib.metadata import entry_points
 
-            found = {}
+            found, every = {}, {}
             for ep in entry_points(group=self.group):
                 found.setdefault(ep.name, ep)  # the first distribution on sys.path wins, as for imports
+                every.setdefault(ep.name, []).append(ep)
+            notes = {}
+            for name, eps in every.items():
+                dists = [_dist_name(ep) for ep in eps]
+                if name in self._builtins:
+                    notes[name] = (f"{self.what} kind {name!r} is built in: the entry point {name!r} of the group "
+                                   f"{self.group} ({', '.join(dists)}) is not used; give it another name")
+                    found.pop(name, None)
+                elif len(eps) > 1:
+                    notes[name] = (f"{self.what} kind {name!r}: {len(eps)} distributions declare the entry point "
+                                   f"({', '.join(dists)}); the first on sys.path is used ({dists[0]}: "
+                                   f"{eps[0].value}); uninstall or rename the others")
+            self._ep_notes = notes
             self._entry_points = found
         return self._entry_points
+
+    def notes(self) -> list[str]:
+        """Why entry points of the group are not (or not alone) used (shadowed by a built-in kind,
+        declared by two distributions): one line each (``usv-mj kinds`` prints them)."""
+        self._eps()
+        return [self._ep_notes[k] for k in sorted(self._ep_notes)]
 
     def _load_module_name(self, kind: str, where: str) -> None:
         module_name, _, attr = kind.partition(":")
@@ -273,7 +352,8 @@ class Registry:
             raise UnknownKindError(f"{head}: expected 'package.module:Name' (a module path, a colon, an "
                                    f"attribute)")
         try:
-            module = importlib.import_module(module_name)
+            with _output_to_stderr():
+                module = importlib.import_module(module_name)
         except Exception as exc:
             raise PluginImportError(f"{head}: cannot import module {module_name!r} "
                                     f"({type(exc).__name__}: {_one_line(exc)})") from None
@@ -290,7 +370,8 @@ class Registry:
         dist_name = f"{dist.name} {dist.version}" if dist is not None else "unknown distribution"
         head = f"{where + ': ' if where else ''}{self.what} kind {kind!r} (entry point {ep.value!r} of {dist_name})"
         try:
-            obj = ep.load()
+            with _output_to_stderr():
+                obj = ep.load()
         except Exception as exc:
             raise PluginImportError(f"{head}: cannot be loaded ({type(exc).__name__}: {_one_line(exc)})") from None
         self._adopt(kind, obj, f"entry point {self.group} (dist {dist_name})", head)
@@ -306,11 +387,16 @@ class Registry:
             raise UnknownKindError(f"{head}: the module {obj.__name__!r} registers no {self.what} kind {kind!r}")
         own = next((e for e in self._entries.values() if e.obj is obj), None)
         if own is not None:
-            self._entries[kind] = Entry(kind, obj, dict(own.info), source)
+            self._entries[kind] = Entry(kind, obj, dict(own.info), source, self.what, self.returns)
             return
         options = getattr(obj, "options", None) if isinstance(obj, type) else None
+        if self.self_options and isinstance(obj, type) and dataclasses.is_dataclass(obj):
+            options = obj   # a disturbance (or a subclass of one) is its own options dataclass
         if options is not None and not (isinstance(options, type) and dataclasses.is_dataclass(options)):
             options = None
+        if options is None and isinstance(obj, type):   # a subclass of a registered class: its options
+            options = next((e.options_class for base in obj.__mro__[1:] for e in list(self._entries.values())
+                            if e.obj is base and e.options_class is not None), None)
         try:
             self._decorator(kind, options, {}, source, False)(obj)
         except ValueError as exc:
@@ -330,8 +416,34 @@ def _name_of(obj) -> str:
     return f"{getattr(obj, '__module__', '?')}.{getattr(obj, '__qualname__', repr(obj))}"
 
 
+def _output_to_stderr():
+    """While a plug-in is imported, what it prints goes to stderr: a command's stdout (``usv-mj kinds
+    --json``, ``inspect``) stays its own."""
+    return contextlib.redirect_stdout(sys.stderr)
+
+
+def _dist_name(ep) -> str:
+    dist = getattr(ep, "dist", None)
+    return f"dist {dist.name} {dist.version}" if dist is not None else "an unknown distribution"
+
+
 def _one_line(exc) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _where(exc) -> str:
+    """" (at file.py:N)": the innermost frame of ``exc``'s traceback."""
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    if tb is None:
+        return ""
+    return f" at {os.path.basename(tb.tb_frame.f_code.co_filename)}:{tb.tb_lineno}"
+
+
+def _short(obj) -> str:
+    text = repr(obj)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _importable(module: str) -> bool:
@@ -344,20 +456,24 @@ def _importable(module: str) -> bool:
 
 
 PLANTS = Registry("plant", {"analytic": "usv_mj.plants.analytic", "mujoco": "usv_mj.plants.harbour"},
-                  "usv_mj.plants")
+                  "usv_mj.plants", returns=("name", "control_period", "reset", "step", "state", "time"))
 CONTROLLERS = Registry("controller", {"ppc": "usv_mj.controllers.ppc", "pi": "usv_mj.controllers.pi_baseline",
                                       "los": "usv_mj.controllers.los", "open_loop": "usv_mj.controllers.open_loop",
                                       "zigzag": "usv_mj.controllers.zigzag"},
-                       "usv_mj.controllers")
+                       "usv_mj.controllers", returns=("name", "diagnostic_fields", "reset", "__call__"))
 TRAJECTORIES = Registry("trajectory", {k: "usv_mj.references.trajectories" for k in ("paper", "line", "circle", "waypoints")},
-                        "usv_mj.references.trajectories")
-DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"}, "usv_mj.physics.disturbances")
+                        "usv_mj.trajectories",  # the entry-point group: a public name, kept from before the layers
+                        returns=("evaluate",))
+#: d(t) (usv_mj.physics.disturbances: the contract, the dispatch); a kind's object is its options dataclass
+DISTURBANCES = Registry("disturbance", {"paper": "usv_mj.physics.disturbances"}, "usv_mj.disturbances",
+                        self_options=True)
 #: the hulls (docs/vessels.md): a module, or a data file of usv_mj/vessels/data/ read by
 #: usv_mj.vessels.datafile (its kinds are named here, so that looking one up imports no physics)
 VESSELS = Registry("vessel", {"paper": "usv_mj.vessels.paper", "clarke83": "usv_mj.vessels.clarke83",
                               "kvlcc2": "usv_mj.vessels.kvlcc2",
                               "cybership2": "usv_mj.vessels.datafile", "otter": "usv_mj.vessels.datafile"},
-                   "usv_mj.vessels", files=(".toml", "usv_mj.vessels.datafile:register_file"))
+                   "usv_mj.vessels", files=(".toml", "usv_mj.vessels.datafile:register_file"),
+                   returns=("kind", "ship", "split", "dimensions"))
 #: the standard manoeuvres (docs/manoeuvres.md): a kind's object is its options dataclass, as a
 #: disturbance's (the ``[manoeuvre]`` table's keys); the job that runs them is usv_mj.jobs.manoeuvres
 MANOEUVRES = Registry("manoeuvre", {k: "usv_mj.scenario.manoeuvre" for k in ("turning", "zigzag", "spiral", "stopping")},
@@ -428,3 +544,64 @@ TASKS = TaskRegistry("task", {k: "usv_mj.envs.suite" for k in ("track", "track_w
 #: every registry by its scenario section (``usv-mj kinds`` lists them), and the environments' tasks
 REGISTRIES = {"controller": CONTROLLERS, "trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES,
               "vessel": VESSELS, "manoeuvre": MANOEUVRES, "task": TASKS}
+
+
+def _packages() -> dict:
+    """importlib.metadata.packages_distributions(), read once per process (it reads every installed
+    distribution's file list)."""
+    global _PACKAGES
+    if _PACKAGES is None:
+        import importlib.metadata as md
+
+        _PACKAGES = md.packages_distributions()
+    return _PACKAGES
+
+
+_PACKAGES = None
+
+
+def origin(entry: Entry) -> dict:
+    """Where a registered kind comes from, for a run's metadata (the run log names every plug-in a run
+    used): ``source`` (as :attr:`Entry.source`), ``module`` (the object's), and for anything not
+    built in the installed ``distribution`` that provides the module and its ``version`` (None when
+    the module is not part of an installed distribution: a ``module:Name`` on PYTHONPATH, a runtime
+    registration; then ``file``, the module's file). A data file's kind (a vessel file) names the file."""
+    import importlib.metadata as md
+
+    out = {"source": entry.source, "module": entry.module}
+    if entry.source == BUILT_IN:
+        return out
+    if entry.source.startswith("data file"):
+        out["file"] = entry.kind
+        return out
+    top = entry.module.split(".")[0] if entry.module else ""
+    dists = _packages().get(top, []) if top else []
+    out["distribution"] = dists[0] if dists else None
+    out["version"] = None
+    if dists:
+        try:
+            out["version"] = md.version(dists[0])
+        except md.PackageNotFoundError:
+            pass
+    else:
+        module = sys.modules.get(entry.module)
+        out["file"] = getattr(module, "__file__", None)
+    return out
+
+
+def origins(kinds: dict) -> dict:
+    """``{"<registry> <kind>": origin}`` of every kind in ``kinds`` ({registry name: kind or None},
+    registry names of :data:`REGISTRIES`) that is not built in; a kind that cannot be looked up is
+    named with the error."""
+    out = {}
+    for section, kind in kinds.items():
+        if not kind:
+            continue
+        try:
+            entry = REGISTRIES[section].get(kind, section)
+        except Exception as exc:   # noqa: BLE001 - metadata: say why, never fail a run for it
+            out[f"{section} {kind}"] = {"source": "unknown", "error": str(exc)}
+            continue
+        if entry.source != BUILT_IN:
+            out[f"{section} {kind}"] = origin(entry)
+    return out

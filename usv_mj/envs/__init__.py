@@ -61,6 +61,17 @@ back: ``usv_mj/Track-v0``, ``usv_mj/TrackWaves-v0``, ``usv_mj/Harbor-v0``,
 package is imported (a task registered later: when it registers) (if gymnasium is installed), for ``gymnasium.make`` (an installed wheel imports it
 when gymnasium is imported: :mod:`usv_mj.envs.gymnasium_hook`); flat scaled observations
 and normalized actions: :mod:`usv_mj.envs.gymnasium_env`.
+
+Traffic (issue 35): ``usv_mj/Encounter-v0`` (:data:`ENV_IDS`, registered beside them;
+:class:`EncounterEnv`, :mod:`usv_mj.envs.encounter_env`) is the own ship among other vessels (an
+Imazu case or a scenario with ``[[vessels]]``), and :func:`traffic_parallel_env`
+(:class:`TrafficParallelEnv`, :mod:`usv_mj.envs.traffic_parallel`) the PettingZoo ``ParallelEnv``
+in which every vessel is an agent; both on :mod:`usv_mj.envs.traffic`.
+
+Many episodes in one call: ``gymnasium.make_vec("usv_mj/Track-v0", num_envs=N)`` (the vector view,
+:mod:`usv_mj.envs.gymnasium_vector`; ``plant="analytic"`` for the native RK4 of the same hull),
+:func:`load_batch` for dm_env users (arrays of TimeStep fields, :mod:`usv_mj.envs.batch`) and
+:class:`usv_mj.envs.sb3_vec.USVSB3VecEnv` for stable-baselines3: the same batch, stepped natively.
 """
 
 from __future__ import annotations
@@ -70,14 +81,23 @@ import re
 from usv_mj.core.lazy_names import lazy_names
 from usv_mj.core.registry import TASKS
 
+#: Gymnasium id -> entry point of the environments that are their own ``gymnasium.Env``, not a task's
+#: view (a task of :data:`TASKS` is a dm_control environment of one hull on the MuJoCo plant; these run
+#: a fleet on either plant): ``usv_mj/Encounter-v0``, the own ship among other vessels
+#: (:mod:`usv_mj.envs.encounter_env`)
+ENV_IDS = {"usv_mj/Encounter-v0": "usv_mj.envs.encounter_env:EncounterEnv"}
+
 _WHERE = {
     "load": "environment", "gym_env": "gymnasium_env", "episode_record": "environment",
     "USVEnvironment": "environment", "PPCPolicy": "policies", "RandomPolicy": "policies",
     "TrackTask": "tasks", "HarbourTask": "tasks", "USVPhysics": "physics", "USVGymEnv": "gymnasium_env",
+    "EncounterEnv": "encounter_env", "TrafficParallelEnv": "traffic_parallel", "traffic_parallel_env": "traffic_parallel",
+    "load_batch": "batch", "TrackBatch": "batch", "USVVectorEnv": "gymnasium_vector", "USVSB3VecEnv": "sb3_vec",
 }
 
-__all__ = ["ALL_TASKS", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "TASKS", "TrackTask", "USVEnvironment",
-           "USVGymEnv", "USVPhysics", "episode_record", "gym_env", "gym_id", "load"]
+__all__ = ["ALL_TASKS", "ENV_IDS", "EncounterEnv", "GYM_IDS", "HarbourTask", "PPCPolicy", "RandomPolicy", "TASKS",
+           "TrackBatch", "TrackTask", "TrafficParallelEnv", "USVEnvironment", "USVGymEnv", "USVPhysics", "USVVectorEnv",
+           "episode_record", "gym_env", "gym_id", "load", "load_batch", "traffic_parallel_env"]
 
 _GYM_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]*(?:[_-][A-Za-z0-9]+)*$")
 
@@ -97,8 +117,8 @@ def gym_ids() -> dict:
 
 
 def register_gymnasium(tasks=None) -> None:
-    """Register the Gymnasium ids of ``tasks`` (default: every task of :data:`TASKS`; a task
-    registered later is added when it registers) with Gymnasium's registry when gymnasium is
+    """Register the Gymnasium ids of ``tasks`` (default: every task of :data:`TASKS` and the ids of
+    :data:`ENV_IDS`; a task registered later is added when it registers) with Gymnasium's registry when gymnasium is
     installed (it imports neither dm_control nor mujoco: the entry point is resolved by
     ``gymnasium.make``). Called on import of this module, which the wheel's start-up hook does once
     gymnasium is imported (:mod:`usv_mj.envs.gymnasium_hook`: Gymnasium 1.x reads no entry points)
@@ -111,7 +131,11 @@ def register_gymnasium(tasks=None) -> None:
     for task in (TASKS.kinds() if tasks is None else tasks):
         env_id = gym_id(task)
         if env_id is not None and env_id not in registry:
-            register(id=env_id, entry_point="usv_mj.envs.gymnasium_env:USVGymEnv", kwargs={"task": task})
+            register(id=env_id, entry_point="usv_mj.envs.gymnasium_env:USVGymEnv", kwargs={"task": task},
+                     vector_entry_point="usv_mj.envs.gymnasium_vector:make_vector_env")
+    for env_id, entry_point in (ENV_IDS.items() if tasks is None else ()):
+        if env_id not in registry:
+            register(id=env_id, entry_point=entry_point)
 
 
 register_gymnasium()

@@ -19,7 +19,8 @@ with warnings.catch_warnings():
 from dm_env import specs
 
 from usv_mj.builder import channels_of
-from usv_mj.core.errors import UnknownKindError
+from usv_mj.core import arguments
+from usv_mj.core.errors import UnknownKindError, expected
 from usv_mj.core.registry import TASKS
 from usv_mj.scenario.spec import Scenario, ScenarioError, load_scenario, merge_tables
 
@@ -261,7 +262,14 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
 
     Raises ValueError for an unknown task, option or vessel.
     """
+    if not isinstance(task, str):
+        raise expected("usv_mj.envs.load", "task", f"a task name ({', '.join(TASKS.kinds())})", task)
     entry = task_entry(task)
+    if seed is not None and not isinstance(seed, np.random.RandomState):
+        arguments.integer("usv_mj.envs.load", "seed", seed, 0, "an integer >= 0, a numpy.random.RandomState or None")
+    arguments.mapping_or_none("usv_mj.envs.load", "task_kwargs", task_kwargs, "a dict of task options or None")
+    arguments.mapping_or_none("usv_mj.envs.load", "environment_kwargs", environment_kwargs,
+                              "a dict (time_limit, flat_observation, legacy_step) or None")
     options = {**(task_kwargs or {}), **options}
     env_kw = dict(environment_kwargs or {})
     unknown = sorted(set(env_kw) - set(ENVIRONMENT_KWARGS))
@@ -278,12 +286,17 @@ def load(task: str, seed=None, *, task_kwargs=None, environment_kwargs=None, fla
     if unknown:
         raise ValueError(f"usv_mj.envs.load({task!r}): unknown options {unknown}; the task's: "
                          f"{', '.join(sorted(fields)) or 'none'}; every task's: {', '.join(SCENARIO_OPTIONS)}")
+    if "duration" in options and not arguments.is_real(options["duration"]):
+        raise expected("usv_mj.envs.load", "duration", "a number of seconds > 0", options["duration"])
     own = {k: options.pop(k) for k in list(options) if k in fields}
     try:
         typed = option_class(**own) if option_class is not None else None
     except (TypeError, ValueError) as exc:
         raise ValueError(f"usv_mj.envs.load({task!r}): {exc}") from None
-    duration = float(getattr(typed, "duration", options.pop("duration", DEFAULT_DURATION)))
+    duration = getattr(typed, "duration", options.pop("duration", DEFAULT_DURATION))
+    if not arguments.is_real(duration):
+        raise expected("usv_mj.envs.load", "duration", "a number of seconds > 0", duration)
+    duration = float(duration)
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"usv_mj.envs.load: duration must be a finite number > 0 s, got {duration!r}")
     preview = tuple(getattr(typed, "preview_times", DEFAULT_PREVIEW))

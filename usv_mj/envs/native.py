@@ -147,6 +147,110 @@ def harbor_sense(obs, start, max_range, m_addr, d_addr, sensor_pos, sensordata, 
     return clearance_summary(monitor[12], monitor[17])
 
 
+# --- the track reward in native code (the vector environments: usv_mj.envs.vector) ------------------
+#
+# The single environment computes its reward in Python (tasks.TrackTask._tracking_reward) with CPython's
+# math.hypot and libm's exp and pow; these are the same operations compiled, so a batch's rewards equal
+# the single environment's bit for bit (tests/test_vector_env.py).
+
+_T27 = 134217729.0   # 2**27 + 1: Veltkamp's split of a double into two 26-bit halves
+
+
+@njit(cache=True)
+def hypot_py(x, y):
+    """CPython's ``math.hypot(x, y)`` (Modules/mathmodule.c ``vector_norm``, 3.10-3.11: scaled,
+    with the sums of squares carried in double-double, then one correction of the square root),
+    which is not libm's hypot: the same IEEE operations in the same order, so the same double."""
+    ax, ay = abs(x), abs(y)
+    if math.isinf(ax) or math.isinf(ay):
+        return math.inf
+    if math.isnan(ax) or math.isnan(ay):
+        return math.nan
+    mx = max(ax, ay)
+    if mx == 0.0:
+        return mx
+    _, e = math.frexp(mx)
+    csum, frac1, frac2, frac3 = 1.0, 0.0, 0.0, 0.0
+    if e >= -1023:
+        scale = math.ldexp(1.0, -e)
+        for v in (ax, ay):
+            v *= scale
+            t = v * _T27
+            hi = t - (t - v)
+            lo = v - hi
+            v = hi * hi
+            old = csum
+            csum += v
+            frac1 += (old - csum) + v
+            v = 2.0 * hi * lo
+            old = csum
+            csum += v
+            frac2 += (old - csum) + v
+            frac3 += lo * lo
+        h = math.sqrt(csum - 1.0 + (frac1 + frac2 + frac3))
+        t = h * _T27
+        hi = t - (t - h)
+        lo = h - hi
+        v = -hi * hi
+        old = csum
+        csum += v
+        frac1 += (old - csum) + v
+        v = -2.0 * hi * lo
+        old = csum
+        csum += v
+        frac2 += (old - csum) + v
+        v = -lo * lo
+        old = csum
+        csum += v
+        frac3 += (old - csum) + v
+        v = csum - 1.0 + (frac1 + frac2 + frac3)
+        return (h + v / (2.0 * h)) / scale
+    for v in (ax, ay):   # subnormal maximum: divide by it instead of scaling
+        v /= mx
+        v = v * v
+        old = csum
+        csum += v
+        frac1 += (old - csum) + v
+    return mx * math.sqrt(csum - 1.0 + frac1)
+
+
+#: layout of the reward parameters ``rp`` of :func:`track_reward` (float64)
+R_TWO, R_GAUSS_SCALE, R_POSITION, R_HEADING, R_MAX_DISTANCE = range(5)
+N_REWARD = 5
+
+
+@njit(cache=True)
+def tol_gaussian(x, lower, upper, margin, rp):
+    """``usv_mj.envs.tasks._tol_gaussian`` compiled: dm_control's Gaussian tolerance with libm's pow
+    and exp (the exponent 2 is read from ``rp[R_TWO]`` at run time, so that the compiler calls pow
+    instead of squaring, as CPython's math.pow does)."""
+    if lower <= x <= upper:
+        return 1.0
+    d = (lower - x if x < lower else x - upper) / margin
+    return math.exp(-0.5 * math.pow(d * rp[R_GAUSS_SCALE], rp[R_TWO]))
+
+
+@njit(cache=True)
+def track_reward(ex, ey, e_psi, rp):
+    """The track tasks' reward (usv_mj.envs.tasks.TrackTask._tracking_reward) of the errors."""
+    return (2.0 * tol_gaussian(hypot_py(ex, ey), 0.0, rp[R_POSITION], 2.0, rp)
+            + tol_gaussian(abs(e_psi), 0.0, rp[R_HEADING], 0.5, rp)) / 3.0
+
+
+@njit(cache=True)
+def observe_scaled(out, scale, lo, hi, dst):
+    """The Gymnasium view's observation of the vector ``out`` into ``dst`` (float32):
+    ``np.clip(out / scale, lo, hi).astype(np.float32)`` (usv_mj.envs.gymnasium_env.USVGymEnv._observe),
+    element by element (a NaN stays NaN, as numpy's clip leaves it)."""
+    for j in range(out.shape[0]):
+        v = out[j] / scale[j]
+        if v < lo[j]:
+            v = lo[j]
+        elif v > hi[j]:
+            v = hi[j]
+        dst[j] = np.float32(v)
+
+
 def entry_point(dispatcher):
     """The compiled entry point of an njit function with exactly one compiled signature, or None.
 
@@ -169,9 +273,9 @@ def sensor_pos_address() -> int:
 def _rows_python(reference, t, preview):
     """The reference rows through ``reference.evaluate`` (references without a kernel)."""
     refs = np.empty((preview.size + 1, 7))
-    refs[0] = reference.evaluate(t)
+    refs[0] = reference.evaluate(t)[:7]   # the 7 entries the observation reads (not the accelerations)
     for k, tau in enumerate(preview):
-        refs[k + 1] = reference.evaluate(t + tau)
+        refs[k + 1] = reference.evaluate(t + tau)[:7]
     return refs
 
 

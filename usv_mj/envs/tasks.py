@@ -157,6 +157,15 @@ def _tol_linear(x: float, lower: float, upper: float, margin: float) -> float:
     return 1 - d if abs(d) < 1 else 0.0
 
 
+def track_start_pose(reference, random, start_offset):
+    """A track episode's initial (eta0, nu0): the reference's pose at t = 0 plus offsets drawn
+    uniformly within +-``start_offset`` from ``random`` (a RandomState), at rest (the task's
+    :meth:`TrackTask.start_pose`, and each episode of a vector environment, usv_mj.envs.vector)."""
+    ref = reference.evaluate(0.0)
+    d = random.uniform(-1.0, 1.0, size=3) * start_offset
+    return np.array([ref[0] + d[0], ref[1] + d[1], ref[2] + d[2]]), np.zeros(3)
+
+
 class _Step(NamedTuple):
     """One evaluation of the track task at a state (:meth:`TrackTask._evaluate`): what the native
     step returns, as it returns it."""
@@ -275,9 +284,7 @@ class TrackTask(base.Task):
 
     def start_pose(self):
         """The randomised initial (eta0, nu0) of an episode (uses ``self.random``)."""
-        ref = self.reference.evaluate(0.0)
-        d = self.random.uniform(-1.0, 1.0, size=3) * self.start_offset
-        return np.array([ref[0] + d[0], ref[1] + d[1], ref[2] + d[2]]), np.zeros(3)
+        return track_start_pose(self.reference, self.random, self.start_offset)
 
     def initialize_episode(self, physics):
         self.control.reset()

@@ -94,6 +94,29 @@ from usv_mj.loop.step import C_F_R, C_F_U, C_S_R, C_S_U, ControlStep
 from usv_mj.record.run_record import N_CORE
 from usv_mj.scenario.spec import Scenario
 
+#: every check of compare.json, what it holds and when it applies (docs/controllers.md, "What usv-mj
+#: compare checks"); a check that does not apply to the scenario's controller is None ("n/a", with
+#: the reason in ``not_applicable``) and does not fail the comparison
+CHECKS = {
+    "open_loop_position_below_1e-6_m": "calm water: the plants under the same open-loop inputs stay within 1e-6 m "
+                                       "of each other over the whole run (no controller involved)",
+    "open_loop_adrift_position_below_1e-6_m": "in a sea: the unpowered hull adrift in the same loads, within 1e-6 m",
+    "open_loop_difference_within_sea_sensitivity": "in a sea: under the rich inputs the plants differ by no more than "
+                                                   "10 x what a 1e-12 m nudge of the start makes",
+    "closed_loop_position_below_1e-3_m_or_step_error": "the scenario's controller on both plants: within 1e-3 m, or "
+                                                       "within the plants' own integration errors (step halving)",
+    "closed_loop_both_inside_funnels": "a funnel law: both runs keep |z_i| < 1 at every step",
+    "closed_loop_both_passed_criterion": "neither run broke the criterion the controller declares; n/a when "
+                                         "it judged no step of either (not_judged, or a run shorter than its "
+                                         "settling time)",
+    "saturated_closed_loop_position_below_1e-3_m_or_step_error": "the closed loop with saturating actuators (the "
+                                                                 "scenario's limits, else paper-limited's) on both "
+                                                                 "plants, as the closed-loop check",
+    "saturated_closed_loop_saturates": "that case did reach the limits (else it tested nothing): run by the "
+                                       "scenario's law when it declares reaches_actuator_limits, else by the "
+                                       "paper's PPC, which does",
+}
+
 SWITCH_GRID_S = 0.2            # inputs change only at multiples of this time [s]
 OPEN_LOOP_TOLERANCE_M = 1e-6   # 300 s open loop at 1 ms
 CLOSED_LOOP_TOLERANCE_M = 1e-3  # 300 s closed loop, paper preset
@@ -525,11 +548,14 @@ def _judge(runs: dict, result: dict) -> None:
     """Whether each run completed and passed its controller's criterion (:mod:`usv_mj.record.criteria`):
     ``passed_criterion`` and ``criterion`` (its words); for the funnel, in the paper's terms too,
     ``inside_funnels`` and the worst |z_i| (``max_abs_z``)."""
-    from usv_mj.record.criteria import criterion_of_record
+    from usv_mj.record.criteria import criterion_of_record, judge
 
     criterion = criterion_of_record(next(iter(runs.values())))
-    passed = {k: bool(r.status == "completed" and criterion.evaluate(r)["passed"] is True) for k, r in runs.items()}
+    verdict = {k: (judge(criterion, r)["passed"] if r.status == "completed" else False) for k, r in runs.items()}
+    passed = {k: v is True for k, v in verdict.items()}
     result["criterion"], result["passed_criterion"] = criterion.describe(), passed
+    # None: the criterion judged no step (NotJudged, or a run shorter than its settling time)
+    result["criterion_verdict"] = verdict
     if criterion.kind == "funnel":
         result["inside_funnels"] = passed
         result["max_abs_z"] = {k: float(np.max(np.abs(np.stack([r["z1"], r["z2"], r["z3"]])))) if len(r)
@@ -537,18 +563,41 @@ def _judge(runs: dict, result: dict) -> None:
 
 
 SATURATED_PRESET = "paper-limited"  # the actuators of the saturated closed-loop case
+#: the law of the saturated closed-loop case when the scenario's does not declare that it drives the
+#: actuators into their limits (controllers/base.py: ``reaches_actuator_limits``)
+SATURATING_LAW = "ppc"
+
+
+def saturating_law(scenario: Scenario) -> str | None:
+    """None when the scenario's controller declares ``reaches_actuator_limits = True`` (its class
+    attribute: the law drives the actuators into their limits from the scenario's start, so the
+    saturated case exercises them with it); else the kind that runs the saturated case instead,
+    :data:`SATURATING_LAW` (the case checks the plants and the actuator models under saturation, not
+    the law: a law that never saturates is no failure of its own)."""
+    obj = CONTROLLERS.get(scenario.controller.kind, "controller.kind").obj
+    return None if getattr(obj, "reaches_actuator_limits", False) else SATURATING_LAW
 
 
 def saturated_scenario(scenario: Scenario) -> Scenario:
     """``scenario`` with actuators that saturate: its own when it has limits, else the ``[actuators]``
-    of the preset :data:`SATURATED_PRESET` (twin thrusters of a 2 m USV)."""
-    if not scenario.actuators.unlimited:
-        return scenario
-    from usv_mj.scenario.spec import load_scenario
+    of the preset :data:`SATURATED_PRESET` (twin thrusters of a 2 m USV); run by a law that reaches
+    them (:func:`saturating_law`: the scenario's, or :data:`SATURATING_LAW` with its preset gains)."""
+    if scenario.actuators.unlimited:
+        from usv_mj.scenario.spec import load_scenario
 
-    table = load_scenario(preset=SATURATED_PRESET).to_dict()["actuators"]
-    table = {k: v for k, v in table.items() if not (isinstance(v, float) and math.isinf(v))}
-    return scenario.with_overrides({"actuators": table})
+        table = load_scenario(preset=SATURATED_PRESET).to_dict()["actuators"]
+        table = {k: v for k, v in table.items() if not (isinstance(v, float) and math.isinf(v))}
+        scenario = scenario.with_overrides({"actuators": table})
+    law = saturating_law(scenario)
+    if law is None:
+        return scenario
+    import copy
+
+    from usv_mj.scenario.spec import from_dict
+
+    data = copy.deepcopy(scenario.raw)
+    data["controller"] = {"kind": law}
+    return from_dict(data, source=scenario.source or "<compare>")
 
 
 def compare_closed_loop_saturated(scenario: Scenario, progress: bool = True) -> dict:
@@ -557,11 +606,18 @@ def compare_closed_loop_saturated(scenario: Scenario, progress: bool = True) -> 
     the case to mean anything) and the funnel check."""
     sat = saturated_scenario(scenario)
     applied = channels_of(sat, getattr(CONTROLLERS.get(sat.controller.kind).obj, "commands", "forces")).applied
-    _say(progress, f"closed loop with saturating actuators ({sat.actuators.describe(applied)}), {sat.duration:g} s")
+    _say(progress, f"closed loop with saturating actuators ({sat.actuators.describe(applied)}), {sat.duration:g} s"
+         + ("" if sat.controller.kind == scenario.controller.kind else
+            f", run by {sat.controller.kind!r} ({scenario.controller.kind!r} does not declare that it reaches "
+            f"the actuators' limits)"))
     runs = _closed_loop_pair(sat)
     xa, xm = _record_states(runs["analytic"]), _record_states(runs["mujoco"])
     n = min(len(xa), len(xm))
     result = {"duration_s": sat.duration, "actuators": sat.actuators.describe(applied), **state_differences(xm[:n], xa[:n])}
+    result["controller"] = sat.controller.kind
+    if sat.controller.kind != scenario.controller.kind:
+        result["controller_note"] = (f"run by {sat.controller.kind!r}: the scenario's {scenario.controller.kind!r} does "
+                                     f"not declare reaches_actuator_limits (docs/controllers.md)")
     result["status"] = {k: r.status for k, r in runs.items()}
     result["saturated_fraction"] = {k: {ch: float(np.mean(r[f"sat_{ch}"] > 0.5)) for ch in ("u", "r")}
                                     for k, r in runs.items()}
@@ -722,14 +778,21 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
                       "open_loop_difference_within_sea_sensitivity": open_loop["within_sensitivity"]}
     else:
         open_check = {"open_loop_position_below_1e-6_m": open_loop["max_position_m"] < OPEN_LOOP_TOLERANCE_M}
+    verdict = closed_loop.get("criterion_verdict", {})
+    judged = not verdict or any(v is not None for v in verdict.values())
     checks = {
         **open_check,
         "closed_loop_position_below_1e-3_m_or_step_error": closed_loop_agrees(closed_loop),
         ("closed_loop_both_inside_funnels" if "inside_funnels" in closed_loop else
-         "closed_loop_both_passed_criterion"): all(closed_loop["passed_criterion"].values()),
+         "closed_loop_both_passed_criterion"): (all(v is not False for v in verdict.values()) if verdict else
+                                                all(closed_loop["passed_criterion"].values())) if judged else None,
         "saturated_closed_loop_position_below_1e-3_m_or_step_error": closed_loop_agrees(saturated),
         "saturated_closed_loop_saturates": all(max(f.values()) > 0 for f in saturated["saturated_fraction"].values()),
     }
+    not_applicable = {name: why for name, why in (
+        ("closed_loop_both_passed_criterion", f"the criterion ({closed_loop.get('criterion', '?')}) judged no step of "
+                                              f"either run: it judges none, or the run ends before its settling time"),)
+        if checks.get(name, True) is None}
     result = {
         "scenario": {"preset": scenario.preset, "source": scenario.source, "duration_s": scenario.duration,
                      "control_period_s": scenario.control_period,
@@ -738,7 +801,9 @@ def compare_plants(scenario: Scenario, out_dir: str, progress: bool = True) -> d
         "closed_loop": closed_loop,
         "closed_loop_saturated": saturated,
         "checks": checks,
-        "passed": all(checks.values()),
+        "not_applicable": not_applicable,
+        "check_docs": {name: CHECKS[name] for name in checks},
+        "passed": all(v is not False for v in checks.values()),
         "tolerance_note": "the tolerances: 1e-6 m (open loop) and 1e-3 m (closed loop) over 300 s at 1 ms; a "
                           "closed loop over 1e-3 m passes if within the two plants' own integration errors "
                           "(step halving, step_error)",
@@ -845,6 +910,9 @@ def report_lines(result: dict) -> list[str]:
                 f"{r['max_position_m']:.3e} m is {'within' if r['max_position_m'] <= e['bound_m'] else 'over'} "
                 f"their sum {e['bound_m']:.3e} m")
     for check, ok in result["checks"].items():
-        say(f"  {'ok  ' if ok else 'FAIL'} {check}")
+        why = result.get("not_applicable", {}).get(check, "")
+        say(f"  {'n/a ' if ok is None else 'ok  ' if ok else 'FAIL'} {check}" + (f" ({why})" if why else ""))
+    if result["closed_loop_saturated"].get("controller_note"):
+        say(f"  (the saturated case was {result['closed_loop_saturated']['controller_note']})")
     return lines
 

@@ -1,7 +1,7 @@
 """The main job of a scenario with several vessels (``[[vessels]]``, issue 35): one run, every output.
 
 What ``usv-mj run --scenario FLEET.toml`` writes into ``--out`` (staged, moved into place when the
-job ends, however it ends, as a single run's job: :mod:`usv_mj.jobs.run`):
+job ends, completed, diverged or interrupted, as a single run's job: :mod:`usv_mj.jobs.run`):
 
 - ``run.mcap``: the own ship's run log (run "main": ``/usv/...`` topics), and beside it one
   companion log per other vessel, ``vessel-NAME.mcap`` (run NAME: ``/NAME/usv/...`` topics and the
@@ -15,16 +15,23 @@ job ends, however it ends, as a single run's job: :mod:`usv_mj.jobs.run`):
 - ``report.md``: the vessels and the encounter in tables;
 - ``video.mp4`` and ``video.png``: every vessel drawn (its hull, wake trail and name), the own
   ship's safety domain about it (:func:`usv_mj.outputs.render.planner.add_fleet`).
+
+A job that fails (a crash, a plug-in's ``sys.exit``, an output the file system refused) raises
+:class:`usv_mj.jobs.run.RunFailed` naming where its files and ``traceback.txt`` are: ``--out``, or,
+when that holds an earlier run, ``.NAME.failed-PID`` beside it (the earlier run stays), as a single
+run's job does.
 """
 
 from __future__ import annotations
 
 import time
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from usv_mj.builder import build_fleet
-from usv_mj.jobs.run import _OutLock, _Signals, progress_bar, write_json
+from usv_mj.core.errors import ScenarioError
+from usv_mj.jobs.run import RunFailed, _failed_in, _one_line, _OutLock, _Signals, progress_bar, write_json
 from usv_mj.loop.fleet import simulate_fleet
 from usv_mj.outputs.figures import draw_figures
 from usv_mj.outputs.fleet_figures import draw_fleet_figures
@@ -55,16 +62,41 @@ def run_fleet_job(scenario, out_dir, *, plant_kind: str | None = None, log: bool
     parts = build_fleet(scenario, plant_kind=plant_kind)    # every input checked before anything is created
     with _OutLock(out), _Signals() as signals:
         stage = Staging(out)
+        failed = None
         try:
             result = _run(parts, stage.path, log, progress, live, signals, video, dict(render_options or {}))
+        except (Exception, SystemExit) as exc:    # SystemExit: a plug-in's, outside the loop (a hook of render)
+            from usv_mj.outputs.render import GLUnavailableError
+
+            if isinstance(exc, (ScenarioError, GLUnavailableError)):    # bad input, no OpenGL: exit 2, 3
+                raise
+            failed = _failure(exc, stage.path)
+            raise failed from exc
         finally:
             parts.close()
             with signals.deferred():
-                stage.commit()
+                # a job that failed never replaces an earlier run: that stays, its files go beside it
+                staged = stage.path
+                place = stage.finish(failed is not None)
+                if failed is not None:
+                    _failed_in(failed, staged, out, place)
     result.out_dir = out
     result.files = {k: out / Path(v).relative_to(stage.path) if isinstance(v, Path) else v
                     for k, v in result.files.items()}
     return result
+
+
+def _failure(exc: BaseException, stage: Path) -> RunFailed:
+    """The :class:`RunFailed` of a fleet's job that ``exc`` ended, its traceback written into
+    ``stage`` (best effort: the disk may be full)."""
+    where = stage / "traceback.txt"
+    try:
+        where.write_text("".join(traceback.format_exception(exc)))
+    except OSError:
+        where = None
+    return RunFailed(f"the run failed: {_one_line(exc)}" + (f" (traceback in {where})" if where else
+                                                           f" (what was written is in {stage}/)"),
+                     stage, None, where)
 
 
 def _run(parts, out: Path, log: bool, progress: bool, live, signals, video: bool, render_opts: dict) -> FleetJobResult:

@@ -52,9 +52,11 @@ def check_plan(scenario: Scenario) -> None:
     try:
         make_plan(scenario)
     except (PlanningError, ValueError) as exc:
-        if isinstance(exc, ScenarioError):
+        message = str(exc)
+        if isinstance(exc, ScenarioError) and scenario.source and message.startswith(scenario.source):
             raise
-        raise ScenarioError(f"{scenario.source}: guidance: {exc}") from None
+        raise (PlanningError if isinstance(exc, PlanningError) else ScenarioError)(
+            f"{scenario.source}: guidance: {message}") from None
 
 
 def check_video(render_options: dict | None) -> None:
@@ -89,6 +91,24 @@ def check_out_dir(out, overwrite: bool = False, flag: str = "--out") -> Path:
     from usv_mj.outputs.outdir import check_folder
 
     return check_folder(out, overwrite, flag)
+
+
+def check_controller(scenario: Scenario, kind: str | None = None) -> None:
+    """The contracts of controller ``kind`` (default the scenario's) checked when it is loaded, not
+    after the run: it is made as the run makes it (a plug-in's ``from_scenario`` that fails says so,
+    :mod:`usv_mj.core.plugins`), its criterion (:func:`usv_mj.record.criteria.criterion_of`) and its
+    kernel's diagnostics against its ``diagnostic_fields`` (:func:`usv_mj.core.kernels.diag_contract`).
+    A broken contract raises :class:`usv_mj.core.errors.PluginContractError` (exit 2, nothing written)."""
+    from usv_mj.builder import make_controller
+    from usv_mj.core.errors import PluginContractError
+    from usv_mj.core.kernels import diag_contract
+    from usv_mj.record.criteria import criterion_of
+
+    controller = make_controller(scenario, kind)
+    criterion_of(controller)
+    problem = diag_contract(controller)
+    if problem is not None:
+        raise PluginContractError(problem)
 
 
 def check_run(scenario: Scenario, out, *, video: bool, render_options: dict | None, overwrite: bool) -> Path:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +24,7 @@ from pathlib import Path
 from usv_mj.record.criteria import criterion_of_record
 from usv_mj.outputs.figures import draw_figures
 from usv_mj.record.run_record import RunRecord
-from usv_mj.outputs.report import adaptation_section, write_report
+from usv_mj.outputs.report import adaptation_section, gains_section, write_report
 from usv_mj.scenario.spec import Scenario
 from usv_mj.loop.simulate import simulate
 from usv_mj.record.summary import CHECK_TIMES, baseline_line, criterion_line, outcome_sentence, pose_errors_at, summarize
@@ -219,7 +220,7 @@ class _OutLock:
         return False
 
 
-from usv_mj.core.errors import Terminated  # noqa: E402  (SIGTERM / SIGHUP as Ctrl-C)
+from usv_mj.core.errors import Terminated, compiler_summary, expected, plain_text  # noqa: E402  (Terminated: SIGTERM / SIGHUP as Ctrl-C)
 
 
 class _Signals:
@@ -323,10 +324,15 @@ def _one_line(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.strerror:
         where = exc.filename or ""
         return f"{where}: {exc.strerror}" if where else exc.strerror
-    text = str(exc).strip().splitlines()
+    summary = compiler_summary(str(exc))   # numba's dozens of highlighted lines: what failed, and where
+    if summary is not None:
+        return f"{type(exc).__name__}: {summary}"
+    text = [line.strip() for line in plain_text(exc).strip().splitlines() if line.strip()]
     if type(exc).__name__ in ("RunLogError", "RenderWorkerError") and text:
         return text[-1]
-    return f"{type(exc).__name__}: {text[-1] if text else ''}".rstrip(": ")
+    # every line: a message's first line is often its reason (MuJoCo's "Error: mass and inertia of
+    # moving bodies must be larger than mjMINVAL", then "Element name 'hull', id 1, line 54")
+    return f"{type(exc).__name__}: {'; '.join(text)}".rstrip(": ")
 
 
 def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, baseline: bool | None = None,
@@ -338,10 +344,13 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     Every input is checked first (:func:`usv_mj.jobs.preflight.check_run`: a ScenarioError leaves
     ``out_dir`` as it was); ``out_dir`` holding an earlier usv_mj output is refused unless
     ``overwrite``, and then replaced whole; a folder holding anything usv_mj did not write is
-    always refused (:mod:`usv_mj.outputs.outdir`). The outputs are written into a staging folder beside ``out_dir`` and moved
-    into place when the job ends, however it ends. Ctrl-C, SIGTERM and SIGHUP stop the job (the
-    summary says where and which outputs are missing); a crash or an output that cannot be written
-    raises :class:`RunFailed` after the summary, the report and ``traceback.txt`` are in place.
+    always refused (:mod:`usv_mj.outputs.outdir`). The outputs are written into a staging folder
+    beside ``out_dir`` and moved into place when the job ends (completed, diverged, interrupted).
+    Ctrl-C, SIGTERM and SIGHUP stop the job (the summary says where and which outputs are
+    missing); a crash or an output that cannot be written raises :class:`RunFailed` after the
+    summary, the report and ``traceback.txt`` are written: into ``out_dir``, or, when it holds an
+    earlier run, beside it (``.NAME.failed-PID``, cleared by the next run into it: the earlier run
+    stays; ``RunFailed.out_dir`` says where).
     ``log_rate`` [Hz]: the MCAP logs every n-th control step (None: every step). A run whose
     record exceeds ``simulation.STREAM_BYTES`` streams it into ``record/`` (``baseline_record/``):
     ``RunRecord.open`` reads it back.
@@ -352,6 +361,10 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     from usv_mj.jobs.preflight import check_run
     from usv_mj.outputs.log.writer import log_every
 
+    if not isinstance(scenario, Scenario):
+        raise expected("run_job", "scenario", "a Scenario (usv_mj.load_scenario)", scenario)
+    if not isinstance(out_dir, (str, os.PathLike)):
+        raise expected("run_job", "out_dir", "the output folder's path (str or pathlib.Path)", out_dir)
     log_every(log_rate, scenario.control_period)   # a bad rate is refused before anything is written
     from usv_mj.outputs.outdir import Staging
 
@@ -364,21 +377,30 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     check_commands(scenario, scenario.controller.kind)
     if run_baseline and scenario.baseline.kind != scenario.controller.kind:
         check_commands(scenario, scenario.baseline.kind, " (it is the baseline: --no-baseline skips it)")
+    from usv_mj.jobs.preflight import check_controller
+
+    check_controller(scenario)   # a plug-in's contracts, before anything is written
+    if run_baseline and scenario.baseline.kind != scenario.controller.kind:
+        check_controller(scenario, scenario.baseline.kind)
     with _OutLock(out), _Signals() as signals:
         stage = Staging(out)
+        failed = None
         try:
             result = _run_staged(scenario, stage.path, out, signals, plant_kind=plant_kind, baseline=baseline,
                                  video=video, log=log, progress=progress, step_check=step_check,
                                  render_opts=render_opts, log_rate=log_rate, live=live,
                                  extra_outputs=extra_outputs)
         except RunFailed as exc:
-            exc.out_dir, exc.summary = out, _relocate(exc.summary, stage.path, out)
-            exc.traceback = _relocate(exc.traceback, stage.path, out)
-            exc.args = (str(exc).replace(str(stage.path), str(out)),)
+            failed = exc
             raise
         finally:
             with signals.deferred():
-                stage.commit()
+                # a run that failed (a crash, an output that could not be written) never replaces
+                # an earlier one: that stays, and the failed run's files are kept beside it
+                staged = stage.path
+                place = stage.finish(failed is not None)
+                if failed is not None:
+                    _failed_in(failed, staged, out, place)
     result.out_dir = out
     for rec in (result.record, result.baseline):   # a streamed record's folder moved with the outputs
         if rec is not None and rec.stored:
@@ -387,6 +409,20 @@ def run_job(scenario: Scenario, out_dir, *, plant_kind: str | None = None, basel
     result.summary = _relocate(result.summary, stage.path, out)
     result.render_stats = _relocate(result.render_stats, stage.path, out)
     return result
+
+
+def _failed_in(exc: RunFailed, staged: Path, out: Path, aside: Path | None) -> None:
+    """``exc`` of a run staged in ``staged``, its files now in ``out`` (``aside`` None) or, when
+    ``out`` kept an earlier run, in ``aside``: its paths and its line say where they are."""
+    where = aside if aside is not None else out
+    exc.out_dir, exc.summary = where, _relocate(exc.summary, staged, where)
+    exc.traceback = _relocate(exc.traceback, staged, where)
+    text = str(exc).replace(str(staged), str(where))
+    if aside is not None:
+        text = text.replace(f"{out}/", f"{aside}/") + (f"; {out} still holds the earlier run (--overwrite replaces "
+                                                      f"it only with a run that ends; the next run into it "
+                                                      f"clears {aside}/)")
+    exc.args = (text,)
 
 
 def _failed_summary(scenario: Scenario, plant_kind: str, status: str, reason: str, missing: list) -> dict:
@@ -430,7 +466,7 @@ class _StagedJob:
         self.expected = ["summary.json", "report.md", "figures"] + (["run.mcap"] if log else []) + \
                         (["video.mp4", "video.png"] if video else [])
         self.stack = ExitStack()
-        self.writer = None
+        self.writer = self.base_writer = None
         self.every = None        # the log's n-th step
         self.pool = None
         self.stopped = None      # why the outputs after the simulation stopped (interrupt or fault)
@@ -557,6 +593,8 @@ class _StagedJob:
             self.files["figures"] = draw_figures(record, out / "figures", self.base_rec, obstacles=scenario.obstacles)
             adaptation = adaptation_section(record)   # a run whose controller adapts network weights
             extra_sections = [adaptation] if adaptation else []
+            gains = gains_section(record, self.base_rec)   # the gains each law ran with (docs/gains.md)
+            extra_sections += [gains] if gains else []
             if self.extra_outputs is not None:
                 self.phase = "writing the manoeuvre's outputs"
                 sections, extra_files = self.extra_outputs(record, out)
@@ -579,8 +617,8 @@ class _StagedJob:
                                               if isinstance(v, (int, float, str, Path))}
         except KeyboardInterrupt:
             self.stopped = f"interrupted ({signals.last}) while {self.phase}"
-        except Exception as exc:   # an output that cannot be written (disk full, read-only) or a worker
-            self.fault = _one_line(exc)
+        except (Exception, SystemExit) as exc:   # an output that cannot be written (disk full, read-only),
+            self.fault = _one_line(exc)           # a worker, or a plug-in (a criterion) calling sys.exit
             self.stopped = f"stopped while {self.phase}: {self.fault}"
 
     def _baseline(self) -> RunRecord:
@@ -590,8 +628,8 @@ class _StagedJob:
         if self.log:  # one file per run, each in log-time order; read_run(run.mcap) finds this one beside it
             from usv_mj.outputs.log import RunLogWriter
 
-            base_writer = self.stack.enter_context(RunLogWriter(out / "baseline.mcap", scenario,
-                                                                companion_of=self.writer, live=self.live))
+            base_writer = self.base_writer = self.stack.enter_context(RunLogWriter(
+                out / "baseline.mcap", scenario, companion_of=self.writer, live=self.live))
             sink_base = [base_writer.sink(run="baseline", log_every=self.every)]
             self.files["baseline_mcap"] = out / "baseline.mcap"
         cb, close = progress_bar(scenario.duration, f"{scenario.baseline.kind.upper()} baseline", self.progress,
@@ -634,6 +672,9 @@ class _StagedJob:
         if self.fault:
             stopped, fault = self.stopped, self.fault
             message = stopped if stopped and fault in stopped else f"{fault}; {stopped}" if stopped else fault
+            rec = self.record
+            if rec is not None and rec.status in ("diverged", "failed"):   # the run's own end first: not hidden
+                message = f"the run {rec.status}: {rec.stop_reason}; then {message}"
             raise RunFailed(f"{message} (what was written is in {final_out}/)".replace(str(out), str(final_out)),
                             final_out, self.summary_out)
         return JobResult(out, self.record, self.summary_out, self.base_rec, self.base_summary, self.check, files,
@@ -645,7 +686,7 @@ class _StagedJob:
         if self.run_baseline and self.base_rec is None and self.record.status != "interrupted":
             summary_out["baseline"] = {"status": "not run", "stop_reason": stopped}
         summary_out["job_stopped"] = stopped
-        summary_out["missing_outputs"] = _missing(out, self.expected, self.log)
+        summary_out["missing_outputs"] = self._missing_now()
         # the summary first: a second Ctrl-C while the report is written ends the job at once
         self.files["summary"] = out / "summary.json"
         write_json(self.files["summary"], _relocate(summary_out, out, final_out))
@@ -656,7 +697,16 @@ class _StagedJob:
             self.files["report"] = out / "report.md"
         except KeyboardInterrupt:
             summary_out["job_stopped"] = f"{stopped}; interrupted again ({self.signals.last}) while writing the report"
-        summary_out["missing_outputs"] = _missing(out, self.expected, self.log)
+        summary_out["missing_outputs"] = self._missing_now()
+
+    def _missing_now(self) -> list:
+        """The expected outputs not (all) there, a log whose writer failed included (it holds the
+        rows up to its last complete chunk, not the run's: issue 38)."""
+        missing = _missing(self.out, self.expected, self.log)
+        for writer in (self.writer, self.base_writer):
+            if writer is not None and writer.failed and writer.path.name not in missing:
+                missing.append(writer.path.name)
+        return missing
 
 
 def _run_staged(scenario: Scenario, out: Path, final_out: Path, signals: _Signals, *, plant_kind, baseline,

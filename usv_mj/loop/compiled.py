@@ -14,7 +14,9 @@ source once per combination of kernel functions, compiled once per machine).
 One call of the generated ``run_block`` does what the Python loop does for rows [k, stop): the
 hook's kernel (which may answer that Python must do this row's hook: run_block returns, Python
 calls the hook, and the block goes on from that row with ``resume``), the reference, the
-controller, the row's columns (core and the controller's diagnostics), the force check, then the
+controller, the check of its diag's length against its ``diagnostic_fields`` (the status
+DIAG_MISMATCH: a contract error, before the row takes it), the row's columns (core and the
+controller's diagnostics), the force check, then the
 control step and the plant's step over the period (``advance``, :mod:`usv_mj.loop.generate`:
 clip -> quantize -> actuators -> the row's control columns -> the plant's kernel) and the state
 check. The last row's command is recorded, never applied. It returns (rows written, status,
@@ -26,13 +28,15 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.core.errors import NumbaError
 
+from usv_mj.core.errors import PluginContractError, compiler_summary, plain_text
 from usv_mj.core.kernels import Kernel, kernel_blocker, kernel_of
 from usv_mj.loop.generate import _source_fingerprint, cache_dir, generate, kernel_name, load_generated  # noqa: F401 (API)
 from usv_mj.record.run_record import COL, N_CORE
 
 # statuses returned by run_block
-BLOCK_END, DONE, FORCE_LIMIT, PLANT_FAILED, DIVERGED, HOOK = 0, 1, 2, 3, 4, 5
+BLOCK_END, DONE, FORCE_LIMIT, PLANT_FAILED, DIVERGED, HOOK, DIAG_MISMATCH = 0, 1, 2, 3, 4, 5, 6
 
 _ROLES = ("ref", "ctrl", "step", "plant", "hook")
 
@@ -48,6 +52,9 @@ def run_block(k, stop, n, dt, data, base, n_diag, max_force, max_speed, max_yaw_
         resume = False
         ref = ref_fn(t, {ref_args})
         tau_u, tau_r, diag = ctrl_fn(t, x, ref, {ctrl_args})
+        if len(diag) != n_diag:  # the controller's contract (diagnostic_fields), before the row takes it
+            out[0] = len(diag)
+            return k, {DIAG_MISMATCH}, x
         row = data[k - base]  # data holds the record's window: rows base..
         row[{c_t}] = t
         for i in range(6):
@@ -74,12 +81,21 @@ def run_block(k, stop, n, dt, data, base, n_diag, max_force, max_speed, max_yaw_
 '''
 
 
+#: what ``run_block``'s template imports beside the kernels, and the numbers formatted into it
+BLOCK_IMPORTS = "from usv_mj.physics.limits import within_limits"
+BLOCK_FIELDS = dict(n_core=N_CORE, BLOCK_END=BLOCK_END, DONE=DONE, FORCE_LIMIT=FORCE_LIMIT, PLANT_FAILED=PLANT_FAILED,
+                    DIVERGED=DIVERGED, HOOK=HOOK, DIAG_MISMATCH=DIAG_MISMATCH,
+                    **{f"c_{c}": COL[c] for c in ("t", "x", "x_d", "y_d")})
+
+
+def block_kernels(kernels: dict) -> dict:
+    """{role: (kernel function, number of its arguments)}: what the generator takes (usv_mj.loop.generate)."""
+    return {role: (kernels[role].fn, len(kernels[role].args)) for role in _ROLES}
+
+
 def compiled_block(kernels: dict):
     """The generated ``run_block`` for this combination of kernels (module docstring)."""
-    module = generate("usv_mj_loop", _TEMPLATE, {role: (kernels[role].fn, len(kernels[role].args)) for role in _ROLES},
-                      imports="from usv_mj.physics.limits import within_limits", n_core=N_CORE,
-                      BLOCK_END=BLOCK_END, DONE=DONE, FORCE_LIMIT=FORCE_LIMIT, PLANT_FAILED=PLANT_FAILED,
-                      DIVERGED=DIVERGED, HOOK=HOOK, **{f"c_{c}": COL[c] for c in ("t", "x", "x_d", "y_d")})
+    module = generate("usv_mj_loop", _TEMPLATE, block_kernels(kernels), imports=BLOCK_IMPORTS, **BLOCK_FIELDS)
     return module.run_block
 
 
@@ -152,9 +168,12 @@ def run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()):
                 if run_block is None:
                     run_block = compiled_block(kernels)
                     release = _hold_signals()   # its first call may compile it
-            k, status, x = run_block(k, stop, n, dt, data, record.base, n_diag, limits.max_force, limits.max_speed,
-                                     limits.max_yaw_rate, limits.max_distance, x, out, resume,
-                                     *(kernels[r].args for r in _ROLES))
+            try:
+                k, status, x = run_block(k, stop, n, dt, data, record.base, n_diag, limits.max_force,
+                                         limits.max_speed, limits.max_yaw_rate, limits.max_distance, x, out, resume,
+                                         *(kernels[r].args for r in _ROLES))
+            except NumbaError as exc:   # the loop could not be compiled: which kernel, in one line
+                raise compile_error(kernels, exc) from None
             resume = False
             more = _after(record, k, status, x, pk, syncs, flush, block)
             if release is not None:
@@ -173,6 +192,24 @@ def run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()):
             release(deliver=False)
         for sync in syncs:
             sync()
+
+
+def compile_error(kernels: dict, exc: BaseException) -> Exception:
+    """The error of a generated loop numba could not compile: a plug-in's kernel named (a
+    :class:`PluginContractError`: its module and function, numba's reason in one line, the fix), else
+    usv_mj's own defect (RuntimeError), never numba's dozens of highlighted lines."""
+    reason = compiler_summary(str(exc)) or " ".join(plain_text(exc).split())
+    plugins = [(role, *kernel_name(kernels[role].fn)) for role in _ROLES]
+    plugins = [(role, m, n) for role, m, n in plugins if not m.startswith("usv_mj.")]
+    if not plugins:
+        return RuntimeError(f"the compiled loop could not be compiled: {type(exc).__name__}: {reason}")
+    names = ", ".join(f"{_LABELS[role]} kernel {m}.{n}" for role, m, n in plugins)
+    return PluginContractError(f"numba cannot compile the loop with the plug-in's {names}: {reason}; a kernel is an "
+                               f"njit function numba can type with the loop's arguments (usv_mj.core.kernels): "
+                               f"fix it, or give the part no kernel (the Python loop runs it)")
+
+
+_LABELS = {"ref": "reference", "ctrl": "controller", "step": "control step", "plant": "plant", "hook": "hook"}
 
 
 def _hold_signals():
@@ -213,7 +250,7 @@ def _after(record, k, status, x, pk, syncs, flush, block) -> bool:
         sync()
     # plant steps taken: one per row written, but the last row's (never applied) when the run is done
     pk.sync(k - 1 if status == DONE else k, x)
-    if status == FORCE_LIMIT:  # the Python loop stops before its flush check
+    if status in (FORCE_LIMIT, DIAG_MISMATCH):  # the Python loop stops before its flush check
         return False
     if status == HOOK:
         return True

@@ -11,7 +11,9 @@ law) has a ``traffic(t, states, index, lengths)`` method, called before it, with
 each pair of hulls is recorded every row (:class:`usv_mj.record.fleet.FleetRecord`).
 
 A vessel that diverges or whose controller fails stops the run for all (the record says which);
-Ctrl-C stops it as a single run's.
+Ctrl-C, SIGTERM and SIGHUP stop it as a single run's: every vessel's sinks get each row once and its
+end, with the signals held while they finish; a plug-in calling ``sys.exit`` fails the run
+(:class:`usv_mj.core.errors.PluginExit`), never ends the program.
 """
 
 from __future__ import annotations
@@ -21,12 +23,15 @@ import time
 import numpy as np
 
 from usv_mj.builder import channels_of
+from usv_mj.core.errors import PluginContractError, PluginExit, message_line
+from usv_mj.core.kernels import diag_contract, diag_row_problem
 from usv_mj.loop.step import ControlStep
 from usv_mj.physics.limits import within_limits
-from usv_mj.record.criteria import criterion_of
+from usv_mj.record.criteria import criterion_of, criterion_to_dict
 from usv_mj.record.events import detect_events
 from usv_mj.record.fleet import FleetRecord
 from usv_mj.record.run_record import COL, SL_REF, SL_STATE, Event, RunRecord
+from usv_mj.support.spawning import group_signals_blocked
 
 
 def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None = None) -> FleetRecord:
@@ -40,6 +45,10 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
     limits = scenario.limits
     names = [v.name for v in vessels]
     own = next(v.name for v in vessels if v.own_ship)
+    for v in vessels:   # before anything runs: a kernel's diag against the fields (as a single run's)
+        problem = diag_contract(v.controller)
+        if problem is not None:
+            raise PluginContractError(f"vessel {v.name!r}: {problem}")
     records, steps, fields = {}, [], []
     for v in vessels:
         f = tuple(getattr(v.controller, "diagnostic_fields", ()))
@@ -50,7 +59,7 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
             "duration_s": parts.duration, "control_period_s": dt, "source": v.scenario.source,
             "scenario": v.scenario.to_dict(), "diagnostic_fields": list(f), "loop": "python",
             "loop_reason": "a run of several vessels runs the Python loop",
-            "criterion": criterion_of(v.controller).to_dict(),
+            "criterion": criterion_to_dict(criterion_of(v.controller)),
             "channels": channels_of(v.scenario, getattr(v.controller, "commands", "forces")).to_metadata(),
         }, diagnostic_fields=f, diagnostic_events=getattr(v.controller, "diagnostic_events", None))
         steps.append(ControlStep(v.quantizers, v.actuators))
@@ -75,6 +84,9 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
     wall0 = time.perf_counter()
     k = 0
     counted = 0
+    # the sinks start before the first step, as a single run's (a live server waits for its viewer
+    # here: a signal then stops the job before the run has a row)
+    flush.start()
     try:
         while True:
             t = k * dt
@@ -83,8 +95,11 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
                 if seers[i] is not None:
                     seers[i](t, X.copy(), i, lengths)
                 ref = v.reference.evaluate(t)
-                x = X[i].copy()
+                x = X[i].copy()   # its own copy: the row and the actuators keep X[i]
                 tau_u, tau_r, diag = v.controller(t, x, ref)
+                problem = diag_row_problem(v.controller, diag, len(fields[i]))   # before the row takes it
+                if problem is not None:
+                    raise PluginContractError(f"vessel {v.name!r}: {problem}")
                 row = bufs[i][k]
                 row[COL["t"]] = t
                 row[SL_STATE] = X[i]
@@ -122,9 +137,14 @@ def simulate_fleet(parts, progress=None, block: int = 2000, sinks: dict | None =
         who = str(exc) or "the user (Ctrl-C)"
         _stop(record, "interrupted", k * dt, f"interrupted by {who} at t = {k * dt:.3f} s")
     except Exception as exc:
-        _stop(record, "failed", k * dt, f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}")
+        _stop(record, "failed", k * dt, f"{type(exc).__name__} at t = {k * dt:.3f} s: {message_line(exc)}")
         _finish(record, steps, wall0, flush)
         raise
+    except SystemExit as exc:   # a plug-in that ends the program: the run fails, with its rows
+        failure = PluginExit.during_run(exc, k * dt)
+        _stop(record, "failed", k * dt, str(failure))
+        _finish(record, steps, wall0, flush)
+        raise failure from exc
     if progress is not None and k > counted:
         progress(k - counted)
     _finish(record, steps, wall0, flush)
@@ -138,30 +158,68 @@ CONTACT_EVENT_N = 1e-6
 class _FleetFlusher:
     """Every ``block`` rows: each vessel's new events (usv_mj.record.events) and the contact episodes
     between hulls (a "vessel_contact" event in both vessels' records and the fleet's), then each
-    vessel's sinks get the rows."""
+    vessel's sinks get the rows. Each part goes on from where it got to: an interrupt (Ctrl-C,
+    SIGTERM) that lands inside one sink's ``rows`` never makes the final flush send a sink the same
+    rows twice, nor detect the same events twice (as a single run's ``simulate._Flusher``)."""
 
     def __init__(self, record: FleetRecord, sinks: dict):
         self.record, self.sinks = record, sinks
-        self.mark = 0
+        self.mark = 0           # rows handed to every part
+        self.events_to = {name: 0 for name in record.names}
+        self.contacts_to = 0
+        self.sent = {name: [0] * len(sinks[name]) for name in record.names}
+        self.begun = {name: [False] * len(sinks[name]) for name in record.names}
         self.started = False
 
     def start(self) -> None:
+        """Start every vessel's sinks not started yet, each marked first (one that a signal cut while
+        it waited for a live viewer has its start in the file already). A signal that stops the
+        wait is raised once every sink has started, so that every vessel's log holds its run."""
+        cut = None
         for name in self.record.names:
-            for s in self.sinks[name]:
-                s.start(self.record.records[name])
+            for i, s in enumerate(self.sinks[name]):
+                if not self.begun[name][i]:
+                    self.begun[name][i] = True
+                    try:
+                        s.start(self.record.records[name])
+                    except KeyboardInterrupt as exc:
+                        cut = cut or exc
         self.started = True
+        if cut is not None:
+            raise cut
 
     def __call__(self, hi: int) -> None:
         if not self.started:
             self.start()
-        lo, rec = self.mark, self.record
-        if hi <= lo:
+        rec = self.record
+        if hi <= self.mark:
             return
         for name in rec.names:
             r = rec.records[name]
-            r.events.extend(detect_events(r, lo, hi))
+            if hi > self.events_to[name]:
+                new = detect_events(r, self.events_to[name], hi)
+                self.events_to[name] = hi
+                r.events.extend(new)
+        if hi > self.contacts_to:
+            new = self._contacts(self.contacts_to, hi)
+            self.contacts_to = hi
+            for a, b, event in new:
+                rec.events.append(event)
+                rec.records[a].events.append(event)
+                rec.records[b].events.append(event)
+        for name in rec.names:
+            for i, s in enumerate(self.sinks[name]):
+                if hi > self.sent[name][i]:
+                    s.rows(rec.records[name], self.sent[name][i], hi)
+                    self.sent[name][i] = hi
+        self.mark = hi
+
+    def _contacts(self, lo: int, hi: int) -> list:
+        """The contact episodes that start in rows lo..hi: (vessel, vessel, its event)."""
+        rec = self.record
         c = rec.contacts
         dt = rec.metadata["control_period_s"]
+        new = []
         for p, (i, j) in enumerate(rec.pairs):
             on = c[lo:hi, p] > CONTACT_EVENT_N
             before = bool(lo > 0 and c[lo - 1, p] > CONTACT_EVENT_N)
@@ -169,15 +227,9 @@ class _FleetFlusher:
             for k in np.flatnonzero(edges == 1):
                 t = (lo + k) * dt
                 a, b = rec.names[i], rec.names[j]
-                event = Event(t, "vessel_contact", f"the hulls of {a!r} and {b!r} touch ({c[lo + k, p]:.4g} N)",
-                              {"pair": [a, b], "force_N": float(c[lo + k, p]), "state": "start"})
-                rec.events.append(event)
-                rec.records[a].events.append(event)
-                rec.records[b].events.append(event)
-        for name in rec.names:
-            for s in self.sinks[name]:
-                s.rows(rec.records[name], lo, hi)
-        self.mark = hi
+                new.append((a, b, Event(t, "vessel_contact", f"the hulls of {a!r} and {b!r} touch ({c[lo + k, p]:.4g} N)",
+                                        {"pair": [a, b], "force_N": float(c[lo + k, p]), "state": "start"})))
+        return new
 
 
 class _Stop(Exception):
@@ -191,7 +243,20 @@ def _stop(record: FleetRecord, status: str, t: float, message: str) -> None:
 
 
 def _finish(record: FleetRecord, steps, wall0: float, flush) -> None:
+    """Every vessel's last rows, status and end to its sinks, with Ctrl-C, SIGTERM and SIGHUP held
+    until they are done (a log cut in its end record has no status); they are delivered after."""
+    with group_signals_blocked():
+        _finish_sinks(record, steps, wall0, flush)
+
+
+def _finish_sinks(record: FleetRecord, steps, wall0: float, flush) -> None:
     wall = time.perf_counter() - wall0
+    # a step that a stop cut (a signal, a failing controller, a force out of limits) gave a row to
+    # the vessels before the one it stopped at only: every record ends at the last whole step, so
+    # that the vessels' records, logs and summaries hold the same times
+    rows = min(r.n_rows for r in record.records.values())
+    for r in record.records.values():
+        r.n_rows = rows
     flush(record.n_rows)
     for (name, r), step in zip(record.records.items(), steps):
         r.events.sort(key=lambda e: e.t)

@@ -16,11 +16,15 @@ the rows up to the stop stay valid and the sinks are always finished.
 from __future__ import annotations
 
 import math
+import os
 import time
-from typing import Callable, Iterable, Protocol
+from typing import Callable, Iterable, NamedTuple, Protocol
 
 import numpy as np
 
+from usv_mj.core import arguments
+from usv_mj.core.errors import PluginContractError, PluginExit, Terminated, message_line
+from usv_mj.core.kernels import diag_contract, diag_mismatch, diag_row_problem
 from usv_mj.physics.limits import within_limits
 from usv_mj.builder import Parts, build, channels_of, make_actuators, make_controller, make_environment, make_quantizers  # noqa: F401 (API)
 from usv_mj.builder import FleetParts, build_fleet
@@ -28,8 +32,11 @@ from usv_mj.loop.fleet import simulate_fleet
 from usv_mj.loop.step import ControlStep
 from usv_mj.record.events import detect_events, json_number as _json_number  # noqa: F401 (detect_events: API)
 from usv_mj.record.run_record import COL, N_CORE, SL_REF, SL_STATE, Event, RunRecord
+from usv_mj.core.layouts import REF_FIELDS
 from usv_mj.scenario.spec import Scenario
 from usv_mj.references import trajectories
+
+N_REF_RECORDED = len(REF_FIELDS)
 
 #: a record bigger than this (rows x columns x 8 bytes) streams to disk when ``store`` is None
 STREAM_BYTES = 256 * 2 ** 20
@@ -86,6 +93,17 @@ def simulate(scenario: Scenario | Parts, plant=None, controller=None, *, plant_k
     """
     if loop not in ("auto", "python"):
         raise ValueError(f"simulate: loop must be 'auto' or 'python', got {loop!r}")
+    block = arguments.integer("simulate", "block", block, 1, "the number of rows between the sinks' flushes, "
+                              "an integer >= 1")
+    arguments.callable_or_none("simulate", "progress", progress, "a callable progress(n_new_steps) or None")
+    sinks = arguments.each("simulate", "sinks", sinks, "a run sink (an object with start, rows, finish)",
+                           lambda s: all(callable(getattr(s, m, None)) for m in ("start", "rows", "finish")),
+                           "a list of run sinks (objects with start, rows, finish)")
+    hooks = arguments.each("simulate", "hooks", hooks, "a hook, a callable hook(t, k, plant)", callable,
+                           "a list of hooks, callables hook(t, k, plant)")
+    duration = arguments.seconds("simulate", "duration", duration)
+    if reference is not None:
+        arguments.having("simulate", "reference", reference, ("evaluate",), "a reference trajectory")
     if isinstance(scenario, FleetParts) or (isinstance(scenario, Scenario) and scenario.vessels):
         return _simulate_fleet(scenario, plant_kind, duration, progress, block)
     if not isinstance(scenario, Parts):
@@ -140,9 +158,24 @@ def _new_record(rows: int, block: int, store, metadata: dict, fields: tuple, eve
     return RunRecord.streamed(folder, window, metadata, fields, events, temporary=temporary)
 
 
-def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_compiled: bool = True,
-         store=None, stream_above=None) -> RunRecord:
-    scenario, plant, controller, reference = parts.scenario, parts.plant, parts.controller, parts.reference
+class _Start(NamedTuple):
+    """A run made ready by :func:`_start`: its first row is next."""
+
+    record: RunRecord
+    step: ControlStep
+    compiled: dict | None       # the parts' kernels (taken again after the resets), or None: the Python loop
+    flush: "_Flusher"
+    limits: object
+    dt: float
+    n: int
+    wall0: float
+
+
+def _start(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_compiled: bool = True,
+           store=None, stream_above=None) -> _Start:
+    """What a run does before its first row (the single run's :func:`_run`, and each episode of a
+    batch, usv_mj.loop.batch): the record and its metadata, the sinks started, the parts reset."""
+    scenario, plant, controller = parts.scenario, parts.plant, parts.controller
     duration = parts.duration
     dt = scenario.control_period
     n = int(round(duration / dt))
@@ -150,8 +183,11 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     step = ControlStep(parts.quantizers, actuators)   # clip -> quantize -> actuators -> the row (usv_mj.loop.step)
     limits = scenario.limits
     fields = tuple(getattr(controller, "diagnostic_fields", ()))
+    problem = diag_contract(controller)   # before anything runs: a kernel's diag against the fields
+    if problem is not None:
+        raise PluginContractError(problem)
     from usv_mj.loop.compiled import kernels_of
-    from usv_mj.record.criteria import criterion_of
+    from usv_mj.record.criteria import criterion_of, criterion_to_dict
 
     compiled, why = (None, "asked for (loop='python')") if not use_compiled else kernels_of(parts, hooks)
     loop = {"loop": "compiled"} if compiled is not None else {"loop": "python", "loop_reason": why}
@@ -160,7 +196,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         "duration_s": duration, "control_period_s": dt, "source": scenario.source,
         "scenario": scenario.to_dict(), "diagnostic_fields": list(fields), **_diagnostic_units(controller, fields),
         **parts.metadata, **loop,
-        "criterion": criterion_of(controller).to_dict(),  # how the outputs judge the run (usv_mj.record.criteria)
+        "criterion": criterion_to_dict(criterion_of(controller)),  # how the outputs judge the run (usv_mj.record.criteria)
         "channels": channels_of(scenario, getattr(controller, "commands", "forces")).to_metadata(),  # what tau and f hold
     }, fields, getattr(controller, "diagnostic_events", None), stream_above)
     record.statics = parts.statics
@@ -171,12 +207,23 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
     plant.reset(scenario.initial.eta, scenario.initial.nu, 0.0)
     controller.reset()
     step.reset()
+    flush = _Flusher(record, sinks, progress)
+    return _Start(record, step, compiled, flush, limits, dt, n, time.perf_counter())
+
+
+def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_compiled: bool = True,
+         store=None, stream_above=None) -> RunRecord:
+    record, step, compiled, flush, limits, dt, n, wall0 = _start(parts, sinks, block, progress, hooks, use_compiled,
+                                                                 store, stream_above)
+    from usv_mj.loop.compiled import kernels_of
+
+    plant, controller, reference = parts.plant, parts.controller, parts.reference
+    fields = record.diagnostic_fields
     data = record.buffer   # the rows from record.base on (all of them when in memory)
     base = 0
     sl_diag = slice(len(COL), len(COL) + len(fields))
+    n_fields = len(fields)
     c_t = COL["t"]
-    flush = _Flusher(record, sinks, progress)
-    wall0 = time.perf_counter()
     k = 0
     try:
         if compiled is not None:
@@ -189,7 +236,10 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             for hook in hooks:
                 hook(t, k, plant)
             ref = reference.evaluate(t)
-            tau_u, tau_r, diag = controller(t, x, ref)
+            tau_u, tau_r, diag = controller(t, x.copy(), ref)  # its own copy: the row and the actuators keep x
+            problem = diag_row_problem(controller, diag, n_fields)   # before the row takes it
+            if problem is not None:
+                raise PluginContractError(problem)
             if not (abs(tau_u) < limits.max_force and abs(tau_r) < limits.max_force):
                 _stop_diverged(record, t, f"control force out of limits or not finite: tau_u = {tau_u!r}, "
                                f"tau_r = {tau_r!r}", {"tau_u": _json_number(tau_u), "tau_r": _json_number(tau_r)},
@@ -199,7 +249,7 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
             row = data[k - base]
             row[c_t] = t
             row[SL_STATE] = x
-            row[SL_REF] = ref
+            row[SL_REF] = ref[:N_REF_RECORDED]   # the record's 7 reference columns (the accelerations are not recorded)
             row[sl_diag] = diag
             f_u, f_r = step(tau_u, tau_r, x, row)   # clip -> quantize -> actuators, the row's control columns
             k += 1
@@ -225,23 +275,59 @@ def _run(parts: Parts, sinks: list, block: int, progress, hooks: tuple, use_comp
         _interrupted(record, exc, k * dt)
     except Exception as exc:  # recorded, then re-raised after the sinks are finished
         k = record.n_rows if compiled is not None else k
-        cause = interrupt_in_chain(exc)
-        if cause is not None:  # a signal that landed in compiled code surfaces as SystemError
-            _interrupted(record, cause, k * dt)
+        if _failed(record, exc, k * dt):  # a signal that landed in compiled code surfaces as SystemError
             _finish_run(record, sinks, flush, wall0, step)
             return record
-        record.status = "failed"
-        record.stop_reason = f"{type(exc).__name__} at t = {k * dt:.3f} s: {exc}"
-        record.events.append(Event(k * dt, "failed", record.stop_reason))
         _finish_run(record, sinks, flush, wall0, step)
         raise
+    except SystemExit as exc:  # a plug-in that ends the program: the run fails, with its rows
+        k = record.n_rows if compiled is not None else k
+        failure = PluginExit.during_run(exc, k * dt)
+        record.status, record.stop_reason = "failed", str(failure)
+        record.events.append(Event(k * dt, "failed", record.stop_reason))
+        _finish_run(record, sinks, flush, wall0, step)
+        raise failure from exc
     _finish_run(record, sinks, flush, wall0, step)
     return record
 
 
+def interrupter(exc: BaseException) -> str:
+    """Who interrupted a run, in words: "the user (Ctrl-C)", a signal's name (SIGTERM, SIGHUP), the
+    reason usv_mj's own code gave ("closing the viewer"), or a KeyboardInterrupt a part raised
+    (a plug-in's: where, and its text), which is not a signal."""
+    text = str(exc)
+    if text in ("", "Ctrl-C"):
+        return "the user (Ctrl-C)"
+    if isinstance(exc, Terminated):
+        return text
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    where = os.path.abspath(tb.tb_frame.f_code.co_filename) if tb is not None else ""
+    if where.startswith(_PACKAGE_DIR):
+        return text
+    return f"a KeyboardInterrupt raised at {os.path.basename(where)}:{tb.tb_lineno} ({text!r}), not a signal" \
+        if tb is not None else f"a KeyboardInterrupt ({text!r}), not a signal"
+
+
+_PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep   # usv_mj/
+
+
+def _failed(record: RunRecord, exc: BaseException, t: float) -> bool:
+    """Record a run stopped by ``exc`` at t [s]: interrupted (True: a signal behind it, nothing to
+    raise) or failed (False: the caller raises it once the sinks are finished)."""
+    cause = interrupt_in_chain(exc)
+    if cause is not None:
+        _interrupted(record, cause, t)
+        return True
+    record.status = "failed"
+    record.stop_reason = f"{type(exc).__name__} at t = {t:.3f} s: {message_line(exc)}"
+    record.events.append(Event(t, "failed", record.stop_reason))
+    return False
+
+
 def _interrupted(record: RunRecord, exc: BaseException, t: float) -> None:
-    who = str(exc)
-    who = "the user (Ctrl-C)" if who in ("", "Ctrl-C") else who
+    who = interrupter(exc)
     record.status = "interrupted"
     record.stop_reason = f"interrupted by {who} at t = {t:.3f} s"
     record.events.append(Event(t, "interrupted", record.stop_reason))
@@ -265,9 +351,19 @@ class _Done(Exception):
 
 def _run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks=()) -> int:
     """The compiled loop (usv_mj.loop.compiled) until the run stops, with the Python loop's events."""
-    from usv_mj.loop.compiled import DIVERGED, FORCE_LIMIT, run_compiled
+    from usv_mj.loop.compiled import DIAG_MISMATCH, run_compiled
 
     k, status, x, out = run_compiled(record, parts, kernels, block, flush, limits, dt, n, hooks)
+    if status == DIAG_MISMATCH:   # the Python loop raises it from the same row
+        raise PluginContractError(diag_mismatch(parts.controller, int(out[0])))
+    return _compiled_stop(record, k, status, x, out, limits, dt)
+
+
+def _compiled_stop(record, k, status, x, out, limits, dt) -> int:
+    """The Python loop's events for the compiled loop's stop (``status``, usv_mj.loop.compiled) after
+    ``k`` rows; returns the rows the run has."""
+    from usv_mj.loop.compiled import DIVERGED, FORCE_LIMIT
+
     if status == FORCE_LIMIT:
         tau_u, tau_r = float(out[0]), float(out[1])
         t = k * dt
@@ -313,7 +409,7 @@ def _stop_diverged(record, t, message, values, data, i, x, ref, diag, sl_diag):
     row = data[i]   # i: the row's index in the window
     row[COL["t"]] = t
     row[SL_STATE] = x
-    row[SL_REF] = ref
+    row[SL_REF] = ref[:N_REF_RECORDED]
     row[sl_diag] = diag
     record.n_rows = record.base + i + 1
     record.events.append(Event(t, "divergence", message, values))

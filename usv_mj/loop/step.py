@@ -31,7 +31,8 @@ import math
 from numba import njit
 
 from usv_mj.controllers.hysteresis_quantizer import quantizer_kernel
-from usv_mj.core.kernels import Kernel
+from usv_mj.core.errors import PluginContractError
+from usv_mj.core.kernels import Kernel, kernel_blocker
 from usv_mj.physics.actuators import actuator_kernel
 from usv_mj.record.run_record import COL
 
@@ -70,6 +71,8 @@ def control_step(tau_u, tau_r, x, row, lo_u, hi_u, lo_r, hi_r, qs_u, delta_u, u_
 
 UNBOUNDED = (-math.inf, math.inf, -math.inf, math.inf)
 _QUANTIZE = 10   # where ``quantize`` sits in ControlStep.args()
+#: the arguments control_step writes (ControlStep.args() indices): the two quantizers' states and the actuators'
+STEP_STATE = (4, 7, 13)
 
 
 class ControlStep:
@@ -107,16 +110,33 @@ class ControlStep:
         (updated in place by every call) and parameters."""
         args = self._args
         if args is None or args[_QUANTIZE] != self.quantize:
+            self._check_parts()
             q_u, q_r = self.quantizers
             act = self.actuators
             args = self._args = (*self.bounds, q_u._state, q_u._delta, q_u._u_min, q_r._state, q_r._delta,
                                  q_r._u_min, self.quantize, bool(act.unlimited), act.params, act.state, act.mmg)
             assert control_step.py_func.__code__.co_varnames[4 + _QUANTIZE] == "quantize"
+            assert tuple(control_step.py_func.__code__.co_varnames[4 + i] for i in STEP_STATE) == (
+                "qs_u", "qs_r", "act_state")
         return args
+
+    def _check_parts(self) -> None:
+        """The channel stage is this one compiled function in every loop: a quantizer or actuators
+        object whose class overrides what the function computes (a subclass replacing ``step``, an
+        instance attribute in place of a method) would be ignored without a word, so it is refused."""
+        for role, part in (("surge quantizer", self.quantizers[0]), ("yaw quantizer", self.quantizers[1]),
+                           ("actuators", self.actuators)):
+            why = kernel_blocker(part)
+            if why is not None:
+                raise PluginContractError(
+                    f"the {role}: {why}: the control step (clip, quantize by Eq. 3, actuators) is one compiled "
+                    f"function in every loop (usv_mj/loop/step.py), which reads the part's state and parameters, "
+                    f"never its methods; change the quantizer or the actuators through their options "
+                    f"([quantizer], [actuators]), or the command before it in your controller")
 
     def kernel(self) -> Kernel:
         """(:func:`control_step`, :meth:`args`) for the generated loops (usv_mj.loop.generate)."""
-        return Kernel(control_step, self.args())
+        return Kernel(control_step, self.args(), state=STEP_STATE)
 
     def __call__(self, tau_u: float, tau_r: float, x, row) -> tuple[float, float]:
         """One control period (module docstring): writes ``row``'s control columns, returns (f_u, f_r)."""

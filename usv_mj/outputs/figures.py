@@ -29,6 +29,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from usv_mj.physics.channels import RunChannels  # noqa: E402
 from usv_mj.record.decimate import decimate  # noqa: E402
@@ -76,8 +77,44 @@ def save_figure(fig, path: Path, note: str = "") -> None:
         fig.subplots_adjust(top=min(fig.subplotpars.top, 0.84))
         fig.text(0.5, 0.995, textwrap.fill(f"LOG INCOMPLETE: {note}", 110), ha="center", va="top", fontsize=7,
                  color="C3")
-    fig.savefig(path, dpi=110, metadata=_PNG_META)
+    try:
+        fig.savefig(path, dpi=110, metadata=_PNG_META)
+    except (OverflowError, ValueError):
+        huge = _largest_value(fig)
+        title = next((ax.get_title() for ax in fig.axes if ax.get_title()), Path(path).stem)
+        plt.close(fig)
+        if not huge > DRAWABLE:
+            raise
+        # values near the float range (a reference at 1e308): matplotlib cannot place ticks on such a
+        # span; the figure says so instead of the run's outputs stopping here (the record keeps them)
+        fig, ax = plt.subplots(figsize=(8, 3))
+        ax.axis("off")
+        ax.text(0.5, 0.5, textwrap.fill(f"{title}: not drawn: its values reach {huge:.3g}, beyond the span a plot "
+                                        f"can draw (|value| > {DRAWABLE:g}); the run's record holds them", 90),
+                ha="center", va="center", fontsize=9, color="C3")
+        fig.savefig(path, dpi=110, metadata=_PNG_META)
     plt.close(fig)
+
+
+#: the largest |value| a figure draws; beyond it matplotlib's ticks overflow (a span near 1e308)
+DRAWABLE = 1e150
+
+
+def _largest_value(fig) -> float:
+    """The largest |value| of the data the figure's axes hold (inf when any is not finite)."""
+    worst = 0.0
+    for ax in fig.axes:
+        for line in ax.get_lines():
+            for data in line.get_data():
+                a = np.asarray(data, dtype=float)
+                a = a[~np.isnan(a)]
+                if a.size:
+                    worst = max(worst, float(np.max(np.abs(a))))
+        lim = ax.dataLim
+        for v in (lim.x0, lim.x1, lim.y0, lim.y1):
+            if not np.isnan(v):
+                worst = max(worst, abs(float(v)))
+    return worst
 
 
 def draw_figures(record: RunRecord, out_dir, baseline: RunRecord | None = None, obstacles=(),

@@ -13,11 +13,15 @@ what such a manifest lists, unchanged:
   before manifests (``summary.json`` + ``run.mcap``, or ``sweep.json`` + ``results.parquet``,
   and nothing but the names those versions wrote). The root, a mount point, the current folder,
   the home folder and their parents are refused too.
-* :func:`check_file` (render, env: a video and its still): the file is new, or its folder's
-  manifest lists it.
+* :func:`check_file` (render, env: a video and its still; scene: an MJCF file): the file is new,
+  or its folder's manifest lists it. :func:`write_file` then writes such a file whole or not at
+  all (never through a symbolic link, never a cut or empty file on a full disk) and lists it.
 * :class:`Staging` writes a job into ``.NAME.staging-PID`` beside ``out`` and moves it into place
   at the end with its manifest; the old folder's listed files are then deleted one by one (never a
-  whole tree): anything unlisted that appeared meanwhile stays where it was.
+  whole tree): anything unlisted that appeared meanwhile stays where it was. A job that failed
+  (a crash, an output that could not be written) does not replace an earlier output:
+  :meth:`Staging.set_aside` keeps its files in ``.NAME.failed-PID`` beside ``out``, which the next
+  job into ``out`` clears.
 
 Every refusal is one :class:`usv_mj.core.errors.ScenarioError` line (exit 2), raised before anything is
 made. A name whose staging name would be over 255 bytes is refused the same way.
@@ -193,6 +197,8 @@ def record(folder: Path, paths=None, *, patterns=(), command: str | None = None,
     try:
         tmp.write_text(json.dumps(manifest, indent=1) + "\n")
         tmp.replace(folder / MANIFEST)
+    except OSError as exc:      # a full disk: name the manifest (a file's close() names nothing)
+        raise OSError(exc.errno, exc.strerror, str(folder / MANIFEST)) from None
     finally:
         tmp.unlink(missing_ok=True)
 
@@ -358,6 +364,32 @@ def record_file(out, companions: tuple[str, ...] = (".png",)) -> None:
     record(out.parent, [p.name for p in (out, *(out.with_suffix(s) for s in companions)) if p.is_file()])
 
 
+def write_file(out, data: str | bytes) -> None:
+    """Write ``data`` to ``out`` (checked by :func:`check_file`) whole or not at all: into a new
+    temporary file beside it, renamed over it once complete (a full disk or a read-only folder
+    raises OSError naming ``out`` and leaves ``out`` as it was; a symbolic link named ``out`` is
+    replaced, never written through), then listed in its folder's manifest (:func:`record_file`)."""
+    out = Path(out)
+    raw = data.encode() if isinstance(data, str) else bytes(data)
+    tmp = out.parent / f".{out.name}.{os.getpid()}.tmp"     # the name check_names allows for
+    if os.path.lexists(tmp):                                 # left by a dead process of this pid
+        os.unlink(tmp)
+    try:
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)   # the umask applies
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(raw)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, out)
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror, str(out)) from None
+    finally:
+        if os.path.lexists(tmp):
+            os.unlink(tmp)
+    record_file(out, companions=())
+
+
 # --- staging -------------------------------------------------------------------------------------
 
 
@@ -369,6 +401,8 @@ class Staging:
 
     def __init__(self, out: Path):
         self.out = Path(out)
+        #: ``out`` holds an earlier output (check_folder let it through): a failed job keeps it
+        self.replaces = self.out.is_dir() and any(True for _ in os.scandir(self.out))
         parent = self.out.parent
         self._made = [p for p in [parent, *parent.parents] if not p.exists()]   # removed again if nothing comes
         parent.mkdir(parents=True, exist_ok=True)
@@ -385,6 +419,9 @@ class Staging:
     def _cleanup_killed(parent: Path, name: str) -> None:
         import shutil
 
+        for p in parent.glob(f".{name}.failed-*"):      # a failed job's outputs, kept until this job
+            if (p / STAGING_MARK).exists():
+                shutil.rmtree(p, ignore_errors=True)
         for p in list(parent.glob(f".{name}.staging-*")) + list(parent.glob(f".{name}.old-*")):
             try:
                 os.kill(int(p.name.rsplit("-", 1)[1]), 0)
@@ -417,18 +454,50 @@ class Staging:
             except OSError:
                 break
 
-    def commit(self) -> None:
-        """Drop temporary files, write the manifest, then put the staging folder in place of ``out``
-        (nothing written: ``out`` stays as it was)."""
+    def _tidy(self) -> None:
+        """Drop the temporary files of the job (partial renders, ``*.tmp``)."""
         import shutil
 
-        if not self.path.exists():
-            return
-        (self.path / STAGING_MARK).unlink(missing_ok=True)
         for tmp in list(self.path.rglob("*.tmp")) + list(self.path.rglob("*.segments.txt")):
             tmp.unlink(missing_ok=True)
         for tmp in self.path.glob(".render-*"):
             shutil.rmtree(tmp, ignore_errors=True)
+
+    def set_aside(self) -> Path | None:
+        """The job failed: ``out`` keeps its earlier output, and what the job wrote goes to
+        ``.NAME.failed-PID`` beside it (cleared by the next job into ``out``); that folder, or
+        None when the job wrote nothing (the staging folder and the parents it made then go)."""
+        import shutil
+
+        if not self.path.exists():
+            return None
+        self._tidy()
+        if not any(p.name != STAGING_MARK for p in self.path.iterdir()):
+            self.discard()
+            return None
+        aside = self.out.parent / f".{self.out.name}.failed-{os.getpid()}"
+        if aside.exists() and (aside / STAGING_MARK).exists():
+            shutil.rmtree(aside)          # an earlier failed job of this same process
+        self.path.rename(aside)           # keeps its mark: the next job's clean-up knows it is usv_mj's
+        self.path = aside
+        return aside
+
+    def finish(self, failed: bool) -> Path | None:
+        """End the job: a job that ``failed`` (a crash, an output that could not be written) while
+        ``out`` holds an earlier output is set aside (:meth:`set_aside`: returns where); any other
+        is committed (:meth:`commit`: returns None)."""
+        aside = self.set_aside() if failed and self.replaces else None
+        if aside is None:
+            self.commit()
+        return aside
+
+    def commit(self) -> None:
+        """Drop temporary files, write the manifest, then put the staging folder in place of ``out``
+        (nothing written: ``out`` stays as it was)."""
+        if not self.path.exists():
+            return
+        (self.path / STAGING_MARK).unlink(missing_ok=True)
+        self._tidy()
         if not any(self.path.iterdir()):
             self.path.rmdir()
             self._unmake()
@@ -455,8 +524,10 @@ def results_folder(out, resume: bool = False):
     """Where a sweep or a benchmark writes its results, as a context manager yielding the folder.
     A new (or empty) folder, or ``resume``: ``out`` itself, in place (a killed job stays resumable).
     Replacing an earlier output (``--overwrite``): a :class:`Staging` folder, so the old output stays
-    until the new one ends; it goes into place however the job ends, unless bad input is found late
-    (a ScenarioError: nothing goes into place)."""
+    until the new one ends; it goes into place when the job ends or is interrupted (its rows so far
+    are resumable there), not when bad input is found late (a ScenarioError: nothing goes into
+    place) nor when the job fails (another exception: the earlier output stays, the job's files
+    go to :meth:`Staging.set_aside`'s folder, named in a note added to the exception)."""
     import contextlib
 
     @contextlib.contextmanager
@@ -468,6 +539,19 @@ def results_folder(out, resume: bool = False):
         except ScenarioError:
             if stage:
                 stage.discard()
+            raise
+        except (KeyboardInterrupt, GeneratorExit):
+            raise
+        except BaseException as exc:
+            if stage:
+                staged, stage_ = str(stage.path), stage
+                stage = None                       # not committed below
+                aside = stage_.set_aside()
+                if isinstance(exc, OSError) and aside is not None and str(exc.filename or "").startswith(staged):
+                    exc.filename = str(aside) + str(exc.filename)[len(staged):]
+                exc.add_note(f"{path} still holds the earlier output; "     # the command line prints it
+                             + (f"what this job wrote is in {aside}/ until the next job into it" if aside else
+                                "this job wrote nothing"))
             raise
         finally:
             if stage and stage.path.exists():

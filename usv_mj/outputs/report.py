@@ -105,6 +105,36 @@ def adaptation_section(record) -> str | None:
     return "\n".join(lines)
 
 
+def gains_section(record, baseline=None) -> str | None:
+    """``## Gains`` of report.md: the gains the run's controller (and the baseline's) ran with, from
+    the record's scenario (``metadata["scenario"]``: the gains the scenario gave and those derived
+    from the vessel, docs/gains.md, each marked); None when the record names no gains."""
+    table = record.metadata.get("scenario") or {}
+    runs = [(record, "controller")]
+    if baseline is not None:
+        runs.append((baseline, "baseline"))
+    blocks = []
+    for rec, section in runs:
+        spec = table.get(section) or {}
+        gains = spec.get("gains") or {}
+        if not gains:
+            continue
+        derived = set(spec.get("derived") or ())
+        vessel = ((table.get("vessel") or {}).get("kind")) or "paper"
+        who = str(rec.metadata.get("controller") or spec.get("kind"))
+        lines = [f"`{who}` ({section} `{spec.get('kind')}`)" + (f"; derived from the vessel `{vessel}` (docs/gains.md): "
+                                                                  f"{', '.join(sorted(derived))}" if derived else ""),
+                 "", "| gain | value | from |", "|---|---|---|"]
+        for name, value in gains.items():
+            shown = f"{value:.6g}" if isinstance(value, float) else str(value)
+            lines.append(f"| {name} | {shown} | {'the vessel (derived)' if name in derived else 'the scenario or the default'} |")
+        blocks.append("\n".join(lines))
+    if not blocks:
+        return None
+    return "## Gains\n\nThe gains each controller ran with.\n\n" + \
+        "\n\n".join(blocks)
+
+
 def write_report(path, summary: dict, baseline_summary: dict | None = None, step_check: dict | None = None,
                  extra_sections: list[str] | None = None) -> Path:
     """Write ``report.md`` at ``path`` (figures are linked as ``figures/<name>``)."""

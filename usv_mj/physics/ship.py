@@ -40,6 +40,10 @@ import numpy as np
 from numba import njit, vectorize
 
 from usv_mj.physics.mmg import N_MMG_PARAMS, mmg_terms
+# d(t): the disturbance kinds and the one dispatch live in usv_mj.physics.disturbances (re-exported here)
+from usv_mj.physics.disturbances import (D_AMP, D_KERNEL, D_MAX_WORDS, D_SCALE, D_WCOS, D_WSIN,  # noqa: F401
+                                         N_DIST_PARAMS, N_DIST_WORDS, Disturbance, PaperDisturbance,
+                                         disturbance_at, disturbance_terms, packed_disturbance)
 
 # --- packed parameter layout --------------------------------------------------------------------
 P_M11, P_M22, P_M23, P_M33 = 0, 1, 2, 3
@@ -62,9 +66,8 @@ MODEL_FORCES, MODEL_MMG = 0.0, 1.0
 N_SHIP_PARAMS = 27
 P_MMG = N_SHIP_PARAMS  # MMGShipParams.as_array(): the N_MMG_PARAMS words of usv_mj.physics.mmg after the layout
 
-# disturbance: scale, amplitudes (3), cos frequencies (3), sin frequencies (3)
-D_SCALE, D_AMP, D_WCOS, D_WSIN = 0, 1, 4, 7
-N_DIST_PARAMS = 10
+# the disturbance d(t) (usv_mj.physics.disturbances): the packed vector dp of N_DIST_WORDS words (a kind's
+# as_array(), then the dispatch word D_KERNEL), the paper's own words D_SCALE, D_AMP, D_WCOS, D_WSIN
 
 
 @dataclass(frozen=True)
@@ -264,44 +267,6 @@ class RigidBodySplit:
         return mass_matrix(ship.as_array()) - m_rb
 
 
-@dataclass(frozen=True)
-class PaperDisturbance:
-    """The paper's environmental disturbance d(t) (docs/model.md §1), scaled by ``scale``.
-
-    d(t) = scale * [A_1 (cos w_c1 t + sin w_s1 t), A_2 (...), A_3 (...)] in body-frame [N, N, N m].
-
-    Attributes
-    ----------
-    scale:
-        s of docs/model.md §1 (dimensionless, >= 0): 1 is the paper as printed, 1e-4 the ``paper`` preset.
-    amplitudes:
-        A_i [N, N, N m]; printed 1e4, 1e2, 1e5.
-    cos_frequencies, sin_frequencies:
-        [rad/s]; printed (0.5, 0.4, 0.2) and (0.3, 0.2, 0.5).
-    """
-
-    scale: float = 1e-4
-    amplitudes: tuple[float, float, float] = (1e4, 1e2, 1e5)
-    cos_frequencies: tuple[float, float, float] = (0.5, 0.4, 0.2)
-    sin_frequencies: tuple[float, float, float] = (0.3, 0.2, 0.5)
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.scale) and self.scale >= 0):
-            raise ValueError(f"disturbance.scale must be a finite number >= 0, got {self.scale!r}")
-
-    def as_array(self) -> np.ndarray:
-        dp = np.zeros(N_DIST_PARAMS)
-        dp[D_SCALE] = self.scale
-        dp[D_AMP : D_AMP + 3] = self.amplitudes
-        dp[D_WCOS : D_WCOS + 3] = self.cos_frequencies
-        dp[D_WSIN : D_WSIN + 3] = self.sin_frequencies
-        return dp
-
-    def force(self, t: float) -> np.ndarray:
-        """d(t) in the body frame [N, N, N m]."""
-        return disturbance_force(self.as_array(), t)
-
-
 # --- kernels -----------------------------------------------------------------------------------
 
 
@@ -397,19 +362,10 @@ def uncertainty_force(p, eta, nu):
 
 
 @njit(cache=True)
-def disturbance_terms(dp, t):
-    """The paper's disturbance d(t) (Sec. 4) times its scale, body frame [N, N, N m], a 3-tuple:
-    d_i = s a_i (cos(wc_i t) + sin(ws_i t))."""
-    s = dp[D_SCALE]
-    return (s * dp[D_AMP] * (math.cos(dp[D_WCOS] * t) + math.sin(dp[D_WSIN] * t)),
-            s * dp[D_AMP + 1] * (math.cos(dp[D_WCOS + 1] * t) + math.sin(dp[D_WSIN + 1] * t)),
-            s * dp[D_AMP + 2] * (math.cos(dp[D_WCOS + 2] * t) + math.sin(dp[D_WSIN + 2] * t)))
-
-
-@njit(cache=True)
 def disturbance_force(dp, t):
-    """:func:`disturbance_terms` as an array."""
-    return array3(disturbance_terms(dp, t))
+    """d(t) of the packed vector ``dp`` (:func:`usv_mj.physics.disturbances.disturbance_at`: any
+    kind's) as an array, body frame [N, N, N m]."""
+    return array3(disturbance_at(dp, t))
 
 
 @njit(cache=True)
@@ -452,7 +408,7 @@ def hull_terms(p, dp, t, eta, nu, nu_r):
     the whole C and all damping), ``nu`` the absolute one (Delta). In calm water nu_r = nu
     (:func:`hydrodynamic_force`); :func:`usv_mj.physics.sea.sea_force` adds the sea's loads to it."""
     c0, c1, c2 = coriolis_damping_terms(p, nu_r)
-    d0, d1, d2 = disturbance_terms(dp, t)
+    d0, d1, d2 = disturbance_at(dp, t)  # the scenario's kind (usv_mj.physics.disturbances)
     u0, u1, u2 = uncertainty_terms(p, eta, nu)
     return d0 + u0 - c0, d1 + u1 - c1, d2 + u2 - c2
 

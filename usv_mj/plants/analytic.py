@@ -15,6 +15,7 @@ from numba import njit
 
 from usv_mj.core.registry import PLANTS
 from usv_mj.physics.sea.dynamics import calm_rk4_advance, sea_rk4_advance
+from usv_mj.physics.disturbances import packed_disturbance
 from usv_mj.physics.ship import PaperDisturbance, ShipParams
 
 from usv_mj.plants.base import PlantBase
@@ -50,7 +51,8 @@ class AnalyticPlant(PlantBase):
     Parameters
     ----------
     ship, disturbance:
-        The physics (:mod:`usv_mj.physics.ship`).
+        The physics (:mod:`usv_mj.physics.ship`); ``disturbance`` of any registered kind
+        (:mod:`usv_mj.physics.disturbances`: its d(t) at every RK4 stage time).
     control_period:
         Hold time of the input [s].
     substeps:
@@ -69,7 +71,8 @@ class AnalyticPlant(PlantBase):
         if int(substeps) < 1:
             raise ValueError(f"substeps must be >= 1, got {substeps!r}")
         self.ship, self.disturbance = ship, disturbance
-        self._p, self._dp = ship.as_array(), disturbance.as_array()
+        # dp: the packed d(t) of the disturbance's kind (usv_mj.physics.disturbances), made in this process
+        self._p, self._dp = ship.as_array(), packed_disturbance(disturbance)
         self.control_period = float(control_period)
         self.substeps = int(substeps)
         self._h = self.control_period / self.substeps
@@ -117,7 +120,7 @@ class AnalyticPlant(PlantBase):
             self._t = self._t0 + k * self.control_period
 
         fn, args = self._kernel_args(t_end)
-        return Kernel(fn, args, sync)
+        return Kernel(fn, args, sync, state=())   # writes nothing: the state is returned
 
     @property
     def time(self) -> float:
@@ -125,7 +128,9 @@ class AnalyticPlant(PlantBase):
 
     @property
     def state(self) -> np.ndarray:
-        return self._x
+        """(x, y, psi, u, v, r): a copy (the next :meth:`step` starts from the plant's own; editing
+        what it hands out moves nothing, as on the MuJoCo plant)."""
+        return self._x.copy()
 
     @classmethod
     def from_scenario(cls, options, scenario, environment=None, obstacles=(), contact=None, safety_radii=None):

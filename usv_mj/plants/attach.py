@@ -50,11 +50,14 @@ joint held to the plane alike.
 from __future__ import annotations
 
 import math
+import threading
 import weakref
 
 import mujoco
 import numpy as np
 
+from usv_mj.core.errors import expected
+from usv_mj.physics.disturbances import packed_disturbance
 from usv_mj.physics.sea.environment import run_sea
 from usv_mj.physics.ship import RigidBodySplit
 from usv_mj.plants import mujoco_callback as mcb
@@ -195,7 +198,7 @@ def write_parameters(ud: np.ndarray, ship, disturbance, split, packed_sea=None) 
             raise ValueError(f"usv_mj hydrodynamics: an MMG hull needs nuserdata >= {mcb.N_USERDATA_MMG}, "
                              f"got {len(ud)}")
         ud[mcb.U_MMG:mcb.U_MMG + len(p) - mcb.N_SHIP_PARAMS] = p[mcb.N_SHIP_PARAMS:]
-    ud[mcb.U_DP:mcb.U_DP + len(disturbance.as_array())] = disturbance.as_array()
+    ud[mcb.U_DP:mcb.U_DP + mcb.N_DIST_WORDS] = packed_disturbance(disturbance)  # any kind's d(t), dispatch word last
     write_sea(ud, packed_sea)
     ud[mcb.U_MAGIC] = mcb.MAGIC
 
@@ -227,9 +230,19 @@ def write_sea(ud: np.ndarray, packed) -> None:
     ud[mcb.U_SEA_ON] = 1.0
 
 
-def _release(handle_id, data_address, userdata):
+_OWNER: dict[int, int] = {}
+"""mjData address -> id of the :class:`Hydrodynamics` whose water it holds: an mjData holds one
+attachment, the latest; an earlier handle on the same mjData is superseded and leaves it alone."""
+_OWNER_LOCK = threading.Lock()
 
-    userdata[mcb.U_MAGIC] = 0.0
+
+def _release(handle_id, data_address, userdata):
+    """Finalizer (``detach`` or garbage collection): unmark the mjData only if it still holds this
+    handle's water (a later attach on the same mjData took it over), then unregister the handle."""
+    with _OWNER_LOCK:
+        if _OWNER.get(data_address) == handle_id:
+            del _OWNER[data_address]
+            userdata[mcb.U_MAGIC] = 0.0
     mcb.CALLBACKS.remove(handle_id, data_address)
 
 
@@ -254,6 +267,7 @@ class Hydrodynamics:
         self.environment = environment if environment is not None and not environment.calm else None
         self._sea = None
         self.horizon = math.inf
+        self._finalizer = None
         saved = (data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.ctrl.copy(), data.time)
         set_rigid_body(model, body, ship, split)
         mujoco.mj_setConst(model, data)
@@ -267,23 +281,39 @@ class Hydrodynamics:
             data.userdata[mcb.U_HOLD:mcb.U_HOLD + 10] = hold
             data.userdata[mcb.U_LAYOUT] = mcb.LAYOUT_FREE
         if self.environment is not None:
-            self.extend(horizon)
-    
+            self._extend(horizon)
         mcb.CALLBACKS.add(self)
+        with _OWNER_LOCK:   # the mjData's water is this handle's now (an earlier one is superseded)
+            _OWNER[data._address] = id(self)
         self._finalizer = weakref.finalize(self, _release, id(self), data._address, data.userdata)
         mujoco.mj_forward(model, data)
+
+    @property
+    def attached(self) -> bool:
+        """Whether the water of this handle is in its mjData: False after :meth:`detach` and after a
+        later ``attach_hydrodynamics`` on the same mjData (which takes it over)."""
+        return self._finalizer is not None and self._finalizer.alive and \
+            _OWNER.get(self.data._address) == id(self)
 
     def extend(self, t_end: float) -> None:
         """Make the sea's OU grids reach plant time ``t_end`` [s] and re-point the callback at them."""
         if self.environment is None:
             return
+        if not self.attached:
+            raise ValueError("Hydrodynamics.extend: this handle's water is no longer in its MjData (detached, or "
+                             "replaced by a later attach_hydrodynamics on the same data): extend that one")
+        self._extend(t_end)
+
+    def _extend(self, t_end: float) -> None:
         self.environment.ensure_horizon(float(t_end))
         self._sea = tuple(self.environment.packed)
         write_sea(self.data.userdata, self._sea)
         self.horizon = float(self.environment.horizon)
 
     def detach(self) -> None:
-        """Remove the water: the callback leaves this mjData alone (and is uninstalled with the last one)."""
+        """Remove the water: the callback leaves this mjData alone (and is uninstalled with the last one).
+        A handle superseded by a later attach on the same mjData only unregisters itself: the later
+        one's water stays. Detaching twice does nothing more."""
         self._finalizer()
 
 
@@ -311,6 +341,12 @@ def attach_hydrodynamics(model: mujoco.MjModel, data: mujoco.MjData | None = Non
     """
     from usv_mj.scenario.spec import Scenario, load_scenario, preset_names
 
+    if not isinstance(model, mujoco.MjModel):
+        raise expected("attach_hydrodynamics", "model", "a mujoco.MjModel (mujoco.MjModel.from_xml_path(...))", model)
+    if data is not None and not isinstance(data, mujoco.MjData):
+        raise expected("attach_hydrodynamics", "data", "the model's mujoco.MjData, or None (a new one)", data)
+    if not isinstance(body, str):
+        raise expected("attach_hydrodynamics", "body", "the hull body's name (str)", body)
     if scenario is None or isinstance(scenario, str):
         if scenario is None or scenario in preset_names():
             scenario = load_scenario(preset=scenario)

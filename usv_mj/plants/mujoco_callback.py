@@ -33,7 +33,9 @@ propeller and rudder force :func:`usv_mj.physics.mmg.mmg_terms` of the inputs ``
 motors have zero gear) on the constants at ``U_MMG``, after the layout (``N_USERDATA_MMG`` words).
 MuJoCo calls the passive callback once per RK4 stage after building ``d.M`` for that stage's pose
 and with ``d.time`` at the stage time, so d(t) is evaluated exactly where the analytic plant
-evaluates it.
+evaluates it. d(t) is the scenario's disturbance kind: its packed vector at ``U_DP``
+(:func:`usv_mj.physics.disturbances.packed_disturbance`), whose last word sends
+:func:`usv_mj.physics.disturbances.disturbance_at` to the paper's kernel (0) or to the kind's cfunc.
 
 A hull on a free joint (``d.userdata[U_LAYOUT]`` = LAYOUT_FREE, written by
 :func:`usv_mj.attach_hydrodynamics`) takes the same terms on the free joint's x, y and yaw dofs
@@ -68,7 +70,7 @@ from numba import carray, cfunc, njit, types
 from usv_mj.physics.sea.dynamics import sea_terms
 from usv_mj.physics.sea.layout import N_ENV_PARAMS, N_WAVE_COLS
 from usv_mj.physics.mmg import N_MMG_PARAMS, mmg_terms
-from usv_mj.physics.ship import MODEL_MMG, N_DIST_PARAMS, N_SHIP_PARAMS, P_MODEL, hull_terms
+from usv_mj.physics.ship import MODEL_MMG, N_DIST_WORDS, N_SHIP_PARAMS, P_MODEL, hull_terms
 
 from usv_mj.support.native_mujoco import (MODELS_DIR, _f64_ptr, _i64_ptr, _libmujoco,  # noqa: F401 (re-exported)
                                          call_model_data, check_offsets, mujoco_function_address, struct_offsets)
@@ -82,8 +84,8 @@ U_MASS = 3          # rigid mass m [kg]
 U_XG = 4            # COM offset x_g [m]
 U_MA = 5            # added mass M_A, 3x3 row-major (9)
 U_P = U_MA + 9      # ShipParams.as_array() (N_SHIP_PARAMS)
-U_DP = U_P + N_SHIP_PARAMS  # PaperDisturbance.as_array() (N_DIST_PARAMS)
-U_CALLS = U_DP + N_DIST_PARAMS  # number of callback evaluations (diagnostic)
+U_DP = U_P + N_SHIP_PARAMS  # the packed d(t), usv_mj.physics.disturbances.packed_disturbance (N_DIST_WORDS)
+U_CALLS = U_DP + N_DIST_WORDS  # number of callback evaluations (diagnostic)
 U_SCRATCH = U_CALLS + 1  # 15 doubles of scratch space (eta, nu, qfrc, mass_add): no allocation per call
 # the sea (docs/sea.md §6): addresses and sizes of the four arrays of usv_mj.physics.sea.Environment.packed,
 # stored as doubles (addresses < 2^53 are exact); U_SEA_ON = 0 takes the calm path of today
@@ -172,7 +174,7 @@ def passive_terms(ud, t, qpos, qvel, ctrl, qfrc, mass_add):
     r = qvel[2]
     nu[0], nu[1], nu[2] = u, v, r
     p = ud[U_P:U_P + N_SHIP_PARAMS]
-    dp = ud[U_DP:U_DP + N_DIST_PARAMS]
+    dp = ud[U_DP:U_DP + N_DIST_WORDS]
     if ud[U_SEA_ON] != 0.0:
         # docs/sea.md §6: M nu_c_dot + tau_env + Delta + d - C(nu_r) nu_r - D(nu_r) nu_r
         ep = carray(_f64_ptr(np.int64(ud[U_SEA_EP])), (N_ENV_PARAMS,))

@@ -347,7 +347,8 @@ class MuJoCoPlant(PlantBase):
             self._raise_after_step(self.time_at(k))
 
         return Kernel(mcb.mujoco_kernel, (self._m_addr, self._d_addr, self._t0, self.control_period, self.substeps,
-                                          *mcb.kernel_constants()), sync, fail)
+                                          *mcb.kernel_constants()), sync, fail,
+                      state=())   # it writes the mjData behind d_addr (one per plant), no argument
 
     def _raise_after_step(self, t: float) -> None:
         self._x = None
@@ -374,10 +375,11 @@ class MuJoCoPlant(PlantBase):
         """(x, y, psi, u, v, r): pose [m, m, rad, psi unwrapped] and body velocity [m/s, m/s, rad/s].
 
         The state after the last :meth:`step` or :meth:`reset` (writes to ``data`` made in between
-        are not seen until the next step).
+        are not seen until the next step). A copy: editing it moves nothing and changes nothing
+        that the plant reports later, as on the analytic plant.
         """
         if self._x is not None:
-            return self._x
+            return self._x.copy()
         return mcb.plant_state(self._qpos, self._qvel)
 
     def body_acceleration(self, tau_u: float | None = None, tau_r: float | None = None) -> np.ndarray:

@@ -27,8 +27,17 @@ Contract (each criterion):
   A non-finite error counts as broken.
 
 Time window: the tolerances judge the control steps with t >= ``settle_time_s``; the funnel every step.
-A criterion class of a plug-in's own follows the same contract and is added to :data:`CRITERIA`
-under its ``kind`` (so that a log names it back).
+A criterion class of a plug-in's own follows the same contract. It is checked when the controller
+that declares it is loaded (:func:`criterion_of`: the attributes, ``to_dict`` naming its ``kind``,
+``criterion_from_dict`` of it; a :class:`usv_mj.core.errors.PluginContractError` names the
+plug-in, the broken term and the fix) and added to :data:`CRITERIA` under its ``kind`` there (adding
+it by hand, as before, still works). The record's metadata names its class too
+(``"class": "module:Qualname"``, :func:`criterion_to_dict`), so a later process (``usv-mj plot`` of
+the log) imports it back; one that cannot (a class defined in a script) judges the log "not judged"
+and says why. Its ``evaluate`` is called through :func:`judge`, which checks the result: an
+exception, a result that is not a dict, or a ``passed`` / ``violations`` / ``first_violation_s``
+outside the contract leaves the run not judged, the block's ``error`` naming the plug-in and what
+was wrong, instead of breaking the outputs.
 """
 
 from __future__ import annotations
@@ -38,7 +47,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from usv_mj.core.errors import ScenarioError
+from usv_mj.core.errors import PluginContractError, ScenarioError
 from usv_mj.record.tracking import pose_errors
 
 
@@ -239,14 +248,57 @@ class NotJudged:
                 "violations": None, "first_violation_s": None, "judged_steps": 0, "params": _params(self)}
 
 
-CRITERIA = {c.kind: c for c in (FunnelCriterion, PoseTolerance, PathTolerance, NotJudged)}
+BUILT_IN = (FunnelCriterion, PoseTolerance, PathTolerance, NotJudged)
+CRITERIA = {c.kind: c for c in BUILT_IN}
+CONTRACT = "the criterion contract: usv_mj.record.criteria"
+
+
+def class_path(obj) -> str:
+    """``module:Qualname`` of ``obj``'s class (of ``obj`` itself when it is a class)."""
+    cls = obj if isinstance(obj, type) else type(obj)
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
+def _who(criterion) -> str:
+    return f"criterion {getattr(criterion, 'kind', '?')!r} ({class_path(criterion)})"
+
+
+def criterion_to_dict(criterion) -> dict:
+    """``criterion.to_dict()``, with ``"class": "module:Qualname"`` for a plug-in's criterion (not for
+    a built-in: their records stay as they were), so that another process finds its class."""
+    d = criterion.to_dict()
+    return d if isinstance(criterion, BUILT_IN) else {**d, "class": class_path(criterion)}
+
+
+def _import_class(path: str, kind: str):
+    """The criterion class ``module:Qualname`` a record names, imported and added to :data:`CRITERIA`;
+    None (and why) when it cannot be."""
+    import importlib
+
+    module_name, _, qualname = str(path).partition(":")
+    try:
+        obj = importlib.import_module(module_name)
+        for part in qualname.split("."):
+            obj = getattr(obj, part)
+    except Exception as exc:
+        return None, f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    if not isinstance(obj, type) or getattr(obj, "kind", None) != kind:
+        return None, f"{path} is not a criterion class of kind {kind!r}"
+    CRITERIA.setdefault(kind, obj)
+    return obj, ""
 
 
 def criterion_from_dict(d: dict):
     """The criterion that :meth:`to_dict` wrote (a JSON null bound, as ``summary.json`` writes an
-    infinite one, reads back as inf)."""
+    infinite one, reads back as inf); a plug-in's kind not known in this process is imported from
+    the ``class`` the dict names (:func:`criterion_to_dict`)."""
     d = dict(d)
     kind = d.pop("kind", None)
+    path = d.pop("class", None)
+    if kind not in CRITERIA and path:
+        found, why = _import_class(path, kind)
+        if found is None:
+            raise ScenarioError(f"success criterion {kind!r} of the plug-in {path} cannot be loaded here ({why})")
     if kind not in CRITERIA:
         raise ScenarioError(f"unknown success criterion {kind!r}; criteria: {', '.join(CRITERIA)}")
     d = {k: (float("inf") if v is None and k.endswith("_m") else v) for k, v in d.items()}
@@ -256,15 +308,102 @@ def criterion_from_dict(d: dict):
         raise ScenarioError(f"success criterion {kind!r}: {exc}") from None
 
 
+def check_criterion(criterion, owner: str):
+    """The contract of a declared criterion, checked when its controller is loaded (module
+    docstring); a plug-in's class is added to :data:`CRITERIA` under its kind. Returns it."""
+    who = f"{owner}: its criterion {criterion!r} ({class_path(criterion)})"
+    missing = [m for m in ("kind", "describe", "to_dict", "evaluate") if not hasattr(criterion, m)]
+    if missing:
+        raise PluginContractError(f"{who} has no {', '.join(missing)}; a criterion has kind, noun, describe(), "
+                                  f"to_dict() and evaluate(record) ({CONTRACT})")
+    kind = criterion.kind
+    if not isinstance(kind, str) or not kind:
+        raise PluginContractError(f"{who}: kind must be a non-empty string, got {kind!r} ({CONTRACT})")
+    if isinstance(criterion, BUILT_IN):
+        return criterion
+    taken = CRITERIA.get(kind)
+    if taken is not None and taken is not type(criterion) and class_path(taken) != class_path(criterion):
+        raise PluginContractError(f"{who}: kind {kind!r} is already the criterion {class_path(taken)}; give the "
+                                  f"class a kind of its own")
+    try:
+        d = criterion.to_dict()
+    except Exception as exc:
+        raise PluginContractError(f"{who}: to_dict() raised {type(exc).__name__}: {exc} ({CONTRACT})") from None
+    if not isinstance(d, dict) or d.get("kind") != kind:
+        raise PluginContractError(f"{who}: to_dict() must return a dict with \"kind\": {kind!r} (what "
+                                  f"criterion_from_dict reads back), got {d!r} ({CONTRACT})")
+    CRITERIA.setdefault(kind, type(criterion))
+    try:
+        criterion_from_dict(criterion_to_dict(criterion))
+    except Exception as exc:
+        raise PluginContractError(f"{who}: its class cannot be rebuilt from to_dict() {d!r} ({type(exc).__name__}: "
+                                  f"{exc}); the keys of to_dict() besides kind must be its constructor's "
+                                  f"({CONTRACT})") from None
+    return criterion
+
+
+def _result_problem(out) -> str | None:
+    """What is wrong with an ``evaluate`` result (None: it keeps the contract)."""
+    import json
+
+    if not isinstance(out, dict):
+        return f"a {type(out).__name__} instead of a dict"
+    passed = out.get("passed", "missing")
+    if passed is not None and not isinstance(passed, (bool, np.bool_)):
+        return f"passed = {passed!r} (True, False or None)"
+    v = out.get("violations")
+    if v is not None and (isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 0):
+        return f"violations = {v!r} (an integer >= 0 or None)"
+    f = out.get("first_violation_s")
+    if f is not None and (isinstance(f, (bool, np.bool_)) or not isinstance(f, (int, float, np.floating))
+                          or not math.isfinite(f)):
+        return f"first_violation_s = {f!r} (a finite time [s] or None)"
+    try:
+        json.dumps(out, allow_nan=False, default=lambda o: o.item() if hasattr(o, "item") else str(o))
+    except ValueError:
+        bad = [k for k, x in out.items() if isinstance(x, float) and not math.isfinite(x)]
+        return f"values that are not JSON ({', '.join(bad) or 'nested NaN or inf'}: write None)"
+    return None
+
+
+def judge(criterion, record) -> dict:
+    """``criterion.evaluate(record)``, checked (module docstring): the result with the contract's
+    defaults filled in (kind, noun, description, violations and first_violation_s None,
+    judged_steps 0). A plug-in's evaluate that raises or returns what the contract does not allow
+    gives a "not judged" block whose ``error`` names it and what was wrong; a built-in's error
+    propagates (it is usv_mj's)."""
+    try:
+        out = criterion.evaluate(record)
+        problem = _result_problem(out)
+    except Exception as exc:
+        if isinstance(criterion, BUILT_IN):
+            raise
+        out, problem = None, f"evaluate raised {type(exc).__name__}: {' '.join(str(exc).split())}"
+    else:
+        problem = None if problem is None else f"evaluate returned {problem}"
+    base = {"kind": getattr(criterion, "kind", "?"), "noun": getattr(criterion, "noun", "the criterion"),
+            "description": _describe(criterion), "passed": None, "violations": None, "first_violation_s": None,
+            "judged_steps": 0}
+    if problem is not None:
+        return {**base, "error": f"{_who(criterion)} broke its contract: {problem} ({CONTRACT})"}
+    out = {**base, **out}
+    out["passed"] = None if out["passed"] is None else bool(out["passed"])
+    return out
+
+
+def _describe(criterion) -> str:
+    try:
+        return str(criterion.describe())
+    except Exception as exc:   # a plug-in's: its words are not worth the run's outputs
+        return f"{_who(criterion)} (describe raised {type(exc).__name__})"
+
+
 def criterion_of(controller):
     """The criterion ``controller`` declares (module docstring): its ``criterion``, else the funnel
     for a controller with the funnel block among its diagnostics, else the default pose tolerance."""
     declared = getattr(controller, "criterion", None)
     if declared is not None:
-        missing = [m for m in ("kind", "describe", "to_dict", "evaluate") if not hasattr(declared, m)]
-        if missing:
-            raise ScenarioError(f"controller {getattr(controller, 'name', '?')!r}: its criterion {declared!r} "
-                                f"has no {', '.join(missing)} (usv_mj.record.criteria: the contract)")
+        check_criterion(declared, f"controller {getattr(controller, 'name', '?')!r}")
     from usv_mj.core.layouts import FUNNEL_FIELDS
 
     has_funnel = set(FUNNEL_FIELDS) <= set(getattr(controller, "diagnostic_fields", ()))
@@ -282,5 +421,10 @@ def criterion_of_record(record):
     funnel when it has the funnel columns, else by the default :class:`PoseTolerance`."""
     d = record.metadata.get("criterion")
     if d:
+        if isinstance(d, dict) and d.get("kind") not in CRITERIA and d.get("class"):
+            try:
+                return criterion_from_dict(d)
+            except ScenarioError as exc:   # a plug-in's class this process cannot import: say so, judge nothing
+                return NotJudged(f"{exc}")
         return criterion_from_dict(d)
     return FunnelCriterion() if getattr(record, "has_funnel", False) else PoseTolerance()

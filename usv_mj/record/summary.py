@@ -68,6 +68,8 @@ def actuator_description(table, channels="forces") -> dict | None:
 
 def verdict(block: dict) -> str:
     """The outcome of a ``criterion`` block (:func:`summarize`) in words, for the console and reports."""
+    if block.get("error"):   # a plug-in's criterion that broke its contract (usv_mj.record.criteria.judge)
+        return f"not judged: {block['error']}"
     if block["passed"] is None:
         if block["kind"] == "not_judged":
             return "not judged"
@@ -75,8 +77,16 @@ def verdict(block: dict) -> str:
                 else "not judged: no control step in the criterion's time window")
     if block["passed"]:
         return "passed"
-    return (f"not passed: {block['violations']} control steps outside, the first at "
-            f"t = {block['first_violation_s']:.2f} s")
+    return "not passed" + _violations(block)
+
+
+def _violations(block: dict) -> str:
+    """": N control steps outside, the first at t = T s", the parts a criterion gave (a plug-in's
+    may give neither: None is allowed by the contract)."""
+    n, first = block.get("violations"), block.get("first_violation_s")
+    words = ([f"{n} control steps outside"] if n is not None else []) + \
+        ([f"the first at t = {first:.2f} s"] if first is not None else [])
+    return (": " + ", ".join(words)) if words else ""
 
 
 def outcome_sentence(block: dict) -> str:
@@ -84,9 +94,11 @@ def outcome_sentence(block: dict) -> str:
     noun = block["noun"][:1].upper() + block["noun"][1:]
     if block["kind"] == "not_judged":
         return f"The run is {block['description']}."
-    if block["violations"]:
-        return f"{noun} was lost ({block['violations']} control steps outside, the first at t = " \
-               f"{block['first_violation_s']:.2f} s)."
+    if block.get("error"):
+        return f"{noun} could not be judged ({block['error']})."
+    if block["violations"] or block["passed"] is False:
+        detail = _violations(block)[2:]
+        return f"{noun} was lost" + (f" ({detail})." if detail else ".")
     if block["passed"] is None:
         return f"{noun} could not be judged ({verdict(block)[len('not judged: '):]})."
     return f"{noun} held."
@@ -126,10 +138,10 @@ def summarize(record: RunRecord, criterion=None) -> dict:
         from usv_mj.core.errors import expected
 
         raise expected("summarize", "record", "a RunRecord (usv_mj.simulate, usv_mj.outputs.log.read_run)", record)
-    from usv_mj.record.criteria import criterion_of_record
+    from usv_mj.record.criteria import criterion_of_record, judge
 
     criterion = criterion_of_record(record) if criterion is None else criterion
-    judged = criterion.evaluate(record)
+    judged = judge(criterion, record)
     meta = record.metadata
     n = len(record)
     dt = meta.get("control_period_s", record.value("t", 1) - record.value("t", 0) if n > 1 else 0.0)

@@ -6,7 +6,8 @@ re-times and detours).
   linear between the nodes, psi its integral, x and y cubic Hermite with the unit tangents);
 - :class:`SpeedProfile`: s(t) in pieces of constant acceleration [s, m, m/s, m/s^2], and
   :func:`retimed_pieces`, the slow-down, hold and speed-up of a re-timing;
-- :class:`GuidedReference`: pose(t) = (x(s), y(s), psi(s), kappa(s) u, u) with (s, u) = profile(t),
+- :class:`GuidedReference`: pose(t) = (x(s), y(s), psi(s), kappa(s) u, u, a, kappa'(s) u^2 + kappa(s) a)
+  with (s, u, a) = profile(t),
   evaluated by :func:`guided_pose` (also the native kernel :func:`guided_kernel`); a detour replaces
   the path from a time on.
 """
@@ -135,6 +136,18 @@ def _path_at(path, a, n, ds, s):
 
 
 @njit(cache=True)
+def _path_dkappa(path, a, n, ds, s):
+    """d kappa / ds [1/m^2] at arc length s of the path table of :func:`_path_at`: the slope of
+    kappa over the cell of s (kappa is linear in s there), 0 beyond either end (straight)."""
+    if s <= 0.0:
+        return 0.0
+    i = int(s / ds)
+    if i >= n:
+        return 0.0
+    return (path[a + i + 1, 3] - path[a + i, 3]) / ds
+
+
+@njit(cache=True)
 def _path_points(path, n, ds, s):
     """(x, y) of :func:`_path_at` at each arc length of ``s``, shape (len(s), 2)."""
     out = np.empty((s.shape[0], 2))
@@ -148,7 +161,8 @@ def _path_points(path, n, ds, s):
 def guided_pose(t, prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path):
     """:meth:`GuidedReference.pose` on a snapshot of its profile (``prof_t0`` and the (t0, s0, u0, a)
     rows ``prof_pieces``) and segments (start time, start arc length, the path's ds and first row
-    in ``path``; ``seg_row`` has one more entry, the end)."""
+    in ``path``; ``seg_row`` has one more entry, the end): (x, y, psi, r, u, u_dot, r_dot) with
+    r = kappa u, u_dot = a of the profile's piece and r_dot = kappa' u^2 + kappa a."""
     lo, hi = 0, prof_t0.shape[0]  # bisect.bisect_right(profile.t0, t)
     while lo < hi:
         mid = (lo + hi) // 2
@@ -164,8 +178,10 @@ def guided_pose(t, prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path):
     j = seg_t.shape[0] - 1
     while j > 0 and seg_t[j] > t:
         j -= 1
-    x, y, psi, kappa = _path_at(path, seg_row[j], seg_row[j + 1] - seg_row[j] - 1, seg_ds[j], s - seg_s[j])
-    return x, y, psi, kappa * u, u
+    row, n, ds = seg_row[j], seg_row[j + 1] - seg_row[j] - 1, seg_ds[j]
+    x, y, psi, kappa = _path_at(path, row, n, ds, s - seg_s[j])
+    # r = kappa(s) u, so r_dot = kappa'(s) u^2 + kappa a (s_dot = u, u_dot = a)
+    return x, y, psi, kappa * u, u, a, _path_dkappa(path, row, n, ds, s - seg_s[j]) * u * u + kappa * a
 
 
 @njit(cache=True)
@@ -176,7 +192,7 @@ def guided_kernel(t, prof_t0, prof_pieces, seg_t, seg_s, seg_ds, seg_row, path, 
 
 class GuidedReference(Reference):
     """A planned path run with a speed profile (:class:`usv_mj.references.trajectories.Reference`):
-    pose(t) = (x(s), y(s), psi(s), kappa(s) u, u) with (s, u) = profile(t) (module docstring).
+    pose(t) = (x(s), y(s), psi(s), kappa(s) u, u, u_dot, r_dot) with (s, u) = profile(t) (module docstring).
 
     A detour replaces the path from a time on (:meth:`switch_path`): ``segments`` holds
     (t_start, s_start, path) and the path of the last segment started by t is read at s - s_start.

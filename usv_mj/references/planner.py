@@ -81,6 +81,16 @@ class PlanningError(ScenarioError):
     impossible, and the CLI reports it as such (exit code 2)."""
 
 
+class InsideObstacle(PlanningError):
+    """The start or the goal (``label``, ``point``) lies inside an inflated obstacle
+    (:func:`plan_reference` names which)."""
+
+    def __init__(self, label: str, point):
+        self.label, self.point = label, (float(point[0]), float(point[1]))
+        super().__init__(f"the {label} point ({self.point[0]:.2f}, {self.point[1]:.2f}) m lies inside an inflated "
+                         f"obstacle")
+
+
 @dataclass(frozen=True)
 class SafetyEnvelope:
     """G(t) = hull_radius + 2 |eps| + sqrt(2) rho(t) (module docstring) and the margin.
@@ -303,7 +313,7 @@ def visibility_path(start, goal, polygons) -> np.ndarray:
     blocked_area = shapely.union_all([p.buffer(-1e-6) for p in polygons]) if polygons else shapely.Polygon()
     for label, pt in (("start", start), ("goal", goal)):
         if blocked_area.contains(shapely.Point(*pt)):
-            raise PlanningError(f"the {label} point ({pt[0]:.2f}, {pt[1]:.2f}) m lies inside an inflated obstacle")
+            raise InsideObstacle(label, pt)
     nodes, before, after = [start, goal], [-1, -1], [-1, -1]
     for p in shapely.orient_polygons(polygons) if polygons else ():
         ring = np.asarray(p.exterior.coords)[:-1]
@@ -338,6 +348,19 @@ def visibility_path(start, goal, polygons) -> np.ndarray:
         if length <= bound + 1e-9:
             return nodes[route]
         bound = length
+
+
+def _inside_which(exc: InsideObstacle, obstacles, static, inflation) -> PlanningError:
+    """``exc`` with the obstacle named: its index in ``[[obstacles]]``, its name and its inflation."""
+    point = shapely.Point(*exc.point)
+    for i, r in zip(static, inflation):
+        if _grown(obstacles[i], r).buffer(-1e-6).contains(point):
+            o = obstacles[i]
+            name = f"obstacles[{i}]" + (f" ({o.name})" if getattr(o, "name", "") else "")
+            return PlanningError(f"the {exc.label} point ({exc.point[0]:.2f}, {exc.point[1]:.2f}) m lies inside an "
+                                 f"inflated obstacle, {name}, grown by {r:.2f} m (the hull's radius, the funnel's "
+                                 f"bound and guidance.margin: docs/obstacles.md); move the {exc.label} or the obstacle")
+    return exc   # inside the union only (two inflated obstacles overlap there)
 
 
 def obstacle_distances(obstacles, positions: np.ndarray, times: np.ndarray | None = None) -> np.ndarray:
@@ -383,7 +406,10 @@ def plan_reference(start, goal, obstacles, envelope: SafetyEnvelope, guidance: G
     extend = speed * duration + 10.0
     for iteration in range(1, MAX_ITERATIONS + 1):
         polygons = _merged_obstacles([obstacles[i] for i in static], inflation) if static else []
-        polyline = visibility_path(start, goal, polygons)
+        try:
+            polyline = visibility_path(start, goal, polygons)
+        except InsideObstacle as exc:   # which obstacle, and by how much it is inflated
+            raise _inside_which(exc, obstacles, static, inflation) from None
         path = smooth_polyline(polyline, psi0, kappa_max, dkappa_max, guidance.lookahead_m, extend)
         reference = GuidedReference(path, SpeedProfile(speed))
         pos = reference.positions(times)

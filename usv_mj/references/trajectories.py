@@ -2,8 +2,16 @@
 
 Every reference is a unicycle-like path: position (x_d, y_d), heading psi_d along the path, yaw rate
 r_d = psi_d_dot and surge speed u_d (v_d = 0). ``reference.evaluate(t)`` returns the vector of
-:data:`usv_mj.controllers.base.REF_FIELDS` = (x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d) in m, rad, m/s,
-rad/s; the returned array is the reference's own buffer (copy it to keep it).
+:data:`usv_mj.core.layouts.REF_VECTOR_FIELDS` = (x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d, u_d,
+x_d_ddot, y_d_ddot, r_d_dot) in m, rad, m/s, rad/s, m/s^2, rad/s^2 (the first 7 are the record's
+reference columns, :data:`~usv_mj.core.layouts.REF_FIELDS`); the returned array is the reference's
+own buffer (copy it to keep it).
+
+The accelerations are closed forms of the unicycle, d/dt of (u cos psi, u sin psi):
+x_d_ddot = u_dot cos psi - u r sin psi, y_d_ddot = u_dot sin psi + u r cos psi, with each kind's own
+u_dot and r_dot = d r_d / dt (:func:`unicycle_out`; docs/controllers.md writes each kind's out).
+A pose returns (x, y, psi, r, u, u_dot, r_dot); a plug-in's ``pose`` that returns the first five
+only leaves the accelerations unknown: NaN (a law that reads them then says so by its NaN force).
 
 A new trajectory kind is a :class:`Reference` subclass (or any object with ``evaluate(t)``) and
 a typed options dataclass (the keys of its ``[trajectory]`` table), registered with
@@ -21,13 +29,14 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from usv_mj.core.layouts import REF_FIELDS
+from usv_mj.core.layouts import N_REF
 from usv_mj.core.registry import TRAJECTORIES
 from usv_mj.physics.ship import wrap_angle
 
 
 class Reference:
-    """Base class: subclasses implement :meth:`pose` returning (x, y, psi, r, u).
+    """Base class: subclasses implement :meth:`pose` returning (x, y, psi, r, u, u_dot, r_dot)
+    [m, m, rad, rad/s, m/s, m/s^2, rad/s^2] (or the first five: the accelerations are then NaN).
 
     A built-in reference's ``pose`` is an njit function of this module (one implementation: its
     kernel for the compiled loop composes the same function with :func:`unicycle_out`); a subclass
@@ -37,26 +46,34 @@ class Reference:
     kind = "base"
 
     def __init__(self) -> None:
-        self._out = np.zeros(len(REF_FIELDS))
+        self._out = np.zeros(N_REF)
 
-    def pose(self, t: float) -> tuple[float, float, float, float, float]:
+    def pose(self, t: float) -> tuple:
         raise NotImplementedError
 
     def evaluate(self, t: float) -> np.ndarray:
-        return unicycle_out(self._out, *self.pose(t))
+        p = self.pose(t)
+        if len(p) == 5:   # a pose without its accelerations (a plug-in's): unknown, NaN
+            return unicycle_out(self._out, *p, math.nan, math.nan)
+        return unicycle_out(self._out, *p)
 
     def sample(self, times) -> np.ndarray:
-        """The reference at many times, shape (len(times), 7)."""
+        """The reference at many times, shape (len(times), N_REF)."""
         return np.array([self.evaluate(float(t)).copy() for t in np.asarray(times, dtype=float)])
 
 
 @njit(cache=True)
-def unicycle_out(out, x, y, psi, r, u):
-    """The REF_FIELDS vector of a unicycle pose, written into ``out`` (returned): (x, y, psi,
-    u cos psi, u sin psi, r, u) [m, m, rad, m/s, m/s, rad/s, m/s]. :meth:`Reference.evaluate`."""
+def unicycle_out(out, x, y, psi, r, u, u_dot, r_dot):
+    """The reference vector (REF_VECTOR_FIELDS) of a unicycle pose, written into ``out`` (returned):
+    (x, y, psi, u cos psi, u sin psi, r, u, u_dot cos psi - u r sin psi, u_dot sin psi + u r cos psi,
+    r_dot) [m, m, rad, m/s, m/s, rad/s, m/s, m/s^2, m/s^2, rad/s^2]. :meth:`Reference.evaluate`."""
+    c, s = math.cos(psi), math.sin(psi)
     out[0], out[1], out[2] = x, y, psi
-    out[3], out[4] = u * math.cos(psi), u * math.sin(psi)
+    out[3], out[4] = u * c, u * s
     out[5], out[6] = r, u
+    out[7] = u_dot * c - u * r * s
+    out[8] = u_dot * s + u * r * c
+    out[9] = r_dot
     return out
 
 
@@ -92,16 +109,27 @@ def paper_heading(t, u_d, t_turn, t_phase, amplitude, period):
 
 
 @njit(cache=True)
+def paper_yaw_acceleration(t, t_turn, t_phase, amplitude, period):
+    """r_d_dot = -A (pi/P) cos(pi (t - t_phase)/P) for t >= t_turn, 0 before (the derivative of
+    :func:`paper_heading`'s r_d; at t_turn r_d jumps, as printed, and this is its right limit)."""
+    if t < t_turn:
+        return 0.0
+    w = math.pi / period
+    return -amplitude * w * math.cos(w * (t - t_phase))
+
+
+@njit(cache=True)
 def paper_pose(t, tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, period):
     """:meth:`PaperReference.pose`: the heading in closed form, the position from the table (Hermite
-    with exact end slopes u_d (cos, sin) psi; past the table's last cell, its cubic)."""
+    with exact end slopes u_d (cos, sin) psi; past the table's last cell, its cubic); u_dot = 0 and
+    r_dot of :func:`paper_yaw_acceleration`."""
     psi, r = paper_heading(t, u_d, t_turn, t_phase, amplitude, period)
     i = int(t / h)
     if i >= tab_x.shape[0] - 1:
         i = tab_x.shape[0] - 2
     x, y = hermite_point(t / h - i, tab_x[i], tab_y[i], tab_psi[i], tab_x[i + 1], tab_y[i + 1], tab_psi[i + 1], h,
                          u_d)
-    return x, y, psi, r, u_d
+    return x, y, psi, r, u_d, 0.0, paper_yaw_acceleration(t, t_turn, t_phase, amplitude, period)
 
 
 @njit(cache=True)
@@ -112,9 +140,10 @@ def paper_kernel(t, tab_x, tab_y, tab_psi, h, u_d, t_turn, t_phase, amplitude, p
 
 @njit(cache=True)
 def line_pose(t, x0, y0, heading, speed):
-    """:meth:`LineReference.pose`: from (x0, y0) [m] along ``heading`` [rad] at ``speed`` [m/s]."""
+    """:meth:`LineReference.pose`: from (x0, y0) [m] along ``heading`` [rad] at ``speed`` [m/s]
+    (no acceleration: u_dot = r_dot = 0)."""
     d = speed * t
-    return x0 + d * math.cos(heading), y0 + d * math.sin(heading), heading, 0.0, speed
+    return x0 + d * math.cos(heading), y0 + d * math.sin(heading), heading, 0.0, speed, 0.0, 0.0
 
 
 @njit(cache=True)
@@ -125,10 +154,11 @@ def line_kernel(t, x0, y0, heading, speed, out):
 
 @njit(cache=True)
 def circle_pose(t, cx, cy, radius, speed, theta0, direction):
-    """:meth:`CircleReference.pose`: polar angle theta0 + w t about (cx, cy), w = direction speed/radius."""
+    """:meth:`CircleReference.pose`: polar angle theta0 + w t about (cx, cy), w = direction speed/radius
+    (constant u and r: u_dot = r_dot = 0; the centripetal x_d_ddot, y_d_ddot = u w (-sin, cos) psi_d)."""
     w = direction * speed / radius
     th = theta0 + w * t
-    return cx + radius * math.cos(th), cy + radius * math.sin(th), th + direction * math.pi / 2, w, speed
+    return cx + radius * math.cos(th), cy + radius * math.sin(th), th + direction * math.pi / 2, w, speed, 0.0, 0.0
 
 
 @njit(cache=True)
@@ -142,7 +172,8 @@ def waypoint_pose(t, speed, starts, pieces):
     """:meth:`WaypointReference.pose`; ``pieces`` rows (kind 0 line / 1 arc, then the piece's
     numbers: line x0, y0, heading, length; arc cx, cy, theta0, sign, radius, length), ``starts``
     their start arc lengths [m]. Past the last piece (a line: the path never ends on an arc) the
-    reference goes on along it."""
+    reference goes on along it. Inside a piece u and r are constant (u_dot = r_dot = 0); where a
+    line meets an arc r_d jumps by speed/radius (r_d_dot is a Dirac there, not represented)."""
     s = speed * t
     i = 0  # bisect_right(starts, s) - 1, at least 0
     for j in range(starts.shape[0]):
@@ -154,10 +185,10 @@ def waypoint_pose(t, speed, starts, pieces):
     pc = pieces[i]
     if pc[0] == 0.0:
         h = pc[3]
-        return pc[1] + ds * math.cos(h), pc[2] + ds * math.sin(h), h, 0.0, speed
+        return pc[1] + ds * math.cos(h), pc[2] + ds * math.sin(h), h, 0.0, speed, 0.0, 0.0
     th = pc[3] + pc[4] * ds / pc[5]
     return (pc[1] + pc[5] * math.cos(th), pc[2] + pc[5] * math.sin(th), th + pc[4] * math.pi / 2,
-            pc[4] * speed / pc[5], speed)
+            pc[4] * speed / pc[5], speed, 0.0, 0.0)
 
 
 @njit(cache=True)
@@ -219,7 +250,7 @@ class PaperReference(Reference):
         from usv_mj.core.kernels import Kernel
 
         return Kernel(paper_kernel, (self._x, self._y, self._psi, self.GRID, self.speed, self.t_turn, self.t_phase,
-                                     self.amplitude, self.period, self._out))
+                                     self.amplitude, self.period, self._out), state=(9,))
 
 
 class LineReference(Reference):
@@ -236,7 +267,7 @@ class LineReference(Reference):
     def kernel(self):
         from usv_mj.core.kernels import Kernel
 
-        return Kernel(line_kernel, (self.start[0], self.start[1], self.heading, self.speed, self._out))
+        return Kernel(line_kernel, (self.start[0], self.start[1], self.heading, self.speed, self._out), state=(4,))
 
     def pose(self, t):
         return line_pose(t, self.start[0], self.start[1], self.heading, self.speed)
@@ -262,7 +293,7 @@ class CircleReference(Reference):
         from usv_mj.core.kernels import Kernel
 
         return Kernel(circle_kernel, (self.center[0], self.center[1], self.radius, self.speed, self.theta0,
-                                      self.direction, self._out))
+                                      self.direction, self._out), state=(6,))
 
     def pose(self, t):
         return circle_pose(t, self.center[0], self.center[1], self.radius, self.speed, self.theta0, self.direction)
@@ -323,7 +354,7 @@ class WaypointReference(Reference):
     def kernel(self):
         from usv_mj.core.kernels import Kernel
 
-        return Kernel(waypoint_kernel, (self.speed, self._starts, self._rows, self._out))
+        return Kernel(waypoint_kernel, (self.speed, self._starts, self._rows, self._out), state=(3,))
 
     def pose(self, t):
         return waypoint_pose(t, self.speed, self._starts, self._rows)

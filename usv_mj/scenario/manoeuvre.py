@@ -42,6 +42,19 @@ SIDES = {"starboard": -1.0, "port": 1.0}
 CONDITIONS = ("calm", "scenario")
 
 
+def _check_duration(obj, section="manoeuvre"):
+    """The run must pass its approach (the execute at ``approach_s``) and take at least one control
+    step: refused here, before the run, not after it when there is nothing to measure."""
+    duration, period = obj.duration, obj.control_period
+    approach = getattr(obj, "approach_s", 0.0)
+    if hasattr(obj, "approach_s") and not duration > approach:
+        raise ScenarioError(f"{section}.duration = {duration!r} s does not pass the approach: the execute is at "
+                            f"{section}.approach_s = {approach!r} s; give a duration longer than approach_s")
+    if not duration >= period:
+        raise ScenarioError(f"{section}.duration = {duration!r} s is shorter than one control period "
+                            f"({section}.control_period = {period!r} s)")
+
+
 def _check(obj, positive=(), nonnegative=(), section="manoeuvre"):
     for f in fields(obj):
         v = getattr(obj, f.name)
@@ -81,6 +94,7 @@ class TurningOptions:
                nonnegative=("approach_s",))
         if self.steady_after_deg < 180:
             raise ScenarioError(f"manoeuvre.steady_after_deg must be >= 180, got {self.steady_after_deg!r}")
+        _check_duration(self)
 
 
 @dataclass(frozen=True)
@@ -99,6 +113,7 @@ class ZigzagOptions:
         _check(self, positive=("approach_speed", "yaw_moment", "angle_deg", "duration", "control_period"))
         if not self.angle_deg < 180:
             raise ScenarioError(f"manoeuvre.angle_deg must be < 180, got {self.angle_deg!r}")
+        _check_duration(self)
 
 
 @dataclass(frozen=True)
@@ -121,6 +136,9 @@ class SpiralOptions:
             raise ScenarioError(f"manoeuvre.steps must be an integer >= 1, got {self.steps!r}")
         if not self.settle_fraction <= 1:
             raise ScenarioError(f"manoeuvre.settle_fraction must be in (0, 1], got {self.settle_fraction!r}")
+        if not self.hold_s >= self.control_period:
+            raise ScenarioError(f"manoeuvre.hold_s = {self.hold_s!r} s is shorter than one control period "
+                                f"(manoeuvre.control_period = {self.control_period!r} s)")
 
     @property
     def duration(self) -> float:
@@ -152,6 +170,10 @@ class StoppingOptions:
         if self.astern_force > 0:
             raise ScenarioError(f"manoeuvre.astern_force must be <= 0 N (thrust off or astern), "
                                 f"got {self.astern_force!r}")
+        if not self.stop_speed < self.approach_speed:   # "stopped" at the execute: a time to stop of 0
+            raise ScenarioError(f"manoeuvre.stop_speed = {self.stop_speed!r} m/s must be below manoeuvre.approach_speed "
+                                f"= {self.approach_speed!r} m/s (the vessel would count as stopped at the execute)")
+        _check_duration(self)
 
 
 KINDS = {"turning": TurningOptions, "zigzag": ZigzagOptions, "spiral": SpiralOptions, "stopping": StoppingOptions}
@@ -230,7 +252,9 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> Ma
         raise ScenarioError(f"{source}: manoeuvre.kind must be one of {', '.join(map(repr, MANOEUVRES.kinds()))}, "
                             f"got {kind!r}")
     vessel_model = getattr(vessel_model, "model", vessel_model)   # a scenario's VesselSpec or its Vessel
-    table = {**vessel_defaults(kind, vessel_model), **table}
+    given = table
+    defaults = vessel_defaults(kind, vessel_model)
+    table = {**defaults, **table}
     why = getattr(vessel_model, "limitations", {}).get(kind)
     if why:
         possible = [k for k in MANOEUVRES.kinds() if k not in vessel_model.limitations]
@@ -240,5 +264,20 @@ def manoeuvre_from_table(table, source: str = "<dict>", vessel_model=None) -> Ma
         options = build_table(options_of(kind), table, source, "manoeuvre", extra_known={"kind"})
     except ScenarioError as exc:
         msg = str(exc)
-        raise ScenarioError(msg if msg.startswith(source) else f"{source}: {msg}") from None
+        msg = msg if msg.startswith(source) else f"{source}: {msg}"
+        own = {k: v for k, v in ((getattr(vessel_model, "manoeuvre", None) or {}).items()) if k in defaults}
+        own.update({k: v for k, v in ((getattr(vessel_model, "manoeuvre", None) or {}).get(kind) or {}).items()
+                    if k in defaults})
+        blamed = {k: defaults[k] for k in own if k not in given}
+        if blamed:   # the table alone is fine: the vessel's own [manoeuvre] values are what does not fit
+            try:
+                build_table(options_of(kind), given, source, "manoeuvre", extra_known={"kind"})
+            except ScenarioError:
+                blamed = {}
+        if blamed:
+            blamed = {k: v for k, v in blamed.items() if f"manoeuvre.{k}" in msg} or blamed
+            values = ", ".join(f"{k} = {v!r}" for k, v in blamed.items())
+            raise ScenarioError(f"vessel {vessel_model.kind!r}: its own [manoeuvre] defaults ({values}, from its data "
+                                f"file) do not fit the {kind}: {msg.removeprefix(source + ': ')}") from None
+        raise ScenarioError(msg) from None
     return ManoeuvreSpec(kind, options)

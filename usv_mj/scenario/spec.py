@@ -29,12 +29,15 @@ from pathlib import Path
 from typing import Any
 
 from usv_mj.physics.actuators import ActuatorSpec
-from usv_mj.core.errors import ScenarioError, SeaSettingsError, TooManyStepsError
+from usv_mj.core.errors import (PluginContractError, ScenarioError, SeaSettingsError, TooManyStepsError,
+                                UnknownKindError)
 from usv_mj.scenario.fleet import vessels_from_tables
 from usv_mj.scenario.manoeuvre import manoeuvre_from_table
 from usv_mj.scenario.obstacles import GuidanceSpec, from_tables, guidance_from_table
 from usv_mj.core.registry import CONTROLLERS, DISTURBANCES, PLANTS, TRAJECTORIES, VESSELS
 from usv_mj.physics.sea.settings import SeaSettings, merge_sea_tables, sea_preset_table
+from usv_mj.physics.design import DesignPoint, Scaling
+from usv_mj.physics.disturbances import check_disturbance
 from usv_mj.physics.ship import PaperDisturbance, ShipParams
 from usv_mj.support.toml_values import read_toml
 from usv_mj.scenario.tables import (KindOptions, build_table, construct, convert, merge_tables, to_plain,  # noqa: F401
@@ -192,11 +195,15 @@ class ControllerSpec:
     ----------
     kind: a registered controller (:data:`usv_mj.core.registry.CONTROLLERS`): "ppc" (the paper's law),
         "pi" (the baseline), or one registered by the user.
-    gains: the chosen controller's own gains dataclass (PPC: :class:`usv_mj.controllers.ppc.PPCGains`).
+    gains: the chosen controller's own gains dataclass (PPC: :class:`usv_mj.controllers.ppc.PPCGains`),
+        the gains the run uses: those the table gives, the others derived from the vessel when the
+        gains class can (its ``for_vessel``: PI and LOS, docs/gains.md), else its defaults.
+    derived: the names of the gains derived from the vessel (not given by the scenario).
     """
 
     kind: str = "ppc"
     gains: Any = field(default_factory=lambda: _default_gains("ppc"))
+    derived: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -207,12 +214,15 @@ class BaselineSpec:
     ----------
     enabled: also run the baseline on the same plant and scenario.
     kind: a registered controller ("pi" by default).
-    gains: that controller's gains dataclass (flat keys in the TOML section).
+    gains: that controller's gains dataclass (flat keys in the TOML section; derived from the vessel
+        where not given, as :class:`ControllerSpec`'s).
+    derived: the names of the gains derived from the vessel.
     """
 
     enabled: bool = True
     kind: str = "pi"
     gains: Any = field(default_factory=lambda: _default_gains("pi"))
+    derived: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -285,7 +295,7 @@ class Scenario:
 
     def with_overrides(self, overrides: dict) -> "Scenario":
         """A new scenario: this one's TOML table with ``overrides`` merged in and validated again."""
-        return from_dict(merge_tables(self.raw, overrides), source=self.source or "<overrides>")
+        return from_dict(merge_overrides(self.raw, overrides, self.source), source=self.source or "<overrides>")
 
     def without(self, *sections: str) -> "Scenario":
         """A new scenario without these top-level tables (e.g. ``"obstacles"``: the same run in open
@@ -344,6 +354,10 @@ def load_scenario(path: str | Path | None = None, preset: str | None = None, ove
     if overrides is not None and not isinstance(overrides, Mapping):
         raise expected("load_scenario", "overrides", "a nested dict of scenario keys, e.g. {'duration': 5.0}",
                        overrides)
+    if overrides is not None:
+        from usv_mj.core.arguments import string_keys
+
+        string_keys("load_scenario", "overrides", overrides)
     data: dict = {}
     source = f"preset {preset or 'paper'}"
     if path is not None:
@@ -355,8 +369,45 @@ def load_scenario(path: str | Path | None = None, preset: str | None = None, ove
     if preset is not None:
         data["preset"] = preset
     if overrides:
-        data = merge_tables(data, overrides)
+        data = merge_overrides(data, overrides, source)
     return from_dict(data, source=source)
+
+
+#: the sections whose ``kind`` selects the other keys' meaning, and each one's default kind
+KIND_DEFAULTS = {"controller": "ppc", "baseline": "pi", "trajectory": "paper", "plant": "mujoco",
+                 "disturbance": "paper"}
+
+
+def switched_kind(section: str, table: dict, kind, source: str = "<dict>") -> dict:
+    """``[section]`` (a table of :data:`KIND_DEFAULTS`) when its kind becomes ``kind``: unchanged if it
+    is the table's own kind; else a controller's (baseline's) gains are dropped, they belong to the
+    old kind (the baseline keeps ``enabled``), and a trajectory, plant or disturbance keeps only the
+    keys the new kind also has (the plant's ``substeps`` always). The one rule of a kind switch, for a preset under
+    a scenario (:func:`from_dict`) and for a sweep's or a suite's ``[set] "controller.kind"``
+    (:func:`usv_mj.jobs.sweep.spec.apply_values`). ``kind`` itself is not written into the result."""
+    if kind == table.get("kind", KIND_DEFAULTS[section]):
+        return table
+    if section in ("controller", "baseline"):
+        return {k: v for k, v in table.items() if k == "enabled"}
+    keep = ("substeps",) if section == "plant" else ()
+    registry = {"trajectory": TRAJECTORIES, "plant": PLANTS, "disturbance": DISTURBANCES}[section]
+    known = set(keep)
+    if isinstance(kind, str) and (set(table) - {"kind", *keep}):
+        cls = registry.get(kind, f"{source}: {section}.kind").options_class
+        known |= {f.name for f in dataclasses.fields(cls)} if cls is not None else set()
+    return {k: v for k, v in table.items() if k in known}
+
+
+def merge_overrides(data: dict, overrides: dict, source: str = "<dict>") -> dict:
+    """``data`` (a scenario table) with ``overrides`` merged in, a section whose ``kind`` the overrides
+    switch first cut to the new kind's keys (:func:`switched_kind`), so ``{"controller": {"kind":
+    "los"}}`` over a file's PPC gains is LOS with its own, as over a preset."""
+    base = dict(data)
+    for section in KIND_DEFAULTS:
+        over = overrides.get(section)
+        if isinstance(over, dict) and "kind" in over and isinstance(base.get(section), dict):
+            base[section] = switched_kind(section, base[section], over["kind"], source)
+    return merge_tables(base, overrides)
 
 
 def from_dict(data: dict, source: str = "<dict>") -> Scenario:
@@ -369,23 +420,11 @@ def from_dict(data: dict, source: str = "<dict>") -> Scenario:
     except ScenarioError as exc:
         msg = str(exc)
         raise ScenarioError(msg if msg.startswith(source) else f"{source}: preset: {msg}") from None
-    for section, default in (("controller", "ppc"), ("baseline", "pi")):
-        # another controller kind than the preset's: the preset's gains belong to its own kind
+    for section in KIND_DEFAULTS:
+        # another kind than the preset's: the preset's keys of its own kind stay behind
         over = data.get(section)
-        if isinstance(over, dict) and isinstance(base.get(section), dict) and "kind" in over \
-                and over["kind"] != base[section].get("kind", default):
-            base[section] = {k: v for k, v in base[section].items() if k == "enabled"}
-    for section, registry, keep in (("trajectory", TRAJECTORIES, ()), ("plant", PLANTS, ("substeps",))):
-        # another trajectory / plant kind: only the preset's keys the new kind also has carry over
-        over = data.get(section)
-        if isinstance(over, dict) and isinstance(base.get(section), dict) and "kind" in over \
-                and over["kind"] != base[section].get("kind"):
-            known = set(keep)
-            if isinstance(over["kind"], str):
-                cls = registry.get(over["kind"], f"{source}: {section}.kind").options_class \
-                    if (set(base[section]) - {"kind", *keep}) else None
-                known |= {f.name for f in dataclasses.fields(cls)} if cls is not None else set()
-            base[section] = {k: v for k, v in base[section].items() if k in known}
+        if isinstance(over, dict) and isinstance(base.get(section), dict) and "kind" in over:
+            base[section] = switched_kind(section, base[section], over["kind"], source)
     merged = merge_tables(base, {k: v for k, v in data.items() if k != "preset"})
     merged["preset"] = name
     return _build_scenario(merged, source, own_actuators="actuators" in data,
@@ -439,7 +478,8 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True, own_tab
             raise ScenarioError(f"{source}: [{key}] must be a table, got {data[key]!r}")
     if "disturbance" in data:
         top["disturbance"] = _build_disturbance(data["disturbance"], source)
-    top["controller"] = _controller_spec(data.get("controller", {}), source, "controller", "ppc")
+    design = _design_scaling(top.get("vessel"))
+    top["controller"] = _controller_spec(data.get("controller", {}), source, "controller", "ppc", design)
     base = data.get("baseline", {})
     if not isinstance(base, dict):
         raise ScenarioError(f"{source}: [baseline] must be a table, got {base!r}")
@@ -447,8 +487,8 @@ def _build_scenario(data: dict, source: str, own_actuators: bool = True, own_tab
     enabled = base.pop("enabled", True)
     if not isinstance(enabled, bool):
         raise ScenarioError(f"{source}: baseline.enabled must be true or false, got {enabled!r}")
-    spec = _controller_spec(base, source, "baseline", "pi")
-    top["baseline"] = BaselineSpec(enabled=enabled, kind=spec.kind, gains=spec.gains)
+    spec = _controller_spec(base, source, "baseline", "pi", design)
+    top["baseline"] = BaselineSpec(enabled=enabled, kind=spec.kind, gains=spec.gains, derived=spec.derived)
     if "sea" in data:
         top["sea"] = _build_sea(data["sea"], source)
         vessel = getattr(top.get("vessel"), "model", None)
@@ -515,9 +555,27 @@ def _build_vessel(table: Any, ship: Any, source: str) -> VesselSpec:
     return construct(VesselSpec, {"kind": kind, "options": options, "model": model, **kwargs}, source, "vessel")
 
 
-def _controller_spec(table: Any, source: str, section: str, default_kind: str) -> ControllerSpec:
+def _design_scaling(vessel: VesselSpec | None):
+    """A function returning the :class:`usv_mj.physics.design.Scaling` of the scenario's hull (its
+    nominal model: the vessel's times ``model_mismatch``, its length), made when first asked."""
+    made = []
+
+    def scaling():
+        if not made:
+            spec = vessel if vessel is not None else VesselSpec()
+            nominal = spec.model.ship.scaled(spec.model_mismatch)
+            made.append(Scaling(DesignPoint.of(nominal, spec.model.dimensions.L)))
+        return made[0]
+
+    return scaling
+
+
+def _controller_spec(table: Any, source: str, section: str, default_kind: str, design=None) -> ControllerSpec:
     """``[controller]`` / ``[baseline]``: ``kind`` names a registered controller, whose own gains
-    dataclass validates every other key of the table (the error lists that controller's keys)."""
+    dataclass validates every other key of the table (the error lists that controller's keys). A
+    gains class with ``for_vessel(scaling)`` (docs/gains.md) has its defaults derived from the hull
+    (``design()``: the scenario's :class:`usv_mj.physics.design.Scaling`) for every gain the table
+    does not give."""
     if not isinstance(table, dict):
         raise ScenarioError(f"{source}: [{section}] must be a table, got {table!r}")
     table = dict(table)
@@ -531,8 +589,18 @@ def _controller_spec(table: Any, source: str, section: str, default_kind: str) -
             raise ScenarioError(f"{source}: controller {kind!r} takes no gains, got {', '.join(sorted(table))}")
         return ControllerSpec(kind=kind, gains=None)
     extra = {"kind", "enabled"} if section == "baseline" else {"kind"}
+    for_vessel = getattr(gains_cls, "for_vessel", None)
+    derived = ()
+    if for_vessel is not None and design is not None:
+        given = set(table)
+        try:
+            defaults = {k: v for k, v in for_vessel(design()).items() if k not in given}
+        except ValueError as exc:
+            raise ScenarioError(f"{source}: {section}: the gains of {kind!r} for this vessel: {exc}") from None
+        derived = tuple(defaults)
+        table = {**defaults, **table}
     gains = build_table(gains_cls, table, source, section, extra_known=extra)
-    return ControllerSpec(kind=kind, gains=gains)
+    return ControllerSpec(kind=kind, gains=gains, derived=derived)
 
 
 def _kind_spec(spec_cls, registry, table: Any, source: str, section: str, default_kind: str, common: tuple):
@@ -563,13 +631,38 @@ def _kind_spec(spec_cls, registry, table: Any, source: str, section: str, defaul
 
 def _build_disturbance(table: Any, source: str):
     """``[disturbance]``: ``kind`` (default "paper") names a registered disturbance, whose
-    parameter dataclass validates the other keys."""
+    parameter dataclass validates the other keys; the result keeps the kind's contract
+    (:func:`usv_mj.physics.disturbances.check_disturbance`: a njit kernel, a short ``as_array()``).
+    A plug-in kind's errors name the kind."""
     if not isinstance(table, dict):
         raise ScenarioError(f"{source}: [disturbance] must be a table, got {table!r}")
     table = dict(table)
     kind = table.pop("kind", "paper")
     entry = DISTURBANCES.get(kind, f"{source}: disturbance.kind")
-    return build_table(entry.options_class or entry.obj, table, source, "disturbance", extra_known={"kind"})
+    cls = entry.options_class or entry.obj
+    if not dataclasses.is_dataclass(cls):
+        raise PluginContractError(f"{source}: disturbance kind {kind!r}: {_name(cls)} must be a dataclass (its "
+                                  f"fields are the [disturbance] table's keys; usv_mj.physics.disturbances)")
+    try:
+        disturbance = build_table(cls, table, source, "disturbance", extra_known={"kind"})
+    except ScenarioError as exc:
+        if kind == "paper" or isinstance(exc, UnknownKindError):
+            raise
+        msg = str(exc)  # "source: disturbance.key ...": the kind goes after the source
+        rest = msg[len(source) + 2:] if msg.startswith(f"{source}: ") else msg
+        raise type(exc)(f"{source}: disturbance kind {kind!r}: {rest}") from None
+    except (TypeError, AttributeError) as exc:  # a dataclass that cannot be made from its own defaults
+        raise PluginContractError(f"{source}: disturbance kind {kind!r}: {_name(cls)} cannot be made "
+                                  f"({type(exc).__name__}: {exc})") from None
+    try:
+        check_disturbance(disturbance, kind)
+    except PluginContractError as exc:
+        raise PluginContractError(f"{source}: {exc}") from None
+    return disturbance
+
+
+def _name(obj) -> str:
+    return f"{getattr(obj, '__module__', '?')}.{getattr(obj, '__qualname__', repr(obj))}"
 
 
 def _build_sea(table, source: str) -> SeaSettings:

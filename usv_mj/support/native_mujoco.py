@@ -20,30 +20,13 @@ from numba import types
 from numba.extending import intrinsic
 
 from usv_mj.support.assets import models_dir
+from usv_mj.support.pointers import f64_ptr, i64_ptr
 
 MODELS_DIR = str(models_dir())  # the installed usv_mj.models (the checkout's models/)
 
 
-@intrinsic
-def _f64_ptr(typingctx, address):
-    """Reinterpret an integer address as ``double*`` (numba intrinsic)."""
-    sig = types.CPointer(types.float64)(types.int64)
-
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
-
-    return sig, codegen
-
-
-@intrinsic
-def _i64_ptr(typingctx, address):
-    """Reinterpret an integer address as ``int64*`` (numba intrinsic)."""
-    sig = types.CPointer(types.int64)(types.int64)
-
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
-
-    return sig, codegen
+# integers as pointers: usv_mj.support.pointers (one implementation, also for kernels without MuJoCo)
+_f64_ptr, _i64_ptr = f64_ptr, i64_ptr
 
 
 @intrinsic

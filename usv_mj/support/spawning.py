@@ -12,12 +12,22 @@ answers by starting another, forever. :func:`spawn_context` is a "spawn" context
 the launch; the children then import only what they unpickle. (A process another library launches
 in that same moment from another thread would miss the main module too: the window is the
 launch's few milliseconds.)
+
+A terminal's Ctrl-C or hang-up, ``timeout`` and ``kill -TERM -PGID`` signal every process of the
+group, the workers too. :func:`start_sheltered` starts a worker that must outlive such a signal so
+that the parent can finish with it (the run log's writer: the parent closes the log after the run
+stopped): the worker is launched with SIGINT, SIGTERM and SIGHUP blocked, a mask it inherits
+through ``exec``, and :func:`shelter_from_group_signals` (its first call) turns them into ignored
+ones. ``multiprocessing``'s resource tracker, which every spawned worker shares, is started the
+same way: it ignores SIGINT and SIGTERM itself but died of a SIGHUP, and every shared-memory
+segment and semaphore released after that printed a KeyError traceback.
 """
 
 from __future__ import annotations
 
 import contextlib
 import multiprocessing.context
+import signal
 import sys
 import threading
 
@@ -48,11 +58,57 @@ def no_main_import():
                 main.__spec__ = saved_spec
 
 
+#: the signals a terminal, ``timeout`` or ``kill -PGID`` send to a whole process group
+GROUP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def group_signals_blocked(signals=GROUP_SIGNALS):
+    """Block ``signals`` (SIGINT, SIGTERM and SIGHUP) in this thread while the block runs (a signal
+    that comes meanwhile is delivered when it ends); a process or thread started inside inherits
+    the mask, and keeps it."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, signals)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (if it is not running yet) with the group's signals
+    blocked: it unblocks SIGINT and SIGTERM to ignore them, and SIGHUP stays blocked (module docstring)."""
+    from multiprocessing import resource_tracker
+
+    with group_signals_blocked():
+        resource_tracker.ensure_running()
+
+
+def shelter_from_group_signals() -> None:
+    """In a worker started by :func:`start_sheltered`: ignore SIGINT, SIGTERM and SIGHUP, then
+    unblock them (one sent meanwhile is dropped). The parent ends the worker by its own protocol."""
+    for sig in GROUP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, GROUP_SIGNALS)
+
+
+def start_sheltered(process) -> None:
+    """``process.start()`` (a process of :func:`spawn_context` whose target calls
+    :func:`shelter_from_group_signals` first) so that no signal sent to the group reaches it
+    before it ignores them."""
+    with group_signals_blocked():
+        process.start()
+
+
 class _Process(multiprocessing.context.SpawnProcess):
     """A spawned process launched without the main module's import (module docstring)."""
 
     @staticmethod
     def _Popen(process_obj):
+        start_resource_tracker()
         with no_main_import():
             return multiprocessing.context.SpawnProcess._Popen(process_obj)
 

@@ -57,9 +57,10 @@ def draw_bars(agg: dict, controllers: list, metrics: tuple, vessels: bool, path:
         for i, c in enumerate(ctrls):
             x = np.arange(len(keys)) + (i - (len(ctrls) - 1) / 2) * width
             e = [agg[k][c][column] if c in agg[k] else None for k in keys]
-            mean = np.array([v.mean * scale if v is not None and v.n else np.nan for v in e])
-            lo = np.array([v.lo * scale if v is not None and v.n else np.nan for v in e])
-            hi = np.array([v.hi * scale if v is not None and v.n else np.nan for v in e])
+            shown = [v if v is not None and v.n and math.isfinite(v.mean) else None for v in e]  # inf: not ok
+            mean = np.array([v.mean * scale if v is not None else np.nan for v in shown])
+            lo = np.array([v.lo * scale if v is not None else np.nan for v in shown])
+            hi = np.array([v.hi * scale if v is not None else np.nan for v in shown])
             yerr = np.vstack([np.clip(mean - lo, 0, None), np.clip(hi - mean, 0, None)])
             ax.bar(x, mean, width, yerr=np.nan_to_num(yerr), capsize=2, label=c)
         ax.set_xticks(range(len(keys)), [k[1] + (f"/{k[2]}" if vessels else "") for k in keys], fontsize=7)

@@ -30,7 +30,10 @@ input is never applied).
   comes within ``goal_radius_m`` of it; ``time_to_goal_s`` the first such t_k (None when not reached).
 
 Intervals over episodes: :func:`bootstrap_ci` (percentile bootstrap of the mean, a fixed seed) for
-continuous metrics and :func:`wilson_ci` for rates (:data:`RATES`).
+continuous metrics, :func:`wilson_ci` for rates (:data:`RATES`), and for a time to an event
+(:data:`EVENTS`: settling, time to the goal) no mean at all: the fraction of episodes that reached
+it, the median and the distribution-free interval of the median, the episodes that did not reach
+it censored at their end (:func:`usv_mj.jobs.bench.stats.censored_median`).
 """
 
 from __future__ import annotations
@@ -55,6 +58,7 @@ class MetricSpec:
     unit: str
     better: str   # "lower" | "higher"
     rate: bool = False   # a 0/1 outcome: Wilson interval, shown as a share
+    reached: str = ""    # a time to an event: the column that says whether it happened (else censored)
 
 
 METRICS = (
@@ -64,8 +68,8 @@ METRICS = (
     MetricSpec("ise_heading", "ISE heading", "rad^2 s", "lower"),
     MetricSpec("max_cross_track_after_settle", "max abs e_ct after settle", "m", "lower"),
     MetricSpec("max_heading_after_settle", "max abs e_psi after settle", "rad", "lower"),
-    MetricSpec("settling_time_cross_track", "settling e_ct", "s", "lower"),
-    MetricSpec("settling_time_heading", "settling e_psi", "s", "lower"),
+    MetricSpec("settling_time_cross_track", "settling e_ct", "s", "lower", reached="settled_cross_track"),
+    MetricSpec("settling_time_heading", "settling e_psi", "s", "lower", reached="settled_heading"),
     MetricSpec("effort_u", "effort surge", "N s", "lower"),
     MetricSpec("effort_r", "effort yaw", "N m s", "lower"),
     MetricSpec("energy", "energy", "J", "lower"),
@@ -78,10 +82,23 @@ METRICS = (
     MetricSpec("min_clearance_m", "min clearance", "m", "higher"),
     MetricSpec("contact", "contact", "", "lower", rate=True),
     MetricSpec("goal_reached", "goal reached", "", "higher", rate=True),
-    MetricSpec("time_to_goal_s", "time to goal", "s", "lower"),
+    MetricSpec("time_to_goal_s", "time to goal", "s", "lower", reached="goal_reached"),
 )
 BY_COLUMN = {m.column: m for m in METRICS}
 RATES = tuple(m.column for m in METRICS if m.rate)
+EVENTS = tuple(m.column for m in METRICS if m.reached)
+"""The times to an event: censored where the event did not happen (usv_mj.jobs.bench.stats)."""
+
+
+def worst_value(column: str):
+    """The value an episode that is not ok (diverged or failed) counts with in the leaderboard:
+    the worst the metric can take (+inf when lower is better, -inf when higher; a rate's bad
+    outcome: ``passed`` and ``goal_reached`` False, ``contact`` True). Its own metrics are not used:
+    they integrate only up to the divergence, so they would reward it (docs/metrics.md)."""
+    spec = BY_COLUMN[column]
+    if spec.rate:
+        return spec.better == "lower"
+    return math.inf if spec.better == "lower" else -math.inf
 
 
 def _finite(v) -> float | None:
@@ -190,7 +207,7 @@ def episode_metrics(record, *, settle_time_s: float = 20.0, band_cross_track_m: 
     """Every metric of :data:`METRICS` of one episode (module docstring), plus ``settled_cross_track``
     and ``settled_heading`` (False: the settling time is censored); JSON-ready (None, no NaN).
     The options: :class:`MetricOptions` (validated there)."""
-    from usv_mj.record.criteria import criterion_of_record
+    from usv_mj.record.criteria import criterion_of_record, judge
 
     MetricOptions(settle_time_s, band_cross_track_m, band_heading_rad, None if goal is None else tuple(goal),
                   goal_radius_m)
@@ -205,7 +222,7 @@ def episode_metrics(record, *, settle_time_s: float = 20.0, band_cross_track_m: 
         ts, settled = settling_time(t, err, band) if len(t) else (None, False)
         out[f"settling_time_{name}"], out[f"settled_{name}"] = ts, settled
     out.update(input_metrics(record))
-    out["passed"] = criterion_of_record(record).evaluate(record)["passed"]
+    out["passed"] = judge(criterion_of_record(record), record)["passed"]
     obstacles = record.metadata.get("obstacles") or {}
     out["min_clearance_m"] = obstacles.get("min_clearance_m")
     out["contact"] = (int(obstacles.get("contacts") or 0) > 0) if obstacles else None
@@ -251,17 +268,36 @@ def bootstrap_ci(values, resamples: int = BOOTSTRAP_RESAMPLES, seed: int = BOOTS
 
 @dataclass(frozen=True)
 class Estimate:
-    """A metric over episodes: ``mean`` (for a rate: the share), its 95 % interval, ``n`` episodes."""
+    """A metric over episodes: ``mean`` (for a rate: the share; for a time to an event: the median,
+    inf when not reached by the median episode), its 95 % interval, ``n`` episodes; ``reached``: for
+    a time to an event, how many of them reached it (None otherwise)."""
 
     mean: float
     lo: float
     hi: float
     n: int
+    reached: int | None = None
+
+
+def estimate_event(times, reached) -> Estimate:
+    """A time to an event over episodes (:data:`EVENTS`): the median with its distribution-free 95 %
+    interval, the episodes that did not reach it censored at their end
+    (:func:`usv_mj.jobs.bench.stats.censored_median`); ``reached`` of ``n``. An episode with
+    ``reached`` None (not measured: no goal) is left out."""
+    from usv_mj.jobs.bench.stats import censored_median
+
+    pairs = [(t, bool(r)) for t, r in zip(times, reached) if r is not None]
+    if not pairs:
+        return Estimate(math.nan, math.nan, math.nan, 0)
+    m = censored_median([t if t is not None else math.inf for t, _ in pairs], [r for _, r in pairs])
+    return Estimate(m["median"], m["lo"], m["hi"], m["n"], m["reached"])
 
 
 def estimate(column: str, values) -> Estimate:
     """The mean of ``values`` (None: not measured, left out) and its interval: Wilson for the rates
-    of :data:`RATES` (True counts), the percentile bootstrap otherwise."""
+    of :data:`RATES` (True counts), the percentile bootstrap otherwise. A value of +-inf (the worst
+    value of an episode not ok, :func:`worst_value`) makes the mean and both ends of its interval
+    that infinity."""
     present = [v for v in values if v is not None and not (isinstance(v, float) and math.isnan(v))]
     n = len(present)
     if n == 0:
@@ -271,5 +307,8 @@ def estimate(column: str, values) -> Estimate:
         lo, hi = wilson_ci(k, n)
         return Estimate(k / n, lo, hi, n)
     x = np.asarray(present, float)
+    if not np.isfinite(x).all():
+        m = float(np.mean(x))
+        return Estimate(m, m, m, n)
     lo, hi = bootstrap_ci(x)
     return Estimate(float(np.mean(x)), lo, hi, n)

@@ -3,7 +3,7 @@
 A suite is TOML (the default: ``usv_mj/jobs/bench/suites/default.toml``)::
 
     name = "default"
-    episodes = 3              # episodes of every (task, condition, vessel, controller); default 3
+    episodes = 10             # episodes of every (task, condition, vessel, controller); default 10 (docs/metrics.md)
     seed = 2026               # the start poses and sea seeds: np.random.default_rng([seed, task index])
     duration = 60.0           # s, a task's default
     plant = "analytic"        # optional: every task's plant
@@ -13,7 +13,8 @@ A suite is TOML (the default: ``usv_mj/jobs/bench/suites/default.toml``)::
     # a policy's table also takes control_period (s, default 0.01: Track-v0's, the period it was
     # trained at; held over it, zero-order hold) and criterion (a usv_mj.record.criteria table, default:
     # the pose tolerance of its training reward's full-reward band, see usv_mj.jobs.bench.policy)
-    vessels = []              # optional: each name becomes the override vessel.kind (empty: the task's hull)
+    vessels = []              # optional: each name becomes the override vessel.kind (empty: the task's hull);
+                              # a data file ("boats/wamv.toml") is found next to the suite first
 
     [conditions.calm]                                     # every task runs in every condition
     [conditions.sea]
@@ -68,7 +69,17 @@ TASK_KEYS = ("name", "base", "duration", "set", "vary", "settle_time_s", "band_c
 CONDITION_KEYS = ("set", "actuators", "sea")
 CONTROLLER_KEYS = ("name", "kind", "set", "policy", "control_period", "criterion")
 POLICY_KEYS = ("control_period", "criterion")
+MAX_EPISODES = 100_000
+"""The most episodes a suite may plan (every task's episodes x conditions x vessels x controllers):
+each planned episode holds its own scenario (about 20 kB) and takes about 10 ms to draw and
+validate, so 100 000 are about 2 GB and a quarter of an hour before the first episode runs. A
+bigger suite is refused before anything is drawn: split it into several suites."""
 ROW_HOOK = "usv_mj.jobs.bench.episode:metrics_row"
+#: episodes per cell unless a suite says: the fewest with which a 95 % interval and a paired test of
+#: one cell can say something (docs/metrics.md, "How many episodes"): an exact paired test's smallest
+#: two-sided p, 2 / 2^n, stays below 0.05 / 15 (Holm over a cell's 15 or so metrics) from n = 10 on,
+#: and Wilson's interval of 10 kept out of 10 is [72, 100] % where 2 of 2 gave [34, 100] %
+DEFAULT_EPISODES = 10
 POLICY_EPISODE = "usv_mj.jobs.bench.policy:policy_episode"
 
 
@@ -170,7 +181,7 @@ def _with_table(scenario, section: str, table: dict, source: str):
         raise SweepError(f"{source}: [{section}] = {table!r}: {exc}") from None
 
 
-def _condition(source, name, table, scenario):
+def _condition(source, name, table, scenario, directory=None):
     """``scenario`` under condition ``name``: ``actuators`` (a preset whose [actuators] table is
     taken), ``sea`` (a sea preset name: ``sea.preset``), ``set`` (dotted paths)."""
     _check_keys(source, f"[conditions.{name}]", table, CONDITION_KEYS)
@@ -182,7 +193,7 @@ def _condition(source, name, table, scenario):
         if not actuators:
             raise SweepError(f"{source}: [conditions.{name}] actuators: preset {table['actuators']!r} has no [actuators]")
         scenario = _with_table(scenario, "actuators", actuators, source)
-    sets = dict(table.get("set", {}))
+    sets = _suite_files(dict(table.get("set", {})), directory)
     if "sea" in table:
         sets = {"sea.preset": table["sea"], **sets}
     return apply_values(scenario, sets, f"{source} [conditions.{name}]") if sets else scenario
@@ -218,6 +229,24 @@ def _positive(source, where, v, default, *, integer=False):
     return v
 
 
+def check_size(source, episodes: int, tasks: list, n_conditions: int, n_vessels: int, n_controllers: int) -> int:
+    """The number of episodes the suite plans (every task's episodes x conditions x vessels x
+    controllers; a policy left off a task with obstacles still counted), refused over
+    :data:`MAX_EPISODES` before anything is drawn."""
+    per_task = []
+    for ti, task in enumerate(tasks):
+        if not isinstance(task, dict):
+            raise SweepError(f"{source}: [[tasks]] {ti} must be a table, got {task!r}")
+        name = task.get("name", ti)
+        per_task.append(_positive(source, f"task {name!r}: episodes", task.get("episodes"), episodes, integer=True))
+    n = sum(per_task) * n_conditions * n_vessels * n_controllers
+    if n > MAX_EPISODES:
+        raise SweepError(f"{source}: {n} episodes ({sum(per_task)} over the tasks x {n_conditions} conditions x "
+                         f"{n_vessels} vessels x {n_controllers} controllers) is over the limit of {MAX_EPISODES}: "
+                         f"too many to plan (about 20 kB each); split the suite")
+    return n
+
+
 def load_suite(path: str | Path | None = None) -> Suite:
     """Read, sample and validate a suite file (default: the shipped one); see the module docstring."""
     path = Path(path) if path is not None else default_suite_path()
@@ -229,15 +258,19 @@ def load_suite(path: str | Path | None = None) -> Suite:
 def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = None) -> Suite:
     """The :class:`Suite` of a parsed suite table: every episode drawn and validated, nothing run."""
     _check_keys(source, "the suite", data, SUITE_KEYS)
-    episodes = _positive(source, "episodes", data.get("episodes"), 3, integer=True)
+    episodes = _positive(source, "episodes", data.get("episodes"), DEFAULT_EPISODES, integer=True)
     seed = data.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise SweepError(f"{source}: seed must be a whole number >= 0, got {seed!r}")
     duration = _positive(source, "duration", data.get("duration"), 60.0)
     controllers = _controllers(source, data.get("controllers", ["ppc", "pi", "los"]))
+    for i, ctrl in enumerate(controllers):
+        if ctrl.policy is not None:
+            _check_policy(source, f"controllers[{i}] ({ctrl.name!r})", ctrl.policy, directory)
     vessels = data.get("vessels", [])
     if not isinstance(vessels, list) or not all(isinstance(v, str) and v for v in vessels):
         raise SweepError(f"{source}: vessels must be a list of vessel kinds, got {vessels!r}")
+    vessel_files = {v: _suite_file(v, directory) for v in vessels}   # named as given, run from their file
     vessels = vessels or [""]
     conditions = data.get("conditions", {"calm": {}})
     if not isinstance(conditions, dict) or not conditions:
@@ -245,12 +278,17 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
     tasks = data.get("tasks")
     if not isinstance(tasks, list) or not tasks:
         raise SweepError(f"{source}: a suite needs at least one [[tasks]] table")
+    check_size(source, episodes, tasks, len(conditions), len(vessels), len(controllers))
     runs, names, per_task, skipped = [], [], {}, []
     for ti, task in enumerate(tasks):
         _check_keys(source, f"[[tasks]] {ti}", task, TASK_KEYS)
         name = task.get("name")
         if not isinstance(name, str) or not name or name in names:
             raise SweepError(f"{source}: [[tasks]] {ti}: name must be a unique non-empty string, got {name!r}")
+        bad = sorted({c for c in name if c in "/\\" or not c.isprintable()})
+        if bad or name in (".", ".."):
+            raise SweepError(f"{source}: [[tasks]] {ti}: name {name!r} cannot name a file (figures/bars-NAME.png): "
+                             f"no {', '.join(map(repr, bad)) or 'name . or ..'}; use letters, digits, '-', '_', '.'")
         names.append(name)
         where = f"task {name!r}"
         base = load_base(f"{source} {where}", task.get("base", "paper"), directory)
@@ -261,6 +299,7 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
         sets = task.get("set", {})
         if not isinstance(sets, dict):
             raise SweepError(f"{source}: {where}: set must be a table of path = value, got {sets!r}")
+        sets = _suite_files(sets, directory)
         base = apply_values(base, {**fixed, **sets}, f"{source} {where}")
         n_ep = _positive(source, f"{where}: episodes", task.get("episodes"), episodes, integer=True)
         per_task[name] = n_ep
@@ -285,9 +324,10 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
             if ctrl.policy and base.obstacles:
                 skipped.append((name, ctrl.name, "a policy's Track observation has no view of the obstacles"))
         for cname, ctable in conditions.items():
-            cond = _condition(source, cname, ctable or {}, base)
+            cond = _condition(source, cname, ctable or {}, base, directory)
             for vessel in vessels:
-                ves = apply_values(cond, {"vessel.kind": vessel}, f"{source} vessel {vessel!r}") if vessel else cond
+                ves = apply_values(cond, {"vessel.kind": vessel_files[vessel]}, f"{source} vessel {vessel!r}") \
+                    if vessel else cond
                 for ctrl in controllers:
                     if ctrl.policy and base.obstacles:
                         continue
@@ -313,6 +353,22 @@ def plan_suite(data: dict, source: str = "<suite>", directory: Path | None = Non
     return Suite(source, plan.name, plan, names, list(conditions), vessels, controllers, per_task, skipped)
 
 
+def _suite_file(value, directory: Path | None):
+    """A data file a suite names (a vessel ``kind = "boat.toml"``): relative to the suite's folder
+    when it is there (as a task's ``base``), made absolute so every worker finds it; else as given
+    (relative to the working folder, or a kind)."""
+    if isinstance(value, str) and value.endswith(".toml") and directory is not None and not Path(value).is_absolute():
+        candidate = directory / value
+        if candidate.is_file():
+            return str(candidate.resolve())
+    return value
+
+
+def _suite_files(sets: dict, directory: Path | None) -> dict:
+    """``set`` overrides with the data files they name (``vessel.kind``) resolved as :func:`_suite_file`."""
+    return {p: (_suite_file(v, directory) if p == "vessel.kind" else v) for p, v in sets.items()}
+
+
 def _policy_scenario(source, ctrl: ControllerEntry, scenario):
     """``scenario`` at the policy's control period: ``plant.substeps`` = the period over the task's
     integration step ``control_period / plant.substeps`` (which must divide it)."""
@@ -333,6 +389,33 @@ def _policy_criterion(ctrl: ControllerEntry, metrics: dict) -> dict:
     from usv_mj.jobs.bench.policy import default_criterion
 
     return dict(ctrl.criterion) if ctrl.criterion else default_criterion(metrics["settle_time_s"]).to_dict()
+
+
+def _check_policy(source, where: str, spec, directory: Path | None) -> None:
+    """A policy that cannot be found is refused when the suite is planned, not in every episode (a
+    bench whose episodes all failed to load it, exit 0): a ``.zip`` must exist, a
+    ``package.module:callable``'s module must be importable (it is imported by the workers)."""
+    import importlib.util
+
+    if not isinstance(spec, str) or not spec:
+        raise SweepError(f"{source}: {where}: policy must be a .zip or package.module:callable, got {spec!r}")
+    if spec.endswith(".zip"):
+        path = Path(_policy_path(spec, directory))
+        if not path.is_file():
+            raise SweepError(f"{source}: {where}: policy file {str(path)!r} does not exist"
+                             + (" (a relative path is taken from the suite's folder)" if not Path(spec).is_absolute()
+                                else ""))
+        return
+    module, _, attr = spec.partition(":")
+    if not module or not attr:
+        raise SweepError(f"{source}: {where}: policy {spec!r}: give a stable-baselines3 .zip or "
+                         f"package.module:callable")
+    try:
+        found = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        found = None
+    if found is None:
+        raise SweepError(f"{source}: {where}: policy {spec!r}: no module {module!r} on the Python path")
 
 
 def _policy_path(spec: str, directory: Path | None) -> str:

@@ -85,9 +85,23 @@ def record_outputs(record, out, spec: ManoeuvreSpec | None = None, length: float
     result = measure(record, spec, length)
     _check_finished(result)
     label = f"{record.metadata.get('plant')} plant"
-    figs = draw_manoeuvre_figures(record, spec.kind, result, out / "figures", execute_time(spec), label)
+    figs = [] if result.get("ended_before_execute") else \
+        draw_manoeuvre_figures(record, spec.kind, result, out / "figures", execute_time(spec), label)
     write_json(out / "manoeuvre.json", result)
     return [report_section(result)], {"manoeuvre": out / "manoeuvre.json", "manoeuvre_figures": figs}, result
+
+
+def ended_before_execute(record, spec: ManoeuvreSpec) -> str | None:
+    """Why a run has nothing to measure: it ended (diverged, interrupted) before the execute of a
+    turning or stopping test (the options refuse a duration that does not pass it); else None."""
+    if spec.kind not in ("turning", "stopping"):
+        return None
+    t, t_execute = record["t"], execute_time(spec)
+    end = float(t[-1]) if len(t) else 0.0
+    if len(t) and end >= t_execute:
+        return None
+    return (f"the run ended at t = {end:g} s ({record.status}: {record.stop_reason or 'no reason recorded'}), "
+            f"before the execute at {t_execute:g} s: nothing to measure")
 
 
 def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
@@ -97,7 +111,11 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
     vessel = vessel_model(record.metadata.get("scenario") or {})
     ruddered = getattr(vessel, "channels", FORCES).yaw == RUDDER_ANGLE   # its "rudder" is a rudder, not a moment
     scale = getattr(vessel, "scale", None)
-    if spec.kind == "turning":
+    early = ended_before_execute(record, spec)
+    if early is not None:
+        m = {"note": early}
+        crit = imo.criteria(spec.kind, m, length, o.approach_speed, scale=scale)
+    elif spec.kind == "turning":
         m = turning_measures(t, record["x"], record["y"], record["psi"], record["u"], record["v"], record["r"],
                              t_execute=o.approach_s, steady_after_deg=o.steady_after_deg, length=length)
         crit = imo.criteria("turning", m, length, o.approach_speed, scale=scale)
@@ -127,7 +145,7 @@ def measure(record, spec: ManoeuvreSpec, length: float) -> dict:
         saturated["note"] = "ruddered vessel: sat_r marks the steering gear's rate limit at work"
         m["propeller_rps"] = float(record["f_u"][-1]) if len(t) else None
     return {"kind": spec.kind, "options": asdict(o), "length_m": length, "plant": record.metadata.get("plant"),
-            "saturated_fraction": saturated,
+            "saturated_fraction": saturated, **({"ended_before_execute": True} if early is not None else {}),
             "status": record.status, "simulated_s": float(t[-1]) if len(t) else 0.0,
             "rudder": rudder, "rudder_channel": getattr(vessel, "channels", FORCES).yaw.to_metadata(),
             "measures": m, "imo": crit}
@@ -173,7 +191,10 @@ def report_section(result: dict) -> str:
         lines += [f"| {r['criterion']} | {_fmt(r['value'])} {r['unit']} | {r['limit']:g} {r['unit']} | "
                   f"{'—' if r['met'] is None else ('yes' if r['met'] else 'no')} |" for r in c["rows"]]
     lines += ["", "The sections above compare the run with its reference, the original course at the approach "
-              "speed; a manoeuvre is not judged on it.", "", "![track](figures/manoeuvre_track.png)", "", "![time series](figures/manoeuvre_time.png)"]
+              "speed; a manoeuvre is not judged on it."]
+    if result.get("ended_before_execute"):   # no manoeuvre figures: nothing after the execute
+        return "\n".join(lines)
+    lines += ["", "![track](figures/manoeuvre_track.png)", "", "![time series](figures/manoeuvre_time.png)"]
     if kind == "spiral":
         lines += ["", "![spiral](figures/manoeuvre_spiral.png)"]
     return "\n".join(lines)

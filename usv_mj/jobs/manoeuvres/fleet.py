@@ -86,9 +86,10 @@ def rudder_label(result: dict) -> str:
     o = result.get("options", {})
     side = o.get("side") or o.get("first_turn") or ""
     if ruddered(result):   # a ruddered vessel: an angle, not a moment
-        angle = o.get("rudder_deg") if result.get("kind") == "turning" else o.get("angle_deg")
+        key = {"turning": "rudder_deg", "zigzag": "angle_deg", "spiral": "max_rudder_deg"}.get(result.get("kind"))
+        angle = o.get(key) if key is not None else None
         if angle is not None:
-            return f"{angle:g} deg rudder {side}".strip()
+            return (f"+-{angle:g} deg rudder" if key == "max_rudder_deg" else f"{angle:g} deg rudder {side}").strip()
     for key, unit in (("yaw_moment", "N m"), ("max_yaw_moment", "N m")):
         if key in o:
             return f"{o[key]:.4g} {unit} {side}".strip()
@@ -143,16 +144,29 @@ def draw_tracks(kind: str, tracks: dict, path: Path, label: str) -> Path:
 
 
 def run_fleet(scenario_for, kinds: list[str], kind: str, out: Path, *, plant_kind=None, video=False,
-              progress=False, overwrite=False, render_options=None) -> dict:
+              progress=False, overwrite=False, render_options=None, skip_refused: bool = False) -> dict:
     """Run manoeuvre ``kind`` on each of ``kinds`` (``scenario_for(vessel)``: the scenario of one
     vessel, as the single command builds it) into ``out`` (module docstring); returns
-    {"rows": [...], "files": {...}, "jobs": {vessel: JobResult}}."""
+    {"rows": [...], "files": {...}, "jobs": {vessel: JobResult}, "skipped": [(vessel, why)]}.
+    ``skip_refused`` (``--vessel all``): a vessel that refuses the manoeuvre (KVLCC2's stopping
+    test) is left out and said so (``skipped``, vessels.json, vessels.md) instead of failing all."""
     from usv_mj.jobs.run import write_json
     from usv_mj.outputs.outdir import Staging, check_folder
 
     from usv_mj.jobs.manoeuvres import run_manoeuvre
 
-    scenarios = {v: scenario_for(v) for v in kinds}        # every vessel's input checked before any run
+    scenarios, skipped = {}, []
+    for v in kinds:                                     # every vessel's input checked before any run
+        try:
+            scenarios[v] = scenario_for(v)
+        except ScenarioError as exc:
+            if not skip_refused:
+                raise
+            skipped.append((v, str(exc)))
+    kinds = [v for v in kinds if v in scenarios]
+    if not kinds:
+        raise ScenarioError(f"manoeuvre {kind}: no vessel can run it ("
+                            + "; ".join(f"{v}: {why}" for v, why in skipped) + ")")
     names = [folder_name(v) for v in kinds]
     if len(set(names)) != len(names):
         raise ScenarioError(f"--vessel: two vessels share the folder name {names!r}")
@@ -182,11 +196,15 @@ def run_fleet(scenario_for, kinds: list[str], kind: str, out: Path, *, plant_kin
         plant = rows[0]["plant"] if rows else plant_kind
         files = {"figure": draw_tracks(kind, tracks, stage.path / "manoeuvre_vessels.png", f"{plant} plant")}
         files["json"] = stage.path / "vessels.json"
-        write_json(files["json"], {"kind": kind, "plant": plant, "vessels": rows})
+        write_json(files["json"], {"kind": kind, "plant": plant, "vessels": rows,
+                                   "skipped": [{"vessel": v, "reason": why} for v, why in skipped]})
         md = [f"# {kind} on {len(rows)} vessels ({plant} plant)", "",
               "Each vessel's own run (its folder) holds its log, report and figures; the \"rudder\" is the "
               "vessel's (docs/manoeuvres.md).", "", *table_lines(kind, rows), "",
               "![tracks](manoeuvre_vessels.png)", ""]
+        if skipped:
+            md += ["Not run (the manoeuvre is not available on them):", ""] + \
+                [f"- `{v}`: {why}" for v, why in skipped] + [""]
         files["report"] = stage.path / "vessels.md"
         files["report"].write_text("\n".join(md))
         stage.commit()
@@ -194,4 +212,5 @@ def run_fleet(scenario_for, kinds: list[str], kind: str, out: Path, *, plant_kin
     finally:
         if not committed:
             stage.discard()
-    return {"rows": rows, "files": {k: out / Path(v).name for k, v in files.items()}, "jobs": jobs}
+    return {"rows": rows, "files": {k: out / Path(v).name for k, v in files.items()}, "jobs": jobs,
+            "skipped": skipped}

@@ -78,7 +78,14 @@ def manoeuvre_overrides(scenario, spec: ManoeuvreSpec) -> dict:
     if calm:
         over.update(disturbance={"scale": 0.0}, quantizer={"enabled": False}, **_no_delta(scenario))
         scenario = scenario.with_overrides(over)  # the drag with the test's Delta (none)
+    limits = scenario.limits
+    if not o.approach_speed < limits.max_speed:   # the run would stop as diverged at its first step
+        raise ScenarioError(f"{scenario.source}: manoeuvre.approach_speed = {o.approach_speed!r} m/s is not below "
+                            f"limits.max_speed = {limits.max_speed!r} m/s, where a run counts as diverged")
     force = approach_force(scenario, o.approach_speed)
+    if not abs(force) < limits.max_force:
+        raise ScenarioError(f"{scenario.source}: manoeuvre.approach_speed = {o.approach_speed!r} m/s takes a surge "
+                            f"force of {force:.6g} N, not below limits.max_force = {limits.max_force!r} N")
     # a ruddered vessel (usv_mj.physics.mmg): the channels are (n_P [1/s], delta [rad]); its [actuators]
     # limit the rudder's angle and rate (docs/manoeuvres.md §2)
     ruddered = scenario.vessel.model.channels.yaw == RUDDER_ANGLE   # the "rudder" is a rudder angle, not a moment

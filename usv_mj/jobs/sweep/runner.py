@@ -34,6 +34,7 @@ import json
 import math
 import os
 import pickle
+import signal
 import sys
 import time
 import uuid
@@ -44,6 +45,7 @@ import numpy as np
 
 from usv_mj.core.errors import WorkerError, WorkerSetupError
 from usv_mj.jobs.sweep.spec import RunSpec, SweepError, SweepPlan
+from usv_mj.support.spawning import group_signals_blocked, start_resource_tracker
 
 RESULTS_FILE = "results.parquet"
 #: What a sweep writes into its folder, by name (listed in its manifest before they are written).
@@ -225,6 +227,13 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
         if parts is not None:   # built, but a hook or the log writer failed before the run
             with contextlib.suppress(Exception):
                 parts.close()
+    row = row_of(run_id, values, record, summary, options)
+    row["task_wall_time_s"] = time.perf_counter() - wall0
+    return row
+
+
+def row_of(run_id: int, values: dict, record, summary: dict, options: dict) -> dict:
+    """The row of a run from its record and summary (module docstring; but ``task_wall_time_s``)."""
     status = {"completed": "ok", "diverged": "diverged"}.get(record.status, "failed")
     row = {"run_id": int(run_id)}
     row.update({f"vary.{p}": v for p, v in values.items()})
@@ -240,8 +249,52 @@ def run_one(run_id: int, scenario, values: dict, options: dict | None = None) ->
             row.update(resolve(options["row_hook"])(record, options))
         except Exception as exc:  # the run is a result; the hook that could not read it says why
             row["status"], row["reason"] = "failed", f"row hook {options['row_hook']}: {type(exc).__name__}: {exc}"
-    row["task_wall_time_s"] = time.perf_counter() - wall0
     return row
+
+
+def batchable(options: dict | None) -> bool:
+    """A run that :func:`run_many` may run in a batch (usv_mj.loop.batch): no log to write, no episode
+    function of its own (a learned policy's), no test hooks."""
+    options = options or {}
+    return not (options.get("log_path") or options.get("episode_fn") or options.get("hooks"))
+
+
+def run_many(runs: list) -> list[dict]:
+    """Several runs in one task: their rows, each the row :func:`run_one` makes of that run (bit for bit,
+    but ``task_wall_time_s``: the batch's wall time shared evenly). ``runs``: (run_id, scenario or its
+    bytes, values, options) tuples; the batchable ones (:func:`batchable`) are simulated together in
+    one compiled batch (:func:`usv_mj.loop.batch.run_batch`), the others one by one through
+    :func:`run_one`. A run that cannot be set up here raises :class:`WorkerSetupError`, as in run_one."""
+    from usv_mj.loop.batch import run_batch
+    from usv_mj.record.summary import summarize
+
+    rows: dict[int, dict] = {}
+    batch = []
+    try:
+        for i, (run_id, scenario, values, options) in enumerate(runs):
+            if not batchable(options):
+                rows[i] = run_one(run_id, scenario, values, options)
+                continue
+            batch.append((i, set_up(run_id, scenario, options or {})[1]))
+        if batch:
+            t0 = time.perf_counter()
+            errors: list = []
+            records = run_batch([p for _, p in batch], raise_errors=False, errors=errors)
+            share = (time.perf_counter() - t0) / len(batch)
+            for (i, _), record, error in zip(batch, records, errors):
+                run_id, _, values, options = runs[i]
+                try:
+                    if error is not None:
+                        raise error
+                    rows[i] = row_of(run_id, values, record, summarize(record), options or {})
+                except Exception as exc:  # the sweep goes on: the row says why (as run_one's)
+                    rows[i] = failed_row(run_id, values, f"{type(exc).__name__}: {exc}")
+                rows[i]["task_wall_time_s"] = share
+    finally:
+        for _, parts in batch:
+            with contextlib.suppress(Exception):
+                parts.close()
+    return [rows[i] for i in range(len(runs))]
 
 
 def resolve(spec: str):
@@ -356,13 +409,29 @@ def rows_to_table(rows: list[dict], paths: list[str], fingerprint: str = ""):
 
 
 def write_results(path: Path, rows: list[dict], paths: list[str], fingerprint: str) -> None:
-    """Write ``rows`` to ``path`` atomically (a temporary file, then ``os.replace``)."""
+    """Write ``rows`` to ``path`` atomically (a temporary file, then ``os.replace``); an OSError
+    (a full disk) names ``path`` and leaves it as it was."""
     import pyarrow.parquet as pq
 
     table = rows_to_table(rows, paths, fingerprint)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    except OSError as exc:      # pyarrow's own errors carry no file name
+        tmp.unlink(missing_ok=True)
+        raise OSError(exc.errno, exc.strerror or " ".join(str(exc).split()), str(path)) from None
+
+
+def episodes_in(out: Path) -> int:
+    """How many rows ``out/results.parquet`` holds (0 when it is missing or cannot be read): what an
+    interrupted sweep or benchmark says it kept."""
+    try:
+        import pyarrow.parquet as pq
+
+        return int(pq.read_metadata(Path(out) / RESULTS_FILE).num_rows)
+    except Exception:  # noqa: BLE001 - no file, or a damaged one: nothing kept there
+        return 0
 
 
 def read_results(path: str | Path) -> tuple[list[dict], str]:
@@ -446,19 +515,33 @@ def open_client(scheduler: str | None = None, workers: int | None = None,
     scheduler_log = logging.getLogger("distributed")
     level = scheduler_log.level
     scheduler_log.setLevel(max(scheduler_log.getEffectiveLevel(), logging.WARNING))
+    cluster = client = None
     try:
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.CRITICAL)
+        # Made with a terminal's Ctrl-C and hang-up blocked in this thread (_TERMINAL): they signal
+        # every process of the group, and a worker still starting died of them with a traceback
+        # each (and the scheduler's "Nanny failed to start"). The cluster's IO loop thread, the
+        # threads it starts and every worker they spawn (a replacement too) keep them blocked: this
+        # process takes them, once the cluster is made (and assigned: the finally closes it), and
+        # closes the cluster. SIGTERM stays the workers' (the nannies end them with it).
+        start_resource_tracker()      # multiprocessing's, sheltered from a hang-up (support.spawning)
+        with group_signals_blocked(_TERMINAL):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                   silence_logs=logging.CRITICAL)
         client = Client(cluster)
         echo(f"local Dask cluster: {n} worker processes x 1 thread; dashboard: {_dashboard(client)}")
-        try:
-            yield client
-        finally:
-            with _quiet_teardown():
-                client.close()
-                cluster.close()
+        yield client
     finally:
-        scheduler_log.setLevel(level)
+        try:
+            with _quiet_teardown():
+                if client is not None:
+                    client.close()
+                if cluster is not None:
+                    cluster.close()
+        finally:
+            scheduler_log.setLevel(level)
+
+
+_TERMINAL = tuple(getattr(signal, name) for name in ("SIGINT", "SIGHUP") if hasattr(signal, name))
 
 
 @contextlib.contextmanager
@@ -572,8 +655,12 @@ class _WorkerWatch:
 
 
 def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict], None],
-                key_prefix: str = "usv-run", lost_workers_s: float | None = LOST_WORKERS_S) -> None:
+                key_prefix: str = "usv-run", lost_workers_s: float | None = LOST_WORKERS_S, batch: int = 1) -> None:
     """Submit ``(run, options)`` pairs as one task each and call ``on_row(row)`` as each finishes.
+
+    ``batch`` > 1: up to that many batchable runs (:func:`batchable`) in one task (:func:`run_many`:
+    one compiled batch of episodes; the rows are those of one task per run, the episodes still the
+    unit of the results and of ``--resume``).
 
     Each task carries its scenario as bytes (:func:`pack`), unpickled by :func:`run_one` on the worker.
     A task whose worker died more often than the scheduler's ``allowed-failures`` (Dask's
@@ -591,6 +678,21 @@ def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict
     token = uuid.uuid4().hex[:8]
     futures = {}
     shared = None  # whether every worker is a thread of this process (then it sees this registry)
+    # The watch reads the cluster once now, before any run is submitted: a worker that takes the first
+    # run and dies at once (before the wait's first watch, 1 s in) has then been seen, so its loss is
+    # timed; read only while waiting, the cluster looked never to have had a worker and the wait had no end.
+    watch = _WorkerWatch(client, lost_workers_s)
+    watch()
+    chunk: list = []
+
+    def submit_chunk():
+        if chunk:
+            first = chunk[0][0].run_id
+            fut = client.submit(run_many, [(r.run_id, pack(r.scenario), r.values, o) for r, o in chunk],
+                                key=f"{key_prefix}-batch-{first}-{token}", pure=False, retries=0)
+            futures[fut] = [r for r, _ in chunk]
+            chunk.clear()
+
     for run, options in jobs:
         try:
             imports = worker_imports(run.scenario)  # SweepError for a kind that exists only in this process
@@ -602,22 +704,30 @@ def gather_rows(client, jobs: list[tuple[RunSpec, dict]], on_row: Callable[[dict
             imports = ()
         if imports:
             options = {**(options or {}), "imports": imports}
+        if batch > 1 and batchable(options):
+            chunk.append((run, options))
+            if len(chunk) >= batch:
+                submit_chunk()
+            continue
         fut = client.submit(run_one, run.run_id, pack(run.scenario), run.values, options,
                             key=f"{key_prefix}-{run.run_id}-{token}", pure=False, retries=0)
-        futures[fut] = run
+        futures[fut] = [run]
+    submit_chunk()
     try:
-        for fut in _waiting(as_completed(list(futures)), _WorkerWatch(client, lost_workers_s)):
-            run = futures[fut]
+        for fut in _waiting(as_completed(list(futures)), watch):
+            runs = futures[fut]
             try:
-                row = fut.result()
+                got = fut.result()
+                got = got if isinstance(got, list) else [got]
             except WorkerSetupError:
                 raise   # every run would fail the same way on that worker: the sweep stops here
             except KilledWorker as exc:
-                row = failed_row(run.run_id, run.values, f"worker died: the task was tried on a worker that "
-                                 f"died, too many times (Dask KilledWorker: {exc})")
+                got = [failed_row(run.run_id, run.values, f"worker died: the task was tried on a worker that "
+                                  f"died, too many times (Dask KilledWorker: {exc})") for run in runs]
             except Exception as exc:  # a run that could not be run or sent back
-                row = failed_row(run.run_id, run.values, f"{type(exc).__name__}: {exc}")
-            on_row(row)
+                got = [failed_row(run.run_id, run.values, f"{type(exc).__name__}: {exc}") for run in runs]
+            for row in got:
+                on_row(row)
             fut.release()
     finally:
         pending = [f for f in futures if not f.done()]
@@ -654,7 +764,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
               client=None, echo: Callable[[str], None] | None = print, report: bool = True,
               max_runs: int | None = None, jobqueue: str | None = None, jobs: int = 1,
               retry_failed: bool = False, log_rate: float | None = None,
-              lost_workers_s: float | None = LOST_WORKERS_S) -> SweepResult:
+              lost_workers_s: float | None = LOST_WORKERS_S, batch: int = 1) -> SweepResult:
     """Run the plan's missing runs on Dask, streaming rows into ``out/results.parquet``; then the report.
 
     ``client``: an existing ``distributed.Client`` (else one is opened by :func:`open_client`).
@@ -663,7 +773,8 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
     ``retry_failed``: with ``resume``, run the ``failed`` rows again too (a worker that died of a
     lack of memory, say); diverged runs are results and stay. ``log_rate`` [Hz]: with ``keep_logs``,
     each log holds every n-th control step (``RunLogWriter.sink(log_every=n)``). ``lost_workers_s``:
-    how long to wait on a cluster that lost every worker (see :func:`gather_rows`).
+    how long to wait on a cluster that lost every worker (see :func:`gather_rows`). ``batch``: up to
+    that many runs per task, simulated together in one compiled batch (:func:`run_many`; the same rows).
     Raises :class:`SweepError` when ``out`` already holds results and ``resume`` is False, or holds
     results of another plan. KeyboardInterrupt and :class:`usv_mj.core.errors.WorkerError` (a run that
     cannot be set up on its worker, a cluster without workers) propagate after the rows so far are written.
@@ -755,7 +866,7 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, scheduler: str | None = None,
                            file=sys.stderr)
             t_runs = time.perf_counter()
             try:
-                gather_rows(cl, tasks, on_row, lost_workers_s=lost_workers_s)
+                gather_rows(cl, tasks, on_row, lost_workers_s=lost_workers_s, batch=batch)
             finally:
                 timing["runs_s"] = time.perf_counter() - t_runs  # first submission to last result
 

@@ -70,7 +70,7 @@ from typing import Any
 
 import numpy as np
 
-from usv_mj.scenario.spec import Scenario, ScenarioError, from_dict, load_scenario, preset_names
+from usv_mj.scenario.spec import KIND_DEFAULTS, Scenario, ScenarioError, from_dict, load_scenario, preset_names, switched_kind
 from usv_mj.support.toml_values import read_toml
 from usv_mj.physics.sea.settings import replace_direction
 
@@ -181,15 +181,31 @@ def _join(keys: tuple) -> str:
     return out
 
 
+def _is_kind(keys: tuple) -> bool:
+    """The path of a section's ``kind`` whose other keys belong to it (``controller.kind``, ...)."""
+    return len(keys) == 2 and keys[1] == "kind" and keys[0] in KIND_DEFAULTS
+
+
 def apply_values(base: Scenario, values: dict, source: str) -> Scenario:
-    """``base`` with each ``path: value`` of ``values`` set, built and validated again.
+    """``base`` with each ``path: value`` of ``values`` set, built and validated again. A path that
+    switches a section's kind (``controller.kind = "los"`` on a base whose controller is ``ppc``)
+    takes the new kind's keys only, as the scenario loader does for a preset.
 
     Raises :class:`SweepError` naming the sweep file, the path(s) and the value(s) if the scenario
     rejects the result.
     """
     data = copy.deepcopy(base.raw)
-    for path, value in values.items():
-        set_path(data, parse_path(path), value, base, path, source)
+    parsed = {path: parse_path(path) for path in values}
+    # a kind first: switching it drops the old kind's keys (usv_mj.scenario.spec.switched_kind, the
+    # loader's own rule), then the values for the new kind are set
+    for path in sorted(values, key=lambda p: not _is_kind(parsed[p])):
+        keys = parsed[path]
+        if _is_kind(keys) and isinstance(data.get(keys[0]), dict):
+            try:
+                data[keys[0]] = switched_kind(keys[0], data[keys[0]], values[path], base.source)
+            except ScenarioError as exc:
+                raise SweepError(f"{source}: {path} = {values[path]!r}: {exc}") from None
+        set_path(data, keys, values[path], base, path, source)
     try:
         return from_dict(data, source=base.source)
     except ScenarioError as exc:

@@ -11,8 +11,10 @@ one's bytes on a ``foxglove.Channel`` made from the file's own channel and schem
 Pacing: ``speed`` = None logs as fast as the run makes rows (each viewer has a deep buffer,
 :data:`BACKLOG`; when a viewer falls further behind, its oldest messages are dropped, the log file
 is always written in full); ``speed`` = X holds log time / X to the wall clock (1: real time).
-The first chunk waits for a viewer to subscribe (up to ``wait_s``; None: until one does), so that a
-viewer opened after the command sees the run from its start. Loopback (127.0.0.1) only by default.
+The server waits for a viewer to subscribe (up to ``wait_s`` [s], a finite number >= 0; None: until
+one does) once the first run's channels are in the file (:meth:`LiveServer.ready`, before the run's
+first step), so that a viewer opened after the command sees the run from its start; Ctrl-C or
+SIGTERM stops the wait (and the run). Loopback (127.0.0.1) only by default.
 
 Subprotocols: a viewer names the protocol in its WebSocket handshake. foxglove-sdk's server accepts
 ``foxglove.sdk.v1`` only, and answers any other offer with HTTP 400 (its handshake,
@@ -30,6 +32,7 @@ passed on as it is. :data:`SUBPROTOCOLS` are the names accepted; any other offer
 from __future__ import annotations
 
 import heapq
+import itertools
 import struct
 import sys
 import threading
@@ -241,6 +244,9 @@ class LiveServer:
                  wait_s: float | None = None, say=None):
         if speed is not None and not (speed > 0 and speed < float("inf")):
             raise ScenarioError(f"--speed {speed!r}: must be a finite number > 0 (1 = real time)")
+        if wait_s is not None and not (isinstance(wait_s, (int, float)) and 0 <= wait_s < float("inf")):
+            raise ScenarioError(f"--live-wait {wait_s!r}: must be a finite number of seconds >= 0 (leave it out "
+                                "to wait until a viewer comes)")
         if not (isinstance(port, int) and 0 <= port < 65536):
             raise ScenarioError(f"--live-port {port!r}: must be a TCP port, 0 to 65535")
         foxglove = import_foxglove()
@@ -286,25 +292,33 @@ class LiveServer:
         return ch
 
     def attach(self, writer) -> None:
-        """Serve the chunks of the MCAP file ``writer`` too (a fleet's run: one file per vessel). Every
-        attached file's channels are advertised before the first wait for a viewer, so a viewer that
-        came for one vessel subscribes to all of them before any message is sent."""
+        """Serve the chunks of the MCAP file ``writer`` (a
+        :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`) too: a fleet's run writes one file per
+        vessel. Every attached file's channels are advertised by :meth:`ready`, so a viewer that came
+        for one vessel is offered all of them before the first message."""
         if all(w is not writer for w in self._writers):
             self._writers.append(writer)
 
-    def chunk(self, writer, parts) -> None:
-        """Log every message of one uncompressed chunk (``parts``: its bytes / uint8 arrays in order)
-        of the MCAP file ``writer`` (a :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`)."""
+    def ready(self, writer) -> None:
+        """Advertise the channels of every attached MCAP file (``writer``'s among them) and, the
+        first time there are any, wait for a viewer (:meth:`wait_for_viewer`; a KeyboardInterrupt,
+        Ctrl-C or SIGTERM, ends the wait). Channels that come after the wait (a fleet's vessel that
+        starts later) are advertised and the viewer is given time to subscribe (:meth:`_settle`)."""
         self.attach(writer)
         known = len(self._channels)
         for w in self._writers:          # every channel is advertised before its first message
             for cid in list(w.channels):
                 self._channel(w, cid)
-        if not self._waited:
+        if not self._waited and self._channels:
             self._waited = True
             self.wait_for_viewer()
-        elif len(self._channels) > known:    # channels that came after the viewer: let it subscribe first
+        elif self._waited and len(self._channels) > known:
             self._settle()
+
+    def chunk(self, writer, parts) -> None:
+        """Log every message of one uncompressed chunk (``parts``: its bytes / uint8 arrays in order)
+        of the MCAP file ``writer`` (a :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`)."""
+        self.ready(writer)
         data = memoryview(b"".join(bytes(p) for p in parts))
         pos, end, head = 0, len(data), _HEAD.size
         while pos < end:
@@ -318,33 +332,84 @@ class LiveServer:
 
     def replay(self, path) -> int:
         """Serve the messages of the MCAP file ``path`` and of its companions (the baseline's log, a
-        fleet's other vessels: :func:`usv_mj.outputs.log.reader.companion_files`) in log-time order,
-        as :meth:`chunk` serves a run's (``usv-mj render RUN.mcap --live``); returns the number of
-        messages served."""
-        from mcap.reader import make_reader
-
+        fleet's other vessels: :func:`usv_mj.outputs.log.reader.companion_files`) merged in log-time
+        order, as :meth:`chunk` serves a run's (``usv-mj render RUN.mcap --live``); returns the
+        number of messages served. Every file's channels are advertised before the wait for a viewer.
+        A file without a readable summary (a cut or damaged log) is served front to back up to where
+        it ends or is damaged, and the server says so (as ``render`` draws what such a log holds)."""
         with ExitStack() as stack:
-            streams = []
-            for k, file in enumerate([Path(path), *companion_files(path)]):
-                reader = make_reader(stack.enter_context(open(file, "rb")))
-                summary = reader.get_summary()
-                if summary is None:
-                    raise ScenarioError(f"{file}: the log has no summary (an unfinished file): nothing to replay")
-                chans = {}
-                for cid, rec in summary.channels.items():
-                    schema = summary.schemas.get(rec.schema_id)
-                    fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
-                                                                            data=schema.data)
-                    chans[cid] = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
-                                                  context=self.context, metadata=dict(rec.metadata))
-                self._channels.update({(f"replay{k}", cid): ch for cid, ch in chans.items()})
-                streams.append(((m.log_time, k, chans[c.id], m.data) for _, c, m in
-                                reader.iter_messages(log_time_order=True)))
+            streams = [self._replay_file(k, file, stack.enter_context(open(file, "rb")))
+                       for k, file in enumerate([Path(path), *companion_files(path)])]
+            merged = heapq.merge(*streams, key=lambda e: (e[0], e[1]))
+            first = next(merged, None)   # every file read up to its first message: all channels advertised
+            self._waited = True
             self.wait_for_viewer()
-            for log_time, _, channel, data in heapq.merge(*streams, key=lambda e: (e[0], e[1])):
+            for log_time, _, channel, data in itertools.chain([first] if first is not None else [], merged):
                 self._pace("replay", log_time)
                 channel.log(data, log_time=log_time)
                 self.sent += 1
+        return self.sent
+
+    def _replay_channel(self, k: int, rec, schema):
+        """The foxglove.Channel of channel record ``rec`` of the ``k``-th file replayed, advertised now;
+        when a viewer already waited, it is given time to subscribe to it (:meth:`_settle`)."""
+        fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
+                                                                data=schema.data)
+        ch = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
+                              context=self.context, metadata=dict(rec.metadata))
+        self._channels[(f"replay{k}", rec.id)] = ch
+        return ch
+
+    def _replay_file(self, k: int, path, f):
+        """The messages of the ``k``-th file of :meth:`replay`, ``path`` open as ``f``, in log-time
+        order: (log time [ns], k, foxglove.Channel, data). Its channels are advertised before its
+        first message is yielded."""
+        from mcap.reader import make_reader
+
+        try:
+            summary = make_reader(f).get_summary()
+        except Exception:  # noqa: BLE001 - the mcap library's errors of a cut or damaged file
+            summary = None
+        f.seek(0)
+        if summary is None:
+            yield from self._replay_stream(k, path, f)
+            return
+        reader = make_reader(f)
+        chans = {cid: self._replay_channel(k, rec, summary.schemas.get(rec.schema_id))
+                 for cid, rec in summary.channels.items()}
+        served = 0
+        try:
+            for _, channel, message in reader.iter_messages(log_time_order=True):
+                yield message.log_time, k, chans[channel.id], message.data
+                served += 1
+        except Exception as exc:  # noqa: BLE001 - a damaged chunk inside a file with a summary
+            self._say(f"live: {path} is damaged after {served} messages ({type(exc).__name__}: "
+                      f"{' '.join(str(exc).split())[:120]}); served what comes before")
+
+    def _replay_stream(self, k: int, path, f):
+        """:meth:`_replay_file` of a file without a readable summary: its records front to back (the
+        run log's writer writes each file in log-time order) until the file ends or is damaged. A
+        channel that first appears after the viewer subscribed is advertised with time to subscribe."""
+        from mcap.records import Channel, Message, Schema
+        from mcap.stream_reader import StreamReader
+
+        schemas, chans = {}, {}
+        served = 0
+        problem = "it has no summary (an unfinished file)"
+        try:
+            for rec in StreamReader(f, record_size_limit=1 << 32).records:
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec
+                elif isinstance(rec, Channel):
+                    chans[rec.id] = self._replay_channel(k, rec, schemas.get(rec.schema_id))
+                    if self._waited:
+                        self._settle()
+                elif isinstance(rec, Message) and rec.channel_id in chans:
+                    yield rec.log_time, k, chans[rec.channel_id], rec.data
+                    served += 1
+        except Exception as exc:  # noqa: BLE001 - where the cut or the damage is
+            problem = f"it ends or is damaged there ({type(exc).__name__})"
+        self._say(f"live: {path} is cut short: served the {served} messages it holds; {problem}")
         return self.sent
 
     def _pace(self, key, log_time: int) -> None:

@@ -352,8 +352,6 @@ class McapFileWriter:
         if not len(buf):
             return
         parts, index = buf.finish()
-        if self.tee is not None:       # usv_mj.outputs.log.live: the same messages to the live viewers
-            self.tee.chunk(self, parts)
         cobj = self._compressor.compressobj(size=buf.size)
         pieces, crc = [], 0
         for part in _merge_small(parts):
@@ -395,6 +393,8 @@ class McapFileWriter:
         for ch, c in buf.count.items():
             st.channel_message_counts[ch] = st.channel_message_counts.get(ch, 0) + c
         self._file.flush()
+        if self.tee is not None:       # usv_mj.outputs.log.live: the same messages to the live viewers,
+            self.tee.chunk(self, parts)  # once the file holds them (a viewer never sees more than the file)
 
     def finish(self):
         if self.finished:

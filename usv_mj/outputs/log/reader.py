@@ -19,6 +19,7 @@ reading a run needs about the record's own size twice (the topic arrays and the 
 from __future__ import annotations
 
 import io
+import stat
 import json
 import zlib
 from dataclasses import dataclass, field
@@ -311,16 +312,32 @@ def _expected_counts(source) -> dict:
         return {}
 
 
+def _regular_file(path: Path) -> None:
+    """RunLogReadError unless ``path`` is (a link to) a regular file: a FIFO named ``*.mcap`` would
+    block its open() until a writer comes, and a link loop is no file at all."""
+    try:
+        mode = path.stat().st_mode
+    except OSError as exc:
+        if path.is_symlink():
+            raise RunLogReadError(f"{path}: is a symbolic link that leads to no file "
+                                  f"({exc.strerror or exc}), not an .mcap run log") from None
+        raise RunLogReadError(f"{path}: no such file" if isinstance(exc, FileNotFoundError)
+                              else f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(mode):
+        raise RunLogReadError(f"{path}: is a folder, not an .mcap run log")
+    if not stat.S_ISREG(mode):
+        kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
+                else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a special file")
+        raise RunLogReadError(f"{path}: is not a regular file ({kind}), not an .mcap run log")
+
+
 def _open(source):
     if isinstance(source, (bytes, bytearray, memoryview)):
         raise RunLogReadError(f"a run log is read from a path or a binary stream, not from {type(source).__name__} "
                               "(wrap the bytes in io.BytesIO)")
     if isinstance(source, (str, Path)):
         path = Path(source)
-        if not path.exists():
-            raise RunLogReadError(f"{path}: no such file")
-        if path.is_dir():
-            raise RunLogReadError(f"{path}: is a folder, not an .mcap run log")
+        _regular_file(path)
         f = open(path, "rb")
         head = f.read(8)
         if head != MAGIC:
@@ -772,8 +789,16 @@ def companion_files(path) -> list[Path]:
     if not log_id:
         return []
     out = []
+    try:
+        here = path.stat()
+    except OSError:
+        return []
     for other in sorted(path.parent.glob("*.mcap")):
-        if other.resolve() == path.resolve():
+        try:   # only regular files (a FIFO would block, a link loop is no file), not this one itself
+            st = other.stat()
+        except OSError:
+            continue
+        if not stat.S_ISREG(st.st_mode) or (st.st_dev, st.st_ino) == (here.st_dev, here.st_ino):
             continue
         link = _maybe_json(peek_file_metadata(other).get("companion_of", ""))
         if isinstance(link, dict) and link.get("log_id") == log_id:
@@ -838,7 +863,7 @@ def _read_one(path) -> RunLog:
     file_meta, runs_meta = {}, {}
     for name, m in scan.metadata:
         if name == "usv_mj":
-            file_meta = {k: _maybe_json(v) if k in ("scenario", "versions", "git_dirty", "companion_of") else v
+            file_meta = {k: _maybe_json(v) if k in ("scenario", "versions", "git_dirty", "companion_of", "plugins") else v
                          for k, v in m.items()}
         elif "/" in name:
             kind, run = name.split("/", 1)

@@ -21,7 +21,10 @@ What is in the file (topics: :mod:`usv_mj.outputs.log.topics`):
 
 - metadata ``usv_mj`` (at open): schema version, preset, every parameter (``scenario.to_dict()``),
   package versions (python, numpy, numba, mujoco, mcap, orjson, protobuf, zstandard, usv_mj), the
-  project's git commit ("unknown" outside a checkout) and whether the tree had uncommitted changes;
+  project's own version (``usv_mj_version``, usv_mj.core.version), every plug-in the run names
+  (``plugins``: each kind that is not built in, with its distribution and version, or its module's
+  or data file's path: :func:`plugins_of`), and in a git checkout the commit and whether the tree
+  had uncommitted changes (an installed package has none: ``install`` says so);
 - attachments: ``models/<name>.xml`` for every model XML of the project, ``scenario/<file>`` when
   ``scenario.source`` is a file, any ``attachments`` passed in, and ``scene/<run>.xml`` (at
   ``start``, a MuJoCo plant's run): the MJCF scene that plant ran (``MuJoCoPlant.scene_xml``);
@@ -32,8 +35,10 @@ What is in the file (topics: :mod:`usv_mj.outputs.log.topics`):
 An interrupted run (Ctrl-C, an exception, a divergence) still gets every row up to the stop, its
 events (the loop records why it stopped) and a ``run_end`` record, because ``simulate`` always calls
 ``finish``; ``finish`` never raises (a failure of the writer is kept and raised by :meth:`close`,
-so it cannot hide the run's own exception). The worker ignores SIGINT, so Ctrl-C in the terminal
-does not kill the file with the run. A killed process leaves a file without summary that
+so it cannot hide the run's own exception). The worker ignores SIGINT, SIGTERM and SIGHUP from its
+first instruction on (:func:`usv_mj.support.spawning.start_sheltered`), so a Ctrl-C, a hang-up or
+a ``kill -TERM`` sent to the whole process group stops the run, not the file: the parent closes it
+with every row the run made. A killed process leaves a file without summary that
 :func:`usv_mj.outputs.log.read_run` still reads up to its last complete chunk.
 """
 
@@ -46,7 +51,6 @@ import mimetypes
 import os
 import platform
 import queue
-import signal
 import subprocess
 import sys
 import time
@@ -61,12 +65,16 @@ from pathlib import Path
 
 import numpy as np
 
+from usv_mj.core.registry import origins
+from usv_mj.core.version import __version__
 from usv_mj.record.run_record import COL, COLUMNS, RunRecord
 from usv_mj.support.assets import model_files
 from usv_mj.outputs.log.messages import (RunLogError, RunLogFile, frame_layout, funnel_layout, json_text,  # noqa: F401 (re-exported)
                        obstacle_table, reference_path)
 from usv_mj.outputs.log.topics import SCHEMA_VERSION, prefix_for
 from usv_mj.support.assets import PACKAGE_DIR
+from usv_mj.support.spawning import (group_signals_blocked, shelter_from_group_signals, spawn_context,
+                                    start_resource_tracker, start_sheltered)
 
 PROJECT_ROOT = PACKAGE_DIR.parent
 SLOT_ROWS = 2048       # rows per slot of the shared-memory ring at the PPC record's width
@@ -81,6 +89,27 @@ def package_versions() -> dict:
             out[name] = importlib_metadata.version(name)
         except importlib_metadata.PackageNotFoundError:
             out[name] = "not installed"
+    return out
+
+
+def plugins_of(scenario) -> dict:
+    """Every kind the scenario names that is not built in, with where it comes from: the installed
+    distribution and its version, or the module's file, or the data file
+    (:func:`usv_mj.core.registry.origins`); {} for a scenario of built-ins only."""
+    if not hasattr(scenario, "controller"):
+        return {}
+    raw = getattr(scenario, "raw", {}) or {}
+    baseline = getattr(scenario, "baseline", None)
+    kinds = {"controller": scenario.controller.kind,
+             "trajectory": getattr(getattr(scenario, "trajectory", None), "kind", None),
+             "plant": getattr(getattr(scenario, "plant", None), "kind", None),
+             "vessel": getattr(getattr(scenario, "vessel", None), "kind", None),
+             "disturbance": (raw.get("disturbance") or {}).get("kind") if isinstance(raw.get("disturbance"), dict)
+             else None,
+             "manoeuvre": getattr(getattr(scenario, "manoeuvre", None), "kind", None)}
+    out = origins(kinds)
+    if baseline is not None and getattr(baseline, "enabled", False):
+        out.update({f"baseline {k.split(' ', 1)[1]}": v for k, v in origins({"controller": baseline.kind}).items()})
     return out
 
 
@@ -124,7 +153,7 @@ def _worker_main(path, file_metadata, attachments, rows_per_chunk, compression_l
 
     A "rows" command names its block as ("slot", i, n): rows 0..n of slot i of the shared ring,
     handed back (``free_slots.release()``) once the command is done with it."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C stops the run, not the file
+    shelter_from_group_signals()   # a signal to the process group stops the run, not the file
     _keep_freed_pages()
     error = None
     log = None
@@ -222,13 +251,17 @@ class RunLogWriter:
         self._errors: list[str] = []
         self._sinks: list[RunLogSink] = []
         self._closed = False
+        self.failed = False       # after close: writing failed (the file ends at its last complete chunk)
         self.stats: dict = {}     # after close: the writer's CPU time (background), chunks, messages
         commit, dirty = git_commit()
         to_dict = scenario.to_dict() if hasattr(scenario, "to_dict") else {}
         file_metadata = {
             "schema_version": SCHEMA_VERSION, "preset": str(getattr(scenario, "preset", "")),
             "source": str(getattr(scenario, "source", "")), "scenario": json_text(to_dict),
-            "versions": json_text(package_versions()), "git_commit": commit, "git_dirty": json_text(dirty),
+            "versions": json_text(package_versions()), "usv_mj_version": __version__,
+            "plugins": json_text(plugins_of(scenario)),
+            **({"git_commit": commit, "git_dirty": json_text(dirty)} if commit != "unknown" else
+               {"install": "an installed package, not a git checkout (usv_mj_version names it)"}),
             "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "topics": "see usv_mj.outputs.log.topics: /usv/... (run main), /baseline/usv/... (run baseline)",
             "log_id": self.log_id,
@@ -254,6 +287,7 @@ class RunLogWriter:
         slots = max(1, int(queue_blocks))
         shape = (slots, SLOT_FLOATS)     # each run views a slot as (SLOT_FLOATS // its width, its width)
         if background:
+            start_resource_tracker()    # before the ring registers with it: it outlives a hang-up
             try:
                 self._ring_shm = shared_memory.SharedMemory(create=True, size=int(np.prod(shape)) * 8)
             except OSError as exc:      # e.g. a container with a tiny /dev/shm: same file, slower loop
@@ -263,8 +297,6 @@ class RunLogWriter:
                 background = False
         self._background = background
         if background:
-            from usv_mj.support.spawning import spawn_context
-
             ctx = spawn_context()  # the writer never imports the user's __main__ (usv_mj.support.spawning)
             self._ring = np.ndarray(shape, dtype=np.float64, buffer=self._ring_shm.buf)
             self._next_slot = 0
@@ -274,23 +306,32 @@ class RunLogWriter:
             self._proc = ctx.Process(target=_worker_main, args=(*args, self._queue, child_reply, os.getpid(),
                                                                 self._ring_shm.name, shape, self._free_slots),
                                      name="usv_mj-runlog", daemon=True)
-            self._proc.start()
+            start_sheltered(self._proc)     # no signal to the process group reaches it (module docstring)
             child_reply.close()
             # a writer never closed (no with-block) is closed at interpreter exit, before
             # multiprocessing ends its children (atexit runs the later registration first)
             atexit.register(_close_at_exit, weakref.ref(self))
         else:
             self._file = RunLogFile(*args)
-            self._file.mcap.tee = live
-            if live is not None:
-                live.attach(self._file.mcap)
+            self._live = live
+            self._unserved: list = []      # chunks written to the file, not yet served live
+            if live is not None:           # served after each command is in the file (_serve_live)
+                self._file.mcap.tee = self
+                live.attach(self._file.mcap)   # a fleet's files: every one's channels before the first wait
 
     # commands
-    def _send(self, cmd: tuple):
+    def _send(self, cmd: tuple, serve: bool = True):
+        """Hand ``cmd`` to the writer. In this process (``background=False``, ``--live``) the file's
+        part is done whole with the group's signals blocked (a Ctrl-C never cuts a chunk out of
+        the file), then, with ``serve``, the chunks are served live (where a Ctrl-C may land:
+        the file already holds them)."""
         if self._closed:
             raise RunLogError(f"run log {self.path} is closed")
         if not self._background:
-            self._file.handle(cmd)
+            with group_signals_blocked():
+                self._file.handle(cmd)
+            if serve:
+                self._serve_live()
             return
         while True:
             try:
@@ -301,10 +342,29 @@ class RunLogWriter:
                     raise RunLogError(f"the background writer of {self.path} stopped (exit code "
                                       f"{self._proc.exitcode})") from None
 
+    def chunk(self, mcap, parts) -> None:
+        """The file's tee (``--live``): a chunk just written, kept to be served by :meth:`_serve_live`."""
+        self._unserved.append((mcap, parts))
+
+    def _serve_live(self) -> None:
+        """Serve the chunks the file holds and the viewers do not have yet (``--live``): the first
+        one after the first run's channels are in the file waits for a viewer
+        (:meth:`usv_mj.outputs.log.live.LiveServer.ready`). A signal here stops the run, not the
+        file; the chunks not served yet are served with the next command."""
+        if self._background or self._live is None:
+            return
+        self._live.ready(self._file.mcap)
+        while self._unserved:
+            mcap, parts = self._unserved[0]
+            self._unserved.pop(0)
+            self._live.chunk(mcap, parts)
+
     def _send_rows(self, run: str, lo: int, block: np.ndarray, events: list, obstacles):
-        """Send rows lo.. of ``block`` (the record's own array: copied here) through the ring."""
+        """Send rows lo.. of ``block`` (the record's own array: copied here) through the ring; in
+        this process, into the file (the caller serves them live: :meth:`_serve_live`)."""
         if not self._background:
-            self._send(("rows", run, lo, np.array(block, dtype=np.float64, copy=True), events, obstacles))
+            self._send(("rows", run, lo, np.array(block, dtype=np.float64, copy=True), events, obstacles),
+                       serve=False)
             return
         n, width = block.shape
         per_slot = SLOT_FLOATS // width
@@ -359,10 +419,15 @@ class RunLogWriter:
                     try:
                         status = self._reply.recv()
                     except EOFError:
-                        status = ("error", "the background writer exited without a reply", {})
+                        status = ("error", None, {})
                 elif not self._proc.is_alive():
-                    status = ("error", f"the background writer exited with code {self._proc.exitcode}", {})
+                    status = ("error", None, {})
             self._proc.join(timeout=30)
+            if status[0] == "error" and status[1] is None:      # it died: say how, and what the file holds
+                code = self._proc.exitcode
+                how = f"killed by {signal_name(-code)}" if code is not None and code < 0 else f"exit code {code}"
+                status = ("error", f"{self.path}: the background log writer died ({how}) before the run ended; "
+                                   "the log holds the rows up to its last complete chunk", {})
             # the worker is gone: anything still buffered for it can never be read, so do not wait
             # for the queue's feeder thread to deliver it (that would hang when the worker died)
             self._queue.cancel_join_thread()
@@ -380,6 +445,7 @@ class RunLogWriter:
             except Exception:
                 error = traceback.format_exc()
         problems = self._errors + ([error] if error else [])
+        self.failed = bool(problems)
         if problems:
             if len(problems) == 1 and "\n" not in problems[0].strip():
                 raise RunLogError(problems[0])      # one line (a fault such as a full disk)
@@ -396,6 +462,16 @@ class RunLogWriter:
                 raise
             warnings.warn(f"run log {self.path}: writer failed too", RuntimeWarning, stacklevel=2)
         return False
+
+
+def signal_name(number: int) -> str:
+    """SIGKILL for 9 (``signal <n>`` for a number the platform does not name)."""
+    import signal
+
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
 
 
 def _close_at_exit(ref):
@@ -502,6 +578,13 @@ class RunLogSink:
         self.writer._send(("attach", f"scene/{self.run}.xml", "application/xml", xml.encode()))
 
     def rows(self, record: RunRecord, lo: int, hi: int) -> None:
+        # the rows counted (the end record's "rows") are the rows handed to the file: the group's
+        # signals wait while both happen, so a Ctrl-C or SIGTERM never separates them (issue 38)
+        with group_signals_blocked():
+            self._take(record, lo, hi)
+        self.writer._serve_live()
+
+    def _take(self, record: RunRecord, lo: int, hi: int) -> None:
         if lo < self._rows:  # rows it already has: the loop resends a block that an interrupt cut
             lo = min(self._rows, hi)  # after this sink took it (simulation._Flusher)
         if hi <= lo:

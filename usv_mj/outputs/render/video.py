@@ -544,3 +544,13 @@ def default_output(run_path: Path, mcap_path: Path) -> Path:
     if Path(run_path).is_dir():
         return Path(run_path) / "run.mp4"
     return mcap_path.with_suffix(".mp4")
+
+
+def output_path(out, run_path, mcap_path: Path) -> Path:
+    """Where ``usv-mj render --out OUT`` writes: OUT itself (an .mp4), or, when OUT is a folder that
+    exists, the default name (:func:`default_output`) in it; no OUT: :func:`default_output`."""
+    default = default_output(Path(run_path), mcap_path)
+    if not out:
+        return default
+    p = Path(out)
+    return p / default.name if p.is_dir() else p

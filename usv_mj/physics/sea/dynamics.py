@@ -13,7 +13,8 @@ Written once: the hull's force is :func:`usv_mj.physics.ship.hull_terms` (with n
 eta_dot assembly are usv_mj.physics.ship's, and :func:`sea_rk4_advance` is the only RK4 loop of the package
 (:func:`usv_mj.plants.analytic.rk4_advance` is its calm case, :func:`calm_rk4_advance`).
 
-Kernel arguments: ``p`` (ShipParams.as_array()), ``dp`` (PaperDisturbance.as_array()), then the four
+Kernel arguments: ``p`` (ShipParams.as_array()), ``dp`` (the packed d(t) of any disturbance kind,
+usv_mj.physics.disturbances.packed_disturbance; a bare PaperDisturbance.as_array() is the paper's), then the four
 arrays of ``Environment.packed`` (``ep, waves, current_grid, wind_grid``; :mod:`usv_mj.physics.sea.layout`).
 """
 

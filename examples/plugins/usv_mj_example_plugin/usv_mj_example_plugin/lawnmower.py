@@ -1,7 +1,9 @@
 """``lawnmower``: a survey pattern, lanes of ``lane_length`` along +x and back, ``lane_spacing``
 apart toward +y, joined by half circles of radius lane_spacing / 2 (so psi_d is continuous and
 r_d = +-speed / radius in the turns). Closed form in the arc length s = speed t: lane k = floor(s /
-P) with P = lane_length + pi lane_spacing / 2; the pattern goes on lane after lane.
+P) with P = lane_length + pi lane_spacing / 2; the pattern goes on lane after lane. The speed is
+constant and r_d constant on each lane and half circle, so ``pose`` returns u_dot = r_dot = 0 (the
+reference's accelerations, docs/controllers.md; r_d jumps where a lane meets a turn).
 """
 
 from __future__ import annotations
@@ -53,10 +55,11 @@ class LawnmowerReference(Reference):
         x0, y0 = o.start[0], o.start[1] + k * o.lane_spacing
         east = k % 2 == 0
         if ds < o.lane_length:  # a lane: east on even lanes, west on odd ones
-            return (x0 + ds if east else x0 + o.lane_length - ds), y0, (0.0 if east else math.pi), 0.0, o.speed
+            return (x0 + ds if east else x0 + o.lane_length - ds), y0, (0.0 if east else math.pi), 0.0, o.speed, 0.0, 0.0
         theta = (ds - o.lane_length) / radius   # the half circle up to the next lane
         cx, cy = (x0 + o.lane_length if east else x0), y0 + radius
         a = -math.pi / 2 + theta if east else -math.pi / 2 - theta
         psi = a + math.pi / 2 if east else a - math.pi / 2
         r = o.speed / radius if east else -o.speed / radius
-        return cx + radius * math.cos(a), cy + radius * math.sin(a), math.remainder(psi, 2 * math.pi), r, o.speed
+        return (cx + radius * math.cos(a), cy + radius * math.sin(a), math.remainder(psi, 2 * math.pi), r, o.speed,
+                0.0, 0.0)

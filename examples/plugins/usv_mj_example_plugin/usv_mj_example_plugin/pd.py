@@ -1,4 +1,4 @@
-"""``example-pd``: a PD law on the pose error of an underactuated surface vessel.
+"""``example-pd``: a PD law on the pose error of an underactuated surface vessel, at the compiled speed.
 
 With the body-frame position error (e_x along the hull, e_y to port) of the reference point
 (x_d, y_d) and the reference's speed u_d, heading psi_d and yaw rate r_d:
@@ -10,6 +10,15 @@ With the body-frame position error (e_x along the hull, e_y to port) of the refe
 (d11(u) = c0 + c1 |u| + c2 u^2, the nominal ship's surge damping: the force that holds u_d). The
 run is judged by a pose tolerance after a settling time (:class:`usv_mj.record.criteria.PoseTolerance`),
 not by the paper's funnel.
+
+**One implementation, two loops** (docs/controllers.md, "The compiled path"): the law is one numba
+function, :func:`pd_law`, over arrays (the gains packed in a float64 vector, the nominal surge
+damping, the diagnostics buffer). ``__call__`` calls it from Python; ``kernel()`` hands the same
+function (through :func:`pd_kernel`, which returns the diagnostics as the compiled loop wants) and
+the same arrays to :mod:`usv_mj.loop.compiled`, which inlines it into the generated loop. A run's
+record is then the same bit for bit in either loop, and the compiled loop runs it at the speed of
+the built-in laws (``python benchmarks/bench_core.py --plugin``). Both functions sit at module
+level with ``cache=True``: the generated loop imports them by name, on every Dask worker too.
 """
 
 from __future__ import annotations
@@ -18,9 +27,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
-from usv_mj.record.criteria import PoseTolerance
 from usv_mj.core.registry import CONTROLLERS
+from usv_mj.physics.ship import wrap_angle
+from usv_mj.record.criteria import PoseTolerance
 
 
 @dataclass(frozen=True)
@@ -39,6 +50,38 @@ class PDGains:
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be > 0, got {value!r}")
 
+    def as_array(self) -> np.ndarray:
+        """The gains packed for :func:`pd_law` (G_* below)."""
+        return np.array([self.kp_surge, self.kd_surge, self.kp_yaw, self.kd_yaw, self.lookahead])
+
+
+G_KP_SURGE, G_KD_SURGE, G_KP_YAW, G_KD_YAW, G_LOOKAHEAD = range(5)
+
+
+@njit(cache=True)
+def pd_law(t, x, ref, g, d11, diag):
+    """The law of the module docstring at time ``t`` [s], state ``x`` = (x, y, psi, u, v, r) and
+    reference ``ref`` (usv_mj.core.layouts.REF_VECTOR_FIELDS: x_d, y_d, psi_d, x_d_dot, y_d_dot, r_d,
+    u_d, ...); fills ``diag`` (along-track, cross-track, heading error) and returns (tau_u, tau_r)."""
+    psi, u, r = x[2], x[3], x[5]
+    x_d, y_d, psi_d, r_d, u_d = ref[0], ref[1], ref[2], ref[5], ref[6]
+    c, s = math.cos(psi), math.sin(psi)
+    e_x = c * (x_d - x[0]) + s * (y_d - x[1])
+    e_y = -s * (x_d - x[0]) + c * (y_d - x[1])
+    drag = (d11[0] + d11[1] * abs(u_d) + d11[2] * u_d * u_d) * u_d
+    tau_u = drag + g[G_KP_SURGE] * e_x + g[G_KD_SURGE] * (u_d - u)
+    e_psi = wrap_angle(psi_d + math.atan(e_y / g[G_LOOKAHEAD]) - psi)
+    tau_r = g[G_KP_YAW] * e_psi + g[G_KD_YAW] * (r_d - r)
+    diag[0], diag[1], diag[2] = e_x, e_y, e_psi
+    return tau_u, tau_r
+
+
+@njit(cache=True)
+def pd_kernel(t, x, ref, g, d11, diag):
+    """The compiled loop's kernel (usv_mj.core.kernels: ``fn(t, x, ref, *args) -> (tau_u, tau_r, diag)``)."""
+    tau_u, tau_r = pd_law(t, x, ref, g, d11, diag)
+    return tau_u, tau_r, diag
+
 
 @CONTROLLERS.register("example-pd", options=PDGains)
 class ExamplePD:
@@ -50,26 +93,24 @@ class ExamplePD:
 
     @classmethod
     def from_scenario(cls, gains: PDGains, scenario) -> "ExamplePD":
-        return cls(gains, scenario.ship.d11)
+        return cls(gains, scenario.nominal_ship.d11)
 
     def __init__(self, gains: PDGains, d11=(0.0, 0.0, 0.0)):
         self.gains = gains
-        self._d11 = tuple(float(c) for c in d11)
+        self._g = gains.as_array()
+        self._d11 = np.array([float(c) for c in d11])
         self._diag = np.zeros(len(self.diagnostic_fields))
 
     def reset(self) -> None:
         self._diag[:] = 0.0
 
+    def kernel(self):
+        """(pd_kernel, its arrays) for the compiled loop: the very arrays ``__call__`` uses."""
+        from usv_mj.core.kernels import Kernel
+
+        return Kernel(pd_kernel, (self._g, self._d11, self._diag))
+
     def __call__(self, t, state, reference):
-        g = self.gains
-        x, y, psi, u, _v, r = state
-        x_d, y_d, psi_d, _xd_dot, _yd_dot, r_d, u_d = reference
-        c, s = math.cos(psi), math.sin(psi)
-        e_x = c * (x_d - x) + s * (y_d - y)
-        e_y = -s * (x_d - x) + c * (y_d - y)
-        c0, c1, c2 = self._d11
-        tau_u = (c0 + c1 * abs(u_d) + c2 * u_d * u_d) * u_d + g.kp_surge * e_x + g.kd_surge * (u_d - u)
-        e_psi = math.remainder(psi_d + math.atan(e_y / g.lookahead) - psi, 2 * math.pi)
-        tau_r = g.kp_yaw * e_psi + g.kd_yaw * (r_d - r)
-        self._diag[0], self._diag[1], self._diag[2] = e_x, e_y, e_psi
+        tau_u, tau_r = pd_law(float(t), np.asarray(state, dtype=np.float64), np.asarray(reference, dtype=np.float64),
+                              self._g, self._d11, self._diag)
         return tau_u, tau_r, self._diag
