@@ -12,9 +12,12 @@ Pacing: ``speed`` = None logs as fast as the run makes rows (each viewer has a d
 :data:`BACKLOG`; when a viewer falls further behind, its oldest messages are dropped, the log file
 is always written in full); ``speed`` = X holds log time / X to the wall clock (1: real time).
 The server waits for a viewer to subscribe (up to ``wait_s`` [s], a finite number >= 0; None: until
-one does) once the first run's channels are in the file (:meth:`LiveServer.ready`, before the run's
-first step), so that a viewer opened after the command sees the run from its start; Ctrl-C or
-SIGTERM stops the wait (and the run). Loopback (127.0.0.1) only by default.
+one does) once the first run's channels are in the file, every vessel's for a fleet (one file per
+vessel, :meth:`LiveServer.attach`; :meth:`LiveServer.ready`, before the run's first step), so that a
+viewer opened after the command sees the run from its start, every vessel on its own topics; Ctrl-C
+or SIGTERM stops the wait (and the run). ``usv-mj render RUN.mcap --live`` replays the file with its
+companions (a fleet's other vessels, the baseline) merged in log-time order. Loopback (127.0.0.1)
+only by default.
 
 Subprotocols: a viewer names the protocol in its WebSocket handshake. foxglove-sdk's server accepts
 ``foxglove.sdk.v1`` only, and answers any other offer with HTTP 400 (its handshake,
@@ -299,26 +302,31 @@ class LiveServer:
         if all(w is not writer for w in self._writers):
             self._writers.append(writer)
 
-    def ready(self, writer) -> None:
-        """Advertise the channels of every attached MCAP file (``writer``'s among them) and, the
-        first time there are any, wait for a viewer (:meth:`wait_for_viewer`; a KeyboardInterrupt,
-        Ctrl-C or SIGTERM, ends the wait). Channels that come after the wait (a fleet's vessel that
-        starts later) are advertised and the viewer is given time to subscribe (:meth:`_settle`)."""
+    def ready(self, writer, serving: bool = False) -> None:
+        """Advertise the channels of every attached MCAP file (``writer``'s among them) and wait for a
+        viewer (:meth:`wait_for_viewer`; a KeyboardInterrupt, Ctrl-C or SIGTERM, ends the wait) once
+        every attached file has its channels (a fleet: each vessel's run has started), or, with
+        ``serving``, before the first message is served whatever the others hold. Channels made while
+        a viewer is connected (the baseline's after the main run) are advertised and the viewer is
+        given time to subscribe to them (:meth:`_settle`): foxglove-sdk 0.30.3 may answer a viewer
+        that subscribes at once to a channel it has just advertised "Unknown channel ID", so the
+        channels are best all made before the viewer comes."""
         self.attach(writer)
         known = len(self._channels)
         for w in self._writers:          # every channel is advertised before its first message
             for cid in list(w.channels):
                 self._channel(w, cid)
-        if not self._waited and self._channels:
-            self._waited = True
-            self.wait_for_viewer()
-        elif self._waited and len(self._channels) > known:
+        if not self._waited:
+            if self._channels and (serving or all(w.channels for w in self._writers)):
+                self._waited = True
+                self.wait_for_viewer()
+        elif len(self._channels) > known:
             self._settle()
 
     def chunk(self, writer, parts) -> None:
         """Log every message of one uncompressed chunk (``parts``: its bytes / uint8 arrays in order)
         of the MCAP file ``writer`` (a :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`)."""
-        self.ready(writer)
+        self.ready(writer, serving=True)
         data = memoryview(b"".join(bytes(p) for p in parts))
         pos, end, head = 0, len(data), _HEAD.size
         while pos < end:

@@ -348,7 +348,7 @@ class RunLogWriter:
 
     def _serve_live(self) -> None:
         """Serve the chunks the file holds and the viewers do not have yet (``--live``): the first
-        one after the first run's channels are in the file waits for a viewer
+        one after the first run's channels are in the file (in every file of a fleet) waits for a viewer
         (:meth:`usv_mj.outputs.log.live.LiveServer.ready`). A signal here stops the run, not the
         file; the chunks not served yet are served with the next command."""
         if self._background or self._live is None:
