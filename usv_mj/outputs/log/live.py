@@ -359,8 +359,7 @@ class LiveServer:
         return self.sent
 
     def _replay_channel(self, k: int, rec, schema):
-        """The foxglove.Channel of channel record ``rec`` of the ``k``-th file replayed, advertised now;
-        when a viewer already waited, it is given time to subscribe to it (:meth:`_settle`)."""
+        """The foxglove.Channel of channel record ``rec`` of the ``k``-th file replayed, advertised now."""
         fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
                                                                 data=schema.data)
         ch = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
