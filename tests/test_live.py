@@ -44,17 +44,22 @@ def _decoder(channel):
     return lambda data: cls.FromString(data)
 
 
-async def _client(port: int, want: set) -> dict:
+async def _client(port: int, want: set, ends: frozenset = frozenset({"/usv/events"}), got: dict | None = None) -> dict:
     """Subscribe to every channel as it is advertised (the SDK advertises them one by one); collect the
-    decoded messages by topic until the run_end event. ``want``: topics that must be advertised."""
+    decoded messages by topic (into ``got`` if given: what came before a timeout) until the run_end
+    event of every events topic of ``ends`` (a fleet: one per vessel). ``want``: topics that must be
+    advertised."""
     async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"],
                                   max_size=None) as ws:
         assert ws.subprotocol == "foxglove.sdk.v1"
-        subs, decoders, got = {}, {}, {}
+        subs, decoders, ended = {}, {}, set()
+        got = {} if got is None else got
         while True:
             frame = await ws.recv()
             if isinstance(frame, str):
                 msg = json.loads(frame)
+                if msg["op"] == "status":      # e.g. "Unknown channel ID": a subscription refused
+                    got.setdefault("status", []).append(msg)
                 if msg["op"] == "advertise":
                     new = []
                     for c in msg["channels"]:
@@ -71,9 +76,11 @@ async def _client(port: int, want: set) -> dict:
             topic = subs[sub]["topic"]
             got[topic].append((stamp, value))
             got.setdefault("wall", []).append(time.monotonic())
-            if topic == "/usv/events" and value.get("kind") == "run_end":
-                assert want <= set(got), sorted(got)
-                return got
+            if topic in ends and value.get("kind") == "run_end":
+                ended.add(topic)
+                if ended == set(ends):
+                    assert want <= set(got), sorted(got)
+                    return got
 
 
 def _wait_for_url(proc, lines: list) -> int:
@@ -138,6 +145,71 @@ def test_run_live_serves_the_record(tmp_path):
         assert m["rotation"]["z"] == pytest.approx(math.sin(record["psi"][k] / 2), abs=1e-12)
         assert m["rotation"]["w"] == pytest.approx(math.cos(record["psi"][k] / 2), abs=1e-12)
     assert got["/usv/errors"], "the funnel errors are served"
+
+
+FLEET_ENDS = frozenset({"/usv/events", "/target/usv/events"})
+
+
+def _served(args: list, want: set, ends: frozenset) -> dict:
+    """Start ``usv-mj ARGS`` (which serves on --live-port 0), collect what a client gets until the
+    run_end of every events topic of ``ends``, and wait for the command's exit 0. Every wait is
+    bounded (TIMEOUT_S); a timeout names the topics and the run_end events received so far."""
+    proc = subprocess.Popen([sys.executable, "-m", "usv_mj.cli.main", *args], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    lines: list = []
+    got: dict = {}
+    try:
+        port = _wait_for_url(proc, lines)
+        try:
+            asyncio.run(asyncio.wait_for(_client(port, want, ends, got), TIMEOUT_S))
+        except asyncio.TimeoutError:
+            seen = {t: len(v) for t, v in got.items() if t not in ("wall", "status")}
+            ended = sorted(t for t in ends if any(isinstance(m, dict) and m.get("kind") == "run_end"
+                                                  for _, m in got.get(t, [])))
+            pytest.fail(f"no run_end on every one of {sorted(ends)} within {TIMEOUT_S:g} s (run_end on {ended}); "
+                        f"received {seen}; status {got.get('status')}; stderr: {''.join(lines)}")
+        assert proc.wait(TIMEOUT_S) == 0, "".join(lines)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert not got.get("status"), got["status"]      # every subscription taken
+    return got
+
+
+def test_run_live_serves_every_vessel_of_a_fleet(tmp_path):
+    """A fleet's run served live (issue 35): every vessel's state and hull frame on its own topics
+    (the own ship's under /usv, the target's under /target/usv with frame target/base_link), each
+    equal to that vessel's run in the logs written beside it, bit for bit; then the log replayed
+    (``usv-mj render run.mcap --live``) serves the other vessel's file with the own ship's, each
+    message on its own vessel's topic. Before: the replay served every file's messages on the last
+    file's channels (a generator expression's late binding), so /usv/events never had its run_end
+    and the client waited until its timeout."""
+    out = tmp_path / "fleet"
+    scenario = os.path.join(ROOT, "examples", "scenarios", "head_on_no_avoidance.toml")
+    want = {"/usv/state", "/usv/tf/hull", "/target/usv/state", "/target/usv/tf/hull"}
+    got = _served(["run", "--scenario", scenario, "--live", "--live-port", "0", "--duration", "1", "--plant",
+                   "analytic", "--no-video", "-q", "--out", str(out)], want, FLEET_ENDS)
+    from usv_mj.outputs.log import read_run
+
+    log = read_run(out / "run.mcap")
+    for prefix, run, frame in (("/usv", "main", "base_link"), ("/target/usv", "target", "target/base_link")):
+        record = log.runs[run]
+        state = got[f"{prefix}/state"]
+        assert len(state) == len(record["t"]) == 101, (run, {t: len(v) for t, v in got.items()})  # 1 s at 10 ms
+        for name in ("x", "y", "psi"):
+            assert np.array_equal(np.array([getattr(m, name) for _, m in state]), record[name]), (run, name)
+        assert {m["child_frame_id"] for _, m in got[f"{prefix}/tf/hull"]} == {frame}
+    # the two vessels close head-on: the target starts 30 m north of the own ship, both heading for the other
+    own, target = got["/usv/state"], got["/target/usv/state"]
+    assert target[0][1].y - own[0][1].y == 30.0 and target[-1][1].y - own[-1][1].y < 30.0
+    # the log replayed: the same messages on the same topics, the other vessel's file with the own ship's
+    again = _served(["render", str(out / "run.mcap"), "--live", "--live-port", "0"], want, FLEET_ENDS)
+    for prefix, frame in (("/usv", "base_link"), ("/target/usv", "target/base_link")):
+        for name in ("x", "y", "psi"):
+            assert ([getattr(m, name) for _, m in again[f"{prefix}/state"]]
+                    == [getattr(m, name) for _, m in got[f"{prefix}/state"]]), (prefix, name)
+        assert {m["child_frame_id"] for _, m in again[f"{prefix}/tf/hull"]} == {frame}
+        assert [m.get("kind") for _, m in again[f"{prefix}/events"]][-1] == "run_end"
 
 
 def test_missing_sdk_is_one_line(tmp_path):

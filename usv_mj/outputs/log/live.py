@@ -12,9 +12,12 @@ Pacing: ``speed`` = None logs as fast as the run makes rows (each viewer has a d
 :data:`BACKLOG`; when a viewer falls further behind, its oldest messages are dropped, the log file
 is always written in full); ``speed`` = X holds log time / X to the wall clock (1: real time).
 The server waits for a viewer to subscribe (up to ``wait_s`` [s], a finite number >= 0; None: until
-one does) once the first run's channels are in the file (:meth:`LiveServer.ready`, before the run's
-first step), so that a viewer opened after the command sees the run from its start; Ctrl-C or
-SIGTERM stops the wait (and the run). Loopback (127.0.0.1) only by default.
+one does) once the first run's channels are in the file, every vessel's for a fleet (one file per
+vessel, :meth:`LiveServer.attach`; :meth:`LiveServer.ready`, before the run's first step), so that a
+viewer opened after the command sees the run from its start, every vessel on its own topics; Ctrl-C
+or SIGTERM stops the wait (and the run). ``usv-mj render RUN.mcap --live`` replays the file with its
+companions (a fleet's other vessels, the baseline) merged in log-time order. Loopback (127.0.0.1)
+only by default.
 
 Subprotocols: a viewer names the protocol in its WebSocket handshake. foxglove-sdk's server accepts
 ``foxglove.sdk.v1`` only, and answers any other offer with HTTP 400 (its handshake,
@@ -31,12 +34,17 @@ passed on as it is. :data:`SUBPROTOCOLS` are the names accepted; any other offer
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import struct
 import sys
 import threading
 import time
+from contextlib import ExitStack
+from pathlib import Path
 
 from usv_mj.core.errors import ScenarioError
+from usv_mj.outputs.log.reader import companion_files
 
 DEFAULT_PORT = 8765
 BACKLOG = 1 << 17        # messages buffered per viewer before the oldest are dropped
@@ -262,6 +270,7 @@ class LiveServer:
             raise ScenarioError(f"--live-port {port}: cannot serve on {host}:{port} ({exc})") from None
         self.host, self.port = host, int(self.relay.port)
         self._channels: dict = {}      # (id of the file writer, MCAP channel id) -> foxglove.Channel
+        self._writers: list = []       # the file writers that feed this server (attach): a fleet's several
         self._waited = False
         self._clock: dict = {}         # per file: (wall [s], log time [ns]) of its first message paced
         self.sent = 0
@@ -285,20 +294,39 @@ class LiveServer:
             self._channels[key] = ch
         return ch
 
-    def ready(self, writer) -> None:
-        """Advertise the channels of the MCAP file ``writer`` (a
-        :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`) and, the first time it has any, wait
-        for a viewer (:meth:`wait_for_viewer`; a KeyboardInterrupt, Ctrl-C or SIGTERM, ends the wait)."""
-        for cid in writer.channels:      # every channel is advertised before its first message
-            self._channel(writer, cid)
-        if not self._waited and writer.channels:
-            self._waited = True
-            self.wait_for_viewer()
+    def attach(self, writer) -> None:
+        """Serve the chunks of the MCAP file ``writer`` (a
+        :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`) too: a fleet's run writes one file per
+        vessel. Every attached file's channels are advertised by :meth:`ready`, so a viewer that came
+        for one vessel is offered all of them before the first message."""
+        if all(w is not writer for w in self._writers):
+            self._writers.append(writer)
+
+    def ready(self, writer, serving: bool = False) -> None:
+        """Advertise the channels of every attached MCAP file (``writer``'s among them) and wait for a
+        viewer (:meth:`wait_for_viewer`; a KeyboardInterrupt, Ctrl-C or SIGTERM, ends the wait) once
+        every attached file has its channels (a fleet: each vessel's run has started), or, with
+        ``serving``, before the first message is served whatever the others hold. Channels made while
+        a viewer is connected (the baseline's after the main run) are advertised and the viewer is
+        given time to subscribe to them (:meth:`_settle`): foxglove-sdk 0.30.3 may answer a viewer
+        that subscribes at once to a channel it has just advertised "Unknown channel ID", so the
+        channels are best all made before the viewer comes."""
+        self.attach(writer)
+        known = len(self._channels)
+        for w in self._writers:          # every channel is advertised before its first message
+            for cid in list(w.channels):
+                self._channel(w, cid)
+        if not self._waited:
+            if self._channels and (serving or all(w.channels for w in self._writers)):
+                self._waited = True
+                self.wait_for_viewer()
+        elif len(self._channels) > known:
+            self._settle()
 
     def chunk(self, writer, parts) -> None:
         """Log every message of one uncompressed chunk (``parts``: its bytes / uint8 arrays in order)
         of the MCAP file ``writer`` (a :class:`usv_mj.outputs.log.mcap_file.McapFileWriter`)."""
-        self.ready(writer)
+        self.ready(writer, serving=True)
         data = memoryview(b"".join(bytes(p) for p in parts))
         pos, end, head = 0, len(data), _HEAD.size
         while pos < end:
@@ -311,70 +339,84 @@ class LiveServer:
             pos += 9 + length
 
     def replay(self, path) -> int:
-        """Serve the messages of the MCAP file ``path`` in log-time order as :meth:`chunk` serves a
-        run's (``usv-mj render RUN.mcap --live``); returns the number of messages served. A file
-        without a readable summary (a cut or damaged log) is served front to back up to where it
-        ends or is damaged, and the server says so (as ``render`` draws what such a log holds)."""
-        from mcap.reader import make_reader
-
-        with open(path, "rb") as f:
-            try:
-                summary = make_reader(f).get_summary()
-            except Exception:  # noqa: BLE001 - the mcap library's errors of a cut or damaged file
-                summary = None
-            if summary is None:
-                f.seek(0)
-                return self._replay_stream(path, f)
-            f.seek(0)
-            reader = make_reader(f)
-            chans = {}
-            for cid, rec in summary.channels.items():
-                schema = summary.schemas.get(rec.schema_id)
-                fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
-                                                                        data=schema.data)
-                chans[cid] = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
-                                              context=self.context, metadata=dict(rec.metadata))
-            self._channels.update({("replay", cid): ch for cid, ch in chans.items()})
+        """Serve the messages of the MCAP file ``path`` and of its companions (the baseline's log, a
+        fleet's other vessels: :func:`usv_mj.outputs.log.reader.companion_files`) merged in log-time
+        order, as :meth:`chunk` serves a run's (``usv-mj render RUN.mcap --live``); returns the
+        number of messages served. Every file's channels are advertised before the wait for a viewer.
+        A file without a readable summary (a cut or damaged log) is served front to back up to where
+        it ends or is damaged, and the server says so (as ``render`` draws what such a log holds)."""
+        with ExitStack() as stack:
+            streams = [self._replay_file(k, file, stack.enter_context(open(file, "rb")))
+                       for k, file in enumerate([Path(path), *companion_files(path)])]
+            merged = heapq.merge(*streams, key=lambda e: (e[0], e[1]))
+            first = next(merged, None)   # every file read up to its first message: all channels advertised
+            self._waited = True
             self.wait_for_viewer()
-            try:
-                for _, channel, message in reader.iter_messages(log_time_order=True):
-                    self._pace("replay", message.log_time)
-                    chans[channel.id].log(message.data, log_time=message.log_time)
-                    self.sent += 1
-            except Exception as exc:  # noqa: BLE001 - a damaged chunk inside a file with a summary
-                self._say(f"live: {path} is damaged after {self.sent} messages ({type(exc).__name__}: "
-                          f"{' '.join(str(exc).split())[:120]}); served what comes before")
+            for log_time, _, channel, data in itertools.chain([first] if first is not None else [], merged):
+                self._pace("replay", log_time)
+                channel.log(data, log_time=log_time)
+                self.sent += 1
         return self.sent
 
-    def _replay_stream(self, path, f) -> int:
-        """:meth:`replay` of a file without a readable summary: its records front to back (the
-        run log's writer writes each file in log-time order) until the file ends or is damaged."""
+    def _replay_channel(self, k: int, rec, schema):
+        """The foxglove.Channel of channel record ``rec`` of the ``k``-th file replayed, advertised now."""
+        fg_schema = None if schema is None else self._fg.Schema(name=schema.name, encoding=schema.encoding,
+                                                                data=schema.data)
+        ch = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
+                              context=self.context, metadata=dict(rec.metadata))
+        self._channels[(f"replay{k}", rec.id)] = ch
+        return ch
+
+    def _replay_file(self, k: int, path, f):
+        """The messages of the ``k``-th file of :meth:`replay`, ``path`` open as ``f``, in log-time
+        order: (log time [ns], k, foxglove.Channel, data). Its channels are advertised before its
+        first message is yielded."""
+        from mcap.reader import make_reader
+
+        try:
+            summary = make_reader(f).get_summary()
+        except Exception:  # noqa: BLE001 - the mcap library's errors of a cut or damaged file
+            summary = None
+        f.seek(0)
+        if summary is None:
+            yield from self._replay_stream(k, path, f)
+            return
+        reader = make_reader(f)
+        chans = {cid: self._replay_channel(k, rec, summary.schemas.get(rec.schema_id))
+                 for cid, rec in summary.channels.items()}
+        served = 0
+        try:
+            for _, channel, message in reader.iter_messages(log_time_order=True):
+                yield message.log_time, k, chans[channel.id], message.data
+                served += 1
+        except Exception as exc:  # noqa: BLE001 - a damaged chunk inside a file with a summary
+            self._say(f"live: {path} is damaged after {served} messages ({type(exc).__name__}: "
+                      f"{' '.join(str(exc).split())[:120]}); served what comes before")
+
+    def _replay_stream(self, k: int, path, f):
+        """:meth:`_replay_file` of a file without a readable summary: its records front to back (the
+        run log's writer writes each file in log-time order) until the file ends or is damaged. A
+        channel that first appears after the viewer subscribed is advertised with time to subscribe."""
         from mcap.records import Channel, Message, Schema
         from mcap.stream_reader import StreamReader
 
         schemas, chans = {}, {}
+        served = 0
         problem = "it has no summary (an unfinished file)"
         try:
             for rec in StreamReader(f, record_size_limit=1 << 32).records:
                 if isinstance(rec, Schema):
                     schemas[rec.id] = rec
                 elif isinstance(rec, Channel):
-                    schema = schemas.get(rec.schema_id)
-                    fg_schema = None if schema is None else self._fg.Schema(
-                        name=schema.name, encoding=schema.encoding, data=schema.data)
-                    chans[rec.id] = self._fg.Channel(rec.topic, schema=fg_schema, message_encoding=rec.message_encoding,
-                                                     context=self.context, metadata=dict(rec.metadata))
-                    self._channels[("replay", rec.id)] = chans[rec.id]
+                    chans[rec.id] = self._replay_channel(k, rec, schemas.get(rec.schema_id))
+                    if self._waited:
+                        self._settle()
                 elif isinstance(rec, Message) and rec.channel_id in chans:
-                    if not self._waited:
-                        self._waited = True
-                        self.wait_for_viewer()
-                    self._pace("replay", rec.log_time)
-                    chans[rec.channel_id].log(rec.data, log_time=rec.log_time)
-                    self.sent += 1
+                    yield rec.log_time, k, chans[rec.channel_id], rec.data
+                    served += 1
         except Exception as exc:  # noqa: BLE001 - where the cut or the damage is
             problem = f"it ends or is damaged there ({type(exc).__name__})"
-        self._say(f"live: {path} is cut short: served the {self.sent} messages it holds; {problem}")
+        self._say(f"live: {path} is cut short: served the {served} messages it holds; {problem}")
         return self.sent
 
     def _pace(self, key, log_time: int) -> None:
@@ -412,6 +454,19 @@ class LiveServer:
                 lis.changed.wait(SETTLE_S)
         self._say(f"live: a viewer is subscribed to {len(lis.subs)} channels")
         return True
+
+    def _settle(self) -> None:
+        """After channels were advertised to a subscribed viewer: wait until its subscriptions changed
+        and then held still for SETTLE_S (at most 2 s; a viewer that wants none of them costs the 2 s)."""
+        lis = self.listener
+        with lis.lock:
+            if not lis.subs:
+                return
+            start, before = time.monotonic(), lis.last_change
+            while time.monotonic() - start < 2.0:
+                if lis.last_change > before and time.monotonic() - lis.last_change >= SETTLE_S:
+                    return
+                lis.changed.wait(SETTLE_S)
 
     def finish(self, linger_s: float | None = None) -> None:
         """After the run: serve until every viewer has gone (or ``linger_s`` [s]), then stop."""

@@ -317,6 +317,7 @@ class RunLogWriter:
             self._unserved: list = []      # chunks written to the file, not yet served live
             if live is not None:           # served after each command is in the file (_serve_live)
                 self._file.mcap.tee = self
+                live.attach(self._file.mcap)   # a fleet's files: every one's channels before the first wait
 
     # commands
     def _send(self, cmd: tuple, serve: bool = True):
@@ -347,7 +348,7 @@ class RunLogWriter:
 
     def _serve_live(self) -> None:
         """Serve the chunks the file holds and the viewers do not have yet (``--live``): the first
-        one after the first run's channels are in the file waits for a viewer
+        one after the first run's channels are in the file (in every file of a fleet) waits for a viewer
         (:meth:`usv_mj.outputs.log.live.LiveServer.ready`). A signal here stops the run, not the
         file; the chunks not served yet are served with the next command."""
         if self._background or self._live is None:
