@@ -228,6 +228,10 @@ class _SubprotocolRelay:
         with self._lock:
             self._closed = True
             socks = list(self._open)
+        try:   # wakes the thread blocked in accept(): close() alone leaves it blocked for the process's life
+            self.listener.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
         self.listener.close()
         for sock in socks:
             try:
