@@ -241,6 +241,6 @@ def test_render_reads_the_notice_of_a_cut_log(logged, tmp_path, capsys):
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)
-    # an --out that is refused (a folder): the command stops before any GL work, after the notice
-    assert run_command(parser.parse_args([str(run), "--out", str(tmp_path)])) == 2
+    # an --out that is refused (not a video file name): the command stops before any GL work, after the notice
+    assert run_command(parser.parse_args([str(run), "--out", str(tmp_path / "notes.txt")])) == 2
     assert "the log is incomplete" in capsys.readouterr().err

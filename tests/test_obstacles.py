@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import shapely
 
+from usv_mj.core.layouts import N_REF
 from usv_mj.scenario.obstacles import from_tables
 from usv_mj.obstacles.clearance import GeometricClearance, MuJoCoClearance
 from usv_mj.obstacles.hooks import make_plan
@@ -448,7 +449,7 @@ def test_guidance_detects_the_crossing_boat_within_its_horizon_and_retimes_smoot
     the way: the re-timing happens mid-run, and the reference it leaves keeps G(t) + margin."""
     osc, plan, guidance = _guidance_for(load_scenario(SCENARIOS / "crossing_boat.toml"), horizon=15.0)
     times = np.arange(0.0, 60.0, 0.01)
-    ref = np.empty((len(times), 7))
+    ref = np.empty((len(times), N_REF))
     for k, t in enumerate(times):           # what the loop does: update, then evaluate
         guidance.update(float(t))
         ref[k] = plan.reference.evaluate(float(t))
@@ -474,7 +475,7 @@ def test_head_on_boat_gets_a_starboard_detour_that_keeps_clear():
                         goal=plan.polyline[-1])
     dt = 0.01
     times = np.arange(0.0, 80.0, dt)
-    ref = np.empty((len(times), 7))
+    ref = np.empty((len(times), N_REF))
     for k, t in enumerate(times):
         guidance.update(float(t))
         ref[k] = plan.reference.evaluate(float(t))
@@ -521,7 +522,7 @@ def test_guided_kernel_is_evaluate_bit_for_bit_after_the_guidance_changed_the_re
     times = np.arange(-0.5, osc.duration + 200.0, 0.01)
     path_end = max(seg[1] + seg[2].length for seg in reference.segments)
     assert reference.profile.state(times[-1])[0] > path_end  # past the end of the last path
-    out = np.empty(7)
+    out = np.empty(N_REF)
     for t in times:
         want = reference.evaluate(float(t)).copy()
         got = kernel.fn(float(t), *kernel.args[:-1], out)

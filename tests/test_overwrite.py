@@ -108,6 +108,19 @@ def test_every_command_refuses_the_home_folder(tmp_path, a_run, capsys, monkeypa
             if argv[0] in ("render", "env", "scene") and \
                     not argv[argv.index("--out" if "--out" in argv else "--video") + 1] == str(out):
                 continue                       # a new video file inside the home folder is allowed
+            if argv[0] == "render":            # --out FOLDER: the video goes in as FOLDER/run.mp4 (issue 38)
+                assert main(argv) in (0, 2), argv
+                capsys.readouterr()
+                after = tree(home)
+                assert {k: after.get(k) for k in before} == before, argv     # nothing of the user's touched
+                # the video, its still and the record of what usv_mj wrote there (and matplotlib's
+                # cache folder, as HOME is this folder)
+                new = {k for k in set(after) - set(before) if not k.startswith(".config")}
+                assert new <= {"run.mp4", "run.png", ".usv_mj-manifest.json"}, sorted(new)
+                for name in new:
+                    (home / name).unlink()
+                before = tree(home)
+                continue
             one_line_exit_2(argv, capsys)
             assert tree(home) == before, argv
 

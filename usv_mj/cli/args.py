@@ -170,11 +170,11 @@ def only_mujoco(plant: str, what: str) -> None:
         raise ScenarioError(f"--plant {plant}: {what} (the only choice is mujoco)")
 
 
-def add_vessel_argument(p, *, fleet: bool = False) -> None:
-    """--vessel KIND: a kind of the vessel registry or a vessel data file (shorthand for --set
-    vessel.kind=KIND); ``fleet``: also a list of kinds, or 'all'."""
+def add_vessel_argument(p, *, fleet: bool = False, use: str = "shorthand for --set vessel.kind=KIND") -> None:
+    """--vessel KIND: a kind of the vessel registry or a vessel data file (``use``: what the command
+    does with it, by default shorthand for --set vessel.kind=KIND); ``fleet``: also a list of kinds, or 'all'."""
     p.add_argument("--vessel", metavar="KIND", help=f"the hull: a vessel kind ({', '.join(VESSELS.kinds())}; "
-                   "`usv-mj kinds vessel`) or a vessel data file; shorthand for --set vessel.kind=KIND"
+                   f"`usv-mj kinds vessel`) or a vessel data file; {use}"
                    + ("; here also a list KIND,KIND,... or 'all' (every registered vessel): one run each into "
                       "--out/KIND/, and their tracks and measures side by side" if fleet else ""))
 

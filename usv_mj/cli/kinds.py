@@ -180,9 +180,8 @@ def _common_options(section: str) -> list[dict]:
 def add_arguments(p) -> None:
     p.add_argument("section", nargs="*", metavar="REGISTRY",
                    help=f"only these registries ({', '.join(REGISTRIES)}); default: all")
-    p.add_argument("--vessel", default=None, metavar="KIND",
-                   help="show the gains a controller derives from the vessel (PI, LOS; docs/gains.md) for this "
-                        "vessel kind or data file instead of the paper hull's")
+    flags.add_vessel_argument(p, use="the gains a controller derives from the vessel (PI, LOS; docs/gains.md) "
+                                     "are shown for it instead of the paper hull's")
     flags.add_json_argument(p)
 
 
