@@ -147,8 +147,21 @@ D_FLOOR_DIVISOR = 20.0
 PASSED_DEG = 112.5
 
 
+class OverLOSGains(LOSGains):
+    """The gains of an avoidance law over the LOS path follower (sbmpc, vo): LOS's fields first, then
+    the law's own; the path follower's kernel reads only LOS's, packed by position."""
+
+    def los_gains(self) -> LOSGains:
+        """The path follower's gains (the LOS fields of this dataclass)."""
+        return LOSGains(**{f.name: getattr(self, f.name) for f in fields(LOSGains)})
+
+    def as_array(self) -> np.ndarray:
+        """The path follower's gains packed (LOS's kernel reads them by position)."""
+        return self.los_gains().as_array()
+
+
 @dataclass(frozen=True)
-class SBMPCGains(LOSGains):
+class SBMPCGains(OverLOSGains):
     """The path follower's gains (:class:`usv_mj.controllers.los.LOSGains`, every key of
     ``kind = "los"``), then the SB-MPC's (module docstring for the cost; research note §4.5 and §7
     item 6 for the defaults). L: the own hull's length [m]; U: the reference's path speed at the
@@ -221,14 +234,6 @@ class SBMPCGains(LOSGains):
             raise ScenarioError(f"controller.speed_factors must be a list of numbers in [0, 1], got {f!r}")
         if 1.0 not in f:
             raise ScenarioError(f"controller.speed_factors must hold 1 (the nominal speed), got {f!r}")
-
-    def los_gains(self) -> LOSGains:
-        """The path follower's gains (the LOS fields of this dataclass)."""
-        return LOSGains(**{f.name: getattr(self, f.name) for f in fields(LOSGains)})
-
-    def as_array(self) -> np.ndarray:
-        """The path follower's gains packed (LOS's kernel reads them by position)."""
-        return self.los_gains().as_array()
 
     def offsets(self) -> np.ndarray:
         """The course offsets [rad], from starboard to port: -max, ..., 0, ..., max."""

@@ -66,7 +66,7 @@ import numpy as np
 from numba import njit
 
 from usv_mj.controllers.los import LOSController, LOSGains, path_errors
-from usv_mj.controllers.sbmpc import AvoidanceOverLOS, guidance_speed
+from usv_mj.controllers.sbmpc import AvoidanceOverLOS, OverLOSGains, guidance_speed
 from usv_mj.core.errors import ScenarioError
 from usv_mj.core.registry import CONTROLLERS
 from usv_mj.physics.colregs import CROSSING_GIVE_WAY, HEAD_ON, OVERTAKING
@@ -74,7 +74,7 @@ from usv_mj.physics.encounters import tcpa_dcpa, world_velocity
 
 
 @dataclass(frozen=True)
-class VOGains(LOSGains):
+class VOGains(OverLOSGains):
     """The path follower's gains (every key of ``kind = "los"``; crab compensation off as sbmpc's),
     then the velocity obstacle's (module docstring). L: the own hull's length [m]; U: the
     reference's path speed [m/s]."""
@@ -112,14 +112,6 @@ class VOGains(LOSGains):
                                 f"got {self.heading_span_deg!r} (step {self.heading_step_deg!r})")
         if not (isinstance(self.n_speeds, int) and self.n_speeds >= 2):
             raise ScenarioError(f"controller.n_speeds must be an integer >= 2, got {self.n_speeds!r}")
-
-    def los_gains(self) -> LOSGains:
-        """The path follower's gains (the LOS fields of this dataclass)."""
-        return LOSGains(**{f.name: getattr(self, f.name) for f in fields(LOSGains)})
-
-    def as_array(self) -> np.ndarray:
-        """The path follower's gains packed (LOS's kernel reads them by position)."""
-        return self.los_gains().as_array()
 
     def offsets(self) -> np.ndarray:
         """The candidate course offsets [rad]: 0, -step, +step, -2 step, ... (smaller first, starboard first)."""

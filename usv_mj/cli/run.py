@@ -55,12 +55,7 @@ def run(args) -> int:
         if live is not None:
             live.finish()
     except RunFailed as exc:
-        if live is not None:
-            live.close()
-        if args.debug and exc.traceback is not None and Path(exc.traceback).is_file():
-            sys.stderr.write(Path(exc.traceback).read_text())
-        print(f"usv-mj run: {exc}", file=sys.stderr)
-        return EXIT_STOPPED
+        return _failed(args, exc, live)
     print(one_screen_summary(result, time.perf_counter() - t0))
     if result.summary.get("job_stopped"):
         print(f"usv-mj run: the job stopped early: {result.summary['job_stopped']}; missing outputs: "
@@ -72,6 +67,17 @@ def run(args) -> int:
     return EXIT_OK
 
 
+def _failed(args, exc, live) -> int:
+    """A job that failed (``RunFailed``): the live view closed, one line saying where its files are
+    (with --debug, the traceback it kept first), exit 1."""
+    if live is not None:
+        live.close()
+    if args.debug and exc.traceback is not None and Path(exc.traceback).is_file():
+        sys.stderr.write(Path(exc.traceback).read_text())
+    print(f"usv-mj run: {exc}", file=sys.stderr)
+    return EXIT_STOPPED
+
+
 def _run_fleet(args, scenario, out, live, t0) -> int:
     from usv_mj.jobs.fleet import one_screen_fleet_summary, run_fleet_job
     from usv_mj.jobs.run import RunFailed
@@ -80,12 +86,7 @@ def _run_fleet(args, scenario, out, live, t0) -> int:
         result = run_fleet_job(scenario, out, log=not args.no_log, progress=not args.quiet, overwrite=args.overwrite,
                                live=live, video=not args.no_video, render_options=flags.video_options(args))
     except RunFailed as exc:      # as a single run's: one line, where the files are, exit 1
-        if live is not None:
-            live.close()
-        if args.debug and exc.traceback is not None and Path(exc.traceback).is_file():
-            sys.stderr.write(Path(exc.traceback).read_text())
-        print(f"usv-mj run: {exc}", file=sys.stderr)
-        return EXIT_STOPPED
+        return _failed(args, exc, live)
     if live is not None:
         live.finish()
     print(one_screen_fleet_summary(result, time.perf_counter() - t0))
