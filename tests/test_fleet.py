@@ -61,6 +61,13 @@ def test_the_vessels_tables_are_checked_with_the_place_named():
     for tables, message in cases:
         with pytest.raises(ScenarioError, match=message):
             fleet("analytic", tables)
+    # --set cannot name one table of the list (it was taken for a table of tables, and the file blamed)
+    from usv_mj.scenario.overrides import parse_set
+
+    with pytest.raises(ScenarioError, match=r"^--set 'vessels.0.controller.horizon_s=-1': \[\[vessels\]\] is a "
+                                            r"list of tables, which --set cannot reach into"):
+        parse_set(["vessels.0.controller.horizon_s=-1"])
+    assert parse_set(['vessels=[{name = "a"}]']) == {"vessels": [{"name": "a"}]}
 
 
 def test_route_and_keep_are_los_on_the_vessel_s_path():

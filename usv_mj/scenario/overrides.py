@@ -24,6 +24,10 @@ def parse_set(items: list[str]) -> dict:
             parsed = value  # a bare word: take it as a string
         node = out
         parts = key.strip().split(".")
+        if parts[0] == "vessels" and len(parts) > 1:   # a list of tables: a dotted key cannot name one of them
+            raise ScenarioError(f"--set {item!r}: [[vessels]] is a list of tables, which --set cannot reach into; "
+                                f"change the vessel in the scenario file, or give the whole list "
+                                f"(--set 'vessels=[{{name = \"own\", ...}}, ...]')")
         for part in parts[:-1]:
             node = node.setdefault(part, {})
             if not isinstance(node, dict):
