@@ -4,6 +4,7 @@ vessels, the contacts between hulls and the fleet's outputs."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from usv_mj import load_scenario, simulate
 from usv_mj.core.errors import ScenarioError
 
 NORTH, SOUTH = math.pi / 2, -math.pi / 2
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
 
 
 def fleet(plant: str, vessels: list, duration: float = 10.0, **extra):
@@ -57,6 +59,10 @@ def test_the_vessels_tables_are_checked_with_the_place_named():
         ([ok, {"name": "b/c", "initial": {"eta": [9.0, 0, 0]}}], r"name must be letters, digits"),
         ([ok, {"name": "b", "initial": {"eta": [9.0, 0, 0]}, "vessel": {"kind": "nope"}}],
          r"vessels\[1\] \(b\).*unknown vessel kind 'nope'"),
+        ([ok], r"\[\[vessels\]\] holds 1 vessel\(s\): give two or more"),
+        # two paper hulls (L = 1.98 m) 1.5 m apart: closer than 1.98 / 2 + 1.98 / 2 = 1.98 m
+        ([ok, {"name": "b", "initial": {"eta": [0.9, 1.2, 0]}}],
+         r"vessels 'a' and 'b' start 1.5 m apart, closer than their half-lengths added \(1.98 m\)"),
     ]
     for tables, message in cases:
         with pytest.raises(ScenarioError, match=message):
@@ -205,3 +211,32 @@ def test_each_contact_is_reported_with_its_own_peak():
     assert [c["max_force_N"] for c in pair["contacts"]] == pytest.approx([500.0, 200.0])
     assert pair["n_contacts"] == 2 and pair["in_contact_s"] == pytest.approx(40 * dt)
     assert _contacts(pair) == "from t = 1.0 s: 2 touches, 0.4 s in all, up to 500 N"
+
+
+def test_hulls_that_overlap_on_the_analytic_plant_are_a_collision():
+    """The analytic plant has no contact model: two hulls closer than their half-lengths added
+    (L = 2 m and 4 m: 3 m) overlap, and the encounter counts it as a collision; on MuJoCo the contact
+    force decides, so the same ranges are no overlap there."""
+    from types import SimpleNamespace
+
+    from usv_mj.record.encounters import hulls_overlap
+
+    def record(plant):
+        return SimpleNamespace(names=["own", "t"], metadata={"plant": plant},
+                               records={"own": SimpleNamespace(metadata={"length_m": 2.0}),
+                                        "t": SimpleNamespace(metadata={"length_m": 4.0})})
+
+    ranges = np.array([10.0, 3.5, 3.0, 2.999, 0.02, 5.0])
+    assert hulls_overlap(record("analytic"), 0, 1, ranges).tolist() == [False, False, False, True, True, False]
+    assert not hulls_overlap(record("mujoco"), 0, 1, ranges).any()
+
+
+def test_a_sweep_of_a_fleet_is_refused_not_run_as_one_vessel(tmp_path):
+    from usv_mj.core.errors import SweepError
+    from usv_mj.jobs.sweep.spec import load_sweep
+
+    path = tmp_path / "s.toml"
+    path.write_text(f'base = "{EXAMPLES / "head_on_colav.toml"}"\nsamples = 2\n'
+                    '[vary]\n"sea.current.speed" = {{ uniform = [0.0, 0.2] }}\n'.replace("{{", "{").replace("}}", "}"))
+    with pytest.raises(SweepError, match=r"has \[\[vessels\]\] \(2 vessels\): a sweep runs one vessel per run"):
+        load_sweep(path)

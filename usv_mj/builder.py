@@ -470,8 +470,9 @@ def build_fleet(scenario: Scenario, *, plant_kind: str | None = None, duration: 
     if not (math.isfinite(duration) and duration > 0):
         raise ScenarioError(f"{scenario.source}: duration must be > 0 s, got {duration!r}")
     if scenario.obstacles and scenario.guidance.avoid:
-        raise ScenarioError(f"{scenario.source}: [guidance] avoid plans one vessel's path around the obstacles; with "
-                            f"[[vessels]] each vessel's controller keeps clear itself: remove guidance.avoid")
+        raise ScenarioError(f"{scenario.source}: [guidance] avoid (true by default beside obstacles) plans one "
+                            f"vessel's path around the obstacles; with [[vessels]] each vessel's controller keeps "
+                            f"clear itself: set [guidance] avoid = false (--set guidance.avoid=false)")
     env = make_environment(scenario, duration) if environment == "scenario" else environment
     vessels = []
     for v in scenario.vessels:

@@ -157,7 +157,9 @@ def one_screen_fleet_summary(result: FleetJobResult, wall_s: float) -> str:
     lines = [f"usv-mj run: {len(s['vessels'])} vessels on the {s['plant']} plant, {s['duration_s']:g} s: {s['status']}"
              + (f" ({s['stop_reason']})" if s["stop_reason"] else "") + f" in {wall_s:.1f} s"]
     for name, p in enc["pairs"].items():
-        contact = f", contact at t = {p['contacts'][0]['t_s']:.1f} s" if p["contacts"] else ""
+        contact = f", contact at t = {p['contacts'][0]['t_s']:.1f} s" if p["contacts"] else \
+            (f", hulls overlap from t = {p['hulls_overlap_from_s']:.1f} s (a collision)"
+             if "hulls_overlap_from_s" in p else "")
         domain = ""
         if "safety_domain_entered" in p:
             domain = " (inside the own ship's safety domain)" if p["safety_domain_entered"] else " (outside the safety domain)"

@@ -31,7 +31,8 @@ def write_fleet_report(path, summary: dict) -> Path:
         contact = _contacts(p)
         lines.append(f"| {name} | {_num(p['min_range_m'])} | {_num(p['t_min_range_s'], '{:.1f}')} | "
                      f"{_num(p['dcpa_before_m'])} | {_num(p['tcpa_before_s'], '{:.1f}')} | {contact} |")
-    lines += ["", "Collision (a contact between hulls): **" + ("yes" if enc["collision"] else "no") + "**.", "",
+    lines += ["", "Collision (a contact between hulls; on the analytic plant, which has no contact model, hulls "
+              "that overlap): **" + ("yes" if enc["collision"] else "no") + "**.", "",
               "Figures: `figures/fleet_tracks.png` (the tracks, the safety domain at the closest approach), "
               "`figures/fleet_ranges.png` (the ranges and the DCPA over time); the own ship's as a single run's.", ""]
     path = Path(path)
@@ -42,6 +43,9 @@ def write_fleet_report(path, summary: dict) -> Path:
 def _contacts(pair: dict) -> str:
     """The pair's contacts in one cell: the first's time, how many, how long in all, the hardest."""
     contacts = pair["contacts"]
+    if not contacts and "hulls_overlap_from_s" in pair:   # the analytic plant: no contact force to show
+        return (f"hulls overlap from t = {pair['hulls_overlap_from_s']:.1f} s, "
+                f"{pair['hulls_overlap_s']:.1f} s in all (no contact model)")
     if not contacts:
         return "none"
     n = pair.get("n_contacts", len(contacts))

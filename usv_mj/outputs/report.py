@@ -141,8 +141,10 @@ def write_report(path, summary: dict, baseline_summary: dict | None = None, step
     lines = [f"# usv_mj run: preset `{summary['preset']}` on the {summary['plant']} plant", ""]
     status = summary["status"]
     if status == "completed":
-        lines.append(f"The run completed {summary['simulated_s']:.1f} s of simulated time "
-                     f"in {summary['wall_time_s']:.1f} s ({summary['realtime_factor']:.0f} times real time).")
+        wall, factor = summary.get("wall_time_s"), summary.get("realtime_factor")
+        timing = (f" in {wall:.1f} s ({factor:.0f} times real time)"
+                  if isinstance(wall, (int, float)) and isinstance(factor, (int, float)) else "")
+        lines.append(f"The run completed {summary['simulated_s']:.1f} s of simulated time{timing}.")
     else:
         lines.append(f"**The run stopped early ({status}) after {summary['simulated_s']:.3f} s of simulated time:** "
                      f"{summary['stop_reason']}")

@@ -35,11 +35,24 @@ def lengths_of(record: FleetRecord) -> dict:
     return {name: record.records[name].metadata.get("length_m") for name in record.names}
 
 
+def hulls_overlap(record: FleetRecord, i: int, j: int, ranges) -> np.ndarray:
+    """Per row, whether vessels i and j overlap where the plant has no contact model (the analytic
+    plant: the hulls pass through each other): the centre range ``ranges`` [m] below (L_i + L_j) / 2,
+    L the hull lengths. All False on the MuJoCo plant (its contacts are the record's contact force)
+    or when a length is unknown."""
+    lengths = lengths_of(record)
+    li, lj = lengths.get(record.names[i]), lengths.get(record.names[j])
+    if record.metadata.get("plant") == "mujoco" or li is None or lj is None:
+        return np.zeros(len(ranges), dtype=bool)
+    return np.asarray(ranges) < (li + lj) / 2.0
+
+
 def encounter_summary(record: FleetRecord) -> dict:
     """Per pair (``"own-target"``): the closest approach (``min_range_m``, ``t_min_range_s``), the
     DCPA and TCPA one second before it, the contact episodes (``contacts``: their start times and
     largest force [N]), and whether the own ship's safety domain (:data:`SAFETY_DOMAIN_L` own lengths)
-    was entered; and the run's ``collision`` (any contact), ``min_range_m`` over the own ship's pairs."""
+    was entered, and on the analytic plant when the hulls overlapped (:func:`hulls_overlap`); and the run's
+    ``collision`` (any contact or overlap), ``min_range_m`` over the own ship's pairs."""
     t = record.own_record["t"]
     dt = float(t[1] - t[0]) if len(t) > 1 else 0.0
     lengths = lengths_of(record)
@@ -64,12 +77,16 @@ def encounter_summary(record: FleetRecord) -> dict:
                               for s, e in zip(starts[:20], ends[:20])],
                  "n_contacts": int(len(starts)),
                  "in_contact_s": float(on.sum() * dt)}
+        overlap = hulls_overlap(record, i, j, np.where(finite, rng, np.inf))
+        if overlap.any():   # the analytic plant: the hulls passed through each other
+            entry["hulls_overlap_from_s"] = float(t[int(np.argmax(overlap))])
+            entry["hulls_overlap_s"] = float(overlap.sum() * dt)
         if record.own in entry["vessels"] and domain is not None:
             entry["safety_domain_m"] = domain
             entry["safety_domain_entered"] = bool(rng[k] < domain)
         pairs[record.pair_name(p)] = entry
     own_pairs = [e for e in pairs.values() if record.own in e["vessels"]]
     return {"own_ship": record.own, "safety_domain_m": domain, "safety_domain_L": SAFETY_DOMAIN_L,
-            "collision": any(e["contacts"] for e in pairs.values()),
+            "collision": any(e["contacts"] or "hulls_overlap_from_s" in e for e in pairs.values()),
             "min_range_m": min((e["min_range_m"] for e in own_pairs), default=math.nan),
             "pairs": pairs}

@@ -102,8 +102,11 @@ def vessels_from_tables(tables: Any, base_raw: dict, source: str, from_dict) -> 
     own table without ``vessels``; ``from_dict``: the scenario loader (each vessel is a scenario)."""
     if tables is None:
         return ()
-    if not isinstance(tables, list) or not tables or not all(isinstance(t, dict) for t in tables):
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
         raise ScenarioError(f"{source}: [[vessels]] must be a list of tables (one per vessel), got {tables!r}")
+    if len(tables) < 2:   # one vessel is a single run: its [vessel], [controller] ... tables, not a list
+        raise ScenarioError(f"{source}: [[vessels]] holds {len(tables)} vessel(s): give two or more, or describe one "
+                            f"vessel with the scenario's own tables ([vessel], [initial], [controller], [trajectory])")
     out, names, own = [], set(), []
     for i, entry in enumerate(tables):
         name = entry.get("name", f"vessel_{i}")
@@ -147,6 +150,16 @@ def vessels_from_tables(tables: Any, base_raw: dict, source: str, from_dict) -> 
     if len(own) > 1:
         raise ScenarioError(f"{source}: [[vessels]]: own_ship = true on {', '.join(own)}; at most one vessel is the "
                             f"own ship")
+    starts = [(v.name, tuple(map(float, v.scenario.initial.eta[:2])), float(v.scenario.vessel.model.dimensions.L))
+              for v in out]
+    for a in range(len(starts)):
+        for b in range(a + 1, len(starts)):
+            (na, pa, la), (nb, pb, lb) = starts[a], starts[b]
+            gap = math.hypot(pa[0] - pb[0], pa[1] - pb[1])
+            if gap < (la + lb) / 2.0:   # the hulls would overlap at t = 0 (a collision before any step)
+                raise ScenarioError(f"{source}: vessels {na!r} and {nb!r} start {gap:.3g} m apart, closer than their "
+                                    f"half-lengths added ({(la + lb) / 2.0:.3g} m): their hulls overlap at t = 0; move one "
+                                    f"(initial.eta)")
     if not own:   # the first vessel is the own ship when none says so
         first = out[0]
         out[0] = VesselEntry(first.name, True, first.steer, first.scenario)

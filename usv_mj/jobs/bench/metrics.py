@@ -222,16 +222,14 @@ def collided(fleet) -> bool:
     (no contact model, the hulls pass through each other) a centre range below (L_own + L_j) / 2 at
     some row, L the hull lengths."""
     from usv_mj.loop.fleet import CONTACT_EVENT_N
-    from usv_mj.record.encounters import lengths_of
+    from usv_mj.record.encounters import hulls_overlap
 
     own = fleet.names.index(fleet.own)
     if fleet.metadata.get("plant") == "mujoco":
         pairs = [p for p, (i, j) in enumerate(fleet.pairs) if own in (i, j)]
         return bool((fleet.contact_rows()[:, pairs] > CONTACT_EVENT_N).any())
-    lengths = lengths_of(fleet)
     others, ranges = own_ranges(fleet)
-    touch = np.array([(lengths[fleet.own] + lengths[fleet.names[j]]) / 2.0 for j in others])
-    return bool((ranges < touch).any())
+    return any(hulls_overlap(fleet, own, j, ranges[:, k]).any() for k, j in enumerate(others))
 
 
 def encounter_metrics(fleet, alone=None, situations: dict | None = None) -> dict:

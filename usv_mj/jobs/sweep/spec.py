@@ -390,6 +390,11 @@ def plan_sweep(data: dict, source: str = "<sweep>", directory: Path | None = Non
             raise SweepError(f"{source}: unknown key {key!r}" + (f" (did you mean {hint[0]!r}?)" if hint else "")
                              + f"; known keys: {', '.join(sorted(known))}")
     base = load_base(source, data.get("base", "paper"), directory)
+    if base.vessels:   # each run of a sweep is one vessel's simulate(); a fleet would be run as its first hull
+        raise SweepError(f"{source}: base {data.get('base')!r} has [[vessels]] ({len(base.vessels)} vessels): a sweep "
+                         f"runs one vessel per run, and several vessels in a sweep are not supported yet; sweep "
+                         f"an encounter with usv-mj bench (a suite's imazu = [...] tasks) or run each variant with "
+                         f"usv-mj run --scenario")
     fixed: dict = {}
     if "duration" in data:
         fixed["duration"] = _number(source, "duration", data["duration"])
