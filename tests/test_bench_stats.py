@@ -192,3 +192,12 @@ def test_a_suite_of_the_same_law_twice_compares_equal(tmp_path):
     result = compare(rows, "pi", "pi-again")
     assert result["n_tests"] >= 10
     assert {t["verdict"] for t in result["tests"]} == {"no difference"}
+
+
+def test_the_command_refuses_a_controller_compared_with_itself(tmp_path, capsys):
+    """Every test of A against A says "no difference": the command refuses it before reading results."""
+    from usv_mj.cli.main import main
+
+    assert main(["bench", "--compare", "sbmpc", "sbmpc", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == "usv-mj bench: error: --compare sbmpc sbmpc: give two different controllers of the suite"

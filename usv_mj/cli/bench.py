@@ -99,6 +99,8 @@ def _compare(args) -> int:
     from usv_mj.jobs.bench.suite import default_suite_path, load_suite
     from usv_mj.jobs.sweep.runner import RESULTS_FILE, read_results
 
+    if args.compare[0] == args.compare[1]:   # a controller against itself: every test would say "no difference"
+        raise SweepError(f"--compare {args.compare[0]} {args.compare[1]}: give two different controllers of the suite")
     if args.out is None:
         suite = load_suite(args.suite)   # the default folder is the suite's (renders/bench-<name>)
         out = str(Path("renders") / f"bench-{suite.name}")
