@@ -247,6 +247,9 @@ def test_options_are_checked_with_the_place_named():
         EncounterEnv(23, plant="analytic")
     with pytest.raises(ValueError, match=r"action_repeat must be an integer >= 1"):
         traffic_parallel_env(1, plant="analytic", action_repeat=0)
+    env = traffic_parallel_env(1, plant="analytic")
+    with pytest.raises(ValueError, match=r"step before reset\(\): call reset\(\) first"):
+        env.step({"own": np.zeros(2)})
 
 
 @pytest.mark.parametrize("quantize", [True, False])

@@ -198,7 +198,8 @@ def add_overwrite_argument(p, what: str) -> None:
 
 def add_quiet_argument(p) -> None:
     """-q/--quiet (dest ``quiet``); --no-progress is its old spelling."""
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars or messages")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bars or progress messages (the result's summary lines are still printed)")
     _hidden_alias(p, "--no-progress", "quiet", action="store_true")
 
 

@@ -73,6 +73,7 @@ class TrafficParallelEnv(ParallelEnv):
                                     for a in self.possible_agents}
         self._action_spaces = {a: spaces.Box(-1.0, 1.0, (2,), np.float32) for a in self.possible_agents}
         self.agents = []
+        self._reset_done = False   # step() before the first reset() is a user's mistake, said as such
         self.np_random, _ = seeding.np_random(None)
         self._cycles = 0
         self._where = where
@@ -90,6 +91,7 @@ class TrafficParallelEnv(ParallelEnv):
             self.np_random, _ = seeding.np_random(seed)
         self.traffic.reset()
         self.agents = list(self.possible_agents)
+        self._reset_done = True
         self._cycles = 0
         observations, infos = {}, {}
         for a in self.agents:
@@ -97,6 +99,8 @@ class TrafficParallelEnv(ParallelEnv):
         return observations, infos
 
     def step(self, actions):
+        if not self._reset_done:
+            raise ValueError(f"{self._where}: step before reset(): call reset() first")
         unknown = sorted(set(actions) - set(self.agents), key=str)
         if unknown:
             raise ValueError(f"{self._where}: step: actions for agents that are not acting: {unknown}; "
