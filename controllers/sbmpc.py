@@ -510,16 +510,26 @@ class AvoidanceOverLOS:
     controllers/vo.py): the traffic (usv_mj/loop/fleet.py's contract) with the COLREGs lock per
     vessel and the nearest vessel's range/DCPA/TCPA, a re-plan every ``gains.replan_period_s``, the
     stand-on duty (module docstring), the chosen behaviour commanded to LOS through the virtual
-    reference, the diagnostics and the criterion. A law defines ``name``, ``from_scenario``,
-    ``_choose`` and its own ``kernel`` (``return self._kernel()``: usv_mj.core.kernels runs a kernel
+    reference, the diagnostics and the criterion. A law defines ``name``, ``_choose`` and its own
+    ``kernel`` (``return self._kernel()``: usv_mj.core.kernels runs a kernel
     only for the class that defines it). Its gains extend LOSGains with ``replan_period_s``,
     ``d_relevant_L``, ``stand_on`` and ``stand_on_range_L``."""
 
     diagnostic_fields = DIAGNOSTIC_FIELDS
 
+    @classmethod
+    def from_scenario(cls, gains, scenario):
+        """The controller for ``scenario``: its path follower as ``kind = "los"`` builds it (the
+        vessel's nominal ship, its control period) and the hull's length L."""
+        follower = LOSController.from_scenario(gains.los_gains(), scenario)
+        return cls(gains, follower, float(scenario.vessel.model.dimensions.L))
+
     def __init__(self, gains, follower: LOSController, length: float):
         if not (math.isfinite(length) and length > 0):
             raise ScenarioError(f"controller {self.name}: the hull's length must be > 0 m, got {length!r}")
+        self._offsets = gains.offsets()     # the law's candidate course offsets [rad] and speed factors
+        self._factors = gains.factors()
+        self._costs = np.zeros((self._offsets.size, self._factors.size))
         self.gains = gains
         self.follower = follower
         self.length = float(length)
@@ -653,18 +663,8 @@ class SBMPCController(AvoidanceOverLOS):
 
     name = "sbmpc"
 
-    @classmethod
-    def from_scenario(cls, gains: SBMPCGains, scenario) -> "SBMPCController":
-        """The controller for ``scenario``: its path follower as ``kind = "los"`` builds it (the
-        vessel's nominal ship, its control period) and the hull's length L."""
-        follower = LOSController.from_scenario(gains.los_gains(), scenario)
-        return cls(gains, follower, float(scenario.vessel.model.dimensions.L))
-
     def __init__(self, gains: SBMPCGains, follower: LOSController, length: float):
         self._k = gains.packed()
-        self._offsets = gains.offsets()
-        self._factors = gains.factors()
-        self._costs = np.zeros((self._offsets.size, self._factors.size))
         super().__init__(gains, follower, length)
 
     def kernel(self):

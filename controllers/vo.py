@@ -65,7 +65,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numba import njit
 
-from usv_mj.controllers.los import LOSController, LOSGains, path_errors
+from usv_mj.controllers.los import LOSGains, path_errors
 from usv_mj.controllers.sbmpc import AvoidanceOverLOS, OverLOSGains, guidance_speed
 from usv_mj.core.errors import ScenarioError
 from usv_mj.core.registry import CONTROLLERS
@@ -178,18 +178,6 @@ class VOController(AvoidanceOverLOS):
     """Velocity obstacles with COLREGs constraints over the LOS path follower (module docstring)."""
 
     name = "vo"
-
-    @classmethod
-    def from_scenario(cls, gains: VOGains, scenario) -> "VOController":
-        """The controller for ``scenario``: its path follower as ``kind = "los"`` builds it and the hull's length."""
-        follower = LOSController.from_scenario(gains.los_gains(), scenario)
-        return cls(gains, follower, float(scenario.vessel.model.dimensions.L))
-
-    def __init__(self, gains: VOGains, follower: LOSController, length: float):
-        self._offsets = gains.offsets()
-        self._factors = gains.factors()
-        self._costs = np.zeros((self._offsets.size, self._factors.size))
-        super().__init__(gains, follower, length)
 
     def kernel(self):
         return self._kernel()
